@@ -1,0 +1,3 @@
+from contin.cli import main
+
+main()

@@ -1,0 +1,180 @@
+"""Result objects: a columnar :class:`Branch` with named :class:`SpecialPoint` s.
+
+Vocabulary follows AUTO-07p: ``BP`` branch point, ``LP`` limit point (fold), ``EP`` end
+point (normal stop: bound, max steps, closed loop), ``MX`` failure (Newton or step-size
+underflow), ``UZ`` user point.  For a two-parameter fold curve, extrema of a parameter
+along the curve are ``XT`` (isola birth/death) and cusps are ``CP``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+PointType = Literal["BP", "LP", "EP", "MX", "UZ", "XT", "CP"]
+Status = Literal["running", "EP", "MX"]
+
+
+@dataclass(frozen=True)
+class SpecialPoint:
+    """A labelled point on a branch.
+
+    Attributes
+    ----------
+    type : str
+        AUTO code ('BP', 'LP', 'EP', 'MX', 'UZ', 'XT', 'CP').
+    index : int
+        Index of the last regular branch point before (or at) this special point.
+    params : dict
+        All parameter values at the located point.
+    order_parameter : float
+        Order parameter (e.g. Phi) at the located point (nan if the problem has none).
+    state : ndarray
+        Located solution u.
+    tangent : ndarray or None
+        Unit tangent (u, p) at the point (for switching at a BP).
+    bracket : (float, float)
+        Values of the continuation parameter at the two branch points bracketing it.
+    converged : bool
+        Whether the location converged to the requested tolerance.
+    label : int
+        Running AUTO-style label, unique within a run.
+    note : str
+        Free text (e.g. the stop reason for EP/MX, 'closed loop', 'symmetry-breaking').
+    """
+
+    type: str
+    index: int
+    params: dict[str, float]
+    order_parameter: float
+    state: NDArray[np.float64]
+    tangent: NDArray[np.float64] | None = None
+    bracket: tuple[float, float] = (np.nan, np.nan)
+    converged: bool = True
+    label: int = 0
+    note: str = ""
+
+    @property
+    def name(self) -> str:
+        """e.g. 'LP3'."""
+        return f"{self.type}{self.label}"
+
+
+@dataclass
+class Branch:
+    """A traced branch, one array per quantity (columnar, like BifurcationKit's ContResult).
+
+    Attributes
+    ----------
+    parameter : str
+        Name of the continuation parameter (the first free parameter).
+    free : tuple of str
+        Names of all free parameters (one for ordinary continuation, two for fold curves).
+    params : dict[str, ndarray]
+        Every parameter (fixed ones too) along the branch, shape (S,).
+    observables : dict[str, ndarray]
+        Named observables along the branch, shape (S,); 'phi' is the order parameter.
+    states : ndarray, shape (S, n)
+        Solutions at every point.
+    tangents : ndarray, shape (S, n + len(free))
+        Unit tangents.
+    ds : ndarray, shape (S,)
+        Arclength step that produced each point (0 for the first).
+    newton_iterations : ndarray of int, shape (S,)
+    special_points : list of SpecialPoint
+    status : 'running', 'EP' or 'MX'
+    message : str
+        Why the run stopped.
+    closed : bool
+        True if the branch is a closed loop (isola or periodic return to its start).
+    stable, n_unstable, eigenvalues : optional stability columns
+        Filled by the stability pass (``contin.stability``); eigenvalues has shape (S, k).
+    kind : str
+        Free label ('primary', 'isola', 'bifurcated', 'fold-curve', ...).
+    parent : str
+        Where this branch came from (e.g. 'BP2@0').
+    id : str
+        Identifier inside a run / HDF5 file.
+    """
+
+    parameter: str
+    free: tuple[str, ...]
+    params: dict[str, NDArray[np.float64]]
+    observables: dict[str, NDArray[np.float64]]
+    states: NDArray[np.float64]
+    tangents: NDArray[np.float64]
+    ds: NDArray[np.float64]
+    newton_iterations: NDArray[np.int64]
+    special_points: list[SpecialPoint] = field(default_factory=list)
+    status: str = "running"
+    message: str = ""
+    closed: bool = False
+    stable: NDArray[np.bool_] | None = None
+    n_unstable: NDArray[np.int64] | None = None
+    eigenvalues: NDArray[np.complex128] | None = None
+    kind: str = "primary"
+    parent: str = ""
+    id: str = "0"
+    audit: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.states.shape[0])
+
+    @property
+    def success(self) -> bool:
+        """True unless the run ended on a failure (MX)."""
+        return self.status == "EP"
+
+    @property
+    def parameter_values(self) -> NDArray[np.float64]:
+        """The continuation parameter along the branch."""
+        return self.params[self.parameter]
+
+    @property
+    def order_parameter(self) -> NDArray[np.float64]:
+        return self.observables.get("phi", np.full(len(self), np.nan))
+
+    def points(self, type: str) -> list[SpecialPoint]:
+        """Special points of one AUTO type, e.g. ``branch.points('LP')``."""
+        return [s for s in self.special_points if s.type == type]
+
+    @property
+    def fold_points(self) -> list[SpecialPoint]:
+        return self.points("LP")
+
+    @property
+    def branch_points(self) -> list[SpecialPoint]:
+        return self.points("BP")
+
+    def reversed(self) -> Branch:
+        """The same branch traversed in the opposite direction (indices remapped)."""
+        s = len(self)
+        sps = [
+            SpecialPoint(**{**sp.__dict__, "index": max(s - 1 - sp.index - (0 if sp.type in ("EP", "MX") else 1), 0),
+                            "tangent": None if sp.tangent is None else -sp.tangent})
+            for sp in self.special_points
+        ]
+        return Branch(
+            parameter=self.parameter,
+            free=self.free,
+            params={k: v[::-1].copy() for k, v in self.params.items()},
+            observables={k: v[::-1].copy() for k, v in self.observables.items()},
+            states=self.states[::-1].copy(),
+            tangents=-self.tangents[::-1].copy(),
+            ds=np.concatenate([[0.0], self.ds[:0:-1]]),
+            newton_iterations=self.newton_iterations[::-1].copy(),
+            special_points=sps,
+            status=self.status,
+            message=self.message,
+            closed=self.closed,
+            stable=None if self.stable is None else self.stable[::-1].copy(),
+            n_unstable=None if self.n_unstable is None else self.n_unstable[::-1].copy(),
+            eigenvalues=None if self.eigenvalues is None else self.eigenvalues[::-1].copy(),
+            kind=self.kind,
+            parent=self.parent,
+            id=self.id,
+            audit=list(self.audit),
+        )

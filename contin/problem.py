@@ -1,0 +1,144 @@
+"""The problem protocol: what contin needs to know about a system F(u, p) = 0.
+
+contin never imports a concrete problem.  Anything with the attributes and methods of
+:class:`Problem` can be continued; the optional methods are looked up with ``getattr``
+and enable extra features (stability, symmetry-aware branch points, observables).
+
+Parameters are passed as a plain ``dict[str, float]`` holding *every* parameter of the
+problem; the continuation parameter is chosen by name (BifurcationKit's "lens").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+Params = Mapping[str, float]
+Array = NDArray[np.float64]
+
+
+@runtime_checkable
+class Problem(Protocol):
+    """Required interface of a continuation problem F(u, p) = 0, F: R^n x R^m -> R^n.
+
+    Attributes
+    ----------
+    parameter_names : tuple of str
+        Names of all scalar parameters, in a fixed order.
+
+    Methods
+    -------
+    residual(u, p) -> (n,) array
+        F(u, p).
+    jacobian(u, p) -> (n, n) scipy.sparse matrix
+        The exact dF/du (analytic or complex-step), sparse (CSC or CSR).
+    dresidual_dp(u, p, name) -> (n,) array
+        dF/dp for the parameter ``name`` (exact or complex-step).
+
+    Optional methods (looked up with ``getattr``; absent means "not available")
+    --------------------------------------------------------------------------
+    mass_matrix(u, p) -> (n, n) sparse
+        M in M du/dt = F(u, p); default eigenproblem is J x = omega M x.
+    eigenproblem(u, p, **kwargs) -> (A, B)
+        A generalized eigenproblem A x = omega B x whose eigenvalues decide linear
+        stability (overrides jacobian/mass_matrix when the physical linearisation is not
+        the Jacobian of the steady residual).  Rows of B that are zero give infinite
+        eigenvalues, which contin discards.
+    order_parameter(u, p) -> float
+        The scalar plotted on bifurcation diagrams (AUTO's L2-norm replacement).
+    observables(u, p) -> dict[str, float]
+        Extra scalars recorded at every point (BifurcationKit's record_from_solution).
+    symmetry(u) -> (n,) array
+        An involution S with F(S u, p) = S F(u, p) (and S S = identity).
+    inner(a, b) -> float
+        The inner product used for step lengths; default is the Euclidean dot / n.
+    validate(p) -> None
+        Raise ``ValueError`` with one clear sentence for an invalid parameter set.
+    """
+
+    parameter_names: tuple[str, ...]
+
+    def residual(self, u: Array, p: Params) -> Array: ...
+
+    def jacobian(self, u: Array, p: Params) -> sp.spmatrix: ...
+
+    def dresidual_dp(self, u: Array, p: Params, name: str) -> Array: ...
+
+
+def has(problem: Any, method: str) -> bool:
+    """True if ``problem`` provides the optional ``method``."""
+    return callable(getattr(problem, method, None))
+
+
+def complex_step_dp(problem: Any, u: Array, p: Params, name: str, h: float = 1e-30) -> Array:
+    """dF/dp by the complex step, Im F(u, p + i h) / h (exact to rounding).
+
+    Works for any residual written with numpy operations that accept complex input.
+    """
+    q = dict(p)
+    q[name] = complex(p[name], h)
+    return np.asarray(problem.residual(u.astype(complex), q)).imag / h
+
+
+@dataclass(frozen=True)
+class JacobianCheck:
+    """Result of :func:`check_jacobian`: max abs and relative errors of J and dF/dp."""
+
+    jacobian_error: float
+    jacobian_scale: float
+    dp_errors: dict[str, float]
+
+    @property
+    def relative_error(self) -> float:
+        return self.jacobian_error / max(self.jacobian_scale, 1e-300)
+
+
+def check_jacobian(
+    problem: Any,
+    u: Array,
+    p: Params,
+    *,
+    parameters: tuple[str, ...] | None = None,
+    step: float = 1e-7,
+) -> JacobianCheck:
+    """Compare the exact Jacobian and dF/dp with central finite differences.
+
+    Central differences have O(step^2) truncation and O(eps/step) rounding error, so with
+    the default step a correct Jacobian agrees to about 1e-7 relative.
+
+    Returns
+    -------
+    JacobianCheck
+        Max abs difference of J against finite differences, the max abs entry of J, and
+        the max abs difference of dF/dp for each requested parameter.
+    """
+    u = np.asarray(u, dtype=float)
+    n = u.size
+    jac = sp.csc_matrix(problem.jacobian(u, p)).toarray()
+    fd = np.empty((n, n))
+    for j in range(n):
+        h = step * max(1.0, abs(u[j]))
+        up = u.copy()
+        um = u.copy()
+        up[j] += h
+        um[j] -= h
+        fd[:, j] = (problem.residual(up, p) - problem.residual(um, p)) / (2 * h)
+    dp_errors: dict[str, float] = {}
+    for name in parameters if parameters is not None else ():
+        h = step * max(1.0, abs(p[name]))
+        qp = dict(p)
+        qm = dict(p)
+        qp[name] += h
+        qm[name] -= h
+        fd_p = (problem.residual(u, qp) - problem.residual(u, qm)) / (2 * h)
+        dp_errors[name] = float(np.max(np.abs(fd_p - problem.dresidual_dp(u, p, name))))
+    return JacobianCheck(
+        jacobian_error=float(np.max(np.abs(jac - fd))),
+        jacobian_scale=float(np.max(np.abs(jac))),
+        dp_errors=dp_errors,
+    )

@@ -1,0 +1,136 @@
+"""Kinetic-theory constitutive functions f1..f5 of Lun, Savage, Jeffrey & Chepurniy (1984).
+
+In Alam's notation (physics.md section 1.2; expanded from MFIX ``GT_PDE_LUN``):
+p = rho_p f1 T, mu = rho_p d f2 sqrt(T), zeta = rho_p d f3 sqrt(T), kappa = rho_p d f4 sqrt(T),
+D = (rho_p / d) f5 T^{3/2}, and the Dufour-like kappa_h = rho_p d f_h T^{3/2}.  With
+eta = (1 + e) / 2 and chi = chi(nu):
+
+    f1 = nu [1 + 4 eta nu chi]
+    f2 = (5 sqrt(pi) / 96) [1/(eta(2-eta)chi) + (8/5)(3eta-1)nu/(2-eta)
+                            + (64/25) eta ((3eta-2)/(2-eta) + 12/pi) nu^2 chi]
+    f3 = (8 / (3 sqrt(pi))) eta nu^2 chi
+    f4 = (25 sqrt(pi) / 16) [1/(eta(41-33eta)chi) + (12/5)(1 + eta(4eta-3)) nu/(41-33eta)
+                             + (16/25) eta (9eta(4eta-3)/(41-33eta) + 4/pi) nu^2 chi]
+    f5 = (12 / sqrt(pi)) (1 - e^2) nu^2 chi
+    f_h = (15 sqrt(pi)/4) (eta-1)(2eta-1)(1 + (12/5) eta nu chi)(2chi + nu chi') / ((41-33eta) chi)
+
+Radial distribution functions chi(nu) (physics.md section 1.3):
+``jj`` 1/(1 - (nu/nu_m)^{1/3}) (Johnson & Jackson 1987; default, nu_m = 0.65),
+``cs`` (1 - nu/2)/(1 - nu)^3 (Carnahan & Starling 1969; diverges at nu = 1),
+``ls`` (1 - nu/nu_m)^{-2.5 nu_m} (Lun & Savage 1986).
+
+All functions accept complex ``nu`` and ``e`` so that complex-step derivatives work through
+them; derivatives with respect to nu are analytic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SQRT_PI = np.sqrt(np.pi)
+CHI_MODELS = ("jj", "cs", "ls")
+
+
+def radial_distribution(nu, model: str = "jj", nu_max: float = 0.65):
+    """chi(nu) and dchi/dnu for ``model`` in ('jj', 'cs', 'ls')."""
+    if model == "jj":
+        s = (nu / nu_max) ** (1.0 / 3.0)
+        chi = 1.0 / (1.0 - s)
+        return chi, chi**2 * s / (3.0 * nu)
+    if model == "cs":
+        chi = (1.0 - nu / 2.0) / (1.0 - nu) ** 3
+        return chi, (2.5 - nu) / (1.0 - nu) ** 4
+    if model == "ls":
+        chi = (1.0 - nu / nu_max) ** (-2.5 * nu_max)
+        return chi, 2.5 * chi / (1.0 - nu / nu_max)
+    raise ValueError(f"unknown radial distribution {model!r}; choose one of {', '.join(CHI_MODELS)}")
+
+
+def packing_limit(model: str, nu_max: float) -> float:
+    """The volume fraction at which chi diverges (nu_max for jj/ls, 1 for cs)."""
+    return 1.0 if model == "cs" else nu_max
+
+
+@dataclass(frozen=True)
+class Coefficients:
+    """f1..f5, f_h and their nu-derivatives (suffix ``_nu``) at given (nu, e)."""
+
+    f1: np.ndarray
+    f2: np.ndarray
+    f3: np.ndarray
+    f4: np.ndarray
+    f5: np.ndarray
+    fh: np.ndarray
+    f1_nu: np.ndarray
+    f2_nu: np.ndarray
+    f3_nu: np.ndarray
+    f4_nu: np.ndarray
+    f5_nu: np.ndarray
+    chi: np.ndarray
+    chi_nu: np.ndarray
+
+
+def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = False) -> Coefficients:
+    """Evaluate the LSJC functions and their nu-derivatives (physics.md section 1.2).
+
+    ``fh`` is zero unless ``dufour`` is True; its nu-derivative is not needed by the
+    steady problem with fh = 0 and is not provided.
+    """
+    chi, chi1 = radial_distribution(nu, model, nu_max)
+    eta = (1.0 + e) / 2.0
+    nu2 = nu * nu
+
+    f1 = nu * (1.0 + 4.0 * eta * nu * chi)
+    f1_nu = 1.0 + 8.0 * eta * nu * chi + 4.0 * eta * nu2 * chi1
+
+    a2 = 5.0 * SQRT_PI / 96.0
+    b2 = 1.0 / (eta * (2.0 - eta))
+    c2 = 1.6 * (3.0 * eta - 1.0) / (2.0 - eta)
+    d2 = 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi)
+    f2 = a2 * (b2 / chi + c2 * nu + d2 * nu2 * chi)
+    f2_nu = a2 * (-b2 * chi1 / chi**2 + c2 + d2 * (2.0 * nu * chi + nu2 * chi1))
+
+    a3 = 8.0 / (3.0 * SQRT_PI) * eta
+    f3 = a3 * nu2 * chi
+    f3_nu = a3 * (2.0 * nu * chi + nu2 * chi1)
+
+    a4 = 25.0 * SQRT_PI / 16.0
+    g = 41.0 - 33.0 * eta
+    b4 = 1.0 / (eta * g)
+    c4 = 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g
+    d4 = 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g + 4.0 / np.pi)
+    f4 = a4 * (b4 / chi + c4 * nu + d4 * nu2 * chi)
+    f4_nu = a4 * (-b4 * chi1 / chi**2 + c4 + d4 * (2.0 * nu * chi + nu2 * chi1))
+
+    a5 = 12.0 / SQRT_PI * (1.0 - e * e)
+    f5 = a5 * nu2 * chi
+    f5_nu = a5 * (2.0 * nu * chi + nu2 * chi1)
+
+    if dufour:
+        fh = (15.0 * SQRT_PI / 4.0) * (eta - 1.0) * (2.0 * eta - 1.0) * (1.0 + 2.4 * eta * nu * chi) \
+            * (2.0 * chi + nu * chi1) / (g * chi)
+    else:
+        fh = 0.0 * nu
+    return Coefficients(f1, f2, f3, f4, f5, fh, f1_nu, f2_nu, f3_nu, f4_nu, f5_nu, chi, chi1)
+
+
+def uniform_shear(nu, e, model: str = "jj", nu_max: float = 0.65):
+    """Uniform shear state (physics.md section 4): T0 = f2/f5, S0 = f2 sqrt(T0), p0 = f1 T0."""
+    c = coefficients(nu, e, model, nu_max)
+    t0 = c.f2 / c.f5
+    return t0, c.f2 * np.sqrt(t0), c.f1 * t0
+
+
+def critical_gap_factor(nu, e, model: str = "jj", nu_max: float = 0.65):
+    """psi(nu, e) with H_n^c = n pi psi (physics.md section 4, no-slip/adiabatic walls).
+
+    psi^2 = (f4/f5) / [(f1/f1')(f2'/f2 + f5'/f5) - 2]; returns nan where the bracket is not
+    positive (no shear-banding instability: "bifurcation from infinity").
+    """
+    c = coefficients(nu, e, model, nu_max)
+    bracket = (c.f1 / c.f1_nu) * (c.f2_nu / c.f2 + c.f5_nu / c.f5) - 2.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        psi2 = (c.f4 / c.f5) / bracket
+    return np.where(np.real(bracket) > 0, np.sqrt(np.abs(psi2)), np.nan)

@@ -1,0 +1,236 @@
+"""Wall-normal discretizations on y in [-1/2, 1/2]: Chebyshev collocation and finite differences.
+
+A :class:`Grid` carries nodes, first and second derivative matrices (scipy.sparse CSR),
+quadrature weights of matching order and an interpolator onto other points.
+
+- ``cheb``: Chebyshev-Gauss-Lobatto points, the differentiation matrix of Trefethen,
+  *Spectral Methods in MATLAB* (SIAM 2000), program ``cheb``; Clenshaw-Curtis weights
+  (Trefethen, ``clencurt``).  Spectral (exponential) convergence for smooth solutions.
+- ``fd2``, ``fd4``, ``fd6``: uniform grid, Fornberg weights (B. Fornberg, "Generation of
+  finite difference formulas on arbitrarily spaced grids", Math. Comp. 51 (1988) 699),
+  centred stencils in the interior and one-sided stencils of the same order near the walls;
+  banded sparse matrices.  Quadrature: cell-wise integrals of local interpolants of the
+  same order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+METHODS = ("cheb", "fd2", "fd4", "fd6")
+
+#: Smallest number of intervals N accepted by each method.
+MIN_INTERVALS = {"cheb": 4, "fd2": 4, "fd4": 8, "fd6": 12}
+
+
+def fornberg_weights(z: float, x: NDArray[np.float64], m: int) -> NDArray[np.float64]:
+    """Finite-difference weights at z for derivatives 0..m on nodes x (Fornberg 1988).
+
+    Returns an array c of shape (len(x), m + 1) with f^(k)(z) ~ sum_j c[j, k] f(x_j).
+    """
+    n = len(x)
+    c = np.zeros((n, m + 1))
+    c1 = 1.0
+    c4 = x[0] - z
+    c[0, 0] = 1.0
+    for i in range(1, n):
+        mn = min(i, m)
+        c2 = 1.0
+        c5 = c4
+        c4 = x[i] - z
+        for j in range(i):
+            c3 = x[i] - x[j]
+            c2 *= c3
+            if j == i - 1:
+                for k in range(mn, 0, -1):
+                    c[i, k] = c1 * (k * c[i - 1, k - 1] - c5 * c[i - 1, k]) / c2
+                c[i, 0] = -c1 * c5 * c[i - 1, 0] / c2
+            for k in range(mn, 0, -1):
+                c[j, k] = (c4 * c[j, k] - k * c[j, k - 1]) / c3
+            c[j, 0] = c4 * c[j, 0] / c3
+        c1 = c2
+    return c
+
+
+def _fd_matrix(y: NDArray[np.float64], deriv: int, order: int) -> sp.csr_matrix:
+    """Banded matrix of the ``deriv``-th derivative, accurate to O(h^order).
+
+    Interior rows use the centred (order + 1)-point stencil; rows too close to a wall use a
+    one-sided stencil of order + deriv points (the fewest that keep the order), mirrored at
+    the two walls so that the matrix commutes with the reflection y -> -y.
+    """
+    n = len(y)
+    half = order // 2
+    edge = order + deriv
+    rows, cols, vals = [], [], []
+    for i in range(n):
+        if half <= i <= n - 1 - half:
+            idx = np.arange(i - half, i + half + 1)
+        elif i < half:
+            idx = np.arange(0, edge)
+        else:
+            idx = np.arange(n - edge, n)
+        w = fornberg_weights(y[i], y[idx], deriv)[:, deriv]
+        rows.extend([i] * len(idx))
+        cols.extend(idx)
+        vals.extend(w)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+def interpolatory_weights(y: NDArray[np.float64], order: int) -> NDArray[np.float64]:
+    """Quadrature weights from integrating local Lagrange interpolants cell by cell.
+
+    Each cell [y_i, y_i+1] integrates the polynomial through the ``order`` nodes centred on
+    the cell (shifted inside the domain near the walls), with Gauss-Legendre points that are
+    exact for it.  The rule is O(h^order), symmetric under y -> -y, and reduces to the
+    trapezoid rule for order 2.
+    """
+    n = len(y)
+    width = max(order, 2)
+    gx, gw = np.polynomial.legendre.leggauss(width // 2 + 1)
+    w = np.zeros(n)
+    for i in range(n - 1):
+        start = min(max(i - width // 2 + 1, 0), n - width)
+        idx = np.arange(start, start + width)
+        a, b = y[i], y[i + 1]
+        for xg, wg in zip(gx, gw):
+            z = 0.5 * (a + b) + 0.5 * (b - a) * xg
+            w[idx] += 0.5 * (b - a) * wg * fornberg_weights(z, y[idx], 0)[:, 0]
+    return 0.5 * (w + w[::-1])
+
+
+def chebyshev(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Nodes (ascending on [-1/2, 1/2]), differentiation matrix and Clenshaw-Curtis weights.
+
+    Trefethen (2000), programs ``cheb`` and ``clencurt``, mapped by y = x / 2.
+    """
+    j = np.arange(n + 1)
+    x = np.cos(np.pi * j / n)  # descending on [-1, 1]
+    c = np.where((j == 0) | (j == n), 2.0, 1.0) * (-1.0) ** j
+    dx = x[:, None] - x[None, :]
+    d = np.outer(c, 1.0 / c) / (dx + np.eye(n + 1))
+    d -= np.diag(d.sum(axis=1))
+    # Clenshaw-Curtis
+    theta = np.pi * j / n
+    w = np.zeros(n + 1)
+    v = np.ones(n - 1)
+    inner = np.arange(1, n)
+    if n % 2 == 0:
+        w[0] = w[n] = 1.0 / (n**2 - 1)
+        for k in range(1, n // 2):
+            v -= 2 * np.cos(2 * k * theta[inner]) / (4 * k**2 - 1)
+        v -= np.cos(n * theta[inner]) / (n**2 - 1)
+    else:
+        w[0] = w[n] = 1.0 / n**2
+        for k in range(1, (n - 1) // 2 + 1):
+            v -= 2 * np.cos(2 * k * theta[inner]) / (4 * k**2 - 1)
+    w[inner] = 2 * v / n
+    # reverse to ascending order and map to [-1/2, 1/2]
+    rev = slice(None, None, -1)
+    d = 2 * d[rev, rev]
+    # Impose the exact parity D[i, j] = -D[N-i, N-j] that rounding breaks.
+    d = 0.5 * (d - d[::-1, ::-1])
+    w = w[rev] / 2
+    return x[rev] / 2, d, 0.5 * (w + w[::-1])
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """A discretization of [-1/2, 1/2].
+
+    Attributes
+    ----------
+    method : 'cheb', 'fd2', 'fd4' or 'fd6'
+    intervals : N; the grid has N + 1 nodes including both walls
+    y : (N+1,) ascending nodes, y[0] = -1/2, y[-1] = 1/2, symmetric (y[j] = -y[N-j])
+    d1, d2 : (N+1, N+1) CSR first and second derivative matrices
+    weights : (N+1,) quadrature weights, sum = 1
+    order : nominal order (inf for Chebyshev)
+    """
+
+    method: str
+    intervals: int
+    y: NDArray[np.float64]
+    d1: sp.csr_matrix
+    d2: sp.csr_matrix
+    weights: NDArray[np.float64]
+    order: float
+
+    @property
+    def size(self) -> int:
+        return self.intervals + 1
+
+    def integrate(self, f: NDArray) -> NDArray:
+        """Quadrature of nodal values over [-1/2, 1/2] (works on complex input)."""
+        return self.weights @ f
+
+    def interpolate(self, f: NDArray[np.float64], y_new: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Interpolate nodal values to ``y_new``.
+
+        Chebyshev: barycentric interpolation (Berrut & Trefethen, SIAM Rev. 46, 2004).
+        Finite differences: local Lagrange interpolation of the scheme's order.
+        """
+        y_new = np.atleast_1d(np.asarray(y_new, dtype=float))
+        if self.method == "cheb":
+            n = self.intervals
+            wb = (-1.0) ** np.arange(n + 1)
+            wb[0] *= 0.5
+            wb[-1] *= 0.5
+            diff = y_new[:, None] - self.y[None, :]
+            exact = np.isclose(diff, 0.0, atol=1e-15)
+            diff[exact] = 1.0
+            terms = wb / diff
+            out = (terms @ f) / terms.sum(axis=1)
+            hit_rows, hit_cols = np.nonzero(exact)
+            out[hit_rows] = f[hit_cols]
+            return out
+        width = int(self.order) + 1
+        out = np.empty(len(y_new))
+        h = 1.0 / self.intervals
+        for k, yk in enumerate(y_new):
+            i = int(np.clip(np.floor((yk + 0.5) / h), 0, self.intervals))
+            start = min(max(i - width // 2 + 1, 0), self.size - width)
+            idx = np.arange(start, start + width)
+            out[k] = fornberg_weights(yk, self.y[idx], 0)[:, 0] @ f[idx]
+        return out
+
+    def reflection(self) -> NDArray[np.int64]:
+        """Index permutation j -> N - j, i.e. y -> -y on this symmetric grid."""
+        return np.arange(self.intervals, -1, -1)
+
+
+@lru_cache(maxsize=64)
+def make_grid(method: str, intervals: int) -> Grid:
+    """Build (and cache) the grid for ``method`` with ``intervals`` intervals.
+
+    Raises
+    ------
+    ValueError
+        For an unknown method or a grid too small for it.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown discretization {method!r}; choose one of {', '.join(METHODS)}")
+    if intervals < MIN_INTERVALS[method]:
+        raise ValueError(f"grid too small: {method} needs at least {MIN_INTERVALS[method]} intervals, got {intervals}")
+    if method == "cheb":
+        y, d, w = chebyshev(intervals)
+        d1 = sp.csr_matrix(d)
+        dd = d @ d
+        d2 = sp.csr_matrix(0.5 * (dd + dd[::-1, ::-1]))
+        return Grid(method, intervals, y, d1, d2, w, float("inf"))
+    order = int(method[2:])
+    y = np.linspace(-0.5, 0.5, intervals + 1)
+    y = 0.5 * (y - y[::-1])  # exactly antisymmetric nodes
+    d1 = _fd_matrix(y, 1, order)
+    d2 = _fd_matrix(y, 2, order)
+    # Impose the exact parity under y -> -y that rounding in the weights breaks.
+    flip = sp.csr_matrix(np.eye(intervals + 1)[::-1])
+    d1 = sp.csr_matrix(0.5 * (d1 - flip @ d1 @ flip))
+    d2 = sp.csr_matrix(0.5 * (d2 + flip @ d2 @ flip))
+    w = interpolatory_weights(y, order)
+    return Grid(method, intervals, y, d1, d2, w, float(order))
