@@ -8,6 +8,10 @@ A scene turns a :class:`SceneRequest` (user parameters, discretization, options)
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
+import logging
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -37,6 +41,9 @@ class SceneRequest:
     on_branch : called with each finished branch (the CLI appends it to the HDF5 file at once,
         so an interrupted run loses at most the branch in progress).
     progress : called with a short human-readable status line (never prints itself).
+    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``,
+        ``--max-steps`` -> keys 'ds', 'ds_max', 'max_steps'); scenes apply them with
+        :meth:`options_for` so that their own defaults (bounds...) survive.
     """
 
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -48,6 +55,31 @@ class SceneRequest:
     completed: Mapping[str, Branch] = field(default_factory=dict)
     on_branch: Callable[[Branch], None] | None = None
     progress: Callable[[str], None] | None = None
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    # Records that a scene applied ``overrides`` (the CLI warns when they were ignored).
+    _used_overrides: list[bool] = field(default_factory=list, repr=False, compare=False)
+
+    def options_for(self, default: ContinuationOptions) -> ContinuationOptions:
+        """The options to use for one trace: ``self.options`` if given, else ``default``
+        with the user's :attr:`overrides` applied (step.ds keeps the default's sign)."""
+        self._used_overrides.append(True)
+        base = self.options if self.options is not None else default
+        ov = dict(self.overrides)
+        step = base.step
+        if "ds" in ov or "ds_max" in ov:
+            ds = abs(float(ov.get("ds", abs(step.ds)))) * (1.0 if step.ds >= 0 else -1.0)
+            ds_max = float(ov.get("ds_max", max(step.ds_max, abs(ds))))
+            step = dataclasses.replace(step, ds=ds, ds_max=ds_max,
+                                       ds_min=min(step.ds_min, abs(ds)))
+        kw: dict[str, Any] = {"step": step}
+        if "max_steps" in ov:
+            kw["max_steps"] = int(ov["max_steps"])
+        return dataclasses.replace(base, **kw)
+
+    @property
+    def overrides_used(self) -> bool:
+        """True once a scene has called :meth:`options_for`."""
+        return bool(self._used_overrides)
 
     def report(self, message: str) -> None:
         if self.progress is not None:
@@ -91,11 +123,50 @@ class Scene:
     y: str = "phi"  # default y-axis (an observable name)
 
 
+_log = logging.getLogger("contin")
+
+#: Entry points that failed to load at the last :func:`available_scenes` call:
+#: ``[(source, "ExceptionType: message"), ...]`` (``contin scenes`` reports them).
+SCENE_LOAD_ERRORS: list[tuple[str, str]] = []
+
+
+def _scene_sources() -> list[tuple[str, Callable[[], Any]]]:
+    """(label, loader) for every registered scene table.
+
+    Entry points of the group ``contin.scenes``, plus ``module:ATTR`` items from the
+    environment variable ``CONTIN_SCENES`` (comma separated; handy for plugins that are not
+    installed as packages, and for tests).
+    """
+    sources: list[tuple[str, Callable[[], Any]]] = [
+        (f"{ep.name} ({ep.value})", ep.load) for ep in entry_points(group="contin.scenes")
+    ]
+    for item in filter(None, (x.strip() for x in os.environ.get("CONTIN_SCENES", "").split(","))):
+        module, _, attr = item.partition(":")
+
+        def load(module: str = module, attr: str = attr or "SCENES") -> Any:
+            return getattr(importlib.import_module(module), attr)
+
+        sources.append((f"CONTIN_SCENES ({item})", load))
+    return sources
+
+
 def available_scenes() -> dict[str, Scene]:
-    """All scenes registered under the ``contin.scenes`` entry-point group."""
+    """All scenes registered under the ``contin.scenes`` entry-point group.
+
+    A scene module that is missing or fails to import is skipped with a logged warning (and
+    recorded in :data:`SCENE_LOAD_ERRORS`), so one broken problem package never hides the
+    others.
+    """
     scenes: dict[str, Scene] = {}
-    for ep in entry_points(group="contin.scenes"):
-        scenes.update(ep.load())
+    SCENE_LOAD_ERRORS.clear()
+    for label, load in _scene_sources():
+        try:
+            table = load()
+            scenes.update(table)
+        except Exception as exc:  # noqa: BLE001 -- any import failure must not break the CLI
+            reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+            SCENE_LOAD_ERRORS.append((label, reason))
+            _log.warning("skipping scenes from %s: %s", label, reason)
     return dict(sorted(scenes.items()))
 
 
