@@ -234,3 +234,50 @@ def make_grid(method: str, intervals: int) -> Grid:
     d2 = sp.csr_matrix(0.5 * (d2 + flip @ d2 @ flip))
     w = interpolatory_weights(y, order)
     return Grid(method, intervals, y, d1, d2, w, float(order))
+
+
+@lru_cache(maxsize=64)
+def cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
+    """Matrix C (N x (N+1)) with (C f)_j = integral of the interpolant of f over [y_j, y_j+1].
+
+    ``cheb``: the global Chebyshev interpolant integrated exactly (coefficients from the
+    Chebyshev-Vandermonde matrix at the Gauss-Lobatto nodes, antiderivative by
+    ``numpy.polynomial.chebyshev.chebint``).  ``fd*``: the same local Lagrange interpolants
+    and Gauss-Legendre rule as :func:`interpolatory_weights` (banded).
+
+    The rows are symmetrized under y -> -y and corrected by rounding-level amounts so that
+    ``C.sum(axis=0) == grid.weights`` (cell integrals add up to the grid's quadrature), hence
+    cumulative integrals end exactly at ``grid.integrate``.
+    """
+    n = grid.size
+    y = grid.y
+    if grid.method == "cheb":
+        cheb = np.polynomial.chebyshev
+        x = 2.0 * y
+        vander = cheb.chebvander(x, n - 1)
+        anti = np.stack([cheb.chebval(x, cheb.chebint(col, lbnd=-1.0)) for col in np.eye(n)], axis=1)
+        cumulative = 0.5 * np.linalg.solve(vander.T, anti.T).T  # anti @ inv(vander), dy = dx / 2
+        cells = cumulative[1:] - cumulative[:-1]
+    else:
+        order = int(grid.order)
+        width = max(order, 2)
+        gx, gw = np.polynomial.legendre.leggauss(width // 2 + 1)
+        cells = np.zeros((n - 1, n))
+        for i in range(n - 1):
+            start = min(max(i - width // 2 + 1, 0), n - width)
+            idx = np.arange(start, start + width)
+            a, b = y[i], y[i + 1]
+            for xg, wg in zip(gx, gw):
+                z = 0.5 * (a + b) + 0.5 * (b - a) * xg
+                cells[i, idx] += 0.5 * (b - a) * wg * fornberg_weights(z, y[idx], 0)[:, 0]
+    cells = 0.5 * (cells + cells[::-1, ::-1])
+    # Give each node's rounding discrepancy to the (one or two) cells it bounds: keeps the
+    # band and the reflection symmetry.
+    delta = grid.weights - cells.sum(axis=0)
+    share = np.full(n, 0.5)
+    share[[0, -1]] = 1.0
+    k = np.arange(n)
+    left, right = k[1:], k[:-1]  # node k closes cell k-1 and opens cell k
+    cells[left - 1, left] += share[left] * delta[left]
+    cells[right, right] += share[right] * delta[right]
+    return sp.csr_matrix(cells)

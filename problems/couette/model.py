@@ -1,0 +1,574 @@
+"""Steady, fully developed granular plane Couette flow as a continuation problem.
+
+Alam scaling (physics.md sections 2-3): y in [-1/2, 1/2], walls moving with u = -+1/2,
+T = T~ / (gamma_dot d_p)^2, stresses by rho_p (gamma_dot d_p)^2.  With a = f2 sqrt(T) (viscosity),
+k = f4 sqrt(T) (conductivity), D = f5 T^{3/2} (dissipation) the steady equations are
+
+    (a u')' = 0                                               x-momentum, S = a u' constant
+    (1/H^2) (k T' + k_h nu')' + a u'^2 - D = 0               energy, k_h = f_h T^{3/2} (Dufour)
+    f1(nu) T - P + H^3 G (M - (M(-1/2) + M(1/2)) / 2) = 0    y-momentum, integrated
+    integral of nu dy = nu_bar                                mass constraint (fixes P)
+    M' = nu, M(-1/2) = 0                                      cumulative mass (gravity only)
+
+i.e. d(f1 T)/dy = -H^3 G nu with G = Fr^-2.  Unknowns on the grid y_0 = -1/2 .. y_N = 1/2:
+
+    x = [nu (N+1), u (N+1), T (N+1), P (1)]  (+ [M (N+1)] only for ``gravity=True``)
+
+and the residual rows come in the same blocks: y-momentum at every node (algebraic),
+x-momentum and energy at interior nodes with wall conditions in rows 0 and N, the mass
+constraint, and M_0 = 0, M_j - M_j-1 = (cell integral of the interpolant of nu) (rows of M).
+The divergences are collocated in expanded form, (a u')' = a u'' + a' u' with a' = D1 a.
+
+Walls (n = outward normal, sigma = -1 at the bottom and +1 at the top, u_w = sigma/2;
+Q = -(1/H^2)(k T' + k_h nu') is the wall-normal heat flux):
+
+- ``noslip``: u = u_w, zero heat flux (sigma T' = 0; sigma (k T' + k_h nu') = 0 with Dufour).
+- ``jj`` (Johnson & Jackson 1987; physics.md section 3b; A13 slide "Boundary Conditions"):
+  -sigma S = H s_w (u - u_w)       (wall friction balances the shear stress)
+  -sigma Q = H s_w (u - u_w)^2 - d_w / H   (heat into the material = slip work - wall loss)
+  s_w = phi_w pi nu chi sqrt(T) / (2 sqrt(3) nu_m), d_w = sqrt(3) pi nu chi (1 - ew^2) T^{3/2} / (4 nu_m).
+
+Every wall row is written in the wall's outward orientation, so that the reflection
+(nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y) maps residual rows exactly as it maps unknowns.
+The gravity term uses (M_0 + M_N)/2 (= nu_bar / 2 at every solution) so that the same
+reflection with M -> M_0 + M_N - M(-y) maps F(x, G) to F(Sx, -G) for every x.
+
+References: M. Alam, YITP 2013 slides (seeds/001); Alam, Arakeri, Nott, Goddard & Herrmann,
+J. Fluid Mech. 523 (2005) 277; Lun, Savage, Jeffrey & Chepurniy, J. Fluid Mech. 140 (1984) 223.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from contin.problem import complex_step_dp
+from problems.couette.closures import CHI_MODELS, coefficients, packing_limit
+from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
+from problems.discretization import cell_integration_matrix, make_grid
+
+Array = NDArray[np.float64]
+WALLS = ("noslip", "jj")
+
+_SQRT3 = np.sqrt(3.0)
+
+
+@dataclass(frozen=True)
+class _Fields:
+    """Everything the residual and the Jacobian share at one state."""
+
+    nu: Any
+    u: Any
+    T: Any
+    P: Any
+    M: Any
+    c: Any  # closures.Coefficients
+    sT: Any
+    a: Any
+    k: Any
+    D: Any
+    up: Any
+    upp: Any
+    Tp: Any
+    Tpp: Any
+    ap: Any
+    kp: Any
+    kh: Any
+    nup: Any
+    nupp: Any
+    khp: Any
+
+
+class CouetteProblem:
+    """Steady granular plane Couette flow F(x, p) = 0 (see the module docstring).
+
+    Parameters
+    ----------
+    method : 'cheb', 'fd2', 'fd4' or 'fd6' (problems.discretization)
+    N : number of grid intervals (N + 1 nodes)
+    walls : 'noslip' (no slip, zero heat flux) or 'jj' (Johnson-Jackson slip and energy flux)
+    chi : radial distribution 'jj', 'cs' or 'ls' (closures.radial_distribution)
+    gravity : include the wall-normal gravity term and the cumulative mass M (needed for G != 0)
+    dufour : include the Dufour-like flux -k_h nu' (off by default, physics.md 1.2)
+
+    Continuation parameters are those of :data:`problems.couette.params.PARAMETER_NAMES`.
+    """
+
+    parameter_names: tuple[str, ...] = PARAMETER_NAMES
+
+    def __init__(
+        self,
+        method: str = "cheb",
+        N: int = 48,
+        *,
+        walls: str = "noslip",
+        chi: str = "jj",
+        gravity: bool = False,
+        dufour: bool = False,
+    ) -> None:
+        if walls not in WALLS:
+            raise ValueError(f"unknown wall model walls = {walls!r}; choose one of {', '.join(WALLS)}")
+        if chi not in CHI_MODELS:
+            raise ValueError(f"unknown radial distribution chi = {chi!r}; choose one of {', '.join(CHI_MODELS)}")
+        self.grid = make_grid(method, int(N))
+        self.method = method
+        self.N = int(N)
+        self.walls = walls
+        self.chi = chi
+        self.gravity = bool(gravity)
+        self.dufour = bool(dufour)
+
+        n = self.grid.size
+        self.n = n
+        self.size = 3 * n + 1 + (n if self.gravity else 0)
+        self.i_nu = slice(0, n)
+        self.i_u = slice(n, 2 * n)
+        self.i_T = slice(2 * n, 3 * n)
+        self.i_P = 3 * n
+        self.i_M = slice(3 * n + 1, 4 * n + 1) if self.gravity else None
+
+        g = self.grid
+        self._d1 = sp.csr_matrix(g.d1)
+        self._d2 = sp.csr_matrix(g.d2)
+        self._walls_idx = np.array([0, n - 1])
+        self._sigma = np.array([-1.0, 1.0])  # outward normal at bottom, top
+        self._d1w = sp.csr_matrix(self._d1[self._walls_idx, :])
+        self._scatter = sp.csr_matrix((np.ones(2), (self._walls_idx, [0, 1])), shape=(n, 2))
+        mask = np.ones(n)
+        mask[self._walls_idx] = 0.0
+        self._inner = sp.diags(mask)
+        if self.gravity:
+            self._cells = cell_integration_matrix(g)
+
+    # ------------------------------------------------------------------ bookkeeping
+    def __repr__(self) -> str:
+        return (
+            f"CouetteProblem(method={self.method!r}, N={self.N}, walls={self.walls!r}, chi={self.chi!r}, "
+            f"gravity={self.gravity}, dufour={self.dufour})"
+        )
+
+    @property
+    def options(self) -> dict[str, Any]:
+        """Constructor options (discretization and model switches), e.g. for provenance."""
+        return {
+            "method": self.method,
+            "N": self.N,
+            "walls": self.walls,
+            "chi": self.chi,
+            "gravity": self.gravity,
+            "dufour": self.dufour,
+        }
+
+    def params(self, values: Mapping[str, Any] | None = None) -> dict[str, float]:
+        """Full validated parameter dict (defaults merged with ``values``; accepts ``Fr``)."""
+        p = build_params(values, chi=self.chi)
+        self._check_gravity(p)
+        return p
+
+    def validate(self, p: Mapping[str, Any]) -> None:
+        """Raise ``ValueError`` with one sentence if ``p`` is not valid for this instance."""
+        validate_params(p, chi=self.chi)
+        self._check_gravity(p)
+
+    def _check_gravity(self, p: Mapping[str, Any]) -> None:
+        if not self.gravity and p["G"] != 0:
+            raise ValueError(
+                f"gravity G = {p['G']} needs a problem built with gravity=True (this one has G = 0 only)"
+            )
+
+    def unpack(self, x: NDArray) -> tuple[NDArray, NDArray, NDArray, Any, NDArray | None]:
+        """(nu, u, T, P, M) views of the state vector (M is None without gravity)."""
+        m = x[self.i_M] if self.gravity else None
+        return x[self.i_nu], x[self.i_u], x[self.i_T], x[self.i_P], m
+
+    def pack(self, nu: NDArray, u: NDArray, T: NDArray, P: float, M: NDArray | None = None) -> NDArray:
+        """Inverse of :meth:`unpack`; M defaults to the cumulative integral of nu."""
+        parts = [np.asarray(nu), np.asarray(u), np.asarray(T), np.atleast_1d(P)]
+        if self.gravity:
+            parts.append(self.cumulative_mass(nu) if M is None else np.asarray(M))
+        return np.concatenate(parts)
+
+    def cumulative_mass(self, nu: NDArray) -> NDArray:
+        """M_j = integral of the interpolant of nu from -1/2 to y_j (M_0 = 0)."""
+        cells = cell_integration_matrix(self.grid)
+        return np.concatenate([[0.0], np.cumsum(cells @ nu)])
+
+    # ------------------------------------------------------------------ residual
+    def _fields(self, x: NDArray, p: Mapping[str, Any]) -> _Fields:
+        nu, u, T, P, M = self.unpack(x)
+        c = coefficients(nu, p["e"], self.chi, p["num"], self.dufour)
+        d1, d2 = self._d1, self._d2
+        sT = np.sqrt(T)
+        a = c.f2 * sT
+        k = c.f4 * sT
+        # Differentiate after removing the parts D1, D2 map exactly to 0 or 1 (constants,
+        # u = y): the same operators in exact arithmetic, but the cheb D2 has entries ~N^4
+        # whose rounding would otherwise leave ~1e-10 in the residual of uniform shear.
+        y = self.grid.y
+        du = u - y
+        dT = T - T[0]
+        if self.dufour:
+            kh = c.fh * T * sT
+            dnu = nu - nu[0]
+            nup, nupp, khp = d1 @ dnu, d2 @ dnu, d1 @ (kh - kh[0])
+        else:
+            kh = nup = nupp = khp = None
+        return _Fields(
+            nu, u, T, P, M, c, sT, a, k, c.f5 * T * sT,
+            d1 @ du + 1.0, d2 @ du, d1 @ dT, d2 @ dT, d1 @ (a - a[0]), d1 @ (k - k[0]), kh, nup, nupp, khp,
+        )
+
+    def _wall_coefficients(self, f: _Fields, p: Mapping[str, Any]):
+        """s_w, d_w of the Johnson-Jackson conditions at both walls (and their nu-, T-derivatives)."""
+        w = self._walls_idx
+        nu, T, sT = f.nu[w], f.T[w], f.sT[w]
+        chi, chi_nu = f.c.chi[w], f.c.chi_nu[w]
+        g, g_nu = nu * chi, chi + nu * chi_nu
+        cs = p["phi_w"] * np.pi / (2.0 * _SQRT3 * p["num"])
+        cd = _SQRT3 * np.pi * (1.0 - p["ew"] ** 2) / (4.0 * p["num"])
+        sw, dw = cs * g * sT, cd * g * T * sT
+        return sw, dw, cs * g_nu * sT, sw / (2.0 * T), cd * g_nu * T * sT, 1.5 * cd * g * sT
+
+    def residual(self, x: NDArray, p: Mapping[str, Any]) -> NDArray:
+        """F(x, p); accepts complex x and p (complex-step derivatives)."""
+        self._check_gravity(p)
+        f = self._fields(x, p)
+        H = p["H"]
+        F = np.empty(self.size, dtype=np.result_type(x, *(p[q] for q in self.parameter_names)))
+        w, sig = self._walls_idx, self._sigma
+
+        ry = f.c.f1 * f.T - f.P
+        if self.gravity:
+            ry = ry + H**3 * p["G"] * (f.M - 0.5 * (f.M[0] + f.M[-1]))
+        F[self.i_nu] = ry
+
+        ru = f.a * f.upp + f.ap * f.up
+        rT = (f.k * f.Tpp + f.kp * f.Tp) / H**2 + f.a * f.up**2 - f.D
+        flux = f.k[w] * f.Tp[w]  # -H^2 Q at the walls
+        if self.dufour:
+            rT = rT + (f.kh * f.nupp + f.khp * f.nup) / H**2
+            flux = flux + f.kh[w] * f.nup[w]
+        uw = 0.5 * sig
+        if self.walls == "noslip":
+            ru[w] = f.u[w] - uw
+            rT[w] = sig * (flux if self.dufour else f.Tp[w])
+        else:
+            sw, dw = self._wall_coefficients(f, p)[:2]
+            slip = f.u[w] - uw
+            ru[w] = -sig * f.a[w] * f.up[w] - H * sw * slip
+            rT[w] = sig * flux / H**2 - H * sw * slip**2 + dw / H
+        F[self.i_u] = ru
+        F[self.i_T] = rT
+        F[self.i_P] = self.grid.weights @ f.nu - p["nu"]
+        if self.gravity:
+            F[self.i_M] = np.concatenate([[f.M[0]], np.diff(f.M) - self._cells @ f.nu])
+        return F
+
+    # ------------------------------------------------------------------ Jacobian
+    def jacobian(self, x: Array, p: Mapping[str, Any]) -> sp.csr_matrix:
+        """Exact dF/dx (analytic), CSR.
+
+        Notes
+        -----
+        Linearizing a u'' + a' u' gives (diag(u'') + diag(u') D1) da + diag(a) D2 du + diag(a') D1 du
+        with da = a_nu dnu + a_T dT; the energy and wall rows follow the same pattern.  The
+        nu-derivatives of f1..f5 come from closures.coefficients (analytic); that of f_h (Dufour
+        only) by a complex step.
+        """
+        self._check_gravity(p)
+        x = np.asarray(x, dtype=float)
+        f = self._fields(x, p)
+        c, H, n = f.c, p["H"], self.n
+        d1, d2 = self._d1, self._d2
+        diag = sp.diags
+        w, sig, d1w = self._walls_idx, self._sigma, self._d1w
+        inner, scatter = self._inner, self._scatter
+
+        def at_walls(values: Array) -> sp.csr_matrix:
+            return sp.csr_matrix((values, ([0, 1], w)), shape=(2, n))
+
+        a_nu, a_T = c.f2_nu * f.sT, c.f2 / (2.0 * f.sT)
+        k_nu, k_T = c.f4_nu * f.sT, c.f4 / (2.0 * f.sT)
+        D_nu, D_T = c.f5_nu * f.T * f.sT, 1.5 * c.f5 * f.sT
+
+        # x-momentum, interior
+        lu = diag(f.upp) + diag(f.up) @ d1
+        ju_u = diag(f.a) @ d2 + diag(f.ap) @ d1
+        ju_nu = lu @ diag(a_nu)
+        ju_T = lu @ diag(a_T)
+        # energy, interior
+        lt = diag(f.Tpp) + diag(f.Tp) @ d1
+        jt_T = (lt @ diag(k_T) + diag(f.k) @ d2 + diag(f.kp) @ d1) / H**2 + diag(f.up**2 * a_T - D_T)
+        jt_nu = lt @ diag(k_nu) / H**2 + diag(f.up**2 * a_nu - D_nu)
+        jt_u = diag(2.0 * f.a * f.up) @ d1
+        flux_T = diag(f.k[w]) @ d1w  # d(k T')/dT at walls, without the k_T T' part
+        flux_T_diag = k_T[w] * f.Tp[w]
+        flux_nu_diag = k_nu[w] * f.Tp[w]
+        flux_nu = None
+        if self.dufour:
+            fh_nu = _dufour_nu_derivative(f.nu, p, self.chi)
+            kh_T, kh_nu = 1.5 * c.fh * f.sT, fh_nu * f.T * f.sT
+            ln = diag(f.nupp) + diag(f.nup) @ d1
+            jt_T = jt_T + ln @ diag(kh_T) / H**2
+            jt_nu = jt_nu + (ln @ diag(kh_nu) + diag(f.kh) @ d2 + diag(f.khp) @ d1) / H**2
+            flux_T_diag = flux_T_diag + kh_T[w] * f.nup[w]
+            flux_nu_diag = flux_nu_diag + kh_nu[w] * f.nup[w]
+            flux_nu = diag(f.kh[w]) @ d1w
+
+        # wall rows (2 x n each)
+        uw = 0.5 * sig
+        if self.walls == "noslip":
+            bu_u = at_walls(np.ones(2))
+            bu_nu = bu_T = None
+            if self.dufour:
+                bt_T = diag(sig) @ flux_T + at_walls(sig * flux_T_diag)
+                bt_nu = diag(sig) @ flux_nu + at_walls(sig * flux_nu_diag)
+            else:
+                bt_T = diag(sig) @ d1w
+                bt_nu = None
+            bt_u = None
+        else:
+            sw, dw, sw_nu, sw_T, dw_nu, dw_T = self._wall_coefficients(f, p)
+            slip = f.u[w] - uw
+            upw = f.up[w]
+            bu_u = diag(-sig * f.a[w]) @ d1w - H * at_walls(sw)
+            bu_nu = at_walls(-sig * a_nu[w] * upw - H * sw_nu * slip)
+            bu_T = at_walls(-sig * a_T[w] * upw - H * sw_T * slip)
+            bt_T = diag(sig / H**2) @ flux_T + at_walls(
+                sig * flux_T_diag / H**2 - H * sw_T * slip**2 + dw_T / H
+            )
+            bt_nu = at_walls(sig * flux_nu_diag / H**2 - H * sw_nu * slip**2 + dw_nu / H)
+            if flux_nu is not None:
+                bt_nu = bt_nu + diag(sig / H**2) @ flux_nu
+            bt_u = at_walls(-2.0 * H * sw * slip)
+
+        def rows(interior, wall):
+            out = inner @ interior
+            return out if wall is None else out + scatter @ wall
+
+        blocks: list[list[Any]] = [
+            [diag(c.f1_nu * f.T), None, diag(c.f1), sp.csr_matrix(-np.ones((n, 1)))],
+            [rows(ju_nu, bu_nu), rows(ju_u, bu_u), rows(ju_T, bu_T), None],
+            [rows(jt_nu, bt_nu), rows(jt_u, bt_u), rows(jt_T, bt_T), None],
+            [sp.csr_matrix(self.grid.weights[None, :]), None, None, None],
+        ]
+        if self.gravity:
+            hg = H**3 * p["G"]
+            ends = np.zeros(n)
+            ends[[0, -1]] = 0.5
+            jy_M = hg * (sp.eye(n) - sp.csr_matrix(np.outer(np.ones(n), ends)))
+            blocks[0].append(jy_M if hg != 0 else None)
+            for row in blocks[1:]:
+                row.append(None)
+            jm_nu = sp.vstack([sp.csr_matrix((1, n)), -self._cells])
+            jm_M = sp.eye(n) - sp.eye(n, k=-1)
+            blocks.append([jm_nu, None, None, None, jm_M])
+        return sp.csr_matrix(sp.bmat(blocks, format="csr"))
+
+    def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
+        """dF/dp for the parameter ``name`` by the complex step (exact to rounding)."""
+        if name not in self.parameter_names:
+            raise ValueError(f"unknown parameter {name!r}; known parameters are {', '.join(self.parameter_names)}")
+        if name == "G" and not self.gravity:
+            raise ValueError("continuation in G needs a problem built with gravity=True")
+        return complex_step_dp(self, np.asarray(x, dtype=float), p, name)
+
+    # ------------------------------------------------------------------ states
+    def uniform_state(self, p: Mapping[str, Any]) -> Array:
+        """Uniform shear (physics.md section 4): nu = nu_bar, u = y, T = f2/f5, P = f1 T.
+
+        An exact solution of the discrete no-slip problem at G = 0 (D1 and D2 are exact on
+        constants and linear functions); with gravity M is the cumulative integral of nu_bar.
+
+        Raises
+        ------
+        ValueError
+            At e = 1 (no dissipation, so no steady uniform temperature).
+        """
+        if p["e"] == 1:
+            raise ValueError("uniform shear has no steady temperature at e = 1 (no collisional dissipation)")
+        c = coefficients(np.float64(p["nu"]), p["e"], self.chi, p["num"])
+        t0 = c.f2 / c.f5
+        nu = np.full(self.n, float(p["nu"]))
+        return self.pack(nu, self.grid.y.copy(), np.full(self.n, t0), c.f1 * t0)
+
+    def initial_guess(self, p: Mapping[str, Any]) -> Array:
+        """A starting point for Newton.
+
+        No-slip walls: uniform shear.  Johnson-Jackson walls: uniform nu and T with a slipping
+        linear profile u = gamma y, where gamma balances bulk and wall shear stress,
+        f2 sqrt(T) gamma = H s_w (1 - gamma)/2, and T the integrated energy balance,
+        f2 sqrt(T) gamma^2 - f5 T^{3/2} = 2 [H s_w ((1 - gamma)/2)^2 - d_w / H]; both are explicit
+        because s_w ~ sqrt(T) and d_w ~ T^{3/2}.
+        """
+        if self.walls == "noslip":
+            return self.uniform_state(p)
+        c = coefficients(np.float64(p["nu"]), p["e"], self.chi, p["num"])
+        g = p["nu"] * c.chi
+        H = p["H"]
+        cs = p["phi_w"] * np.pi / (2.0 * _SQRT3 * p["num"]) * g
+        cd = _SQRT3 * np.pi * (1.0 - p["ew"] ** 2) / (4.0 * p["num"]) * g
+        gamma = H * cs / (2.0 * c.f2 + H * cs)
+        slip = 0.5 * (1.0 - gamma)
+        t0 = (c.f2 * gamma**2 + 2.0 * H * cs * slip**2) / (c.f5 + 2.0 * cd / H)
+        nu = np.full(self.n, float(p["nu"]))
+        return self.pack(nu, gamma * self.grid.y, np.full(self.n, t0), c.f1 * t0)
+
+    def profiles(self, x: Array) -> dict[str, Array]:
+        """{'nu', 'u', 'T'} (plus 'M' with gravity) on ``self.grid.y``."""
+        nu, u, T, _, M = self.unpack(np.asarray(x))
+        out = {"nu": nu.copy(), "u": u.copy(), "T": T.copy()}
+        if M is not None:
+            out["M"] = M.copy()
+        return out
+
+    def admissible(self, x: Array, p: Mapping[str, Any]) -> str | None:
+        """None for a physical state, else the reason (non-finite, T <= 0, nu outside (0, limit))."""
+        x = np.asarray(x)
+        if not np.all(np.isfinite(x)):
+            return "state has non-finite entries"
+        nu, _, T, _, _ = self.unpack(x)
+        limit = packing_limit(self.chi, p["num"])
+        if np.min(T) <= 0:
+            return f"temperature not positive (min T = {np.min(T):.3g})"
+        if np.min(nu) <= 0:
+            return f"volume fraction not positive (min nu = {np.min(nu):.3g})"
+        if np.max(nu) >= limit:
+            return f"volume fraction reached the packing limit {limit:g} (max nu = {np.max(nu):.6g})"
+        return None
+
+    # ------------------------------------------------------------------ diagnostics
+    def order_parameter(self, x: Array, p: Mapping[str, Any] | None = None) -> float:
+        """Phi = nu(y = 1/2), the density at the top wall (A13)."""
+        return float(np.real(x[self.i_nu][-1]))
+
+    def shear_stress(self, x: Array, p: Mapping[str, Any]) -> Array:
+        """S(y) = f2 sqrt(T) u' (constant for a steady state)."""
+        f = self._fields(np.asarray(x, dtype=float), p)
+        return f.a * f.up
+
+    def heat_flux(self, x: Array, p: Mapping[str, Any]) -> Array:
+        """Q(y) = -(1/H^2)(k T' + k_h nu'), the wall-normal heat flux (positive towards +y)."""
+        f = self._fields(np.asarray(x, dtype=float), p)
+        flux = f.k * f.Tp
+        if self.dufour:
+            flux = flux + f.kh * f.nup
+        return -flux / p["H"] ** 2
+
+    def observables(self, x: Array, p: Mapping[str, Any]) -> dict[str, float]:
+        """Scalars recorded along a branch.
+
+        phi = nu(1/2); delta = phi - nu_bar; shear_stress = S at the top wall; pressure =
+        f1 T at the bottom wall; nu_bottom, nu_top; T_bottom, T_mid (T at y = 0), T_top.
+        """
+        x = np.asarray(x, dtype=float)
+        f = self._fields(x, p)
+        phi = float(f.nu[-1])
+        return {
+            "phi": phi,
+            "delta": phi - float(p["nu"]),
+            "shear_stress": float(f.a[-1] * f.up[-1]),
+            "pressure": float(f.c.f1[0] * f.T[0]),
+            "nu_bottom": float(f.nu[0]),
+            "nu_top": phi,
+            "T_bottom": float(f.T[0]),
+            "T_mid": float(self.grid.interpolate(f.T, np.array([0.0]))[0]),
+            "T_top": float(f.T[-1]),
+        }
+
+    def energy_balance(self, x: Array, p: Mapping[str, Any]) -> tuple[float, float]:
+        """(integral of a u'^2 - D dy, Q(1/2) - Q(-1/2)).
+
+        Integrating the energy equation, Q' = a u'^2 - f5 T^{3/2}, the two numbers agree for
+        every steady state up to the discretization error: heat produced in the bulk leaves
+        through the walls (zero for adiabatic no-slip walls).
+        """
+        f = self._fields(np.asarray(x, dtype=float), p)
+        source = float(self.grid.integrate(f.a * f.up**2 - f.D))
+        q = self.heat_flux(x, p)
+        return source, float(q[-1] - q[0])
+
+    def momentum_balance(self, x: Array, p: Mapping[str, Any]) -> dict[str, float]:
+        """Deviations from the integrated momentum balances (zero up to discretization error).
+
+        shear_stress : max |S(y) - S(1/2)| / |S(1/2)|, S = a u' (x-momentum: S constant)
+        normal_stress : max |f1 T + H^3 G M - mean| / mean (y-momentum, integrated)
+        normal_stress_gradient : max |D1(f1 T) + H^3 G nu| / max(f1 T) (differential form)
+        """
+        x = np.asarray(x, dtype=float)
+        f = self._fields(x, p)
+        s = f.a * f.up
+        pyy = f.c.f1 * f.T
+        hg = p["H"] ** 3 * p["G"]
+        total = pyy + (hg * f.M if self.gravity else 0.0)
+        scale = float(np.max(np.abs(pyy)))
+        return {
+            "shear_stress": float(np.max(np.abs(s - s[-1])) / abs(s[-1])),
+            "normal_stress": float(np.max(np.abs(total - np.mean(total))) / abs(np.mean(total))),
+            "normal_stress_gradient": float(np.max(np.abs(self._d1 @ pyy + hg * f.nu)) / scale),
+        }
+
+    # ------------------------------------------------------------------ symmetry
+    def symmetric(self, p: Mapping[str, Any]) -> bool:
+        """True when the reflection of :meth:`symmetry` is a symmetry of F(., p), i.e. G = 0."""
+        return p["G"] == 0
+
+    def symmetry(self, x: Array) -> Array:
+        """The reflection y -> -y: (nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y), P -> P.
+
+        With gravity, M -> M(-1/2) + M(1/2) - M(-y); then F(Sx, -G) = S_F F(x, G), with S_F
+        from :meth:`residual_symmetry_matrix` (= S when there is no M).  S is an involution.
+        A symmetry of F(., p) only when :meth:`symmetric` (G = 0; both walls share parameters).
+        """
+        x = np.asarray(x)
+        r = self.grid.reflection()
+        nu, u, T, P, M = self.unpack(x)
+        parts = [nu[r], -u[r], T[r], np.atleast_1d(P)]
+        if self.gravity:
+            parts.append(M[0] + M[-1] - M[r])
+        return np.concatenate(parts)
+
+    def symmetry_matrix(self) -> sp.csr_matrix:
+        """Sparse matrix of :meth:`symmetry`."""
+        n = self.n
+        rf = sp.csr_matrix(np.eye(n)[::-1])
+        blocks = [rf, -rf, rf, sp.eye(1)]
+        if self.gravity:
+            ends = np.zeros((n, n))
+            ends[:, [0, -1]] = 1.0
+            blocks.append(sp.csr_matrix(ends) - rf)
+        return sp.csr_matrix(sp.block_diag(blocks))
+
+    def residual_symmetry_matrix(self) -> sp.csr_matrix:
+        """S_F with F(Sx, p') = S_F F(x, p), p' = p with G -> -G (S_F = S without gravity).
+
+        On the rows of M the reflection maps M_0 = 0 to itself and the cell row j to N + 1 - j.
+        """
+        if not self.gravity:
+            return self.symmetry_matrix()
+        n = self.n
+        rf = sp.csr_matrix(np.eye(n)[::-1])
+        perm = np.concatenate([[0], np.arange(n - 1, 0, -1)])
+        cells = sp.csr_matrix((np.ones(n), (np.arange(n), perm)), shape=(n, n))
+        return sp.csr_matrix(sp.block_diag([rf, -rf, rf, sp.eye(1), cells]))
+
+    # ------------------------------------------------------------------ stability
+    def eigenproblem(self, x: Array, p: Mapping[str, Any], kx: float = 0.0, kz: float = 0.0):
+        """Generalized eigenproblem A X = omega B X of physics.md section 5 at the steady state x.
+
+        Delegates to :func:`problems.couette.linear.linear_operator` (imported lazily).
+        """
+        from problems.couette.linear import linear_operator
+
+        return linear_operator(self, x, p, kx=kx, kz=kz)
+
+
+def _dufour_nu_derivative(nu: Array, p: Mapping[str, Any], chi: str, h: float = 1e-30) -> Array:
+    """d f_h / d nu by the complex step (closures gives f_h but not its derivative)."""
+    c = coefficients(nu + 1j * h, p["e"], chi, p["num"], dufour=True)
+    return np.asarray(c.fh).imag / h

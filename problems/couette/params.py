@@ -1,0 +1,134 @@
+"""Parameters of granular plane Couette flow: names, defaults, Froude-number conversion, checks.
+
+Continuation parameters (physics.md sections 2-3, Alam scaling):
+
+======  =====================================================  =========================
+name    meaning                                                 valid range
+======  =====================================================  =========================
+nu      mean volume fraction nu_bar                             0 < nu < packing limit
+e       particle restitution coefficient                        0 < e <= 1
+H       gap in particle diameters, H = H~ / d_p                 H > 0
+G       gravity, G = Fr^-2 (Fr = U_w / sqrt(g d_p))             G >= 0 (Fr > 0, inf allowed)
+phi_w   specularity phi' of Johnson-Jackson walls               0 <= phi_w <= 1
+ew      particle-wall restitution e_w                           0 < ew <= 1
+num     nu_m of chi (and nu_max of the wall terms)              0 < num < 1
+======  =====================================================  =========================
+
+The packing limit is ``num`` for the ``jj`` and ``ls`` radial distributions and 1 for ``cs``
+(closures.packing_limit).  Users may give ``Fr`` instead of ``G``; it is converted.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from problems.couette.closures import CHI_MODELS, packing_limit
+
+PARAMETER_NAMES: tuple[str, ...] = ("nu", "e", "H", "G", "phi_w", "ew", "num")
+
+DEFAULTS: dict[str, float] = {
+    "nu": 0.3,
+    "e": 0.8,
+    "H": 20.0,
+    "G": 0.0,
+    "phi_w": 0.5,
+    "ew": 0.9,
+    "num": 0.65,
+}
+
+
+def froude_to_gravity(fr: float) -> float:
+    """G = Fr^-2 (G = 0 for Fr = inf).
+
+    Raises
+    ------
+    ValueError
+        If Fr is not a positive number.
+    """
+    fr = _as_float("Fr", fr)
+    if not fr > 0:
+        raise ValueError(f"parameter Fr = {fr} is out of range; the Froude number must be > 0 (inf allowed)")
+    return 0.0 if math.isinf(fr) else 1.0 / fr**2
+
+
+def gravity_to_froude(g: float) -> float:
+    """Fr = G^-1/2 (inf for G = 0)."""
+    return math.inf if g == 0 else 1.0 / math.sqrt(g)
+
+
+def _as_float(name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"parameter {name} = {value!r} is not a number") from None
+    if math.isnan(v):
+        raise ValueError(f"parameter {name} is NaN")
+    return v
+
+
+def build_params(values: Mapping[str, Any] | None = None, *, chi: str = "jj") -> dict[str, float]:
+    """Full parameter dict from user values merged over :data:`DEFAULTS`, validated.
+
+    Parameters
+    ----------
+    values : mapping of name -> value (numbers or numeric strings such as ``"inf"``).
+        Accepts every name in :data:`PARAMETER_NAMES` and ``Fr`` (converted to G = Fr^-2;
+        ``Fr`` and ``G`` together must agree).
+    chi : radial distribution model ('jj', 'cs', 'ls'); sets the packing limit of ``nu``.
+
+    Returns
+    -------
+    dict with exactly the keys of :data:`PARAMETER_NAMES`, float values.
+
+    Raises
+    ------
+    ValueError
+        One sentence naming the parameter and its allowed range, or the unknown name.
+    """
+    p = dict(DEFAULTS)
+    values = dict(values or {})
+    fr = values.pop("Fr", None)
+    for name, value in values.items():
+        if name not in DEFAULTS:
+            raise ValueError(
+                f"unknown parameter {name!r}; known parameters are {', '.join(PARAMETER_NAMES)} and Fr"
+            )
+        p[name] = _as_float(name, value)
+    if fr is not None:
+        g = froude_to_gravity(fr)
+        if "G" in values and not math.isclose(p["G"], g, rel_tol=1e-12, abs_tol=0.0):
+            raise ValueError(f"parameters Fr = {fr} and G = {p['G']} disagree; give only one of them (G = Fr^-2)")
+        p["G"] = g
+    validate_params(p, chi=chi)
+    return p
+
+
+def validate_params(p: Mapping[str, Any], *, chi: str = "jj") -> None:
+    """Raise ``ValueError`` (one sentence) unless ``p`` is a complete, physical parameter set."""
+    if chi not in CHI_MODELS:
+        raise ValueError(f"unknown radial distribution chi = {chi!r}; choose one of {', '.join(CHI_MODELS)}")
+    for name in PARAMETER_NAMES:
+        if name not in p:
+            raise ValueError(f"parameter {name} is missing")
+    for name in p:
+        if name not in DEFAULTS:
+            raise ValueError(
+                f"unknown parameter {name!r}; known parameters are {', '.join(PARAMETER_NAMES)}"
+            )
+    v = {name: _as_float(name, p[name]) for name in PARAMETER_NAMES}
+    if not 0.0 < v["num"] < 1.0:
+        raise ValueError(f"parameter num = {v['num']} is out of range; nu_m must satisfy 0 < num < 1")
+    limit = packing_limit(chi, v["num"])
+    checks = (
+        ("nu", 0.0 < v["nu"] < limit, f"0 < nu < {limit:g} (packing limit of chi = {chi})"),
+        ("e", 0.0 < v["e"] <= 1.0, "0 < e <= 1"),
+        ("H", 0.0 < v["H"] < math.inf, "0 < H < inf"),
+        ("G", 0.0 <= v["G"] < math.inf, "0 <= G < inf (G = Fr^-2, Fr > 0)"),
+        ("phi_w", 0.0 <= v["phi_w"] <= 1.0, "0 <= phi_w <= 1"),
+        ("ew", 0.0 < v["ew"] <= 1.0, "0 < ew <= 1"),
+    )
+    for name, ok, allowed in checks:
+        if not ok:
+            raise ValueError(f"parameter {name} = {v[name]} is out of range; it must satisfy {allowed}")
