@@ -56,13 +56,12 @@ class SceneRequest:
     on_branch: Callable[[Branch], None] | None = None
     progress: Callable[[str], None] | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
-    # Records that a scene applied ``overrides`` (the CLI warns when they were ignored).
-    _used_overrides: list[bool] = field(default_factory=list, repr=False, compare=False)
+    # Options resolved by options_for (the CLI stores them and warns if overrides were ignored).
+    _resolved: list[ContinuationOptions] = field(default_factory=list, repr=False, compare=False)
 
     def options_for(self, default: ContinuationOptions) -> ContinuationOptions:
         """The options to use for one trace: ``self.options`` if given, else ``default``
         with the user's :attr:`overrides` applied (step.ds keeps the default's sign)."""
-        self._used_overrides.append(True)
         base = self.options if self.options is not None else default
         ov = dict(self.overrides)
         step = base.step
@@ -74,12 +73,14 @@ class SceneRequest:
         kw: dict[str, Any] = {"step": step}
         if "max_steps" in ov:
             kw["max_steps"] = int(ov["max_steps"])
-        return dataclasses.replace(base, **kw)
+        resolved = dataclasses.replace(base, **kw)
+        self._resolved.append(resolved)
+        return resolved
 
     @property
-    def overrides_used(self) -> bool:
-        """True once a scene has called :meth:`options_for`."""
-        return bool(self._used_overrides)
+    def resolved_options(self) -> list[ContinuationOptions]:
+        """Every options object handed out by :meth:`options_for` (empty if never called)."""
+        return list(self._resolved)
 
     def report(self, message: str) -> None:
         if self.progress is not None:
@@ -123,7 +124,7 @@ class Scene:
     y: str = "phi"  # default y-axis (an observable name)
 
 
-_log = logging.getLogger("contin")
+_log = logging.getLogger("contin.scene")
 
 #: Entry points that failed to load at the last :func:`available_scenes` call:
 #: ``[(source, "ExceptionType: message"), ...]`` (``contin scenes`` reports them).
@@ -174,5 +175,6 @@ def get_scene(name: str) -> Scene:
     """The scene called ``name``; SceneError listing the known ones otherwise."""
     scenes = available_scenes()
     if name not in scenes:
-        raise SceneError(f"unknown scene {name!r}; known scenes: {', '.join(scenes) or 'none'}")
+        broken = f" ({len(SCENE_LOAD_ERRORS)} scene module(s) failed to load; see `contin scenes`)" if SCENE_LOAD_ERRORS else ""
+        raise SceneError(f"unknown scene {name!r}; known scenes: {', '.join(scenes) or 'none'}{broken}")
     return scenes[name]

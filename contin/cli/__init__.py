@@ -1,0 +1,14 @@
+"""The ``contin`` command line (click): one module per command.
+
+Adding a command: write ``contin/cli/<name>.py`` defining a click command decorated with
+``@main.command()`` (import ``main`` from :mod:`contin.cli._base`) and add ``<name>`` to the
+import line below.  Heavy libraries (numpy, scipy, h5py, matplotlib) are imported inside the
+command bodies so that ``contin --help`` stays fast.
+"""
+
+from contin.cli._base import EXIT_INCOMPLETE, main
+
+# one module per command; importing a module registers its command on `main`
+from contin.cli import diagram, info, scenes, trace  # noqa: E402,F401,I001
+
+__all__ = ["EXIT_INCOMPLETE", "main"]

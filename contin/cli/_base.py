@@ -1,0 +1,170 @@
+"""The ``contin`` click group, error handling and small shared helpers.
+
+Exit codes: 0 success; 1 bad input or error (one ``Error: ...`` line on stderr, traceback only
+with ``--debug``); 2 usage error (click); 3 the run finished but a branch ended with MX
+(:data:`EXIT_INCOMPLETE`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import re
+import sys
+from collections.abc import Mapping, Sequence
+from typing import Any, NoReturn
+
+import click
+
+#: exit code of a run that finished but left a branch with status MX
+EXIT_INCOMPLETE = 3
+
+CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"], "show_default": True}
+
+
+def error_line(exc: BaseException) -> str:
+    """One line describing ``exc`` for the user (no traceback)."""
+    if isinstance(exc, OSError) and not type(exc).__module__.startswith("h5py") and exc.strerror:
+        msg = f"{exc.strerror}: {exc.filename!r}" if exc.filename else exc.strerror
+        if exc.args and isinstance(exc.args[0], str) and len(exc.args) == 1:
+            msg = exc.args[0]
+    elif isinstance(exc, ValueError | OSError | LookupError) and str(exc):
+        msg = str(exc)
+        if isinstance(exc, KeyError) and len(exc.args) == 1:
+            msg = str(exc.args[0])
+    else:
+        msg = f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for the traceback"
+    return re.sub(r"\s*\n\s*", " ", msg).strip()
+
+
+class ContinGroup(click.Group):
+    """A group whose commands turn any exception into one ``Error:`` line (exit 1)."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (click.ClickException, click.exceptions.Exit, click.Abort, KeyboardInterrupt):
+            raise
+        except Exception as exc:
+            if ctx.params.get("debug") or os.environ.get("CONTIN_DEBUG"):
+                raise
+            raise click.ClickException(error_line(exc)) from None
+
+
+class _OneLine(logging.Formatter):
+    def format(self, record: logging.LogRecord) -> str:
+        return f"{record.levelname.lower()}: {record.getMessage()}"
+
+
+def _setup_logging(verbose: int) -> None:
+    log = logging.getLogger("contin")
+    if not any(getattr(h, "_contin_cli", False) for h in log.handlers):
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(_OneLine())
+        handler._contin_cli = True  # type: ignore[attr-defined]
+        log.addHandler(handler)
+    log.setLevel(logging.DEBUG if verbose > 1 else logging.INFO if verbose else logging.WARNING)
+    # broken scene modules are reported by `contin scenes` and in unknown-scene errors
+    logging.getLogger("contin.scene").setLevel(logging.WARNING if verbose else logging.ERROR)
+
+
+@click.group(cls=ContinGroup, context_settings=CONTEXT_SETTINGS,
+             epilog="Examples:\n\n  contin scenes\n\n  contin trace bratu -o bratu.h5 --json\n\n"
+                    "  contin diagram bratu.h5 -o bratu.png\n\n  contin info bratu.h5")
+@click.option("--debug", is_flag=True, help="Show full tracebacks instead of one-line errors.")
+@click.option("-v", "--verbose", count=True, help="Log more (-v info, -vv debug).")
+@click.version_option(package_name="contin")
+def main(debug: bool, verbose: int) -> None:
+    """contin: numerical continuation and bifurcation diagrams.
+
+    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure).
+    """
+    _setup_logging(verbose)
+
+
+# --------------------------------------------------------------------------- helpers
+
+def fail(message: str) -> NoReturn:
+    raise click.ClickException(message)
+
+
+def parse_value(text: str) -> Any:
+    """A ``-s name=value`` value: a float (``inf`` allowed), else the string itself."""
+    t = text.strip()
+    try:
+        v = float(t)
+    except ValueError:
+        return t
+    if math.isnan(v):
+        raise click.BadParameter(f"{text!r} is not a number (NaN is not a valid parameter value)")
+    return v
+
+
+def parse_settings(items: Sequence[str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise click.BadParameter(f"expected name=value, got {item!r}", param_hint="'-s'")
+        out[name.strip()] = parse_value(value)
+    return out
+
+
+def fmt(v: Any, digits: int = 10) -> str:
+    """Compact number formatting for tables ('inf', 'nan', 10 significant digits)."""
+    if isinstance(v, bool) or v is None:
+        return str(v)
+    if isinstance(v, int) or type(v).__name__.startswith(("int", "uint")):
+        return str(int(v))
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    if math.isnan(f):
+        return "nan"
+    if math.isinf(f):
+        return "inf" if f > 0 else "-inf"
+    return f"{f:.{digits}g}"
+
+
+def table(rows: Sequence[Sequence[Any]], header: Sequence[str]) -> str:
+    """A plain left-aligned text table."""
+    cells = [[str(h) for h in header]] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(header))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def special_points_table(branches: Sequence[Any]) -> str:
+    """Table of special points: branch, label, type, free parameters, phi, converged, note."""
+    rows = []
+    for b in branches:
+        for sp in b.special_points:
+            names = [n for n in b.free if n in sp.params] or [b.parameter]
+            pv = ", ".join(f"{n}={fmt(sp.params.get(n, math.nan))}" for n in names)
+            rows.append((b.id, sp.name, sp.type, pv, fmt(sp.order_parameter), "yes" if sp.converged else "NO", sp.note))
+    if not rows:
+        return "no special points"
+    return table(rows, ("branch", "label", "type", "parameters", "phi", "converged", "note"))
+
+
+def branches_table(branches: Sequence[Any]) -> str:
+    rows = []
+    for b in branches:
+        p = b.params.get(b.parameter)
+        rng = f"[{fmt(min(p), 6)}, {fmt(max(p), 6)}]" if p is not None and len(p) else "-"
+        rows.append((b.id, b.kind, b.parent or "-", b.parameter, rng, len(b), b.status,
+                     "closed" if b.closed else "", b.message))
+    return table(rows, ("branch", "kind", "parent", "param", "range", "points", "status", "", "message"))
+
+
+def echo_err(text: str = "") -> None:
+    click.echo(text, err=True)
+
+
+def echo_json(doc: Mapping[str, Any]) -> None:
+    from contin.jsonout import dumps
+
+    click.echo(dumps(doc, indent=2))

@@ -1,0 +1,40 @@
+"""``contin info FILE.h5``: provenance, branches and special points of a stored run."""
+
+from __future__ import annotations
+
+import click
+
+from contin.cli._base import branches_table, echo_json, fmt, main, special_points_table
+
+
+@main.command("info")
+@click.argument("file", type=click.Path(exists=True, dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
+def info_command(file: str, as_json: bool) -> None:
+    """Summarise FILE: provenance, branches (status, points) and special points."""
+    from contin import io
+    from contin.jsonout import run_document
+
+    branches, meta = io.load(file)
+    prov = {k: meta[k] for k in ("format_version", "contin_version", "git_commit", "created_utc", "command",
+                                 "complete")}
+    if as_json:
+        echo_json(run_document(scene=meta["scene"], parameters=meta["parameters"],
+                               discretization=meta["discretization"], branches=branches,
+                               notes=meta["notes"], extra=meta["extra"], provenance=prov,
+                               options=meta["options"]))
+        return
+    click.echo(f"file:           {file}")
+    click.echo(f"scene:          {meta['scene']}")
+    click.echo("parameters:     " + ", ".join(f"{k}={fmt(v)}" for k, v in meta["parameters"].items()))
+    click.echo("discretization: " + ", ".join(f"{k}={fmt(v)}" for k, v in meta["discretization"].items()))
+    for key, value in prov.items():
+        click.echo(f"{key + ':':<16}{value}")
+    if not meta["complete"]:
+        click.echo("                (incomplete: the run was interrupted; continue it with --resume)")
+    for note in meta["notes"]:
+        click.echo(f"note: {note}")
+    click.echo("")
+    click.echo(branches_table(branches))
+    click.echo("")
+    click.echo(special_points_table(branches))

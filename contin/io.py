@@ -1,0 +1,661 @@
+"""HDF5 storage of continuation runs: one self-describing file per run, readable with h5py alone.
+
+Layout (format "contin", format_version 1)
+------------------------------------------
+::
+
+    /                         attrs: format="contin", format_version=1, contin_version,
+                                     git_commit, created_utc, command (exact argv), scene,
+                                     parameters, discretization, options, notes, extra (JSON
+                                     text), diagram_x, diagram_y, complete (bool)
+    /grid/y                   (N,) wall-normal grid of the profiles (optional)
+    /branches/<id>/           attrs: id, parameter, free, status, message, closed, kind,
+                                     parent, position, param_names, observable_names,
+                                     datasets (JSON: quantity name -> dataset name)
+        <param>               (S,) one per parameter (fixed ones too), e.g. H, nu
+        <observable>          (S,) one per observable, e.g. phi
+        ds, newton_iterations (S,)
+        states                (S, n)    or (M, n) with state_index (M,) when only every
+                                        k-th state was kept (save_every)
+        tangents              (S, n + len(free))
+        stable, n_unstable    (S,)      only when stability was computed
+        eigenvalues           (S, k)    complex, only when computed
+        audit                 (A,)      text messages
+        profile_index         (P,)      point indices along the branch of the stored profiles
+        profiles/<name>       (P, N)    e.g. nu, u, T against /grid/y
+    /special_points/          one row per special point, columns:
+        branch, name, type, note (text); branch_position (row of the branch in write
+        order), label, index, state_size, tangent_size (int);
+        phi, bracket_lo, bracket_hi (float); converged (bool);
+        params/<name>         one column per parameter name (attr param_names)
+        params_present        (K, P) bool: which parameters each row has
+        states                (K, n_max) located states (NaN-padded to state_size)
+        tangents              (K, m_max) tangents (tangent_size = -1 when none)
+        profiles/<name>       (K, N) profiles of the located states (optional)
+
+Parameters, observables and dataset names are stored under the quantity's own name; a name
+that clashes with a reserved dataset (``ds``, ``states``...) or contains ``/`` is stored under
+an escaped name, and the ``datasets`` attribute maps quantity names to dataset names.
+
+Crash safety
+------------
+A file is never modified in place.  Every publish writes the whole run to ``FILE.tmp``,
+flushes and fsyncs it, then renames it over ``FILE`` (``os.replace`` is atomic on POSIX), so
+``FILE`` is at every instant either absent or a complete, consistent file: a SIGKILL at any
+moment leaves the last published version (attr ``complete=False`` while the run is still going)
+and at worst a stale ``FILE.tmp``.  :class:`H5Writer` republishes after every finished branch;
+the runs are small (a few MB), so rewriting is cheap and far simpler than in-place appends.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import functools
+import json
+import logging
+import os
+import shlex
+import subprocess
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from contin.branch import Branch, SpecialPoint
+from contin.jsonout import dumps as _json_dumps
+from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "FileFormatError",
+    "H5Writer",
+    "git_commit",
+    "load",
+    "options_from_dict",
+    "write",
+]
+
+FORMAT = "contin"
+FORMAT_VERSION = 1
+
+_log = logging.getLogger("contin")
+
+_RESERVED = frozenset({
+    "ds", "newton_iterations", "states", "tangents", "stable", "n_unstable", "eigenvalues",
+    "audit", "profiles", "profile_index", "state_index",
+})
+_STR = h5py.string_dtype()
+
+ProfileFn = Callable[[np.ndarray], Mapping[str, np.ndarray]]
+
+
+_HAS_STATE_INDEX = "state_index" in {f.name for f in dataclasses.fields(Branch)}
+
+
+class FileFormatError(ValueError):
+    """A file that is not a readable contin HDF5 file (corrupt, truncated or foreign)."""
+
+
+# --------------------------------------------------------------------------- provenance
+
+@functools.lru_cache(maxsize=None)
+def git_commit(path: str | None = None) -> str:
+    """Commit of the git tree holding ``path`` (default: the contin sources), else 'unknown'.
+
+    A ``-dirty`` suffix marks uncommitted changes to tracked files.
+    """
+    where = path or str(Path(__file__).resolve().parent)
+    try:
+        sha = subprocess.run(["git", "-C", where, "rev-parse", "HEAD"], capture_output=True,
+                             text=True, timeout=5, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", where, "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (sha + "-dirty" if dirty else sha) or "unknown"
+
+
+def _contin_version() -> str:
+    from contin import __version__
+
+    return __version__
+
+
+def _options_dict(options: ContinuationOptions | Mapping[str, Any] | None) -> dict[str, Any]:
+    if options is None:
+        return {}
+    if dataclasses.is_dataclass(options) and not isinstance(options, type):
+        return dataclasses.asdict(options)
+    return dict(options)
+
+
+def options_from_dict(d: Mapping[str, Any]) -> ContinuationOptions:
+    """Rebuild :class:`ContinuationOptions` from the ``options`` attribute of a file."""
+    d = dict(d)
+    kw: dict[str, Any] = {}
+    for key, cls in (("newton", NewtonOptions), ("step", StepOptions), ("detection", DetectionOptions)):
+        if key in d:
+            kw[key] = cls(**d.pop(key))
+    if "bounds" in d:
+        kw["bounds"] = {k: (float(lo), float(hi)) for k, (lo, hi) in d.pop("bounds").items()}
+    return ContinuationOptions(**kw, **d)
+
+
+def _jsonload(text: Any, default: Any) -> Any:
+    if text is None:
+        return default
+    from contin.jsonout import from_json_value
+
+    def fix(obj: Any) -> Any:  # 'inf' strings back to floats (see contin.jsonout)
+        if isinstance(obj, dict):
+            return {k: fix(v) for k, v in obj.items()}
+        if isinstance(obj, list):
+            return [fix(v) for v in obj]
+        return from_json_value(obj) if obj in ("inf", "-inf") else obj
+
+    return fix(json.loads(text))
+
+
+# --------------------------------------------------------------------------- writing
+
+def _escape(name: str, taken: set[str]) -> str:
+    """A dataset name for quantity ``name``: itself unless reserved, used or containing '/'."""
+    ds = name.replace("%", "%25").replace("/", "%2F")
+    if ds in ("", ".") or ds in _RESERVED or ds in taken:
+        ds = "q%" + ds
+        while ds in _RESERVED or ds in taken:
+            ds = "q%" + ds
+    taken.add(ds)
+    return ds
+
+
+def _column(values: Any) -> np.ndarray:
+    arr = np.asarray(values)
+    if arr.dtype.kind in "USO":
+        return np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
+    return arr
+
+
+def _put(group: h5py.Group, name: str, values: Any) -> h5py.Dataset:
+    arr = _column(values)
+    if arr.dtype == object:
+        return group.create_dataset(name, data=arr, dtype=_STR)
+    return group.create_dataset(name, data=arr)
+
+
+def _sample_rows(n: int, max_rows: int, keep: Iterable[int] = ()) -> np.ndarray:
+    """At most ~max_rows evenly spaced row indices in [0, n), plus the rows in ``keep``."""
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    rows = set(np.unique(np.linspace(0, n - 1, min(n, max_rows)).round().astype(int)).tolist())
+    rows.update(i for i in keep if 0 <= i < n)
+    return np.array(sorted(rows), dtype=np.int64)
+
+
+def _write_branch(group: h5py.Group, branch: Branch, position: int,
+                  profiles: Mapping[str, np.ndarray] | None, profile_index: np.ndarray | None) -> None:
+    g = group.create_group(_escape(str(branch.id), set(group.keys())))
+    a = g.attrs
+    a["id"] = str(branch.id)
+    a["parameter"] = branch.parameter
+    a["free"] = np.asarray(list(branch.free), dtype=_STR)
+    a["status"] = branch.status
+    a["message"] = branch.message
+    a["closed"] = bool(branch.closed)
+    a["kind"] = branch.kind
+    a["parent"] = branch.parent
+    a["position"] = position
+    a["param_names"] = np.asarray(list(branch.params), dtype=_STR)
+    a["observable_names"] = np.asarray(list(branch.observables), dtype=_STR)
+    taken: set[str] = set()
+    mapping: dict[str, dict[str, str]] = {"params": {}, "observables": {}}
+    for kind, table in (("params", branch.params), ("observables", branch.observables)):
+        for name, values in table.items():
+            ds = _escape(name, taken)
+            mapping[kind][name] = ds
+            _put(g, ds, values)
+    a["datasets"] = json.dumps(mapping)
+    g.create_dataset("ds", data=np.asarray(branch.ds))
+    g.create_dataset("newton_iterations", data=np.asarray(branch.newton_iterations))
+    g.create_dataset("states", data=np.asarray(branch.states))
+    g.create_dataset("tangents", data=np.asarray(branch.tangents))
+    for name in ("stable", "n_unstable", "eigenvalues", "state_index"):
+        value = getattr(branch, name, None)
+        if value is not None:
+            g.create_dataset(name, data=np.asarray(value))
+    g.create_dataset("audit", data=np.asarray(list(branch.audit), dtype=object), dtype=_STR)
+    if profiles is not None and profile_index is not None:
+        g.create_dataset("profile_index", data=profile_index)
+        pg = g.create_group("profiles")
+        for name, arr in profiles.items():
+            pg.create_dataset(name.replace("/", "%2F"), data=np.asarray(arr, dtype=float))
+
+
+def _write_special_points(f: h5py.File, branches: Sequence[Branch],
+                          sp_profiles: Mapping[str, np.ndarray] | None) -> None:
+    rows = [(b, sp) for b in branches for sp in b.special_points]
+    positions = [pos for pos, b in enumerate(branches) for _ in b.special_points]
+    g = f.create_group("special_points")
+    k = len(rows)
+    names: list[str] = []
+    for _, sp in rows:
+        names.extend(n for n in sp.params if n not in names)
+    g.attrs["param_names"] = np.asarray(names, dtype=_STR)
+    g.attrs["n_rows"] = k
+
+    def text(vals: list[str]) -> np.ndarray:
+        return np.asarray(vals, dtype=object)
+
+    g.create_dataset("branch", data=text([str(b.id) for b, _ in rows]), dtype=_STR)
+    g.create_dataset("name", data=text([sp.name for _, sp in rows]), dtype=_STR)
+    g.create_dataset("type", data=text([sp.type for _, sp in rows]), dtype=_STR)
+    g.create_dataset("note", data=text([sp.note for _, sp in rows]), dtype=_STR)
+    g.create_dataset("branch_position", data=np.asarray(positions, dtype=np.int64))
+    g.create_dataset("label", data=np.asarray([sp.label for _, sp in rows], dtype=np.int64))
+    g.create_dataset("index", data=np.asarray([sp.index for _, sp in rows], dtype=np.int64))
+    g.create_dataset("phi", data=np.asarray([sp.order_parameter for _, sp in rows], dtype=float))
+    g.create_dataset("bracket_lo", data=np.asarray([sp.bracket[0] for _, sp in rows], dtype=float))
+    g.create_dataset("bracket_hi", data=np.asarray([sp.bracket[1] for _, sp in rows], dtype=float))
+    g.create_dataset("converged", data=np.asarray([sp.converged for _, sp in rows], dtype=bool))
+    pg = g.create_group("params")
+    present = np.zeros((k, len(names)), dtype=bool)
+    for j, name in enumerate(names):
+        vals = []
+        for i, (_, sp) in enumerate(rows):
+            present[i, j] = name in sp.params
+            vals.append(sp.params.get(name, np.nan))
+        if any(isinstance(v, str) for v in vals):
+            pg.create_dataset(name.replace("/", "%2F"), data=text([str(v) for v in vals]), dtype=_STR)
+        else:
+            pg.create_dataset(name.replace("/", "%2F"), data=np.asarray(vals, dtype=float))
+    g.create_dataset("params_present", data=present)
+    for col, get in (("states", lambda sp: sp.state), ("tangents", lambda sp: sp.tangent)):
+        vecs = [None if get(sp) is None else np.asarray(get(sp)).ravel() for _, sp in rows]
+        width = max([v.size for v in vecs if v is not None], default=0)
+        dtype = np.result_type(float, *[v.dtype for v in vecs if v is not None])
+        table = np.full((k, width), np.nan, dtype=dtype)
+        sizes = np.full(k, -1, dtype=np.int64)
+        for i, v in enumerate(vecs):
+            if v is not None:
+                table[i, : v.size] = v
+                sizes[i] = v.size
+        g.create_dataset(col, data=table)
+        g.create_dataset(col[:-1] + "_size", data=sizes)
+    if sp_profiles:
+        spg = g.create_group("profiles")
+        for name, arr in sp_profiles.items():
+            spg.create_dataset(name.replace("/", "%2F"), data=np.asarray(arr, dtype=float))
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
+    """Write a whole file through ``fill`` into PATH.tmp, fsync, and rename it onto PATH."""
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with h5py.File(tmp, "w") as f:
+            fill(f)
+            f.flush()
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(path.parent)
+
+
+def check_writable(path: str | os.PathLike[str]) -> Path:
+    """Raise ``OSError`` with a clear message if ``path`` (an output file) cannot be written.
+
+    Creates and removes ``PATH.tmp``, exactly what a publish will need, so a bad ``-o`` fails
+    before any computing.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise IsADirectoryError(f"output path {str(p)!r} is a directory")
+    if not p.parent.is_dir():
+        raise FileNotFoundError(f"cannot write {str(p)!r}: directory {str(p.parent)!r} does not exist")
+    tmp = p.with_name(p.name + ".tmp")
+    try:
+        with open(tmp, "wb"):
+            pass
+        tmp.unlink()
+    except OSError as exc:
+        raise OSError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
+    if p.exists() and not os.access(p, os.W_OK) and not os.access(p.parent, os.W_OK):
+        raise PermissionError(f"cannot write {str(p)!r}: permission denied")
+    return p
+
+
+class H5Writer:
+    """Incremental, crash-safe writer of one run (see the module docstring for the design).
+
+    Parameters
+    ----------
+    path : output file.
+    scene, parameters, discretization, options, command : provenance (``command`` defaults to
+        ``sys.argv``; ``options`` a :class:`ContinuationOptions` or a dict).
+    y, profiles : wall-normal grid and state -> {name: profile} map; profiles are stored for
+        at most ``max_profiles`` evenly spaced rows of each branch (plus its special points).
+    branches : branches already finished (``--resume``); written with the first publish.
+    notes, extra, diagram_x, diagram_y : stored as root attributes.
+
+    Use as a context manager: :meth:`add_branch` after each finished branch (publishes at
+    once); leaving the block normally publishes the final file with ``complete=True``; leaving
+    it with an exception keeps the last published (``complete=False``) file.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        scene: str = "",
+        parameters: Mapping[str, Any] | None = None,
+        discretization: Mapping[str, Any] | None = None,
+        options: ContinuationOptions | Mapping[str, Any] | None = None,
+        command: Sequence[str] | str | None = None,
+        y: np.ndarray | None = None,
+        profiles: ProfileFn | None = None,
+        branches: Iterable[Branch] = (),
+        notes: Sequence[str] = (),
+        extra: Mapping[str, Any] | None = None,
+        diagram_x: str = "",
+        diagram_y: str = "phi",
+        max_profiles: int = 40,
+    ) -> None:
+        self.path = check_writable(path)
+        argv = sys.argv if command is None else command
+        self.meta: dict[str, Any] = {
+            "scene": scene,
+            "parameters": dict(parameters or {}),
+            "discretization": dict(discretization or {}),
+            "options": _options_dict(options),
+            "command": argv if isinstance(argv, str) else shlex.join(str(a) for a in argv),
+            "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "notes": list(notes),
+            "extra": dict(extra or {}),
+            "diagram_x": diagram_x,
+            "diagram_y": diagram_y,
+        }
+        self.y = None if y is None else np.asarray(y, dtype=float)
+        self.profiles = profiles
+        self.max_profiles = max_profiles
+        self._branches: dict[str, Branch] = {}
+        self._extra_branches: list[Branch] = []
+        self._profile_cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]] | None] = {}
+        for b in branches:
+            self._branches[str(b.id)] = b
+        self.complete = False
+        self.publishes = 0
+
+    # -- context manager
+    def __enter__(self) -> H5Writer:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is None:
+            self.close()
+
+    @property
+    def branches(self) -> list[Branch]:
+        return list(self._branches.values())
+
+    def add_branch(self, branch: Branch) -> None:
+        """Record a finished branch (replacing one with the same id) and publish the file."""
+        self._branches[str(branch.id)] = branch
+        self.publish()
+
+    def update(self, **meta: Any) -> None:
+        """Change provenance/notes before the final publish (e.g. the scene's full parameters,
+        ``y`` and ``profiles`` from its SceneResult)."""
+        if "y" in meta:
+            y = meta.pop("y")
+            self.y = None if y is None else np.asarray(y, dtype=float)
+        if "profiles" in meta:
+            self.profiles = meta.pop("profiles")
+        unknown = set(meta) - set(self.meta)
+        if unknown:
+            raise TypeError(f"unknown metadata {sorted(unknown)}")
+        for key, value in meta.items():
+            self.meta[key] = value if key != "options" else _options_dict(value)
+        self._profile_cache.clear()
+
+    def set_branches(self, branches: Iterable[Branch]) -> None:
+        """Replace the branch list (the scene's final, authoritative list)."""
+        self._branches = {}
+        self._extra_branches = []
+        for b in branches:
+            if str(b.id) in self._branches:
+                _log.warning("two branches share the id %r; both are stored", b.id)
+                self._extra_branches.append(b)
+            else:
+                self._branches[str(b.id)] = b
+
+    def _all_branches(self) -> list[Branch]:
+        return list(self._branches.values()) + self._extra_branches
+
+    def _branch_profiles(self, b: Branch) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+        if self.profiles is None or self.y is None:
+            return None
+        key = id(b)
+        if key not in self._profile_cache:
+            try:
+                rows = _sample_rows(len(b.states), self.max_profiles)
+                samples = [self.profiles(b.states[i]) for i in rows]
+                names = list(samples[0]) if samples else []
+                state_index = getattr(b, "state_index", None)
+                points = rows if state_index is None else np.asarray(state_index)[rows]
+                self._profile_cache[key] = (points, {n: np.array([s[n] for s in samples]) for n in names})
+            except Exception as exc:  # noqa: BLE001 -- a profile bug must not lose the run
+                _log.warning("profiles of branch %s not stored: %s", b.id, exc)
+                self._profile_cache[key] = None
+        return self._profile_cache[key]
+
+    def _fill(self, f: h5py.File) -> None:
+        a = f.attrs
+        a["format"] = FORMAT
+        a["format_version"] = FORMAT_VERSION
+        a["contin_version"] = _contin_version()
+        a["git_commit"] = git_commit()
+        a["complete"] = bool(self.complete)
+        for key in ("created_utc", "command", "scene", "diagram_x", "diagram_y"):
+            a[key] = str(self.meta[key])
+        for key in ("parameters", "discretization", "options", "notes", "extra"):
+            a[key] = _json_dumps(self.meta[key])
+        if self.y is not None:
+            f.create_group("grid").create_dataset("y", data=self.y)
+        bg = f.create_group("branches", track_order=True)
+        branches = self._all_branches()
+        for pos, b in enumerate(branches):
+            prof = self._branch_profiles(b)
+            _write_branch(bg, b, pos, None if prof is None else prof[1], None if prof is None else prof[0])
+        sp_profiles = None
+        sps = [sp for b in branches for sp in b.special_points]
+        if self.profiles is not None and self.y is not None and sps:
+            try:
+                samples = [self.profiles(np.asarray(sp.state)) for sp in sps]
+                sp_profiles = {n: np.array([s[n] for s in samples]) for n in samples[0]}
+            except Exception as exc:  # noqa: BLE001
+                _log.warning("profiles of special points not stored: %s", exc)
+        _write_special_points(f, branches, sp_profiles)
+
+    def publish(self) -> None:
+        """Write the current state atomically to :attr:`path`."""
+        _publish(self.path, self._fill)
+        self.publishes += 1
+
+    def close(self) -> None:
+        """Final publish with ``complete=True``."""
+        self.complete = True
+        self.publish()
+
+
+def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:
+    """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`."""
+    w = H5Writer(path, **meta)
+    w.set_branches(branches)
+    w.close()
+    return w.path
+
+
+# --------------------------------------------------------------------------- reading
+
+def _text(ds: h5py.Dataset) -> list[str]:
+    return [str(x) for x in ds.asstr()[()]] if ds.shape != () else [str(ds.asstr()[()])]
+
+
+def _read_column(ds: h5py.Dataset) -> np.ndarray:
+    if h5py.check_string_dtype(ds.dtype) is not None:
+        return np.asarray(_text(ds), dtype=str)
+    return ds[()]
+
+
+def _attr_list(value: Any) -> list[str]:
+    return [v.decode() if isinstance(v, bytes) else str(v) for v in np.atleast_1d(value)] if np.size(value) else []
+
+
+def _read_branch(g: h5py.Group) -> Branch:
+    a = g.attrs
+    mapping = json.loads(a["datasets"])
+    params = {n: _read_column(g[ds]) for n, ds in mapping["params"].items()}
+    observables = {n: _read_column(g[ds]) for n, ds in mapping["observables"].items()}
+    return Branch(
+        parameter=str(a["parameter"]),
+        free=tuple(_attr_list(a["free"])),
+        params=params,
+        observables=observables,
+        states=g["states"][()],
+        tangents=g["tangents"][()],
+        ds=g["ds"][()],
+        newton_iterations=g["newton_iterations"][()],
+        special_points=[],
+        status=str(a["status"]),
+        message=str(a["message"]),
+        closed=bool(a["closed"]),
+        stable=g["stable"][()] if "stable" in g else None,
+        n_unstable=g["n_unstable"][()] if "n_unstable" in g else None,
+        eigenvalues=g["eigenvalues"][()] if "eigenvalues" in g else None,
+        kind=str(a["kind"]),
+        parent=str(a["parent"]),
+        id=str(a["id"]),
+        audit=_text(g["audit"]) if g["audit"].size else [],
+        **({"state_index": g["state_index"][()] if "state_index" in g else None} if _HAS_STATE_INDEX else {}),
+    )
+
+
+def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
+    k = int(g.attrs["n_rows"])
+    if k == 0:
+        return []
+    names = _attr_list(g.attrs["param_names"])
+    cols = {n: _read_column(g["params"][n.replace("/", "%2F")]) for n in names}
+    present = g["params_present"][()]
+    branch, type_, note = _text(g["branch"]), _text(g["type"]), _text(g["note"])
+    label, index, position = g["label"][()], g["index"][()], g["branch_position"][()]
+    phi, lo, hi, conv = g["phi"][()], g["bracket_lo"][()], g["bracket_hi"][()], g["converged"][()]
+    states, state_size = g["states"][()], g["state_size"][()]
+    tangents, tangent_size = g["tangents"][()], g["tangent_size"][()]
+    out = []
+    for i in range(k):
+        params = {}
+        for j, n in enumerate(names):
+            if present[i, j]:
+                v = cols[n][i]
+                params[n] = str(v) if isinstance(v, str | np.str_) else float(v)
+        out.append((int(position[i]), branch[i], SpecialPoint(
+            type=type_[i],
+            index=int(index[i]),
+            params=params,
+            order_parameter=float(phi[i]),
+            state=states[i, : state_size[i]].copy(),
+            tangent=None if tangent_size[i] < 0 else tangents[i, : tangent_size[i]].copy(),
+            bracket=(float(lo[i]), float(hi[i])),
+            converged=bool(conv[i]),
+            label=int(label[i]),
+            note=note[i],
+        )))
+    return out
+
+
+def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
+    """Read a run file: ``(branches, metadata)``.
+
+    Branches come back in the order they were written, with their special points.
+    ``metadata`` holds the root attributes (``parameters``, ``discretization``, ``options``,
+    ``notes``, ``extra`` decoded from JSON), ``complete``, ``y`` (or None) and ``profiles``:
+    ``{branch_id: {"index": rows, name: (M, N) array}}``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    FileFormatError
+        If the file is not HDF5, is truncated or corrupt, or is not a contin file.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"no such file: {str(p)!r}")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as exc:
+        reason = str(exc).split("(", 1)[-1].rstrip(")") if "(" in str(exc) else str(exc)
+        raise FileFormatError(f"{str(p)!r} is not a readable HDF5 file ({reason.strip()})") from None
+    try:
+        with f:
+            a = f.attrs
+            if a.get("format") != FORMAT:
+                raise FileFormatError(f"{str(p)!r} is an HDF5 file but not a contin run file (no format='contin' attribute)")
+            version = int(a.get("format_version", -1))
+            if version != FORMAT_VERSION:
+                raise FileFormatError(f"{str(p)!r} has contin format version {version}; this contin reads version {FORMAT_VERSION}")
+            meta: dict[str, Any] = {
+                "path": str(p),
+                "format": FORMAT,
+                "format_version": version,
+                "complete": bool(a.get("complete", False)),
+            }
+            for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "diagram_x", "diagram_y"):
+                meta[key] = str(a.get(key, ""))
+            for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
+                meta[key] = _jsonload(a.get(key), default)
+            meta["y"] = f["grid/y"][()] if "grid/y" in f else None
+            groups = sorted(f["branches"].values(), key=lambda g: int(g.attrs["position"]))
+            branches = [_read_branch(g) for g in groups]
+            profiles = {}
+            for g, b in zip(groups, branches):
+                if "profile_index" in g:
+                    prof: dict[str, np.ndarray] = {"index": g["profile_index"][()]}
+                    for name, ds in g["profiles"].items():
+                        prof[name.replace("%2F", "/")] = ds[()]
+                    profiles[b.id] = prof
+            meta["profiles"] = profiles
+            sp_group = f["special_points"]
+            if "profiles" in sp_group:
+                meta["special_point_profiles"] = {n.replace("%2F", "/"): d[()] for n, d in sp_group["profiles"].items()}
+            for pos, bid, sp in _read_special_points(sp_group):
+                if not 0 <= pos < len(branches) or branches[pos].id != bid:
+                    raise FileFormatError(f"{str(p)!r} is damaged: special point {sp.name} names a missing branch {bid!r}")
+                branches[pos].special_points.append(sp)
+            return branches, meta
+    except FileFormatError:
+        raise
+    except (KeyError, ValueError, TypeError, OSError, RuntimeError, IndexError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FileFormatError(f"{str(p)!r} is damaged or truncated ({msg})") from None

@@ -1,0 +1,228 @@
+"""Bifurcation diagrams and solution profiles in AUTO/PLAUT style (matplotlib, Agg backend).
+
+Conventions: stable parts of a branch solid, unstable parts dashed (so greyscale print keeps
+the information), plain solid when stability is unknown; special points as markers labelled
+with their AUTO name (``BP1``, ``LP2``) offset in points; a hollow square marks a point whose
+location did not converge.  Nothing here calls ``plt.show()``: figures made here are plain
+:class:`matplotlib.figure.Figure` objects (no pyplot state, rendered by Agg), and
+:func:`save_figure` writes atomically.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from contin.branch import Branch, SpecialPoint
+
+__all__ = [
+    "MARKERS",
+    "branch_values",
+    "plot_branch",
+    "plot_diagram",
+    "plot_profiles",
+    "save_figure",
+    "stability_runs",
+]
+
+#: marker, face colour per AUTO type (BifurcationKit: fold black, BP blue, Hopf red)
+MARKERS: dict[str, tuple[str, str]] = {
+    "BP": ("o", "tab:blue"),
+    "LP": ("o", "black"),
+    "HB": ("o", "tab:red"),
+    "UZ": ("D", "tab:green"),
+    "XT": ("^", "tab:purple"),
+    "CP": ("v", "tab:orange"),
+    "MX": ("X", "tab:red"),
+    "EP": ("|", "grey"),
+}
+STABLE_STYLE = "-"
+UNSTABLE_STYLE = "--"
+
+
+def branch_values(branch: Branch, name: str) -> np.ndarray:
+    """The column ``name`` of a branch: a parameter, an observable ('phi'), or ``'phi'`` = NaN
+    when the problem has no order parameter.  ValueError naming the available columns."""
+    if name in branch.params:
+        return np.asarray(branch.params[name], dtype=float)
+    if name in branch.observables:
+        return np.asarray(branch.observables[name], dtype=float)
+    if name == "phi":
+        return np.full(len(branch), np.nan)
+    known = ", ".join([*branch.params, *branch.observables])
+    raise ValueError(f"branch {branch.id} has no parameter or observable {name!r}; available: {known}")
+
+
+def _point_value(branch: Branch, sp: SpecialPoint, name: str) -> float:
+    """Value of ``name`` at a located special point (falls back to the branch row)."""
+    if name in sp.params:
+        return float(sp.params[name])
+    if name == "phi":
+        return float(sp.order_parameter)
+    col = branch_values(branch, name)
+    return float(col[min(max(sp.index, 0), len(col) - 1)]) if len(col) else float("nan")
+
+
+def stability_runs(stable: np.ndarray | None, n: int) -> list[tuple[int, int, bool | None]]:
+    """Maximal runs ``(start, stop, stable)`` covering ``0..n-1``; consecutive runs share their
+    boundary point (``stop`` of one run = ``start`` of the next, inclusive) so lines join."""
+    if n == 0:
+        return []
+    if stable is None:
+        return [(0, n - 1, None)]
+    s = np.asarray(stable, dtype=bool)
+    change = np.flatnonzero(s[1:] != s[:-1]) + 1
+    starts = np.concatenate([[0], change])
+    stops = np.concatenate([change, [n - 1]])
+    return [(int(a), int(b), bool(s[a])) for a, b in zip(starts, stops)]
+
+
+def plot_branch(
+    branch: Branch,
+    x: str | None = None,
+    y: str = "phi",
+    ax: Axes | None = None,
+    *,
+    label: str | None = None,
+    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "MX"),
+    annotate: bool = True,
+    **line_kw: Any,
+) -> list[Any]:
+    """Draw one branch: ``y`` against ``x`` (default x = the continuation parameter).
+
+    Stable runs solid, unstable dashed (split where ``branch.stable`` changes, repeating the
+    boundary point); special points of the types in ``special`` as markers labelled with their
+    name.  Extra keywords go to :meth:`Axes.plot`.  Returns the created artists.
+    """
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        ax = plt.gca()
+    x = x or branch.parameter
+    xs, ys = branch_values(branch, x), branch_values(branch, y)
+    color = line_kw.pop("color", None)
+    lw = line_kw.pop("linewidth", line_kw.pop("lw", 1.5))
+    artists: list[Any] = []
+    first = True
+    for a, b, st in stability_runs(branch.stable, len(branch)):
+        style = UNSTABLE_STYLE if st is False else STABLE_STYLE
+        (line,) = ax.plot(xs[a : b + 1], ys[a : b + 1], linestyle=style, color=color,
+                          linewidth=lw if st is not False else 0.8 * lw,
+                          label=(label if first else None), **line_kw)
+        color = color or line.get_color()  # one colour for all runs of the branch
+        line.set_gid(f"branch-{branch.id}-{'stable' if st else 'unstable' if st is False else 'unknown'}")
+        artists.append(line)
+        first = False
+    types = set(special or ())
+    for sp in branch.special_points:
+        if sp.type not in types:
+            continue
+        px, py = _point_value(branch, sp, x), _point_value(branch, sp, y)
+        if not (np.isfinite(px) and np.isfinite(py)):
+            continue
+        marker, face = MARKERS.get(sp.type, ("o", "grey"))
+        if sp.converged:
+            art = ax.plot([px], [py], marker=marker, color=face, markersize=5, linestyle="none", zorder=3)[0]
+        else:  # honest about points whose location failed
+            art = ax.plot([px], [py], marker="s", markerfacecolor="none", markeredgecolor=face,
+                          markersize=6, linestyle="none", zorder=3)[0]
+        art.set_gid(f"sp-{sp.name}")
+        artists.append(art)
+        if annotate:
+            artists.append(ax.annotate(sp.name, (px, py), xytext=(4, 4), textcoords="offset points",
+                                       fontsize=7, color=face if sp.type != "LP" else "black"))
+    return artists
+
+
+def plot_diagram(
+    branches: Sequence[Branch],
+    x: str | None = None,
+    y: str = "phi",
+    ax: Axes | None = None,
+    *,
+    legend: bool = True,
+    **kw: Any,
+) -> Axes:
+    """Bifurcation diagram of several branches (one colour each); x defaults to the first
+    branch's continuation parameter.  Branches lacking column ``x`` or ``y`` are skipped
+    (ValueError if none has them)."""
+    if ax is None:
+        ax = Figure(figsize=(5.3, 3.6)).add_subplot()
+    if not branches:
+        raise ValueError("no branches to plot")
+    x = x or branches[0].parameter
+    drawn = 0
+    for b in branches:
+        try:
+            branch_values(b, x)
+            branch_values(b, y)
+        except ValueError:
+            continue
+        plot_branch(b, x, y, ax, label=f"{b.id} ({b.kind})" if b.kind else str(b.id), **kw)
+        drawn += 1
+    if drawn == 0:
+        branch_values(branches[0], x)  # raises the ValueError naming the available columns
+        branch_values(branches[0], y)
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    if legend and drawn > 1:
+        ax.legend(fontsize=7, frameon=False)
+    return ax
+
+
+def plot_profiles(
+    y: np.ndarray,
+    profiles: Mapping[str, np.ndarray],
+    names: Sequence[str] | None = None,
+    labels: Sequence[str] | None = None,
+    axes: Sequence[Axes] | None = None,
+) -> Figure:
+    """Solution profiles against the wall-normal coordinate, one panel per quantity.
+
+    ``profiles[name]`` has shape (N,) or (M, N) (M profiles, e.g. several branches), N = len(y);
+    ``labels`` names the M curves.
+    """
+    names = list(names or profiles)
+    if not names:
+        raise ValueError("no profiles to plot")
+    y = np.asarray(y, dtype=float)
+    if axes is None:
+        axes = list(Figure(figsize=(2.0 * len(names) + 1, 3.0)).subplots(1, len(names), squeeze=False)[0])
+    fig = axes[0].figure
+    for ax, name in zip(axes, names):
+        if name not in profiles:
+            raise ValueError(f"no profile {name!r}; available: {', '.join(profiles)}")
+        data = np.atleast_2d(np.asarray(profiles[name], dtype=float))
+        if data.shape[1] != y.size:
+            raise ValueError(f"profile {name!r} has {data.shape[1]} points but y has {y.size}")
+        for i, row in enumerate(data):
+            ax.plot(y, row, label=None if labels is None else labels[i])
+        ax.set_xlabel("y")
+        ax.set_ylabel(name)
+    if labels is not None:
+        axes[0].legend(fontsize=7, frameon=False)
+    fig.tight_layout()
+    return fig
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str], **kw: Any) -> Path:
+    """``fig.savefig`` to PATH atomically (temporary file in the same directory, then rename).
+
+    The format comes from the extension (png, pdf, svg...).
+    """
+    p = Path(path)
+    fmt = kw.pop("format", None) or p.suffix.lstrip(".").lower() or "png"
+    tmp = p.with_name(f".{p.name}.tmp")
+    try:
+        fig.savefig(tmp, format=fmt, **{"dpi": 150, "bbox_inches": "tight", **kw})
+        os.replace(tmp, p)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return p
