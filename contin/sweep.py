@@ -1,0 +1,831 @@
+"""Parameter sweeps: many independent scene runs over a grid, through any ``concurrent.futures`` executor.
+
+A sweep file (TOML) names a scene, fixed parameters, a grid of swept parameters (cartesian
+product) and what to record::
+
+    [sweep]
+    scene = "bratu"
+    record = ["special_points", "extra"]   # or point types ("LP", "BP", ...) / "extra.NAME"
+
+    [fixed]
+    N = 40
+
+    [grid]
+    a = [0.5, 1.0, 2.0]                    # a list ...
+    b = {start = 0.0, stop = 1.0, num = 5} # ... or evenly spaced values (log = true: geometric)
+
+    [options]                              # optional; all keys optional
+    method = "cheb"
+    grid = 48
+    max_steps = 400
+    stability = false
+
+Design (style notes B4): one task = one scene run at one grid point.  Tasks are pure, picklable,
+top-level calls (:func:`run_task`: scene name + full parameters + options in, compact result
+dict out) that also write their own HDF5 file ``DIR/tasks/<key>.h5`` (:func:`contin.io.write`
+plus the attribute ``sweep_task``, the compact result as JSON), published with ``os.replace``
+so a task file is either absent or complete.  The key is a hash of (scene, parameters,
+options, contin version), so an interrupted sweep resumes by skipping the keys whose files
+exist.  The parent process is the only writer of the merged summary (``DIR/summary.h5`` and
+``DIR/summary.json``, both published atomically).
+
+The executor is the seam: ``None`` means a local :class:`~concurrent.futures.ProcessPoolExecutor`
+with BLAS/OpenMP pinned to one thread per worker; Dask distributed's
+``Client.get_executor()`` plugs in unchanged (:func:`open_executor`).  With a remote Dask
+cluster the output directory must be on a file system shared with the workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import hashlib
+import itertools
+import json
+import logging
+import math
+import multiprocessing
+import os
+import time
+import tomllib
+import traceback
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from contin.jsonout import dumps as json_dumps
+from contin.jsonout import to_jsonable
+from contin.scene import Scene, SceneError, SceneRequest, get_scene
+
+__all__ = [
+    "SweepError",
+    "SweepSpec",
+    "SweepSummary",
+    "Task",
+    "TaskRecord",
+    "load_sweep",
+    "open_executor",
+    "parse_sweep",
+    "read_task_file",
+    "run_sweep",
+    "run_task",
+    "task_key",
+    "write_summary",
+]
+
+_log = logging.getLogger("contin")
+
+SUMMARY_FORMAT = "contin-sweep"
+SUMMARY_FORMAT_VERSION = 1
+POINT_TYPES = ("BP", "LP", "EP", "MX", "UZ", "XT", "CP")
+#: Keys of the ``[options]`` table and their types.
+OPTION_TYPES: dict[str, tuple[type, ...]] = {
+    "method": (str,),
+    "grid": (int,),
+    "max_steps": (int,),
+    "ds": (int, float),
+    "ds_max": (int, float),
+    "stability": (bool,),
+    "kx": (list,),
+}
+_SECTIONS = {"sweep": {"scene", "record", "description"}, "fixed": None, "grid": None, "options": set(OPTION_TYPES)}
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class SweepError(ValueError):
+    """A bad sweep file or setting: one clear sentence."""
+
+
+# --------------------------------------------------------------------------- sweep files
+
+@dataclass(frozen=True)
+class Task:
+    """One grid point: ``swept`` values, the full ``params`` (fixed + swept) and its ``key``."""
+
+    index: int
+    key: str
+    swept: dict[str, Any]
+    params: dict[str, Any]
+
+    @property
+    def file(self) -> str:
+        """Task file name relative to the sweep directory."""
+        return f"tasks/{self.key}.h5"
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep (see the module docstring for the file format).
+
+    grid : swept parameter -> tuple of values, in file order (the first varies slowest).
+    record : entries 'special_points', a point type ('LP', 'BP', ...), 'extra' or 'extra.NAME'.
+    options : the ``[options]`` table (keys of :data:`OPTION_TYPES`).
+    """
+
+    scene: str
+    grid: dict[str, tuple[Any, ...]]
+    fixed: dict[str, Any] = field(default_factory=dict)
+    record: tuple[str, ...] = ("special_points",)
+    options: dict[str, Any] = field(default_factory=dict)
+    description: str = ""
+    source: str = ""
+
+    @property
+    def n_tasks(self) -> int:
+        return math.prod(len(v) for v in self.grid.values())
+
+    def tasks(self) -> list[Task]:
+        """The cartesian product of the grid, with stable keys."""
+        names = list(self.grid)
+        out = []
+        for i, values in enumerate(itertools.product(*(self.grid[n] for n in names))):
+            swept = dict(zip(names, values, strict=True))
+            params = {**self.fixed, **swept}
+            out.append(Task(i, task_key(self.scene, params, self.options), swept, params))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """The sweep as a TOML-shaped dict (stored in the summary)."""
+        return {
+            "sweep": {"scene": self.scene, "record": list(self.record), "description": self.description},
+            "fixed": dict(self.fixed),
+            "grid": {k: list(v) for k, v in self.grid.items()},
+            "options": dict(self.options),
+        }
+
+
+def _where(source: str) -> str:
+    return f" in {source}" if source else ""
+
+
+def _grid_values(name: str, spec: Any, where: str) -> tuple[Any, ...]:
+    if isinstance(spec, list):
+        if not spec:
+            raise SweepError(f"swept parameter {name!r}{where} has an empty list of values")
+        seen: list[Any] = []
+        for v in spec:
+            if not isinstance(v, (int, float, str, bool)):
+                raise SweepError(f"swept parameter {name!r}{where} has a value of type {type(v).__name__}; "
+                                 "use numbers or strings")
+            if v in seen:
+                raise SweepError(f"swept parameter {name!r}{where} lists the value {v!r} twice")
+            seen.append(v)
+        return tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in spec)
+    if isinstance(spec, dict):
+        unknown = set(spec) - {"start", "stop", "num", "log"}
+        missing = {"start", "stop", "num"} - set(spec)
+        if unknown or missing:
+            raise SweepError(f"swept parameter {name!r}{where} must be a list or a table with keys start, stop, "
+                             f"num (and optional log); got keys {sorted(spec)}")
+        start, stop, num, log = spec["start"], spec["stop"], spec["num"], spec.get("log", False)
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in (start, stop)):
+            raise SweepError(f"swept parameter {name!r}{where}: start and stop must be finite numbers")
+        if not isinstance(num, int) or isinstance(num, bool) or num < 1:
+            raise SweepError(f"swept parameter {name!r}{where}: num must be an integer >= 1, got {num!r}")
+        if not isinstance(log, bool):
+            raise SweepError(f"swept parameter {name!r}{where}: log must be true or false, got {log!r}")
+        if num > 1 and start == stop:
+            raise SweepError(f"swept parameter {name!r}{where}: start == stop with num = {num} repeats one value")
+        import numpy as np
+
+        if log:
+            if start <= 0 or stop <= 0:
+                raise SweepError(f"swept parameter {name!r}{where}: log spacing needs start, stop > 0")
+            values = np.geomspace(start, stop, num)
+        else:
+            values = np.linspace(start, stop, num)
+        return tuple(float(v) for v in values)
+    raise SweepError(f"swept parameter {name!r}{where} must be a list or a table {{start, stop, num}}, "
+                     f"got {type(spec).__name__}")
+
+
+def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
+    """Validate a sweep document (the parsed TOML) and return its :class:`SweepSpec`.
+
+    Checks the structure only; :func:`check_spec` checks it against the scene.
+
+    Raises
+    ------
+    SweepError
+        With one sentence naming the offending key.
+    """
+    where = _where(source)
+    for section in doc:
+        if section not in _SECTIONS:
+            raise SweepError(f"unknown table [{section}]{where}; allowed: {', '.join('[' + s + ']' for s in _SECTIONS)}")
+    for section, allowed in _SECTIONS.items():
+        table = doc.get(section, {})
+        if not isinstance(table, dict):
+            raise SweepError(f"[{section}]{where} must be a table")
+        if allowed is not None:
+            for key in table:
+                if key not in allowed:
+                    raise SweepError(f"unknown key {key!r} in [{section}]{where}; allowed: {', '.join(sorted(allowed))}")
+    head = doc.get("sweep", {})
+    scene = head.get("scene")
+    if not isinstance(scene, str) or not scene:
+        raise SweepError(f"[sweep]{where} needs scene = \"NAME\"")
+    record = head.get("record", ["special_points"])
+    if isinstance(record, str):
+        record = [record]
+    if not isinstance(record, list) or not record:
+        raise SweepError(f"record{where} must be a non-empty list, e.g. [\"special_points\"]")
+    for r in record:
+        if not isinstance(r, str) or not (r in ("special_points", "extra") or r in POINT_TYPES
+                                          or (r.startswith("extra.") and len(r) > 6)):
+            raise SweepError(f"cannot record {r!r}{where}; use 'special_points', a point type "
+                             f"({', '.join(POINT_TYPES)}), 'extra' or 'extra.NAME'")
+    fixed = dict(doc.get("fixed", {}))
+    for name, value in fixed.items():
+        if not isinstance(value, (int, float, str, bool)):
+            raise SweepError(f"fixed parameter {name!r}{where} must be a number, string or boolean")
+    grid_doc = doc.get("grid", {})
+    if not grid_doc:
+        raise SweepError(f"the [grid] table{where} is empty or missing; list at least one swept parameter")
+    grid = {name: _grid_values(name, spec, where) for name, spec in grid_doc.items()}
+    both = sorted(set(grid) & set(fixed))
+    if both:
+        raise SweepError(f"parameter {both[0]!r}{where} is both fixed and swept")
+    options = dict(doc.get("options", {}))
+    for key, value in options.items():
+        types = OPTION_TYPES[key]
+        if not isinstance(value, types) or (isinstance(value, bool) and bool not in types):
+            raise SweepError(f"option {key!r}{where} must be of type {' or '.join(t.__name__ for t in types)}, "
+                             f"got {value!r}")
+    if "kx" in options and not all(isinstance(k, (int, float)) and not isinstance(k, bool) for k in options["kx"]):
+        raise SweepError(f"option 'kx'{where} must be a list of numbers")
+    for key in ("grid", "max_steps"):
+        if key in options and options[key] < 1:
+            raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
+    if "ds" in options and options["ds"] == 0:
+        raise SweepError(f"option 'ds'{where} must be non-zero")
+    if "ds_max" in options and not options["ds_max"] > 0:
+        raise SweepError(f"option 'ds_max'{where} must be > 0, got {options['ds_max']}")
+    description = head.get("description", "")
+    if not isinstance(description, str):
+        raise SweepError(f"description{where} must be a string")
+    return SweepSpec(scene=scene, grid=grid, fixed=fixed, record=tuple(record), options=options,
+                     description=description, source=source)
+
+
+def load_sweep(path: str | os.PathLike[str]) -> SweepSpec:
+    """Read and validate a sweep file (TOML); SweepError with one sentence if it is bad."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise SweepError(f"no such sweep file: {str(p)!r}") from None
+    except IsADirectoryError:
+        raise SweepError(f"sweep file {str(p)!r} is a directory") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SweepError(f"{str(p)!r} is not valid TOML ({exc})") from None
+    return parse_sweep(doc, source=str(p))
+
+
+def check_spec(spec: SweepSpec) -> Scene:
+    """The sweep's scene; SceneError for an unknown scene, SweepError for a parameter the scene
+    does not document (its ``defaults``)."""
+    scene = get_scene(spec.scene)
+    if scene.defaults:
+        for name in [*spec.fixed, *spec.grid]:
+            if name not in scene.defaults:
+                raise SweepError(f"scene {spec.scene!r} has no parameter {name!r}{_where(spec.source)}; "
+                                 f"its parameters: {', '.join(scene.defaults)}")
+    return scene
+
+
+def _canonical(value: Any) -> Any:
+    """JSON-ready value with ints as floats, so that ``e = 1`` and ``e = 1.0`` share a key."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, (int, float)):
+        return to_jsonable(float(value))
+    if isinstance(value, Mapping):
+        return {str(k): _canonical(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_canonical(v) for v in value]
+    return to_jsonable(value)
+
+
+def task_key(scene: str, params: Mapping[str, Any], options: Mapping[str, Any], version: str | None = None) -> str:
+    """Stable hash of (scene, parameters, options, contin version): 20 hex digits (SHA-256)."""
+    if version is None:
+        from contin import __version__ as version
+    text = json.dumps({"scene": scene, "params": _canonical(params), "options": _canonical(options),
+                       "contin": version}, sort_keys=True, allow_nan=False, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+# --------------------------------------------------------------------------- one task
+
+def _request(params: Mapping[str, Any], options: Mapping[str, Any]) -> SceneRequest:
+    overrides = {k: options[k] for k in ("max_steps", "ds", "ds_max") if k in options}
+    return SceneRequest(
+        params=dict(params),
+        method=options.get("method"),
+        grid=options.get("grid"),
+        stability=bool(options.get("stability", True)),
+        kx=tuple(float(k) for k in options.get("kx", ())),
+        overrides=overrides,
+    )
+
+
+@contextlib.contextmanager
+def _quiet_scene_loading() -> Iterator[None]:
+    """Silence the 'skipping scenes from ...' warnings in workers: the parent already reported
+    broken scene modules when it checked the sweep, once rather than once per task."""
+    log = logging.getLogger("contin")
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
+
+
+def _special_point(sp: Any, branch_id: str) -> dict[str, Any]:
+    return {
+        "type": sp.type,
+        "label": sp.name,
+        "branch": str(branch_id),
+        "params": dict(sp.params),
+        "phi": sp.order_parameter,
+        "converged": bool(sp.converged),
+        "note": sp.note,
+    }
+
+
+def run_task(scene_name: str, params: Mapping[str, Any], options: Mapping[str, Any],
+             path: str | None = None) -> dict[str, Any]:
+    """Run one scene at one parameter set and return its compact, JSON-ready result.
+
+    Result keys: ``key``, ``status`` ('ok'; 'MX' if a branch ended in failure; 'error' if the
+    scene raised), ``reason`` (why, '' when ok), ``special_points`` (list of
+    ``{type, label, branch, params, phi, converged, note}``), ``extra`` (the scene's extra
+    results), ``branches`` (status summaries), ``notes``, ``parameters`` (the full set used),
+    ``seconds``.  Never raises for a failing scene: bad parameters and crashes are results.
+    When ``path`` is given the task also writes its HDF5 file there (:func:`_write_task_file`).
+    """
+    from contin.jsonout import branch_summary
+
+    t0 = time.perf_counter()
+    key = task_key(scene_name, params, options)
+    base: dict[str, Any] = {"key": key, "status": "ok", "reason": "", "special_points": [], "extra": {},
+                            "branches": [], "notes": [], "parameters": dict(params)}
+    result = None
+    try:
+        with _quiet_scene_loading():
+            scene = get_scene(scene_name)
+        result = scene.run(_request(params, options))
+    except (SceneError, ValueError) as exc:
+        base.update(status="error", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+    except Exception as exc:  # noqa: BLE001 -- a crashing task is a result, never the end of a sweep
+        # the reason names the innermost frame; the full traceback goes into the task file
+        frame = traceback.extract_tb(exc.__traceback__)[-1]
+        where = f" ({Path(frame.filename).name}:{frame.lineno})"
+        base.update(status="error", reason=f"{type(exc).__name__}: {exc}".splitlines()[0] + where,
+                    traceback=traceback.format_exc())
+        _log.debug("task %s crashed", key, exc_info=True)
+    if result is not None:
+        failed = [b for b in result.branches if b.status == "MX"]
+        base.update(
+            special_points=[_special_point(sp, b.id) for b in result.branches for sp in b.special_points],
+            extra=dict(result.extra),
+            branches=[branch_summary(b) for b in result.branches],
+            notes=list(result.notes),
+            parameters={**dict(params), **dict(result.parameters)},
+        )
+        if failed:
+            base.update(status="MX", reason="; ".join(f"branch {b.id}: {b.message or 'MX'}" for b in failed))
+    base["seconds"] = time.perf_counter() - t0
+    doc = to_jsonable(base)
+    if path is not None:
+        _write_task_file(path, doc, scene_name, options, result)
+    return doc
+
+
+def _write_task_file(path: str, doc: Mapping[str, Any], scene_name: str, options: Mapping[str, Any],
+                     result: Any) -> None:
+    """Publish the task's HDF5 file atomically.
+
+    The run (branches, special points, provenance) goes through :func:`contin.io.write` into
+    ``PATH.part``; the compact result is added as the root attribute ``sweep_task`` (JSON) and
+    the file is renamed to ``PATH`` only then, so ``PATH`` exists iff the task is finished.
+    """
+    import h5py
+
+    from contin import io
+
+    final = Path(path)
+    part = final.with_name(final.name + ".part")
+    meta: dict[str, Any] = {"scene": scene_name, "options": dict(options),
+                            "command": f"contin sweep (task {doc['key']})"}
+    if result is not None:
+        meta.update(parameters=result.parameters, discretization=result.discretization, y=result.y,
+                    profiles=result.profiles, notes=result.notes, extra=result.extra)
+        branches = result.branches
+    else:
+        meta.update(parameters=doc["parameters"], notes=[doc["reason"]])
+        branches = []
+    try:
+        io.write(part, branches, **meta)
+        with h5py.File(part, "r+") as f:
+            f.attrs["sweep_task"] = json_dumps(doc)
+        with open(part, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(part, final)
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+
+
+def read_task_file(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The compact result stored in a finished task file, or None if the file is absent,
+    unfinished or unreadable (then the task must be recomputed)."""
+    p = Path(path)
+    if not p.is_file():
+        return None
+    try:
+        import h5py
+
+        with h5py.File(p, "r") as f:
+            if not bool(f.attrs.get("complete", False)) or "sweep_task" not in f.attrs:
+                return None
+            doc = json.loads(f.attrs["sweep_task"])
+    except (OSError, ValueError, KeyError) as exc:
+        _log.warning("task file %s is unreadable (%s); recomputing it", p, exc)
+        return None
+    return doc if isinstance(doc, dict) and doc.get("key") == p.stem else None
+
+
+# --------------------------------------------------------------------------- the sweep
+
+@dataclass
+class TaskRecord:
+    """Outcome of one task in a sweep.
+
+    status : 'ok', 'MX', 'error' (the task ran and failed), 'lost' (its worker died or the
+        executor failed: no task file, recomputed on resume) or 'pending' (sweep interrupted).
+    cached : True if it was read from an existing task file instead of computed.
+    result : the compact result of :func:`run_task` (empty for lost/pending tasks).
+    """
+
+    index: int
+    key: str
+    swept: dict[str, Any]
+    status: str
+    reason: str = ""
+    cached: bool = False
+    file: str = ""
+    result: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def special_points(self) -> list[dict[str, Any]]:
+        return list(self.result.get("special_points", []))
+
+    @property
+    def extra(self) -> dict[str, Any]:
+        return dict(self.result.get("extra", {}))
+
+
+@dataclass
+class SweepSummary:
+    """All task outcomes of a sweep, in grid order."""
+
+    spec: SweepSpec
+    outdir: Path
+    records: list[TaskRecord]
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.records)
+
+    @property
+    def n_cached(self) -> int:
+        return sum(r.cached for r in self.records)
+
+    @property
+    def n_computed(self) -> int:
+        return sum(not r.cached and r.status in ("ok", "MX", "error") for r in self.records)
+
+    @property
+    def failed(self) -> list[TaskRecord]:
+        return [r for r in self.records if r.status != "ok"]
+
+    def counts(self) -> dict[str, int]:
+        out = {s: self.count(s) for s in ("ok", "MX", "error", "lost", "pending")}
+        return {"tasks": len(self.records), **out, "cached": self.n_cached, "computed": self.n_computed}
+
+    def selected_points(self, record: TaskRecord) -> list[dict[str, Any]]:
+        """The record's special points that the sweep asked to record."""
+        wanted = self.spec.record
+        if "special_points" in wanted:
+            return record.special_points
+        return [sp for sp in record.special_points if sp["type"] in wanted]
+
+    def selected_extra(self, record: TaskRecord) -> dict[str, Any]:
+        """The record's extra results that the sweep asked to record (missing ones as None)."""
+        if "extra" in self.spec.record:
+            return record.extra
+        extra = record.extra
+        return {r[6:]: extra.get(r[6:]) for r in self.spec.record if r.startswith("extra.")}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document written to ``summary.json`` (strict JSON)."""
+        tasks = []
+        for r in self.records:
+            tasks.append({
+                "index": r.index, "key": r.key, "params": r.swept, "status": r.status, "reason": r.reason,
+                "cached": r.cached, "file": r.file, "seconds": r.result.get("seconds"),
+                "special_points": self.selected_points(r), "extra": self.selected_extra(r),
+                "branches": r.result.get("branches", []),
+            })
+        return to_jsonable({
+            "format": SUMMARY_FORMAT, "format_version": SUMMARY_FORMAT_VERSION,
+            "scene": self.spec.scene, "source": self.spec.source, "outdir": str(self.outdir),
+            "sweep": self.spec.to_dict(), "counts": self.counts(), "tasks": tasks,
+        })
+
+
+def _format_progress(done: int, total: int, rec: TaskRecord) -> str:
+    params = " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in rec.swept.items())
+    width = len(str(total))
+    if rec.status == "ok":
+        types: dict[str, int] = {}
+        for sp in rec.special_points:
+            types[sp["type"]] = types.get(sp["type"], 0) + 1
+        what = ", ".join(f"{n} {t}" for t, n in sorted(types.items())) or "no special points"
+        tail = f"ok  {what}"
+    else:
+        tail = f"{rec.status}: {rec.reason}"
+    secs = rec.result.get("seconds")
+    timing = f"  ({secs:.1f} s)" if isinstance(secs, (int, float)) else ""
+    return f"[{done:>{width}}/{total}] {params}  {tail}{timing}"
+
+
+@contextlib.contextmanager
+def _single_threaded_children() -> Iterator[None]:
+    """Pin BLAS/OpenMP to one thread in child processes started inside the block.
+
+    The variables must be set before a worker imports numpy, so they go into the parent's
+    environment (inherited at spawn) and are restored afterwards; a user's explicit setting wins.
+    """
+    saved = {v: os.environ.get(v) for v in _THREAD_VARS}
+    for v in _THREAD_VARS:
+        os.environ.setdefault(v, "1")
+    try:
+        yield
+    finally:
+        for v, old in saved.items():
+            if old is None:
+                os.environ.pop(v, None)
+            else:
+                os.environ[v] = old
+
+
+def _lost(task: Task, reason: str) -> TaskRecord:
+    return TaskRecord(task.index, task.key, task.swept, "lost", reason, file="")
+
+
+def run_sweep(
+    spec: SweepSpec,
+    outdir: str | os.PathLike[str],
+    executor: Executor | None = None,
+    jobs: int | None = None,
+    progress: Callable[[str], None] | None = None,
+    retry_failed: bool = False,
+) -> SweepSummary:
+    """Run (or resume) a sweep and write its summary.
+
+    Parameters
+    ----------
+    spec : the sweep (:func:`load_sweep`).
+    outdir : output directory; task files go to ``outdir/tasks``.
+    executor : any ``concurrent.futures.Executor`` (e.g. Dask's ``client.get_executor()``);
+        None = a process pool of ``jobs`` workers (default: all CPUs) created and shut down here.
+    progress : called with one line per finished task (and one line about resumed tasks).
+    retry_failed : recompute tasks whose file records a failure ('MX' or 'error').
+
+    Returns
+    -------
+    SweepSummary
+        Also written to ``outdir/summary.h5`` and ``outdir/summary.json`` (atomically).
+        A failing task never stops the sweep; it is recorded with its reason.
+
+    Raises
+    ------
+    SceneError, SweepError
+        For an unknown scene or parameter, before any task runs.
+    """
+    check_spec(spec)
+    if jobs is not None and jobs < 1:
+        raise SweepError(f"jobs must be >= 1, got {jobs}")
+    out = Path(outdir).resolve()
+    taskdir = out / "tasks"
+    try:
+        taskdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepError(f"cannot create the output directory {str(out)!r}: {exc.strerror or exc}") from None
+    for stale in itertools.chain(taskdir.glob("*.h5.part"), taskdir.glob("*.tmp")):
+        stale.unlink(missing_ok=True)  # left by a killed task; the single parent owns the directory
+
+    def say(line: str) -> None:
+        if progress is not None:
+            progress(line)
+
+    tasks = spec.tasks()
+    records: dict[int, TaskRecord] = {}
+    todo: list[Task] = []
+    for task in tasks:
+        doc = read_task_file(out / task.file)
+        if doc is not None and not (retry_failed and doc.get("status") != "ok"):
+            records[task.index] = TaskRecord(task.index, task.key, task.swept, doc["status"], doc.get("reason", ""),
+                                             cached=True, file=task.file, result=doc)
+        else:
+            todo.append(task)
+    if records:
+        say(f"resuming: {len(records)} of {len(tasks)} tasks already finished in {taskdir}")
+    summary = SweepSummary(spec, out, [])
+
+    def finish() -> SweepSummary:
+        summary.records = [records.get(t.index) or TaskRecord(t.index, t.key, t.swept, "pending", "sweep interrupted")
+                           for t in tasks]
+        write_summary(summary)
+        return summary
+
+    if not todo:
+        return finish()
+    own = executor is None
+    env = _single_threaded_children() if own else contextlib.nullcontext()
+    futures: dict[Future[dict[str, Any]], Task] = {}
+    try:
+        with env:
+            if own:
+                executor = ProcessPoolExecutor(max_workers=min(jobs or os.cpu_count() or 1, len(todo)),
+                                               mp_context=multiprocessing.get_context("spawn"))
+            assert executor is not None
+            for task in todo:
+                futures[executor.submit(run_task, spec.scene, task.params, spec.options, str(out / task.file))] = task
+            done = len(records)
+            for fut in as_completed(futures):
+                task = futures[fut]
+                try:
+                    doc = fut.result()
+                    rec = TaskRecord(task.index, task.key, task.swept, doc["status"], doc["reason"],
+                                     file=task.file, result=doc)
+                except (Exception, CancelledError) as exc:  # worker died, executor broke, file not written
+                    rec = _lost(task, f"{type(exc).__name__}: {exc}".splitlines()[0])
+                records[task.index] = rec
+                done += 1
+                say(_format_progress(done, len(tasks), rec))
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        finish()  # record what is done; unfinished tasks are 'pending' and rerun on resume
+        raise
+    finally:
+        if own and executor is not None:
+            executor.shutdown(wait=True, cancel_futures=True)
+    return finish()
+
+
+# --------------------------------------------------------------------------- summary files
+
+def _publish(path: Path, write: Callable[[Path], None]) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        write(tmp)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _scalar_column(values: Sequence[Any]) -> Any:
+    """A float column if every value is a number or None (None -> NaN: the reason column says why),
+    else text (non-scalars as JSON)."""
+    import numpy as np
+
+    if all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)) or v in ("inf", "-inf")
+           for v in values):
+        return np.array([math.nan if v is None else float(v) for v in values], dtype=float)
+    return np.array([v if isinstance(v, str) else json.dumps(v) for v in values], dtype=object)
+
+
+def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
+    """Write ``summary.h5`` and ``summary.json`` into ``summary.outdir`` (each atomically).
+
+    ``summary.h5`` layout::
+
+        /                 attrs: format='contin-sweep', format_version, contin_version, scene,
+                                 sweep (JSON of the sweep file), counts (JSON), created_utc
+        /tasks/           one row per grid point, in grid order:
+            key, status, reason, file (text); cached (bool); seconds (float)
+            params/<name> swept parameter values
+            n_<TYPE>      number of recorded special points of each type (int)
+            extra/<name>  recorded scalar extras (float; text/JSON otherwise)
+        /special_points/  one row per recorded special point:
+            task (row in /tasks), key, type, label, branch, note (text); phi (float);
+            converged (bool); params/<name> parameter values at the point
+    """
+    import h5py
+    import numpy as np
+
+    from contin import __version__
+
+    s = summary
+    text = h5py.string_dtype()
+    recs = s.records
+    points = [(i, sp) for i, r in enumerate(recs) for sp in s.selected_points(r)]
+    extras = [s.selected_extra(r) for r in recs]
+    extra_names: list[str] = []
+    for e in extras:
+        extra_names.extend(n for n in e if n not in extra_names)
+    types = [t for t in POINT_TYPES if "special_points" in s.spec.record or t in s.spec.record]
+
+    def fill(path: Path) -> None:
+        with h5py.File(path, "w") as f:
+            a = f.attrs
+            a["format"] = SUMMARY_FORMAT
+            a["format_version"] = SUMMARY_FORMAT_VERSION
+            a["contin_version"] = __version__
+            a["scene"] = s.spec.scene
+            a["sweep"] = json_dumps(s.spec.to_dict())
+            a["counts"] = json.dumps(s.counts())
+            a["created_utc"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+            g = f.create_group("tasks")
+            for name in ("key", "status", "reason", "file"):
+                g.create_dataset(name, data=np.array([getattr(r, name) for r in recs], dtype=object), dtype=text)
+            g.create_dataset("cached", data=np.array([r.cached for r in recs], dtype=bool))
+            g.create_dataset("seconds", data=_scalar_column([r.result.get("seconds") for r in recs]))
+            pg = g.create_group("params", track_order=True)
+            for name in s.spec.grid:
+                col = _scalar_column([to_jsonable(r.swept[name]) for r in recs])
+                pg.create_dataset(name.replace("/", "%2F"), data=col, dtype=text if col.dtype == object else None)
+            for t in types:
+                g.create_dataset(f"n_{t}", data=np.array(
+                    [sum(sp["type"] == t for sp in r.special_points) for r in recs], dtype=np.int64))
+            eg = g.create_group("extra", track_order=True)
+            for name in extra_names:
+                col = _scalar_column([e.get(name) for e in extras])
+                eg.create_dataset(name.replace("/", "%2F"), data=col, dtype=text if col.dtype == object else None)
+            sg = f.create_group("special_points")
+            sg.create_dataset("task", data=np.array([i for i, _ in points], dtype=np.int64))
+            sg.create_dataset("key", data=np.array([recs[i].key for i, _ in points], dtype=object), dtype=text)
+            for name in ("type", "label", "branch", "note"):
+                sg.create_dataset(name, data=np.array([sp[name] for _, sp in points], dtype=object), dtype=text)
+            sg.create_dataset("phi", data=_scalar_column([sp["phi"] for _, sp in points]).astype(float))
+            sg.create_dataset("converged", data=np.array([sp["converged"] for _, sp in points], dtype=bool))
+            names: list[str] = []
+            for _, sp in points:
+                names.extend(n for n in sp["params"] if n not in names)
+            spg = sg.create_group("params", track_order=True)
+            for name in names:
+                col = _scalar_column([sp["params"].get(name) for _, sp in points])
+                spg.create_dataset(name.replace("/", "%2F"), data=col, dtype=text if col.dtype == object else None)
+
+    h5 = s.outdir / "summary.h5"
+    js = s.outdir / "summary.json"
+    _publish(h5, fill)
+    doc = json.dumps(s.to_dict(), indent=1, allow_nan=False)
+    _publish(js, lambda p: p.write_text(doc + "\n"))
+    return h5, js
+
+
+# --------------------------------------------------------------------------- executors
+
+DASK_HINT = "pip install -e '.[dask]'"
+
+
+@contextlib.contextmanager
+def open_executor(scheduler: str | None, jobs: int | None = None) -> Iterator[Executor | None]:
+    """The executor for ``--scheduler``: None (the default process pool, made by
+    :func:`run_sweep`), ``'local-dask'`` (a LocalCluster of ``jobs`` single-threaded workers) or a
+    Dask scheduler address ``'tcp://host:port'`` (``Client(address).get_executor()``)."""
+    if scheduler is None:
+        yield None
+        return
+    if scheduler != "local-dask" and "://" not in scheduler:
+        raise SweepError(f"unknown scheduler {scheduler!r}; use tcp://HOST:PORT or local-dask")
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise SweepError(f"--scheduler {scheduler} needs Dask distributed, which is not installed: {DASK_HINT}") from None
+    with contextlib.ExitStack() as stack:
+        if scheduler == "local-dask":
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=jobs or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                dashboard_address=None, silence_logs=logging.ERROR))
+            client = stack.enter_context(Client(cluster))
+        else:
+            try:
+                client = stack.enter_context(Client(scheduler, timeout="10s"))
+            except (OSError, TimeoutError) as exc:
+                raise SweepError(f"cannot reach the Dask scheduler at {scheduler}: {exc}".splitlines()[0]) from None
+        # pure=False: every submit is a fresh computation (a retried task must really rerun)
+        yield client.get_executor(pure=False)
+
