@@ -8,7 +8,7 @@ along the curve are ``XT`` (isola birth/death) and cusps are ``CP``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -77,8 +77,9 @@ class Branch:
         Every parameter (fixed ones too) along the branch, shape (S,).
     observables : dict[str, ndarray]
         Named observables along the branch, shape (S,); 'phi' is the order parameter.
-    states : ndarray, shape (S, n)
-        Solutions at every point.
+    states : ndarray, shape (S, n) or (M, n)
+        Solutions at every point, or at the points listed in ``state_index`` when the run
+        saved only every k-th state (``ContinuationOptions.save_every``); use ``state(i)``.
     tangents : ndarray, shape (S, n + len(free))
         Unit tangents.
     ds : ndarray, shape (S,)
@@ -98,6 +99,10 @@ class Branch:
         Where this branch came from (e.g. 'BP2@0').
     id : str
         Identifier inside a run / HDF5 file.
+    audit : list of str
+        Diagnostics of the run (rejected steps and why).
+    state_index : ndarray of int or None
+        Point indices of the rows of ``states`` (None: every point is stored).
     """
 
     parameter: str
@@ -119,9 +124,20 @@ class Branch:
     parent: str = ""
     id: str = "0"
     audit: list[str] = field(default_factory=list)
+    state_index: NDArray[np.int64] | None = None
 
     def __len__(self) -> int:
-        return int(self.states.shape[0])
+        return int(self.ds.shape[0])
+
+    def state(self, i: int) -> NDArray[np.float64]:
+        """The solution at point ``i`` (KeyError if ``save_every`` dropped it)."""
+        i = range(len(self))[i]
+        if self.state_index is None:
+            return self.states[i]
+        hit = np.flatnonzero(self.state_index == i)
+        if hit.size == 0:
+            raise KeyError(f"state of point {i} was not saved (save_every > 1)")
+        return self.states[int(hit[0])]
 
     @property
     def success(self) -> bool:
@@ -150,22 +166,41 @@ class Branch:
         return self.points("BP")
 
     def reversed(self) -> Branch:
-        """The same branch traversed in the opposite direction (indices remapped)."""
+        """The same branch traversed in the opposite direction.
+
+        Point j of the result is point S-1-j of this branch.  Per-step columns (ds, Newton
+        iterations) describe the step *into* a point, so they move with the step: the step
+        into reversed point j is the original step into point S-j.  A special point between
+        original points i and i+1 (LP/BP, index i) lies between reversed points S-2-i and
+        S-1-i, so its index becomes S-2-i; points sitting on a branch point (EP, MX) map
+        to S-1-i.  Tangents change sign.
+        """
         s = len(self)
+
+        def step_column(a: NDArray) -> NDArray:
+            return np.concatenate([np.zeros(1, dtype=a.dtype), a[:0:-1]]) if s else a.copy()
+
         sps = [
-            SpecialPoint(**{**sp.__dict__, "index": max(s - 1 - sp.index - (0 if sp.type in ("EP", "MX") else 1), 0),
-                            "tangent": None if sp.tangent is None else -sp.tangent})
-            for sp in self.special_points
+            replace(
+                sp,
+                index=s - 1 - sp.index if sp.type in ("EP", "MX") else max(s - 2 - sp.index, 0),
+                tangent=None if sp.tangent is None else -sp.tangent,
+            )
+            for sp in reversed(self.special_points)
         ]
+        if self.state_index is None:
+            states, state_index = self.states[::-1].copy(), None
+        else:
+            states, state_index = self.states[::-1].copy(), (s - 1 - self.state_index[::-1]).copy()
         return Branch(
             parameter=self.parameter,
             free=self.free,
             params={k: v[::-1].copy() for k, v in self.params.items()},
             observables={k: v[::-1].copy() for k, v in self.observables.items()},
-            states=self.states[::-1].copy(),
+            states=states,
             tangents=-self.tangents[::-1].copy(),
-            ds=np.concatenate([[0.0], self.ds[:0:-1]]),
-            newton_iterations=self.newton_iterations[::-1].copy(),
+            ds=step_column(self.ds),
+            newton_iterations=step_column(self.newton_iterations),
             special_points=sps,
             status=self.status,
             message=self.message,
@@ -177,4 +212,21 @@ class Branch:
             parent=self.parent,
             id=self.id,
             audit=list(self.audit),
+            state_index=state_index,
         )
+
+
+def relabel(branches: list[Branch]) -> None:
+    """Number the special points of a run 1, 2, 3, ... in branch order (AUTO-style labels).
+
+    Within a branch, points are numbered in the order of their index along the branch.
+    SpecialPoint is frozen, so each is rebuilt with ``dataclasses.replace``.
+    """
+    label = 0
+    for branch in branches:
+        ordered = sorted(branch.special_points, key=lambda sp: sp.index)
+        new = []
+        for sp in ordered:
+            label += 1
+            new.append(replace(sp, label=label))
+        branch.special_points = new

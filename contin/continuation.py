@@ -1,0 +1,499 @@
+"""Keller pseudo-arclength continuation with fold and branch-point detection.
+
+Public entry points (the front door of contin's core):
+
+- :func:`newton` -- Newton at fixed parameters (re-exported from ``contin.newton``);
+- :func:`trace` -- one branch in one direction from a (possibly unconverged) start;
+- :func:`trace_both` -- both directions, joined into one branch through the start point;
+- :func:`switch` -- branch switching at a simple BP (re-exported from ``contin.switching``).
+
+Algorithm of :func:`trace` (Keller 1977; Seydel 2010, ch. 4; AUTO-07p; BifurcationKit PALC):
+unknowns x = (u, p); predictor x_k + ds t_k (tangent) or along the secant; bordered Newton
+corrector (``contin.corrector``) factorizing [[J, F_p], [c^T]] once per iteration; the last
+factorization gives the new tangent and the test functions (``contin.testfunctions``); sign
+changes are located (``contin.locate``) by re-correcting at intermediate arclengths.  Steps
+are rejected (ds halved) on corrector failure, inadmissible states or a tangent turning by
+more than ``max_angle``; at ds_min a failure ends the run with MX.  Parameter bounds end the
+run with EP exactly at the bound, and a branch that returns to its start is closed
+(``contin.closure``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from contin.branch import Branch, SpecialPoint, relabel
+from contin.closure import closing_distance, landed
+from contin.corrector import Correction, correct
+from contin.extended import ExtendedSystem
+from contin.linalg import bordered, factorize
+from contin.locate import Sample, locate_zero
+from contin.newton import NewtonResult, newton
+from contin.options import ContinuationOptions
+from contin.predictor import secant, tangent
+from contin.problem import Array
+from contin.stepsize import angle, next_step, reduced_step
+from contin.testfunctions import Antisymmetric, TestValues, bp_value, signed_value
+
+__all__ = ["NewtonResult", "newton", "relabel", "switch", "trace", "trace_both"]
+
+log = logging.getLogger("contin")
+
+#: Rejected-step diagnostics kept in Branch.audit.
+MAX_AUDIT = 200
+
+
+@dataclass
+class _Point:
+    x: Array
+    t: Array
+    tests: TestValues
+
+
+class _Tracer:
+    """State shared by the steps of one trace: system, options, symmetry and the records."""
+
+    def __init__(self, system: ExtendedSystem, options: ContinuationOptions, anti: Antisymmetric | None) -> None:
+        self.system = system
+        self.options = options
+        self.anti = anti
+        self.points: list[_Point] = []
+        self.ds: list[float] = []
+        self.iterations: list[int] = []
+        self.records: list[dict[str, float]] = []
+        self.special: list[SpecialPoint] = []
+        self.audit: list[str] = []
+
+    # --- point construction ------------------------------------------------------------------
+    def finish_point(self, corr: Correction, orient: Array) -> _Point:
+        """Tangent and test functions at a corrected point from the corrector's factorization."""
+        assert corr.factorization is not None
+        x = corr.x
+        if self.anti is not None:
+            x = self.system.pack(self.anti.symmetrize(x[:-1]), x[-1])
+        t = tangent(self.system, corr.factorization, orient)
+        bp = bp_value(corr.factorization, corr.row, t)
+        anti = self.anti.det(self.system.jacobian(x)[0]) if self.anti is not None else None
+        return _Point(x, t, TestValues(float(t[-1]), bp, anti))
+
+    def correct_at(self, x_pred: Array, direction: Array) -> Correction:
+        return correct(self.system, x_pred, self.system.row(direction), self.options.newton)
+
+    # --- detection and location ----------------------------------------------------------------
+    def _test_functions(self) -> list[tuple[str, str, Callable[[TestValues], tuple[float, float] | float]]]:
+        det = self.options.detection
+        out: list[tuple[str, str, Callable[[TestValues], Any]]] = []
+        if det.detect_folds:
+            out.append(("LP", "", lambda v: v.fold))
+        if det.detect_branch_points:
+            if self.anti is not None:
+                out.append(("BP", "symmetry-breaking", lambda v: v.anti))
+                out.append(("BP", "symmetric", lambda v: v.symmetric_bp))
+            else:
+                out.append(("BP", "", lambda v: v.bp))
+        return out
+
+    def detect(self, a: _Point, b: _Point, index: int) -> list[SpecialPoint]:
+        """Special points in the step from a to b (b is not yet appended; a is point ``index``)."""
+        found: list[tuple[float, SpecialPoint]] = []
+        sys = self.system
+        s_b = sys.dot(a.t, b.x - a.x)
+        for kind, note, fn in self._test_functions():
+            va, vb = fn(a.tests), fn(b.tests)
+            if isinstance(va, tuple):
+                if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
+                    continue
+                ref = max(va[1], vb[1])
+
+                def g_of(v: TestValues, fn: Any = fn, ref: float = ref) -> float:
+                    return signed_value(fn(v), ref)
+            else:
+                if va == 0 or vb == 0 or (va > 0) == (vb > 0):
+                    continue
+
+                def g_of(v: TestValues, fn: Any = fn) -> float:
+                    return float(fn(v))
+
+            sa, sb = Sample(0.0, g_of(a.tests), a), Sample(s_b, g_of(b.tests), b)
+            det = self.options.detection
+            if det.locate:
+
+                def evaluate(s: float, g_of: Any = g_of) -> Sample[_Point] | None:
+                    corr = self.correct_at(a.x + s * a.t, a.t)
+                    if corr.factorization is None and corr.residual_history[-1] <= self.options.newton.tol:
+                        # A solution where the bordered matrix is exactly singular: the
+                        # trial hit the singular point itself, where g = 0.
+                        return Sample(s, 0.0, _Point(corr.x, a.t, a.tests))
+                    if not corr.converged or sys.admissible(corr.x) is not None:
+                        return None
+                    pt = self.finish_point(corr, a.t)
+                    return Sample(s, g_of(pt.tests), pt)
+
+                tol = det.locate_tol * max(1.0, abs(b.x[-1]))
+                res = locate_zero(evaluate, sa, sb, tol=tol, max_iterations=det.max_bisections)
+                best, converged, s_best = res.best.point, res.converged, res.best.s
+            else:
+                best, converged, s_best = b, False, s_b
+            full_note = note
+            if not converged:
+                full_note = (note + "; " if note else "") + "location did not converge"
+            sp = SpecialPoint(
+                type=kind,
+                index=index,
+                params=sys.params_at(best.x[-1]),
+                order_parameter=sys.order_parameter(best.x),
+                state=best.x[:-1].copy(),
+                tangent=best.t.copy(),
+                bracket=(float(a.x[-1]), float(b.x[-1])),
+                converged=converged,
+                note=full_note,
+            )
+            log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
+            found.append((s_best, sp))
+        return [sp for _, sp in sorted(found, key=lambda f: f[0])]
+
+    def append(self, pt: _Point, ds: float, iterations: int) -> None:
+        self.points.append(pt)
+        self.ds.append(ds)
+        self.iterations.append(iterations)
+        self.records.append(self.system.record(pt.x))
+
+    def end_point(self, type_: str, note: str, x: Array | None = None, t: Array | None = None) -> SpecialPoint:
+        sys = self.system
+        if x is None:
+            last = self.points[-1]
+            x, t = last.x, last.t
+        return SpecialPoint(
+            type=type_,
+            index=max(len(self.points) - 1, 0),
+            params=sys.params_at(x[-1]),
+            order_parameter=sys.order_parameter(x) if self.points else float("nan"),
+            state=x[:-1].copy(),
+            tangent=None if t is None else t.copy(),
+            bracket=(float(x[-1]), float(x[-1])),
+            converged=type_ != "MX",
+            note=note,
+        )
+
+    def build(self, parameter: str, status: str, message: str, closed: bool, n: int, **meta: Any) -> Branch:
+        sys = self.system
+        s = len(self.points)
+        names = list(dict.fromkeys(k for r in self.records for k in r))
+        obs = {k: np.array([r.get(k, np.nan) for r in self.records], dtype=float) for k in names}
+        params = {k: np.full(s, v, dtype=float) for k, v in sys.params.items()}
+        params[parameter] = np.array([p.x[-1] for p in self.points], dtype=float)
+        every = self.options.save_every
+        keep = np.arange(s)
+        state_index = None
+        if every > 1 and s:
+            keep = np.unique(np.concatenate([np.arange(0, s, every), [s - 1]]))
+            state_index = keep
+        states = np.array([self.points[i].x[:-1] for i in keep], dtype=float).reshape(len(keep), n)
+        tangents = np.array([p.t for p in self.points], dtype=float).reshape(s, n + 1)
+        return Branch(
+            parameter=parameter,
+            free=(parameter,),
+            params=params,
+            observables=obs,
+            states=states,
+            tangents=tangents,
+            ds=np.array(self.ds, dtype=float),
+            newton_iterations=np.array(self.iterations, dtype=np.int64),
+            special_points=list(self.special),
+            status=status,
+            message=message,
+            closed=closed,
+            audit=self.audit,
+            state_index=state_index,
+            **meta,
+        )
+
+
+def _symmetry(problem: Any, u: Array, symmetric: bool | None) -> Antisymmetric | None:
+    """The antisymmetric-subspace helper if the branch is to be treated as S-invariant."""
+    if symmetric is False:
+        return None
+    anti = Antisymmetric.from_problem(problem, u.size)
+    if anti is None:
+        if symmetric:
+            raise ValueError("symmetric=True but the problem provides no symmetry")
+        return None
+    invariant = anti.is_invariant(u)
+    if symmetric and not invariant:
+        raise ValueError("symmetric=True but the start state is not invariant under the problem's symmetry")
+    if not invariant or anti.dimension == 0:
+        return None
+    return anti
+
+
+def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0: float) -> tuple[float, float]:
+    for name in options.bounds:
+        if name not in problem.parameter_names:
+            raise ValueError(f"bounds given for unknown parameter {name!r}; the problem has {', '.join(problem.parameter_names)}")
+    lo, hi = options.bounds.get(parameter, (-math.inf, math.inf))
+    if not lo <= p0 <= hi:
+        raise ValueError(f"start value {parameter}={p0:g} lies outside its bounds ({lo:g}, {hi:g})")
+    return float(lo), float(hi)
+
+
+def trace(
+    problem: Any,
+    u0: Array,
+    params: Mapping[str, float],
+    parameter: str,
+    options: ContinuationOptions = ContinuationOptions(),
+    *,
+    direction: int = +1,
+    tangent: Array | None = None,
+    branch_id: str = "0",
+    kind: str = "primary",
+    parent: str = "",
+    symmetric: bool | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Branch:
+    """Trace one branch of F(u, p) = 0 in ``parameter`` by pseudo-arclength continuation.
+
+    Parameters
+    ----------
+    problem : Problem
+        See ``contin.problem``.  Optional ``admissible(u, p) -> str | None`` restricts states
+        to a physical domain; optional ``symmetry``/``symmetry_matrix`` enables the
+        symmetry-breaking BP test on S-invariant branches.
+    u0 : (n,) array
+        Start guess; it is first corrected by Newton at fixed parameters.
+    params : dict
+        All parameter values (the continuation parameter's value is the start value).
+    parameter : str
+        The continuation parameter.
+    options : ContinuationOptions
+    direction : +1 or -1
+        Initial direction: sign(options.step.ds) * direction is the sign of dp/ds at the
+        start, or, with ``tangent`` given, the start tangent is ``direction * tangent``.
+    tangent : (n+1,) array, optional
+        Approximate start tangent in (u, p) (e.g. from branch switching).
+    branch_id, kind, parent : labels stored on the Branch.
+    symmetric : bool or None
+        Treat the branch as S-invariant (None: decide from the start state).
+    progress : callable, optional
+        Receives short status lines.
+
+    Returns
+    -------
+    Branch
+        status 'EP' (bound, max_steps, closed loop) or 'MX' (failure), with the reason in
+        ``message`` and in the note of the final EP/MX special point.  Never raises for a
+        failed Newton step; raises ValueError for invalid input.
+    """
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be +1 or -1, got {direction}")
+    sopt = options.step
+    system = ExtendedSystem(problem, params, parameter, sopt.theta)
+    u0 = np.array(u0, dtype=float).ravel()
+    f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
+    if f0.shape != u0.shape:
+        raise ValueError(f"start state has {u0.size} entries but the residual has {f0.size}")
+    n = u0.size
+    system.n = n
+    p0 = system.params[parameter]
+    lo, hi = _check_bounds(problem, options, parameter, p0)
+    meta = dict(kind=kind, parent=parent, id=branch_id)
+
+    def say(msg: str) -> None:
+        log.info(msg)
+        if progress is not None:
+            progress(msg)
+
+    start = newton(problem, u0, system.params, options.newton)
+    tracer = _Tracer(system, options, None)
+    if not start.converged:
+        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}"
+        tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
+        say(msg)
+        return tracer.build(parameter, "MX", msg, False, n, **meta)
+    anti = _symmetry(problem, start.u, symmetric)
+    tracer.anti = anti
+    x0 = system.pack(anti.symmetrize(start.u) if anti is not None else start.u, p0)
+
+    # Start tangent: bordered solve with the guess as bordering row; the guess is e_p (natural
+    # direction) unless a tangent is given; a random row rescues a start exactly at a fold.
+    if tangent is not None:
+        guess = direction * system.unit(np.asarray(tangent, dtype=float).ravel())
+        if guess.size != n + 1:
+            raise ValueError(f"tangent must have n + 1 = {n + 1} entries, got {guess.size}")
+    else:
+        guess = np.zeros(n + 1)
+        guess[-1] = math.copysign(1.0, sopt.ds) * direction
+        guess = system.unit(guess)
+    jac, fp = system.jacobian(x0)
+    row = system.row(guess)
+    fact = factorize(bordered(jac, fp, row))
+    if fact is None:
+        guess = system.unit(guess + 1e-3 * np.random.default_rng(0).standard_normal(n + 1))
+        row = system.row(guess)
+        fact = factorize(bordered(jac, fp, row))
+    if fact is None:
+        msg = f"singular extended Jacobian at the start point {parameter}={p0:g} (not a regular point)"
+        tracer.append(_Point(x0, guess, TestValues(float(guess[-1]), (0.0, 0.0))), 0.0, start.iterations)
+        tracer.special.append(tracer.end_point("MX", msg))
+        return tracer.build(parameter, "MX", msg, False, n, **meta)
+    first = tracer.finish_point(Correction(x0, True, 0, fact, row), guess)
+    tracer.append(first, 0.0, start.iterations)
+
+    ds = abs(sopt.ds)
+    travelled = 0.0
+    closing = False
+    status, message, closed = "EP", f"maximum number of steps ({options.max_steps}) reached", False
+    steps = 0
+    while steps < options.max_steps:
+        cur = tracer.points[-1]
+        if sopt.predictor == "secant" and len(tracer.points) > 1:
+            direction_vec = secant(system, tracer.points[-2].x, cur.x)
+        else:
+            direction_vec = cur.t
+        corr = tracer.correct_at(cur.x + ds * direction_vec, direction_vec)
+        reason = None if corr.converged else corr.message
+        new: _Point | None = None
+        if reason is None:
+            new = tracer.finish_point(corr, direction_vec)
+            reason = system.admissible(new.x)
+            if reason is None:
+                turn = angle(system, cur.t, new.t)
+                if turn > sopt.max_angle and ds > sopt.ds_min * (1 + 1e-12):
+                    reason = f"tangent turned by {turn:.3g} rad > max_angle"
+        if reason is not None:
+            if closing:  # the closing step failed: carry on as an ordinary branch
+                closing = False
+            if len(tracer.audit) < MAX_AUDIT:
+                tracer.audit.append(f"step {steps + 1}: {parameter}={cur.x[-1]:.10g} ds={ds:.3g} rejected: {reason}")
+            if ds <= sopt.ds_min * (1 + 1e-12):
+                status = "MX"
+                message = f"step failed at {parameter}={cur.x[-1]:.10g} with ds at ds_min={sopt.ds_min:g}: {reason}"
+                break
+            ds = reduced_step(ds, sopt)
+            continue
+        assert new is not None
+        steps += 1
+
+        if closing:
+            if landed(system, x0, new.x):
+                tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
+                status, message, closed = "EP", "closed loop: the branch returned to its start point", True
+                break
+            closing = False
+
+        # Parameter bound: land exactly on it with a parameter-fixed bordered correction.
+        p_cur, p_new = cur.x[-1], new.x[-1]
+        bound = lo if p_new < lo else hi if p_new > hi else None
+        if bound is not None:
+            if abs(bound - p_cur) <= 1e-12 * max(1.0, abs(bound)):
+                message = f"reached bound {parameter}={bound:g}"
+                break
+            frac = (bound - p_cur) / (p_new - p_cur)
+            e_p = np.zeros(n + 1)
+            e_p[-1] = 1.0
+            x_pred = cur.x + frac * (new.x - cur.x)
+            x_pred[-1] = bound
+            land = correct(system, x_pred, e_p, options.newton)
+            if not land.converged or system.admissible(land.x) is not None:
+                message = f"reached bound {parameter}={bound:g} (landing on it failed: {land.message}; stopped before it)"
+                break
+            new = tracer.finish_point(land, cur.t)
+            tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
+            tracer.append(new, system.norm(new.x - cur.x), corr.iterations)
+            message = f"reached bound {parameter}={bound:g}"
+            break
+
+        tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
+        step_len = system.norm(new.x - cur.x)
+        travelled += step_len
+        tracer.append(new, step_len, corr.iterations)
+        if steps % 20 == 0:
+            say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
+        ds = next_step(ds, corr.iterations, sopt)
+        if options.detect_closed and len(tracer.points) > 3:
+            sigma = closing_distance(system, x0, first.t, new.x, new.t, 1.5 * ds, travelled)
+            if sigma is not None:
+                closing, ds = True, sigma
+
+    mark = "MX" if status == "MX" else "EP"
+    note = message
+    tracer.special.append(tracer.end_point(mark, note))
+    say(f"branch {branch_id}: {status}: {message}")
+    return tracer.build(parameter, status, message, closed, n, **meta)
+
+
+def join(backward: Branch, forward: Branch) -> Branch:
+    """One branch from two traces out of the same start point (backward reversed, then forward)."""
+    r = backward.reversed()
+    m = len(r)
+    if m == 0:
+        return forward
+    if len(forward) == 0:
+        return r
+    off = m - 1
+    sps = list(r.special_points) + [replace(sp, index=sp.index + off) for sp in forward.special_points]
+
+    def cat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.concatenate([a[:-1], b])
+
+    if r.state_index is None and forward.state_index is None:
+        states, state_index = cat(r.states, forward.states), None
+    else:
+        ri = np.arange(m) if r.state_index is None else r.state_index
+        fi = np.arange(len(forward)) if forward.state_index is None else forward.state_index
+        keep = ri < m - 1
+        states = np.concatenate([r.states[keep], forward.states])
+        state_index = np.concatenate([ri[keep], fi + off])
+    status = "MX" if "MX" in (r.status, forward.status) else "EP"
+    return Branch(
+        parameter=forward.parameter,
+        free=forward.free,
+        params={k: cat(r.params[k], forward.params[k]) for k in forward.params},
+        observables={k: cat(r.observables[k], forward.observables[k]) for k in forward.observables if k in r.observables},
+        states=states,
+        tangents=cat(r.tangents, forward.tangents),
+        ds=np.concatenate([r.ds, forward.ds[1:]]),
+        newton_iterations=np.concatenate([r.newton_iterations, forward.newton_iterations[1:]]),
+        special_points=sps,
+        status=status,
+        message=f"backward: {backward.message}; forward: {forward.message}",
+        closed=False,
+        kind=forward.kind,
+        parent=forward.parent,
+        id=forward.id,
+        audit=r.audit + forward.audit,
+        state_index=state_index,
+    )
+
+
+def trace_both(
+    problem: Any,
+    u0: Array,
+    params: Mapping[str, float],
+    parameter: str,
+    options: ContinuationOptions = ContinuationOptions(),
+    **kwargs: Any,
+) -> Branch:
+    """Trace in both directions from the start and join the halves through the start point.
+
+    A closed loop found by the forward trace is returned as is (it needs no second half).
+    Keyword arguments are passed to :func:`trace` (not ``direction``).
+    """
+    forward = trace(problem, u0, params, parameter, options, direction=+1, **kwargs)
+    if forward.closed or len(forward) == 0:
+        return forward
+    backward = trace(problem, u0, params, parameter, options, direction=-1, **kwargs)
+    return join(backward, forward)
+
+
+def switch(*args: Any, **kwargs: Any) -> list[Branch]:
+    """Branch switching at a simple BP; see :func:`contin.switching.switch`."""
+    from contin.switching import switch as _switch
+
+    return _switch(*args, **kwargs)

@@ -1,0 +1,69 @@
+"""Bordered Newton corrector of pseudo-arclength continuation (Keller 1977).
+
+Solves, for x = (u, p) near a predicted point x_pred,
+
+    F(u, p) = 0,       c . (x - x_pred) = 0,
+
+with c the theta-weighted predictor direction (``ExtendedSystem.row``).  Each iteration builds
+and factorizes the sparse bordered matrix [[J, F_p], [c^T]] once; the factorization of the last
+iteration is returned so the caller reuses it for the tangent and the test functions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from contin.extended import ExtendedSystem
+from contin.linalg import Factorization, bordered, factorize
+from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm
+from contin.options import NewtonOptions
+from contin.problem import Array
+
+
+@dataclass
+class Correction:
+    """Result of :func:`correct`: the point, its last factorization and the residual history."""
+
+    x: Array
+    converged: bool
+    iterations: int
+    factorization: Factorization | None
+    row: Array
+    residual_history: list[float] = field(default_factory=list)
+    message: str = ""
+
+
+def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions) -> Correction:
+    """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0.
+
+    At least one iteration is always done so that a factorization at the solution exists (an
+    exact predictor, e.g. on a trivial branch, would otherwise leave none).  Never raises.
+    """
+    x = np.array(x_pred, dtype=float)
+    f = system.residual(x)
+    history = [max_norm(f)]
+    fact: Factorization | None = None
+    if not math.isfinite(history[0]):
+        return Correction(x, False, 0, None, row, history, "residual is not finite at the predicted point")
+    for it in range(1, options.max_iterations + 1):
+        jac, fp = system.jacobian(x)
+        fact = factorize(bordered(jac, fp, row))
+        if fact is None:
+            return Correction(x, False, it, None, row, history, f"singular bordered Jacobian at iteration {it}")
+        dx = fact.solve(-np.concatenate([f, [row @ (x - x_pred)]]))
+        x_new, lam, reason = backtrack(system.admissible, x, dx)
+        if reason is not None:
+            return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
+        x = x_new
+        f = system.residual(x)
+        r = max_norm(f)
+        history.append(r)
+        if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
+            return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
+        if r <= options.tol and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x)):
+            return Correction(x, True, it, fact, row, history, "converged")
+    return Correction(x, False, options.max_iterations, fact, row, history,
+                      f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

@@ -1,0 +1,113 @@
+"""The extended system of one-parameter continuation: x = (u, p), G(x) = F(u, p).
+
+Holds the problem, the fixed parameters and the name of the free one, and defines the weighted
+inner product of pseudo-arclength continuation (Keller 1977; AUTO-07p, BifurcationKit ``DotTheta``)
+
+    <a, b>_theta = (a_u . b_u) / n + theta * a_p * b_p,
+
+which makes step sizes independent of the grid size n.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from contin.linalg import as_csc
+from contin.problem import Array, has
+
+
+def validate_params(problem: Any, params: Mapping[str, float], parameter: str | None = None) -> dict[str, float]:
+    """A full, float-valued copy of ``params``; ValueError naming any unknown or missing name."""
+    names = tuple(problem.parameter_names)
+    unknown = sorted(set(params) - set(names))
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {', '.join(unknown)}; the problem has {', '.join(names)}")
+    missing = [k for k in names if k not in params]
+    if missing:
+        raise ValueError(f"missing value(s) for parameter(s) {', '.join(missing)}")
+    if parameter is not None and parameter not in names:
+        raise ValueError(f"unknown continuation parameter {parameter!r}; the problem has {', '.join(names)}")
+    out: dict[str, float] = {}
+    for k in names:
+        v = float(params[k])
+        if math.isnan(v):
+            raise ValueError(f"parameter {k} is NaN")
+        out[k] = v
+    if has(problem, "validate"):
+        problem.validate(out)
+    return out
+
+
+class ExtendedSystem:
+    """G(x) = F(u, p) with x = concat(u, [p]) for the free parameter ``parameter``."""
+
+    def __init__(self, problem: Any, params: Mapping[str, float], parameter: str, theta: float = 1.0, n: int = 0) -> None:
+        self.problem = problem
+        self.parameter = parameter
+        self.params = validate_params(problem, params, parameter)
+        self.theta = float(theta)
+        self.n = int(n)
+
+    # --- packing ------------------------------------------------------------------------
+    def pack(self, u: Array, p: float) -> Array:
+        return np.concatenate([np.asarray(u, dtype=float).ravel(), [float(p)]])
+
+    def params_at(self, p: float) -> dict[str, float]:
+        q = dict(self.params)
+        q[self.parameter] = float(p)
+        return q
+
+    # --- evaluations --------------------------------------------------------------------
+    def residual(self, x: Array) -> Array:
+        return np.asarray(self.problem.residual(x[:-1], self.params_at(x[-1])), dtype=float)
+
+    def jacobian(self, x: Array) -> tuple[sp.csc_matrix, Array]:
+        """(J = dF/du as CSC, F_p = dF/dp) at x."""
+        q = self.params_at(x[-1])
+        jac = as_csc(self.problem.jacobian(x[:-1], q))
+        fp = np.asarray(self.problem.dresidual_dp(x[:-1], q, self.parameter), dtype=float).ravel()
+        return jac, fp
+
+    def admissible(self, x: Array) -> str | None:
+        """None, or the problem's reason why x is outside its physical domain."""
+        if has(self.problem, "admissible"):
+            return self.problem.admissible(x[:-1], self.params_at(x[-1]))  # type: ignore[no-any-return]
+        return None
+
+    def record(self, x: Array) -> dict[str, float]:
+        """Observables at x: problem.observables plus 'phi' = problem.order_parameter."""
+        q = self.params_at(x[-1])
+        out: dict[str, float] = {}
+        if has(self.problem, "observables"):
+            out.update({k: float(v) for k, v in self.problem.observables(x[:-1], q).items()})
+        if has(self.problem, "order_parameter"):
+            out["phi"] = float(self.problem.order_parameter(x[:-1], q))
+        return out
+
+    def order_parameter(self, x: Array) -> float:
+        if has(self.problem, "order_parameter"):
+            return float(self.problem.order_parameter(x[:-1], self.params_at(x[-1])))
+        return float("nan")
+
+    # --- weighted geometry -----------------------------------------------------------------
+    def dot(self, a: Array, b: Array) -> float:
+        n = a.size - 1
+        return float(a[:-1] @ b[:-1]) / n + self.theta * float(a[-1] * b[-1])
+
+    def norm(self, a: Array) -> float:
+        return math.sqrt(max(self.dot(a, a), 0.0))
+
+    def row(self, t: Array) -> Array:
+        """The row vector c with c . x = <t, x>_theta (the bordering row of the corrector)."""
+        c = np.array(t, dtype=float)
+        c[:-1] /= c.size - 1
+        c[-1] *= self.theta
+        return c
+
+    def unit(self, t: Array) -> Array:
+        return t / self.norm(t)

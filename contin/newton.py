@@ -1,0 +1,97 @@
+"""Newton's method for F(u, p) = 0 at fixed parameters, with admissibility backtracking.
+
+u_{k+1} = u_k + lambda_k du_k,  J(u_k) du_k = -F(u_k),  lambda_k = 2^{-j} the largest step
+keeping u_{k+1} admissible (``problem.admissible``).  Converged when max|F| <= tol and
+max|du| <= step_tol * max(1, max|u|).  Never raises on non-convergence.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from contin.linalg import as_csc, factorize
+from contin.options import NewtonOptions
+from contin.problem import Array, has
+
+#: Halvings of an update that lands outside the problem's domain before Newton gives up.
+MAX_BACKTRACKS = 12
+#: Growth of the residual (relative to the first one) treated as divergence.
+DIVERGENCE_FACTOR = 1e10
+
+
+@dataclass
+class NewtonResult:
+    """Outcome of :func:`newton` (also used by the continuation corrector).
+
+    residual_history : max-norm residuals, the initial one first.
+    iterations : number of Jacobian factorizations performed.
+    """
+
+    u: Array
+    converged: bool
+    iterations: int
+    residual_history: list[float] = field(default_factory=list)
+    message: str = ""
+
+
+def max_norm(a: Array) -> float:
+    return float(np.max(np.abs(a))) if a.size else 0.0
+
+
+def backtrack(admissible: Any, x: Array, dx: Array) -> tuple[Array, float, str | None]:
+    """x + lam dx with lam = 1, 1/2, 1/4, ... until admissible; returns (x_new, lam, reason)."""
+    lam = 1.0
+    reason = None
+    for _ in range(MAX_BACKTRACKS):
+        x_new = x + lam * dx
+        reason = admissible(x_new)
+        if reason is None:
+            return x_new, lam, None
+        lam *= 0.5
+    return x, 0.0, reason
+
+
+def newton(problem: Any, u0: Array, params: Mapping[str, float], options: NewtonOptions = NewtonOptions()) -> NewtonResult:
+    """Solve F(u, params) = 0 from u0 by Newton's method with sparse LU.
+
+    Returns a :class:`NewtonResult`; non-convergence (singular Jacobian, divergence, too many
+    iterations, inadmissible iterates) is reported in ``message``, never raised.
+    """
+    u = np.array(u0, dtype=float).ravel()
+    p = dict(params)
+
+    def admissible(v: Array) -> str | None:
+        return problem.admissible(v, p) if has(problem, "admissible") else None  # type: ignore[no-any-return]
+
+    reason = admissible(u)
+    if reason is not None:
+        return NewtonResult(u, False, 0, [], f"initial guess is inadmissible: {reason}")
+    r = max_norm(np.asarray(problem.residual(u, p), dtype=float))
+    history = [r]
+    if not math.isfinite(r):
+        return NewtonResult(u, False, 0, history, "residual is not finite at the initial guess")
+    if r <= options.tol:
+        return NewtonResult(u, True, 0, history, "converged")
+    for it in range(1, options.max_iterations + 1):
+        fact = factorize(as_csc(problem.jacobian(u, p)))
+        if fact is None:
+            return NewtonResult(u, False, it, history, f"singular Jacobian at iteration {it}")
+        f = np.asarray(problem.residual(u, p), dtype=float)
+        du = fact.solve(-f)
+        u_new, lam, reason = backtrack(admissible, u, du)
+        if reason is not None:
+            return NewtonResult(u, False, it, history, f"Newton iterate inadmissible: {reason}")
+        u = u_new
+        r = max_norm(np.asarray(problem.residual(u, p), dtype=float))
+        history.append(r)
+        if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
+            return NewtonResult(u, False, it, history, f"Newton diverged (residual {r:.3g})")
+        if r <= options.tol and lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u)):
+            return NewtonResult(u, True, it, history, "converged")
+    return NewtonResult(u, False, options.max_iterations, history,
+                        f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

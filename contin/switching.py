@@ -1,0 +1,181 @@
+"""Branch switching at a simple branch point (BP) through the algebraic bifurcation equation.
+
+At a simple BP x0 of G(x) = F(u, p) = 0 the extended Jacobian G_x = [J F_p] has a
+two-dimensional kernel span{t1, phi} (t1 the tangent of the known branch) and a one-dimensional
+left kernel psi.  Tangents alpha t1 + beta phi of the branches through x0 solve the algebraic
+bifurcation equation (Keller 1977; Seydel 2010, sec. 5.6; Govaerts 2000, sec. 3.4)
+
+    a alpha^2 + 2 b alpha beta + c beta^2 = 0,
+    a = psi . G_xx[t1, t1],  b = psi . G_xx[t1, phi],  c = psi . G_xx[phi, phi].
+
+(alpha, beta) = (1, 0) is a root (the known branch, a ~ 0); the other root, computed without
+cancellation, is alpha / beta = c / q with q = -(b + sign(b) sqrt(b^2 - a c)) ~ -2b.  A
+transcritical point has c != 0; at a pitchfork c = 0 and the new tangent is phi itself.
+G_xx[v, w] is the central difference of G_x v along w (two sparse Jacobians).
+
+Null vectors come from the bordered matrix [[J, F_p], [<t1, .>]], whose kernel at the BP is
+phi (orthogonal to t1) and whose left kernel is (psi, 0), by inverse iteration on its sparse LU.
+At a symmetry-breaking BP (found by the antisymmetric test) they are the null vectors of J
+restricted to the -1 eigenspace of the symmetry, so the new direction is the symmetry-breaking
+mode exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from contin.branch import Branch, SpecialPoint
+from contin.corrector import correct
+from contin.extended import ExtendedSystem
+from contin.linalg import bordered, factorize, inverse_iteration
+from contin.options import ContinuationOptions
+from contin.problem import Array
+from contin.testfunctions import Antisymmetric
+
+#: Relative size of the difference step for second derivatives.
+FD_STEP = 1e-5
+
+
+def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_breaking: bool) -> tuple[Array, Array]:
+    """(phi, psi): second kernel vector of G_x (theta-unit, theta-orthogonal to t1) and left null vector."""
+    n = x0.size - 1
+    jac, fp = system.jacobian(x0)
+    anti = Antisymmetric.from_problem(system.problem, n) if symmetry_breaking else None
+    if anti is not None and anti.dimension > 0:
+        right, left = anti.null_vectors(jac)
+        phi = system.pack(right, 0.0)
+        psi = left
+    else:
+        a = bordered(jac, fp, system.row(t1))
+        fact = factorize(a)
+        if fact is None:  # exactly singular at the located point: shift by a rounding-level amount
+            shift = 1e-14 * max(1.0, float(abs(a).max()))
+            fact = factorize(a + shift * sp.identity(n + 1, format="csc"))
+        if fact is None:
+            raise ValueError("cannot factorize the bordered Jacobian at the branch point")
+        phi = inverse_iteration(fact)
+        psi = inverse_iteration(fact, trans="T")[:n]
+    phi = phi - system.dot(phi, t1) * t1
+    return system.unit(phi), psi / np.linalg.norm(psi)
+
+
+def second_derivative(system: ExtendedSystem, x0: Array, v: Array, w: Array) -> Array:
+    """G_xx[v, w] ~ (G_x(x0 + h w) v - G_x(x0 - h w) v) / (2h)."""
+    h = FD_STEP * max(1.0, float(np.max(np.abs(x0)))) / max(float(np.max(np.abs(w))), 1e-300)
+
+    def gx(x: Array) -> Array:
+        jac, fp = system.jacobian(x)
+        return np.asarray(jac @ v[:-1]) + fp * v[-1]
+
+    return (gx(x0 + h * w) - gx(x0 - h * w)) / (2 * h)
+
+
+def bifurcation_coefficients(system: ExtendedSystem, x0: Array, t1: Array, phi: Array, psi: Array) -> tuple[float, float, float]:
+    """(a, b, c) of the algebraic bifurcation equation (module docstring)."""
+    n = x0.size - 1
+    a = float(psi @ second_derivative(system, x0, t1, t1)[:n])
+    b = 0.5 * float(psi @ (second_derivative(system, x0, t1, phi) + second_derivative(system, x0, phi, t1))[:n])
+    c = float(psi @ second_derivative(system, x0, phi, phi)[:n])
+    return a, b, c
+
+
+def new_tangent(system: ExtendedSystem, t1: Array, phi: Array, a: float, b: float, c: float) -> Array:
+    """Theta-unit tangent of the bifurcating branch from the ABE root other than t1."""
+    scale = max(abs(a), abs(b), abs(c))
+    if scale == 0.0 or abs(b) <= 1e-8 * scale:
+        raise ValueError(
+            f"the branch point is not simple (ABE coefficients a={a:.3g}, b={b:.3g}, c={c:.3g}); cannot switch"
+        )
+    q = -(b + math.copysign(math.sqrt(max(b * b - a * c, 0.0)), b))
+    return system.unit((c / q) * t1 + phi)
+
+
+def switch(
+    problem: Any,
+    branch: Branch,
+    point: SpecialPoint,
+    options: ContinuationOptions = ContinuationOptions(),
+    *,
+    directions: tuple[int, ...] = (+1, -1),
+    branch_id_prefix: str | None = None,
+    ds: float | None = None,
+    symmetric: bool | None = None,
+) -> list[Branch]:
+    """Trace the branches bifurcating at the simple BP ``point`` of ``branch``.
+
+    Parameters
+    ----------
+    directions : signs of the new tangent to follow (both halves of the new branch by default).
+    branch_id_prefix : ids are f"{prefix}.{k}" (default prefix f"{branch.id}.{point.name}").
+    ds : length of the first step off the BP (default |options.step.ds|).
+
+    Returns
+    -------
+    list of Branch
+        kind='bifurcated', parent=f"{point.name}@{branch.id}", each starting at the BP.
+
+    Raises
+    ------
+    ValueError
+        If ``point`` is not a BP with a tangent, or the BP is not simple (b = 0 in the ABE).
+    """
+    from contin.continuation import trace
+
+    if point.type != "BP" or point.tangent is None:
+        raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
+    param = branch.parameter
+    system = ExtendedSystem(problem, point.params, param, options.step.theta)
+    u0 = np.asarray(point.state, dtype=float)
+    system.n = u0.size
+    x0 = system.pack(u0, point.params[param])
+    t1 = system.unit(np.asarray(point.tangent, dtype=float))
+    phi, psi = null_directions(system, x0, t1, "symmetry-breaking" in point.note)
+    a, b, c = bifurcation_coefficients(system, x0, t1, phi, psi)
+    tau = new_tangent(system, t1, phi, a, b, c)
+    prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
+    parent = f"{point.name}@{branch.id}"
+    out: list[Branch] = []
+    for k, d in enumerate(directions, start=1):
+        step = abs(ds if ds is not None else options.step.ds)
+        start = None
+        for _ in range(8):
+            x_pred = x0 + d * step * tau
+            corr = correct(system, x_pred, system.row(tau), options.newton)
+            # A good start lies near the predictor; a large correction means the predictor fell
+            # back onto the known branch or diverged.
+            if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
+                start = corr.x
+                break
+            step *= 0.5
+        if start is None:
+            continue
+        new = trace(problem, start[:-1], system.params_at(start[-1]), param, options,
+                    tangent=d * tau, branch_id=f"{prefix}.{k}", kind="bifurcated", parent=parent,
+                    symmetric=symmetric)
+        out.append(_prepend(system, new, x0, d * tau))
+    return out
+
+
+def _prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
+    """Insert the branch point itself as point 0 of a bifurcated branch."""
+    if len(br) == 0:
+        return br
+    rec = system.record(x0)
+    first_len = system.norm(system.pack(br.state(0), br.parameter_values[0]) - x0)
+    br.params = {k: np.concatenate([[system.params_at(x0[-1])[k]], v]) for k, v in br.params.items()}
+    br.observables = {k: np.concatenate([[rec.get(k, np.nan)], v]) for k, v in br.observables.items()}
+    br.states = np.vstack([x0[:-1][None, :], br.states])
+    if br.state_index is not None:
+        br.state_index = np.concatenate([[0], br.state_index + 1])
+    br.tangents = np.vstack([system.unit(t0)[None, :], br.tangents])
+    ds = br.ds.copy()
+    ds[0] = first_len
+    br.ds = np.concatenate([[0.0], ds])
+    br.newton_iterations = np.concatenate([[0], br.newton_iterations])
+    br.special_points = [replace(sp, index=sp.index + 1) for sp in br.special_points]
+    return br

@@ -1,0 +1,164 @@
+"""Test functions whose sign changes mark special points along a branch.
+
+- Fold (LP): the parameter component t_p of the oriented unit tangent.
+- Branch point (BP): kappa = det [[J, F_p], [c^T]] / (c . t).  For any bordering row c with
+  c . t != 0, det is linear in c and equals kappa (c . t) with kappa independent of c (the
+  cofactor row of [J F_p] is kappa t^T), so the corrector's own factorization gives kappa for
+  free, and kappa changes sign exactly where [J F_p] loses rank (Govaerts, *Numerical Methods
+  for Bifurcations of Dynamical Equilibria*, SIAM 2000, sec. 3.3).  Sign and log|kappa| are
+  kept separately because det over/underflows for large n.
+- Symmetry-breaking BP: on a branch of S-invariant states (S an involution with
+  F(S u) = S F(u)), J commutes with S and splits on the +-1 eigenspaces of S.  With Q an
+  orthonormal basis of the -1 eigenspace, det(Q^T J Q) changes sign where an antisymmetric
+  mode becomes critical; kappa / det(Q^T J Q) tracks the symmetric BPs.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from contin.linalg import Factorization, as_csc, factorize, inverse_iteration
+from contin.problem import Array, has
+
+log = logging.getLogger("contin")
+
+#: Largest n for which a general (not signed-permutation) symmetry is turned into a dense basis.
+DENSE_SYMMETRY_LIMIT = 600
+
+SignLog = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class TestValues:
+    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q)."""
+
+    fold: float
+    bp: SignLog
+    anti: SignLog | None = None
+
+    @property
+    def symmetric_bp(self) -> SignLog:
+        """kappa / det(Q^T J Q): changes sign at BPs inside the symmetric subspace."""
+        if self.anti is None:
+            return self.bp
+        return (self.bp[0] * self.anti[0], self.bp[1] - self.anti[1])
+
+
+def bp_value(fact: Factorization, row: Array, t: Array) -> SignLog:
+    """(sign, log|kappa|) of kappa = det A / (c . t) from the factorization of A."""
+    sign, logabs = fact.det_sign_log()
+    ct = float(row @ t)
+    return (sign * math.copysign(1.0, ct), logabs - math.log(abs(ct)) if ct != 0 else math.inf)
+
+
+def signed_value(v: SignLog, reference: float) -> float:
+    """sign * exp(log - reference): a continuous real version of a (sign, log) pair."""
+    return v[0] * math.exp(min(v[1] - reference, 700.0))
+
+
+class Antisymmetric:
+    """Orthonormal basis Q (sparse n x m) of the -1 eigenspace of a linear involution S."""
+
+    def __init__(self, s: sp.csc_matrix, q: sp.csc_matrix) -> None:
+        self.s = s
+        self.q = q
+
+    @property
+    def dimension(self) -> int:
+        return int(self.q.shape[1])
+
+    @classmethod
+    def from_problem(cls, problem: Any, n: int, seed: int = 0) -> Antisymmetric | None:
+        """Build S and Q from ``symmetry_matrix()`` or by probing ``symmetry(u)``; None if unavailable."""
+        if has(problem, "symmetry_matrix"):
+            s = as_csc(problem.symmetry_matrix())
+        elif has(problem, "symmetry"):
+            s = _probe_signed_permutation(problem.symmetry, n, seed)
+            if s is None:
+                if n > DENSE_SYMMETRY_LIMIT:
+                    log.warning("symmetry is not a signed permutation and n=%d is too large for a dense basis", n)
+                    return None
+                s = as_csc(np.column_stack([problem.symmetry(e) for e in np.eye(n)]))
+        else:
+            return None
+        if abs(s @ (s @ np.arange(1.0, n + 1.0)) - np.arange(1.0, n + 1.0)).max() > 1e-9 * n:
+            raise ValueError("the problem's symmetry is not an involution (S S != identity)")
+        return cls(s, _antisymmetric_basis(s))
+
+    def apply(self, u: Array) -> Array:
+        return np.asarray(self.s @ u)
+
+    def is_invariant(self, u: Array, tol: float = 1e-8) -> bool:
+        return float(np.max(np.abs(self.apply(u) - u), initial=0.0)) <= tol * max(1.0, float(np.max(np.abs(u), initial=0.0)))
+
+    def symmetrize(self, u: Array) -> Array:
+        return 0.5 * (u + self.apply(u))
+
+    def reduced(self, jac: sp.spmatrix) -> sp.csc_matrix:
+        return as_csc(self.q.T @ as_csc(jac) @ self.q)
+
+    def det(self, jac: sp.spmatrix) -> SignLog:
+        fact = factorize(self.reduced(jac))
+        return (0.0, -math.inf) if fact is None else fact.det_sign_log()
+
+    def null_vectors(self, jac: sp.spmatrix) -> tuple[Array, Array]:
+        """Right and left antisymmetric (near-)null vectors of J, lifted to R^n (unit 2-norm)."""
+        red = self.reduced(jac)
+        fact = factorize(red)
+        if fact is None:  # exactly singular: shift by a rounding-level amount
+            fact = factorize(red + 1e-14 * max(1.0, abs(red).max()) * sp.identity(red.shape[0], format="csc"))
+        assert fact is not None
+        right = np.asarray(self.q @ inverse_iteration(fact))
+        left = np.asarray(self.q @ inverse_iteration(fact, trans="T"))
+        return right / np.linalg.norm(right), left / np.linalg.norm(left)
+
+
+def _probe_signed_permutation(symmetry: Any, n: int, seed: int) -> sp.csc_matrix | None:
+    """S as a sparse signed permutation, if (S v)_i = s_i v_{pi(i)}; detected from two probes."""
+    v = np.arange(1.0, n + 1.0)
+    w = np.asarray(symmetry(v), dtype=float)
+    idx = np.rint(np.abs(w)).astype(np.int64) - 1
+    if np.any(np.abs(np.abs(w) - (idx + 1)) > 1e-9) or np.any(idx < 0) or np.any(idx >= n):
+        return None
+    if np.unique(idx).size != n:
+        return None
+    sign = np.sign(w)
+    r = np.random.default_rng(seed).standard_normal(n)
+    if np.max(np.abs(np.asarray(symmetry(r)) - sign * r[idx])) > 1e-12 * max(1.0, np.max(np.abs(r))):
+        return None
+    return sp.csc_matrix((sign, (np.arange(n), idx)), shape=(n, n))
+
+
+def _antisymmetric_basis(s: sp.csc_matrix) -> sp.csc_matrix:
+    """Orthonormal basis of {v : S v = -v}.
+
+    For a signed permutation (S e_i = s_j e_j with j = pi(i)) the basis is sparse: e_i for
+    fixed points with s_i = -1 and (e_i - s_j e_j)/sqrt(2) for each 2-cycle i < j.  Otherwise
+    the range of the projector (I - S)/2 from a dense SVD (small n only).
+    """
+    n = s.shape[0]
+    coo = s.tocoo()
+    if coo.nnz == n and np.unique(coo.col).size == n and np.allclose(np.abs(coo.data), 1.0):
+        pi = np.empty(n, dtype=np.int64)
+        sg = np.empty(n)
+        pi[coo.col] = coo.row  # S e_col = data e_row
+        sg[coo.col] = coo.data
+        i = np.arange(n)
+        fixed = (pi == i) & (sg < 0)
+        pair = pi > i
+        cols_f = i[fixed]
+        cols_p = i[pair]
+        m_f, m_p = cols_f.size, cols_p.size
+        rows = np.concatenate([cols_f, cols_p, pi[cols_p]])
+        cols = np.concatenate([np.arange(m_f), m_f + np.arange(m_p), m_f + np.arange(m_p)])
+        vals = np.concatenate([np.ones(m_f), np.full(m_p, 1 / math.sqrt(2)), -sg[cols_p] / math.sqrt(2)])
+        return sp.csc_matrix((vals, (rows, cols)), shape=(n, m_f + m_p))
+    proj = 0.5 * (np.eye(n) - s.toarray())
+    u, sv, _ = np.linalg.svd(proj)
+    return sp.csc_matrix(u[:, sv > 0.5])

@@ -1,0 +1,237 @@
+"""Demo problems with known answers (they prove the continuation core).
+
+- :class:`Bratu`: u'' + lam e^u = 0 on [0, 1], u(0) = u(1) = 0.  One fold at
+  lam* = 3.513830719125162: the exact solutions are u = -2 ln[cosh((x - 1/2) theta/2) / cosh(theta/4)]
+  with lam = theta^2 / (2 cosh^2(theta/4)), and lam* is the maximum over theta (Bratu 1914,
+  Gel'fand 1963).
+- :class:`AllenCahn`: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet.  Supercritical
+  pitchforks off u = 0 at lam = k^2 (the Dirichlet eigenvalues of -d^2/dx^2 on [0, pi]);
+  symmetry u -> -u (Chafee & Infante, Applicable Anal. 4, 1974).
+- :class:`ImperfectPitchfork`: x^3 - lam x + alpha + beta x^2 = 0 (scalar); folds where also
+  3x^2 + 2 beta x - lam = 0, i.e. alpha = 2x^3 + beta x^2, lam = 3x^2 + 2 beta x.
+- :class:`Transcritical`: lam x - x^2 = 0 (scalar); branches x = 0 and x = lam cross at 0.
+- :class:`Isola`: x^2 + (lam - c)^2 - r^2 = 0 (scalar); a closed curve with folds at lam = c +- r.
+
+The BVPs use ``problems.discretization.make_grid`` on y in [-1/2, 1/2] with the physical
+coordinate x = L (y + 1/2); boundary rows of the collocation system are replaced by the
+Dirichlet conditions.  All Jacobians are analytic and sparse.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.discretization import Grid, make_grid
+
+Array = np.ndarray
+
+#: The Bratu fold (Gel'fand 1963; e.g. Mohsen, Comput. Math. Appl. 2014, to 16 digits).
+BRATU_FOLD = 3.513830719125162
+
+
+def point_weights(grid: Grid, y0: float) -> Array:
+    """w with w . f = interpolant of f at y0 (the grid's own interpolation, as a row vector)."""
+    eye = np.eye(grid.size)
+    return np.array([grid.interpolate(eye[j], np.array([y0]))[0] for j in range(grid.size)])
+
+
+class _DirichletBVP:
+    """u'' / L^2 + g(u, p) = 0 on x in [0, L] with u = 0 at both ends."""
+
+    parameter_names: tuple[str, ...] = ("lam",)
+    length = 1.0
+
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        self.grid = make_grid(method, intervals)
+        n = self.grid.size
+        self.n = n
+        self.interior = np.ones(n, dtype=bool)
+        self.interior[[0, -1]] = False
+        mask = sp.diags(self.interior.astype(float))
+        self._d2 = sp.csr_matrix(mask @ self.grid.d2 / self.length**2)
+        self._bc = sp.diags((~self.interior).astype(float), format="csr")
+        self.x = self.length * (self.grid.y + 0.5)
+
+    def _g(self, u: Array, lam: float) -> Array:
+        raise NotImplementedError
+
+    def _g_u(self, u: Array, lam: float) -> Array:
+        raise NotImplementedError
+
+    def _g_lam(self, u: Array, lam: float) -> Array:
+        raise NotImplementedError
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        lam = p["lam"]
+        out = self._d2 @ u + np.where(self.interior, self._g(u, lam), 0.0)
+        out[~self.interior] = u[~self.interior]
+        return out
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        diag = np.where(self.interior, self._g_u(u, p["lam"]), 0.0)
+        return sp.csr_matrix(self._d2 + self._bc + sp.diags(diag))
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        if name != "lam":
+            raise ValueError(f"unknown parameter {name!r}")
+        return np.where(self.interior, self._g_lam(u, p["lam"]), 0.0)
+
+    def integrate(self, f: Array) -> float:
+        """Integral over x in [0, L]."""
+        return float(self.length * self.grid.integrate(f))
+
+    def validate(self, p: Mapping[str, float]) -> None:
+        if not np.isfinite(p["lam"]):
+            raise ValueError(f"lam must be finite, got {p['lam']}")
+
+
+class Bratu(_DirichletBVP):
+    """u'' + lam e^u = 0 on [0, 1], u(0) = u(1) = 0.
+
+    Order parameter: u(1/2), the maximum of the (symmetric, positive) solution.
+    Symmetry: the reflection x -> 1 - x (a permutation of the symmetric grid).
+    """
+
+    length = 1.0
+
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        super().__init__(method, intervals)
+        self._mid = point_weights(self.grid, 0.0)
+
+    def _g(self, u: Array, lam: float) -> Array:
+        return lam * np.exp(u)
+
+    def _g_u(self, u: Array, lam: float) -> Array:
+        return lam * np.exp(u)
+
+    def _g_lam(self, u: Array, lam: float) -> Array:
+        return np.exp(u)
+
+    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
+        return float(self._mid @ u)
+
+    def observables(self, u: Array, p: Mapping[str, float]) -> dict[str, float]:
+        return {"u_max": float(np.max(u)), "l2": float(np.sqrt(self.integrate(u * u)))}
+
+    def symmetry(self, u: Array) -> Array:
+        return np.asarray(u)[::-1].copy()
+
+    def initial(self) -> Array:
+        return np.zeros(self.n)
+
+
+class AllenCahn(_DirichletBVP):
+    """u'' + lam (u - u^3) = 0 on [0, pi], u(0) = u(pi) = 0.
+
+    Order parameter: u(pi/5), a point where none of the modes sin(kx), k = 1..4, vanishes,
+    so it separates the modes and the two signs of each.  Observable ``nodes``: interior sign
+    changes of u (the mode number minus one).  Symmetry: u -> -u.
+    """
+
+    length = np.pi
+
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        super().__init__(method, intervals)
+        self._probe = point_weights(self.grid, 0.2 - 0.5)
+
+    def _g(self, u: Array, lam: float) -> Array:
+        return lam * (u - u**3)
+
+    def _g_u(self, u: Array, lam: float) -> Array:
+        return lam * (1.0 - 3.0 * u**2)
+
+    def _g_lam(self, u: Array, lam: float) -> Array:
+        return u - u**3
+
+    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
+        return float(self._probe @ u)
+
+    def observables(self, u: Array, p: Mapping[str, float]) -> dict[str, float]:
+        inner = u[1:-1]
+        scale = max(float(np.max(np.abs(u))), 1e-300)
+        significant = inner[np.abs(inner) > 1e-8 * scale]
+        nodes = int(np.count_nonzero(np.diff(np.sign(significant)))) if scale > 1e-12 else 0
+        return {"max_abs": float(np.max(np.abs(u))), "nodes": float(nodes)}
+
+    def symmetry(self, u: Array) -> Array:
+        return -np.asarray(u)
+
+    def symmetry_matrix(self) -> sp.csr_matrix:
+        return -sp.identity(self.n, format="csr")
+
+    def initial(self) -> Array:
+        return np.zeros(self.n)
+
+
+class _Scalar:
+    """Helpers for scalar problems: u is a length-1 array."""
+
+    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
+        return float(u[0])
+
+    @staticmethod
+    def _j(value: float) -> sp.csr_matrix:
+        return sp.csr_matrix(np.array([[float(value)]]))
+
+
+class ImperfectPitchfork(_Scalar):
+    """F(x) = x^3 - lam x + alpha + beta x^2 (parameters lam, alpha, beta)."""
+
+    parameter_names = ("lam", "alpha", "beta")
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        x = u[0]
+        return np.array([x**3 - p["lam"] * x + p["alpha"] + p["beta"] * x**2])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        x = u[0]
+        return self._j(3 * x**2 - p["lam"] + 2 * p["beta"] * x)
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        x = u[0]
+        return np.array([{"lam": -x, "alpha": 1.0, "beta": x**2}[name]])
+
+    @staticmethod
+    def folds(alpha: float, beta: float) -> list[tuple[float, float]]:
+        """Analytic folds (lam, x): real roots of 2x^3 + beta x^2 - alpha = 0, lam = 3x^2 + 2 beta x."""
+        roots = np.roots([2.0, beta, 0.0, -alpha])
+        xs = sorted(float(r.real) for r in roots if abs(r.imag) < 1e-12)
+        return [(3 * x**2 + 2 * beta * x, x) for x in xs]
+
+
+class Transcritical(_Scalar):
+    """F(x) = lam x - x^2: the branches x = 0 and x = lam cross transcritically at lam = 0."""
+
+    parameter_names = ("lam",)
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        return np.array([p["lam"] * u[0] - u[0] ** 2])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        return self._j(p["lam"] - 2 * u[0])
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        return np.array([u[0]])
+
+
+class Isola(_Scalar):
+    """F(x) = x^2 + (lam - c)^2 - r^2: the circle of radius r about (x, lam) = (0, c).
+
+    J = 2x vanishes only at the two folds (x, lam) = (0, c +- r); F_lam = 2 (lam - c) is
+    nonzero there, so the curve is smooth and closed (an isola).
+    """
+
+    parameter_names = ("lam", "c", "r")
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        return np.array([u[0] ** 2 + (p["lam"] - p["c"]) ** 2 - p["r"] ** 2])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        return self._j(2 * u[0])
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        d = {"lam": 2 * (p["lam"] - p["c"]), "c": -2 * (p["lam"] - p["c"]), "r": -2 * p["r"]}
+        return np.array([d[name]])
