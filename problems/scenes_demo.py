@@ -1,0 +1,141 @@
+"""Demo scenes for the CLI: ``contin trace bratu`` and ``contin trace allen-cahn``.
+
+- ``bratu``: u'' + lam e^u = 0 on [0, 1], Dirichlet; traced from u = 0 at lam = lam_min up
+  through the fold lam* = 3.513830719125162 and back along the upper branch.
+- ``allen-cahn``: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet; the trivial branch u = 0 for
+  lam in [lam_min, lam_max], its branch points (lam = k^2) and both signs of every bifurcated
+  branch.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from contin.branch import Branch, relabel
+from contin.continuation import switch, trace
+from contin.options import ContinuationOptions, StepOptions
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu
+
+
+def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -> dict[str, float]:
+    """Defaults merged with the user's values, each checked to be a finite number."""
+    out = dict(defaults)
+    for name, value in request.params.items():
+        if name not in defaults:
+            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {value!r}") from None
+        if not math.isfinite(v):
+            raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
+        out[name] = v
+    if not out["lam_min"] < out["lam_max"]:
+        raise SceneError(f"need lam_min < lam_max, got lam_min={out['lam_min']:g}, lam_max={out['lam_max']:g}")
+    return out
+
+
+def _problem(cls: type, request: SceneRequest) -> Any:
+    try:
+        return cls(request.method or "cheb", request.grid or 32)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def _emit(request: SceneRequest, done: list[Branch], branch: Branch) -> None:
+    done.append(branch)
+    relabel(done)  # earlier branches keep their labels; the new one continues the numbering
+    request.finished(branch)
+
+
+BRATU_DEFAULTS = {"lam_min": 0.0, "lam_max": 4.0}
+
+
+def run_bratu(request: SceneRequest) -> SceneResult:
+    p = _numbers(request, BRATU_DEFAULTS, "bratu")
+    if p["lam_min"] >= BRATU_FOLD:
+        raise SceneError(f"lam_min must lie below the fold lam*={BRATU_FOLD:.6f} (there are no solutions above it)")
+    pb = _problem(Bratu, request)
+    options = request.options_for(ContinuationOptions(
+        bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=60, step=StepOptions(ds=0.05, ds_max=0.25)))
+    done: list[Branch] = []
+    if "0" in request.completed:
+        branch = request.completed["0"]
+    else:
+        request.report("bratu: tracing from u = 0")
+        branch = trace(pb, pb.initial(), {"lam": p["lam_min"]}, "lam", options, progress=request.report)
+    _emit(request, done, branch)
+    notes = [f"{lp.name}: lam = {lp.params['lam']:.15g} (exact {BRATU_FOLD}, error {lp.params['lam'] - BRATU_FOLD:.2g})"
+             for lp in branch.fold_points]
+    return SceneResult(
+        branches=done,
+        parameters=p,
+        discretization={"method": pb.grid.method, "intervals": pb.grid.intervals},
+        y=pb.x,
+        profiles=lambda state: {"u": np.asarray(state)},
+        notes=notes,
+    )
+
+
+ALLEN_CAHN_DEFAULTS = {"lam_min": 0.0, "lam_max": 10.0}
+
+
+def run_allen_cahn(request: SceneRequest) -> SceneResult:
+    p = _numbers(request, ALLEN_CAHN_DEFAULTS, "allen-cahn")
+    pb = _problem(AllenCahn, request)
+    options = request.options_for(ContinuationOptions(
+        bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=200, step=StepOptions(ds=0.05, ds_max=0.25)))
+    done: list[Branch] = []
+    if "0" in request.completed:
+        trivial = request.completed["0"]
+    else:
+        request.report("allen-cahn: tracing the trivial branch")
+        trivial = trace(pb, pb.initial(), {"lam": p["lam_min"]}, "lam", options, kind="trivial",
+                        progress=request.report)
+    _emit(request, done, trivial)
+    notes = []
+    for bp in trivial.branch_points:
+        k = math.sqrt(bp.params["lam"])
+        notes.append(f"{bp.name}: lam = {bp.params['lam']:.12g} (expected {round(k) ** 2}, mode {round(k)}; {bp.note})")
+        prefix = f"0.{bp.name}"
+        ids = [f"{prefix}.1", f"{prefix}.2"]
+        if all(i in request.completed for i in ids):
+            children = [request.completed[i] for i in ids]
+        else:
+            request.report(f"allen-cahn: switching at {bp.name} (lam = {bp.params['lam']:.6g})")
+            children = switch(pb, trivial, bp, options, branch_id_prefix=prefix)
+        for child in children:
+            _emit(request, done, child)
+    return SceneResult(
+        branches=done,
+        parameters=p,
+        discretization={"method": pb.grid.method, "intervals": pb.grid.intervals},
+        y=pb.x,
+        profiles=lambda state: {"u": np.asarray(state)},
+        notes=notes,
+    )
+
+
+SCENES = {
+    "bratu": Scene(
+        name="bratu",
+        summary="Bratu problem u'' + lam e^u = 0 on [0,1], Dirichlet: fold at lam* = 3.5138",
+        defaults=BRATU_DEFAULTS,
+        run=run_bratu,
+        x="lam",
+        y="phi",
+    ),
+    "allen-cahn": Scene(
+        name="allen-cahn",
+        summary="Allen-Cahn u'' + lam (u - u^3) = 0 on [0,pi], Dirichlet: pitchforks at lam = k^2",
+        defaults=ALLEN_CAHN_DEFAULTS,
+        run=run_allen_cahn,
+        x="lam",
+        y="phi",
+    ),
+}
