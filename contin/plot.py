@@ -70,8 +70,12 @@ def _point_value(branch: Branch, sp: SpecialPoint, name: str) -> float:
 
 
 def stability_runs(stable: np.ndarray | None, n: int) -> list[tuple[int, int, bool | None]]:
-    """Maximal runs ``(start, stop, stable)`` covering ``0..n-1``; consecutive runs share their
-    boundary point (``stop`` of one run = ``start`` of the next, inclusive) so lines join."""
+    """Maximal runs ``(first, last, stable)`` of points ``0..n-1`` with equal stability.
+
+    Runs are disjoint; :func:`plot_branch` joins run k to run k+1 through the segment
+    between their boundary points (``last`` of run k and ``first`` of run k+1), drawn in the
+    style of run k+1 and split at the located special point when there is one.
+    """
     if n == 0:
         return []
     if stable is None:
@@ -79,7 +83,7 @@ def stability_runs(stable: np.ndarray | None, n: int) -> list[tuple[int, int, bo
     s = np.asarray(stable, dtype=bool)
     change = np.flatnonzero(s[1:] != s[:-1]) + 1
     starts = np.concatenate([[0], change])
-    stops = np.concatenate([change, [n - 1]])
+    stops = np.concatenate([change - 1, [n - 1]])
     return [(int(a), int(b), bool(s[a])) for a, b in zip(starts, stops)]
 
 
@@ -110,9 +114,25 @@ def plot_branch(
     lw = line_kw.pop("linewidth", line_kw.pop("lw", 1.5))
     artists: list[Any] = []
     first = True
-    for a, b, st in stability_runs(branch.stable, len(branch)):
+    runs = stability_runs(branch.stable, len(branch))
+    join: dict[int, tuple[float, float]] = {}  # boundary index -> located point splitting it
+    for _, b, _ in runs[:-1]:
+        for sp in branch.special_points:
+            if sp.index == b and sp.type in ("BP", "HB", "LP"):
+                px, py = _point_value(branch, sp, x), _point_value(branch, sp, y)
+                if np.isfinite(px) and np.isfinite(py):
+                    join[b] = (px, py)
+                    break
+    for k, (a, b, st) in enumerate(runs):
         style = UNSTABLE_STYLE if st is False else STABLE_STYLE
-        (line,) = ax.plot(xs[a : b + 1], ys[a : b + 1], linestyle=style, color=color,
+        rx, ry = list(xs[a : b + 1]), list(ys[a : b + 1])
+        if k > 0:  # start at the previous run's last point, or at the special point between
+            px, py = join.get(a - 1, (xs[a - 1], ys[a - 1]))
+            rx, ry = [px, *rx], [py, *ry]
+        if k < len(runs) - 1 and b in join:
+            rx.append(join[b][0])
+            ry.append(join[b][1])
+        (line,) = ax.plot(rx, ry, linestyle=style, color=color,
                           linewidth=lw if st is not False else 0.8 * lw,
                           label=(label if first else None), **line_kw)
         color = color or line.get_color()  # one colour for all runs of the branch
@@ -130,7 +150,7 @@ def plot_branch(
         if sp.converged:
             art = ax.plot([px], [py], marker=marker, color=face, markersize=5, linestyle="none", zorder=3)[0]
         else:  # honest about points whose location failed
-            art = ax.plot([px], [py], marker="s", markerfacecolor="none", markeredgecolor=face,
+            art = ax.plot([px], [py], marker="s", color=face, markerfacecolor="none", markeredgecolor=face,
                           markersize=6, linestyle="none", zorder=3)[0]
         art.set_gid(f"sp-{sp.name}")
         artists.append(art)

@@ -4,7 +4,7 @@
 branch v = 0 (stable for lam < 0, unstable after the BP at lam = 0) and the bifurcated branch
 lam = v^2 (stable, with an unconverged LP-labelled marker for the plot test).  Parameters
 a (> 0 or SceneError), chi (a word), Fr (may be inf), delay (sleep after each branch),
-fail ('none', 'crash' after the first branch, 'mx', 'nan').
+fail ("none", "crash" after the first branch, "mx", "nanphi").
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def run(req: SceneRequest) -> SceneResult:
                 raise RuntimeError("deliberate crash in the toy scene")
             if p["fail"] == "mx" and k == 1:
                 b.status, b.message = "MX", "step size underflow at lam=0.16"
-            if p["fail"] == "nan" and k == 0:
+            if p["fail"] == "nanphi" and k == 0:
                 b.observables["energy"][3] = math.nan
                 b.special_points[0] = SpecialPoint(**{**b.special_points[0].__dict__, "order_parameter": math.nan})
         branches.append(b)
