@@ -161,7 +161,7 @@ def _where(source: str) -> str:
 
 
 def _grid_values(name: str, spec: Any, where: str) -> tuple[Any, ...]:
-    if isinstance(spec, list):
+    if isinstance(spec, (list, tuple)):
         if not spec:
             raise SweepError(f"swept parameter {name!r}{where} has an empty list of values")
         seen: list[Any] = []
