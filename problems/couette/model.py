@@ -561,11 +561,17 @@ class CouetteProblem:
     def eigenproblem(self, x: Array, p: Mapping[str, Any], kx: float = 0.0, kz: float = 0.0):
         """Generalized eigenproblem A X = omega B X of physics.md section 5 at the steady state x.
 
-        Delegates to :func:`problems.couette.linear.linear_operator` (imported lazily).
+        Delegates to :func:`problems.couette.linear.linear_operator` (imported lazily) with
+        this instance's grid, wall model, chi, Dufour and gravity switches.  Unknowns of the
+        eigenproblem are (nu, u, v, w, T) perturbations, not the steady state vector.
         """
         from problems.couette.linear import linear_operator
 
-        return linear_operator(self, x, p, kx=kx, kz=kz)
+        nu, u, T, _, _ = self.unpack(np.asarray(x, dtype=float))
+        return linear_operator(
+            self.grid, nu, u, T, p, walls=self.walls, kx=kx, kz=kz, chi=self.chi,
+            dufour=self.dufour, gravity=self.gravity,
+        )
 
 
 def _dufour_nu_derivative(nu: Array, p: Mapping[str, Any], chi: str, h: float = 1e-30) -> Array:
