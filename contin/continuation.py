@@ -295,7 +295,10 @@ def trace(
     sopt = options.step
     system = ExtendedSystem(problem, params, parameter, sopt.theta)
     u0 = np.array(u0, dtype=float).ravel()
-    f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
+    try:
+        f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
+    except ValueError as exc:
+        raise ValueError(f"start state with {u0.size} entries does not fit the problem ({exc})") from None
     if f0.shape != u0.shape:
         raise ValueError(f"start state has {u0.size} entries but the residual has {f0.size}")
     n = u0.size

@@ -37,6 +37,12 @@ class Correction:
 
 
 def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions) -> Correction:
+    """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0 (see :func:`_correct`)."""
+    with np.errstate(all="ignore"):
+        return _correct(system, x_pred, row, options)
+
+
+def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0.
 
     At least one iteration is always done so that a factorization at the solution exists (an

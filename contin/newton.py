@@ -60,8 +60,14 @@ def newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newton
     """Solve F(u, params) = 0 from u0 by Newton's method with sparse LU.
 
     Returns a :class:`NewtonResult`; non-convergence (singular Jacobian, divergence, too many
-    iterations, inadmissible iterates) is reported in ``message``, never raised.
+    iterations, inadmissible iterates) is reported in ``message``, never raised.  Floating-point
+    warnings of diverging iterates are silenced: divergence is detected and reported instead.
     """
+    with np.errstate(all="ignore"):
+        return _newton(problem, u0, params, options)
+
+
+def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: NewtonOptions) -> NewtonResult:
     u = np.array(u0, dtype=float).ravel()
     p = dict(params)
 

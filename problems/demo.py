@@ -54,6 +54,14 @@ class _DirichletBVP:
         self._d2 = sp.csr_matrix(mask @ self.grid.d2 / self.length**2)
         self._bc = sp.diags((~self.interior).astype(float), format="csr")
         self.x = self.length * (self.grid.y + 0.5)
+        # Fixed sparsity pattern of J = D2 (interior rows) + I (boundary rows) + diag(g_u):
+        # only the diagonal values change from one Jacobian to the next.
+        base = sp.csr_matrix(self._d2 + self._bc + sp.identity(n, format="csr"))
+        base.sort_indices()
+        rows = np.repeat(np.arange(n), np.diff(base.indptr))
+        self._diag_pos = np.flatnonzero(base.indices == rows)
+        base.data[self._diag_pos] = (self._d2 + self._bc).diagonal()
+        self._base = base
 
     def _g(self, u: Array, lam: float) -> Array:
         raise NotImplementedError
@@ -71,8 +79,9 @@ class _DirichletBVP:
         return out
 
     def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
-        diag = np.where(self.interior, self._g_u(u, p["lam"]), 0.0)
-        return sp.csr_matrix(self._d2 + self._bc + sp.diags(diag))
+        jac = self._base.copy()
+        jac.data[self._diag_pos] += np.where(self.interior, self._g_u(u, p["lam"]), 0.0)
+        return jac
 
     def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
         if name != "lam":

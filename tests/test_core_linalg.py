@@ -1,0 +1,75 @@
+"""Sparse LU determinant signs, permutation parity, bordered assembly, step-size law."""
+
+import itertools
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from contin.extended import ExtendedSystem
+from contin.linalg import bordered, factorize, inverse_iteration, permutation_parity
+from contin.options import StepOptions
+from contin.stepsize import next_step
+from problems.demo import ImperfectPitchfork
+
+
+def inversion_parity(perm):
+    inv = sum(1 for i, j in itertools.combinations(range(len(perm)), 2) if perm[i] > perm[j])
+    return -1 if inv % 2 else 1
+
+
+def test_permutation_parity_matches_inversion_count():
+    rng = np.random.default_rng(1)
+    for n in (1, 2, 3, 5, 8, 13):
+        for _ in range(20):
+            perm = rng.permutation(n)
+            assert permutation_parity(perm) == inversion_parity(list(perm))
+
+
+@pytest.mark.parametrize("seed", range(25))
+def test_lu_determinant_sign_equals_numpy(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 9))
+    # A sparse matrix whose pivoting needs both row and column permutations: a random signed
+    # permutation plus a sparse perturbation.
+    perm = rng.permutation(n)
+    base = np.zeros((n, n))
+    base[np.arange(n), perm] = rng.choice([-1.0, 1.0], n) * rng.uniform(0.5, 2.0, n)
+    a = base + sp.random(n, n, density=0.3, random_state=seed).toarray() * rng.choice([-1, 1])
+    fact = factorize(sp.csr_matrix(a))
+    sign, logabs = fact.det_sign_log()
+    ref_sign, ref_log = np.linalg.slogdet(a)
+    assert sign == ref_sign
+    assert logabs == pytest.approx(ref_log, abs=1e-10)
+
+
+def test_singular_matrix_gives_none_and_null_vector_by_inverse_iteration():
+    a = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
+    assert factorize(a) is None
+    near = factorize(sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 4.0 + 1e-9]])))
+    v = inverse_iteration(near)
+    assert abs(abs(v @ np.array([2.0, -1.0]) / np.sqrt(5)) - 1) < 1e-8
+
+
+def test_bordered_assembly_equals_dense_block_matrix():
+    j = sp.random(7, 7, density=0.3, random_state=3, format="csr")
+    col, row = np.arange(7.0) + 1, np.arange(8.0) - 3
+    dense = np.block([[j.toarray(), col[:, None]], [row[None, :]]])
+    assert np.array_equal(bordered(j, col, row).toarray(), dense)
+    assert np.array_equal(bordered(j.tocsc(), col, row).toarray(), dense)
+
+
+def test_theta_weighted_row_reproduces_inner_product():
+    system = ExtendedSystem(ImperfectPitchfork(), {"lam": 0, "alpha": 0, "beta": 0}, "lam", theta=0.3)
+    a, b = np.array([1.0, 2.0]), np.array([3.0, -1.0])
+    assert system.dot(a, b) == pytest.approx(3.0 - 0.3 * 2.0)
+    assert system.row(a) @ b == pytest.approx(system.dot(a, b))
+
+
+def test_step_size_law():
+    opts = StepOptions(ds=0.1, ds_max=0.5, newton_target=4, grow=1.5, shrink=0.5)
+    assert next_step(0.1, 2, opts) == pytest.approx(0.15)  # grow capped at 1.5
+    assert next_step(0.1, 4, opts) == pytest.approx(0.1)
+    assert next_step(0.1, 5, opts) == pytest.approx(0.08)
+    assert next_step(0.1, 12, opts) == pytest.approx(0.05)  # shrink floor 0.5
+    assert next_step(0.4, 1, opts) == pytest.approx(0.5)  # ds_max

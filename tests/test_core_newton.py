@@ -1,0 +1,113 @@
+"""Newton: quadratic convergence, failures reported not raised, admissibility backtracking."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from contin.continuation import newton, trace
+from contin.options import ContinuationOptions, NewtonOptions, StepOptions
+from problems.demo import AllenCahn, Bratu, ImperfectPitchfork
+
+
+def test_newton_converges_quadratically_on_bratu():
+    pb = Bratu("cheb", 32)
+    res = newton(pb, pb.initial(), {"lam": 3.0}, NewtonOptions(tol=1e-11, step_tol=1e-10))
+    assert res.converged and res.message == "converged"
+    r = np.array(res.residual_history)
+    assert r[-1] <= 1e-11
+    # In the asymptotic phase r_{k+1} ~ C r_k^2: the ratio of logs tends to 2.
+    k = [i for i in range(1, len(r) - 1) if 1e-12 < r[i + 1] and r[i] < 1e-1]
+    assert k, r
+    orders = [math.log(r[i + 1]) / math.log(r[i]) for i in k]
+    assert max(orders) > 1.8, (r, orders)
+    assert all(r[i + 1] <= 10 * r[i] ** 2 for i in k), r
+
+
+def test_newton_failure_is_reported_not_raised():
+    pb = Bratu("cheb", 16)
+    # no solution above the fold lam* = 3.5138
+    res = newton(pb, pb.initial(), {"lam": 5.0}, NewtonOptions(max_iterations=8))
+    assert not res.converged
+    assert res.message and res.iterations >= 1
+    # singular Jacobian: Allen-Cahn at u = 0 exactly on the eigenvalue lam = 1 ... of the
+    # scalar pitchfork at its BP
+    res = newton(ImperfectPitchfork(), np.array([1e-3]), {"lam": 0.0, "alpha": 0.0, "beta": 0.0},
+                 NewtonOptions(max_iterations=3))
+    assert not res.converged and "no convergence" in res.message
+
+
+class AtanProblem:
+    """F(x) = atan(x - 1), root x = 1; plain Newton from x = 3 overshoots to x < 0 and diverges."""
+
+    parameter_names = ("a",)
+
+    def residual(self, u, p):
+        return np.arctan(u - 1.0)
+
+    def jacobian(self, u, p):
+        return sp.csr_matrix(np.array([[1.0 / (1.0 + (u[0] - 1.0) ** 2)]]))
+
+    def dresidual_dp(self, u, p, name):
+        return np.zeros(1)
+
+
+class PositiveAtan(AtanProblem):
+    def admissible(self, u, p):
+        return None if u[0] > 0 else "x must be positive"
+
+
+def test_admissibility_backtracking_rescues_newton():
+    plain = newton(AtanProblem(), np.array([3.0]), {"a": 0.0})
+    assert not plain.converged
+    safe = newton(PositiveAtan(), np.array([3.0]), {"a": 0.0})
+    assert safe.converged
+    assert safe.u[0] == pytest.approx(1.0, abs=1e-12)
+    bad = newton(PositiveAtan(), np.array([-1.0]), {"a": 0.0})
+    assert not bad.converged and "inadmissible" in bad.message
+
+
+def test_forced_newton_failure_ends_trace_with_mx():
+    pb = Bratu("cheb", 16)
+    opts = ContinuationOptions(newton=NewtonOptions(max_iterations=1, tol=1e-14, step_tol=1e-14),
+                               step=StepOptions(ds=0.1, ds_min=1e-3))
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
+    assert br.status == "MX" and not br.success
+    assert "ds_min" in br.message and "no convergence" in br.message
+    assert br.special_points[-1].type == "MX" and br.special_points[-1].note == br.message
+    assert len(br) == 1  # only the start point
+
+
+def test_unconverged_start_gives_mx():
+    pb = Bratu("cheb", 16)
+    br = trace(pb, pb.initial(), {"lam": 5.0}, "lam")
+    assert br.status == "MX" and "start point" in br.message and len(br) == 0
+
+
+class BratuCapped(Bratu):
+    """Bratu with an artificial physical domain u(1/2) < 2 (as a granular model caps density)."""
+
+    def admissible(self, u, p):
+        return None if self.order_parameter(u, p) < 2.0 else "u(1/2) must stay below 2"
+
+
+def test_trace_stops_with_mx_at_the_admissibility_boundary():
+    pb = BratuCapped("cheb", 16)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", ContinuationOptions(step=StepOptions(ds=0.1, ds_min=1e-6)))
+    assert br.status == "MX" and "u(1/2) must stay below 2" in br.message
+    phi = br.order_parameter
+    assert np.all(phi < 2.0) and phi.max() > 1.999
+    assert len(br.fold_points) == 1  # the fold (phi = 1.19) is inside the domain
+
+
+def test_bad_input_raises_value_error():
+    pb = Bratu("cheb", 16)
+    with pytest.raises(ValueError, match="unknown continuation parameter"):
+        trace(pb, pb.initial(), {"lam": 0.0}, "mu")
+    with pytest.raises(ValueError, match="outside its bounds"):
+        trace(pb, pb.initial(), {"lam": 5.0}, "lam", ContinuationOptions(bounds={"lam": (0.0, 4.0)}))
+    with pytest.raises(ValueError, match="entries"):
+        trace(pb, np.zeros(3), {"lam": 0.0}, "lam")
+    with pytest.raises(ValueError, match="unknown parameter"):
+        trace(AllenCahn("cheb", 8), np.zeros(9), {"lam": 0.0, "mu": 1.0}, "lam")
