@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Regenerate every file listed in results/README.md (run from the repository root).
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+for scene in bratu allen-cahn; do
+    contin trace "$scene" -q -o "results/$scene.h5"
+    contin diagram "results/$scene.h5" -o "results/$scene.png"
+done
+contin trace pitchfork -s nu=0.3 -s e=0.8 -q -o results/pitchfork.h5
+contin diagram results/pitchfork.h5 -o results/pitchfork.png
+for nu in 0.5 0.16 0.15; do
+    contin trace pitchfork -s "nu=$nu" -s e=0.8 -q -o "results/pitchfork_nu$nu.h5"
+    contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"
+done
