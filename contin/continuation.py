@@ -406,6 +406,7 @@ def trace(
             if not land.converged or system.admissible(land.x) is not None:
                 message = f"reached bound {parameter}={bound:g} (landing on it failed: {land.message}; stopped before it)"
                 break
+            land.x[-1] = bound  # exact up to rounding already; make it exact
             new = tracer.finish_point(land, cur.t)
             tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
             tracer.append(new, system.norm(new.x - cur.x), corr.iterations)

@@ -1,0 +1,118 @@
+"""Bratu u'' + lam e^u = 0: fold location (spectral and FD orders), bounds, joining, Jacobians."""
+
+import numpy as np
+import pytest
+
+from contin.branch import relabel
+from contin.continuation import trace, trace_both
+from contin.options import ContinuationOptions, StepOptions
+from contin.problem import check_jacobian
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu
+
+OPTS = ContinuationOptions(bounds={"lam": (0.0, 4.0)}, max_steps=40, step=StepOptions(ds=0.1, ds_max=0.5))
+
+
+def fold(method, n):
+    pb = Bratu(method, n)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", OPTS)
+    (lp,) = br.fold_points
+    assert lp.converged
+    return lp, br
+
+
+def exact_lambda(theta):
+    """lam(theta) of the exact solution u = -2 ln[cosh((x - 1/2) theta / 2) / cosh(theta / 4)]."""
+    return theta**2 / (2 * np.cosh(theta / 4) ** 2)
+
+
+def test_fold_spectral_within_1e9():
+    lp, br = fold("cheb", 32)
+    assert abs(lp.params["lam"] - BRATU_FOLD) < 1e-9
+    # u(1/2) = 2 ln cosh(theta*/4) at the fold, theta* solving d lam / d theta = 0
+    from scipy.optimize import brentq
+
+    th = brentq(lambda t: t * np.tanh(t / 4) - 4, 1, 10)  # d lam / d theta = 0
+    assert exact_lambda(th) == pytest.approx(BRATU_FOLD, abs=1e-13)
+    assert lp.order_parameter == pytest.approx(2 * np.log(np.cosh(th / 4)), abs=1e-8)
+    assert lp.index < len(br) - 1 and lp.tangent is not None and abs(lp.tangent[-1]) < 1e-6
+    # the branch turns: lam grows up to the fold and decreases after it
+    lam = br.parameter_values
+    assert np.all(np.diff(lam[: lp.index + 1]) > 0) and np.all(np.diff(lam[lp.index + 1 :]) < 0)
+    assert not br.branch_points  # no BP (symmetric or symmetry-breaking) on the 1-D Bratu branch
+
+
+def test_branch_points_lie_on_exact_solution_curve():
+    pb = Bratu("cheb", 32)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", OPTS)
+    # u(1/2) = 2 ln cosh(theta/4) inverts to theta, which must reproduce lam
+    theta = 4 * np.arccosh(np.exp(br.order_parameter / 2))
+    good = br.order_parameter < 4  # the upper branch beyond u ~ 4 is under-resolved on 33 nodes
+    assert good.sum() > 15
+    assert np.max(np.abs(exact_lambda(theta[good]) - br.parameter_values[good])) < 1e-9
+
+
+@pytest.mark.parametrize(
+    "method, grids, nominal",
+    [("fd2", (16, 32, 64), 2), ("fd4", (32, 64, 128), 4), ("fd6", (48, 64, 96), 6)],
+)
+def test_fold_observed_order_of_fd_schemes(method, grids, nominal):
+    errors = [abs(fold(method, n)[0].params["lam"] - BRATU_FOLD) for n in grids]
+    slope = -np.polyfit(np.log(grids), np.log(errors), 1)[0]
+    assert abs(slope - nominal) < 0.2, (errors, slope)
+
+
+def test_bound_gives_ep_exactly_at_the_bound():
+    pb = Bratu("cheb", 16)
+    opts = ContinuationOptions(bounds={"lam": (0.0, 2.5)}, step=StepOptions(ds=0.3, ds_max=0.5))
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
+    assert br.status == "EP" and "bound" in br.message
+    assert br.parameter_values[-1] == 2.5
+    assert np.max(np.abs(pb.residual(br.states[-1], {"lam": 2.5}))) < 1e-10
+    ep = br.special_points[-1]
+    assert ep.type == "EP" and ep.params["lam"] == 2.5 and ep.index == len(br) - 1
+
+
+def test_trace_both_joins_halves_through_the_start():
+    pb = Bratu("cheb", 16)
+    opts = ContinuationOptions(bounds={"lam": (0.0, 4.0)}, max_steps=30, step=StepOptions(ds=0.1, ds_max=0.3))
+    # start on the lower branch at lam = 2: backward reaches lam = 0, forward passes the fold
+    br = trace_both(pb, pb.initial(), {"lam": 2.0}, "lam", opts)
+    relabel([br])
+    types = [sp.type for sp in br.special_points]
+    assert types[0] == "EP" and types[-1] == "EP" and types.count("LP") == 1
+    assert [sp.label for sp in br.special_points] == list(range(1, len(types) + 1))
+    assert br.parameter_values[0] == 0.0
+    lam = br.parameter_values
+    lp = br.fold_points[0]
+    assert abs(lp.params["lam"] - BRATU_FOLD) < 1e-8
+    assert np.all(np.diff(lam[: lp.index + 1]) > 0)
+    # indices are consistent: the LP lies between its neighbouring points
+    assert lam[lp.index] <= lp.params["lam"] and lam[lp.index + 1] <= lp.params["lam"]
+    # tangents oriented along the traversal direction, no duplicated start point
+    steps = np.diff(np.column_stack([br.states.mean(axis=1), lam]), axis=0)
+    assert np.all(np.linalg.norm(steps, axis=1) > 1e-6)
+    assert np.all(np.sign(br.tangents[1 : lp.index, -1]) > 0)
+    assert len(br.ds) == len(br) and br.ds[0] == 0.0 and np.all(br.ds[1:] > 0)
+
+
+def test_secant_predictor_and_save_every():
+    pb = Bratu("cheb", 16)
+    opts = ContinuationOptions(bounds={"lam": (0.0, 4.0)}, max_steps=30, save_every=4,
+                               step=StepOptions(ds=0.1, ds_max=0.3, predictor="secant"))
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
+    assert abs(br.fold_points[0].params["lam"] - BRATU_FOLD) < 1e-8
+    assert br.state_index is not None and br.states.shape[0] == len(br.state_index) < len(br)
+    i = int(br.state_index[2])
+    assert np.array_equal(br.state(i), br.states[2])
+    with pytest.raises(KeyError):
+        br.state(1)
+
+
+@pytest.mark.parametrize("method", ["cheb", "fd2", "fd4", "fd6"])
+def test_jacobians_match_finite_differences(method):
+    rng = np.random.default_rng(0)
+    for pb in (Bratu(method, 16), AllenCahn(method, 16)):
+        u = 0.5 * rng.standard_normal(pb.n)
+        chk = check_jacobian(pb, u, {"lam": 2.0}, parameters=("lam",))
+        assert chk.relative_error < 1e-8
+        assert chk.dp_errors["lam"] < 1e-6
