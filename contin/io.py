@@ -659,3 +659,43 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
     except (KeyError, ValueError, TypeError, OSError, RuntimeError, IndexError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise FileFormatError(f"{str(p)!r} is damaged or truncated ({msg})") from None
+
+
+def profiles_at(
+    branches: Sequence[Branch], meta: Mapping[str, Any], name: str, value: float,
+) -> list[tuple[Branch, str, dict[str, np.ndarray]]]:
+    """Stored solution profiles of each branch where parameter ``name`` equals ``value``.
+
+    Uses, in this order, a special point of the branch located at ``name = value`` (exact,
+    e.g. a UZ point) or linear interpolation between the two stored profiles (``profile_index``)
+    that bracket the first crossing of ``value`` along the branch.  Branches that never reach
+    ``value`` are left out.  Returns ``(branch, how, {profile name: (N,) array})``.
+    """
+    out: list[tuple[Branch, str, dict[str, np.ndarray]]] = []
+    sp_prof = meta.get("special_point_profiles") or {}
+    row = 0
+    tol = 1e-9 * max(1.0, abs(value))
+    for b in branches:
+        found = None
+        for sp in b.special_points:
+            if sp_prof and found is None and name in sp.params and abs(float(sp.params[name]) - value) <= tol:
+                found = (b, f"at {sp.name}", {k: v[row] for k, v in sp_prof.items()})
+            row += 1
+        prof = meta.get("profiles", {}).get(b.id)
+        if found is None and prof is not None and name in b.params:
+            idx = np.asarray(prof["index"])
+            p = np.asarray(b.params[name], dtype=float)[idx]
+            d = p - value
+            hits = np.flatnonzero((d[:-1] == 0) | (d[:-1] * d[1:] < 0))
+            if d.size and d[-1] == 0 and not hits.size:
+                hits = np.array([d.size - 1])
+            if hits.size:
+                i = int(hits[0])
+                j = min(i + 1, d.size - 1)
+                w = 0.0 if d[i] == 0 or i == j else d[i] / (d[i] - d[j])
+                how = f"at stored point {idx[i]}" if w == 0.0 else f"interpolated between points {idx[i]} and {idx[j]}"
+                found = (b, how,
+                         {k: (1 - w) * v[i] + w * v[j] for k, v in prof.items() if k != "index"})
+        if found is not None:
+            out.append(found)
+    return out

@@ -8,6 +8,7 @@ for scene in bratu allen-cahn; do
 done
 contin trace pitchfork -s nu=0.3 -s e=0.8 -q -o results/pitchfork.h5
 contin diagram results/pitchfork.h5 -o results/pitchfork.png
+contin profiles results/pitchfork.h5 --at H=25 --names nu,u,T -o results/profiles_H25.png
 for nu in 0.5 0.16 0.15; do
     contin trace pitchfork -s "nu=$nu" -s e=0.8 -q -o "results/pitchfork_nu$nu.h5"
     contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"

@@ -71,7 +71,8 @@ def test_scenes_lists_toy_and_reports_broken_modules(monkeypatch):
     bad = [ln for ln in r.stderr.splitlines() if "no_such_module_xyz" in ln]
     assert len(bad) == 1 and "ModuleNotFoundError" in bad[0]
     doc = strict_json(run("scenes", "--json").stdout)
-    assert doc["scenes"][0]["name"] == "toy" and doc["scenes"][0]["defaults"]["Fr"] == "inf"
+    toy = [s for s in doc["scenes"] if s["name"] == "toy"]
+    assert len(toy) == 1 and toy[0]["defaults"]["Fr"] == "inf"
 
 
 def test_trace_json_file_and_summary(tmp_path):
@@ -128,7 +129,7 @@ def test_mx_exits_3():
 
 
 @pytest.mark.parametrize("args, expect", [
-    (("trace", "nosuchscene"), "unknown scene 'nosuchscene'; known scenes: toy"),
+    (("trace", "nosuchscene"), "unknown scene 'nosuchscene'; known scenes: "),
     (("trace", "toy", "-s", "zeta=1"), "unknown parameter 'zeta' for scene 'toy'"),
     (("trace", "toy", "-s", "a=-1"), "a must be > 0, got -1"),
     (("trace", "toy", "-s", "fail=crash"), "deliberate crash in the toy scene"),
@@ -284,3 +285,82 @@ def test_sigkill_midway_then_resume_gives_same_special_points(tmp_path):
     for a, b in zip(got, want):
         np.testing.assert_array_equal(a.states, b.states)
     assert not math.isnan(want[0].special_points[0].params["lam"])
+
+
+# ------------------------------------------------------------------ end to end with real scenes
+
+BRATU_FOLD = 3.513830719125162
+
+
+def test_bratu_end_to_end_json_info_diagram(tmp_path):
+    out = tmp_path / "bratu.h5"
+    r = subprocess_contin("trace", "bratu", "--json", "-o", str(out), timeout=120)
+    assert r.returncode == 0, r.stderr
+    doc = strict_json(r.stdout)
+    lps = [s for s in doc["special_points"] if s["type"] == "LP"]
+    assert len(lps) == 1 and lps[0]["converged"] is True
+    assert abs(lps[0]["params"]["lam"] - BRATU_FOLD) < 1e-9
+    assert "LP1" in r.stderr  # human table on stderr
+    branches, meta = io.load(out)
+    assert meta["complete"] and meta["scene"] == "bratu"
+    lp = branches[0].fold_points[0]
+    assert lp.params["lam"] == lps[0]["params"]["lam"] and lp.state.size == branches[0].states.shape[1]
+    r = subprocess_contin("info", str(out))
+    assert r.returncode == 0 and "LP1" in r.stdout and "bratu" in r.stdout
+    png = tmp_path / "bratu.png"
+    r = subprocess_contin("diagram", str(out), "-o", str(png))
+    assert r.returncode == 0 and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def _readme() -> str:
+    return (HERE.parent / "README.md").read_text()
+
+
+def test_ci_script_runs_the_readme_test_command():
+    import re
+
+    blocks = re.findall(r"```bash\n(.*?)\n```", _readme(), flags=re.S)
+    test_cmd = [b for b in blocks if b.rstrip().endswith("&& pytest")]
+    assert len(test_cmd) == 1
+    ci = (HERE.parent / ".ci" / "run").read_text()
+    assert f'TEST_COMMAND="{test_cmd[0].strip()}"' in ci
+    assert "set -euo pipefail" in ci and "-eq 5" in ci
+
+
+def test_readme_library_example_runs(tmp_path, monkeypatch):
+    import re
+
+    (code,) = [b for b in re.findall(r"```python\n(.*?)\n```", _readme(), flags=re.S) if "trace(" in b]
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    bps = [bp.params["lam"] for bp in ns["trivial"].branch_points]
+    np.testing.assert_allclose(bps, [1.0, 4.0, 9.0], atol=1e-8)
+    assert len(ns["branches"]) == 7 and (tmp_path / "allen-cahn.png").exists()
+
+
+def test_profiles_at_special_point_stored_point_and_interpolated(tmp_path):
+    from cli_fixture_scenes import profiles as prof_fn
+    from cli_fixture_scenes import toy_branches
+
+    f = _toy_file(tmp_path)
+    branches, meta = io.load(f)
+    found = {b.id: (how, p) for b, how, p in io.profiles_at(branches, meta, "lam", 0.16)}
+    lp = toy_branches()[1].special_points[0]
+    assert found["1"][0] == "at LP2"  # exact: the located state's profile
+    np.testing.assert_array_equal(found["1"][1]["T"], prof_fn(lp.state)["T"])
+    # branch 0 (lam = -1, -0.75, ..., 1): 0.5 is stored point 6, 0.3 lies 20 % of the way 5 -> 6
+    (how, p), = [(h, p) for b, h, p in io.profiles_at(branches[:1], meta, "lam", 0.5)]
+    assert how == "at stored point 6"
+    np.testing.assert_array_equal(p["nu"], prof_fn(branches[0].states[6])["nu"])
+    (how, p), = [(h, p) for b, h, p in io.profiles_at(branches[:1], meta, "lam", 0.3)]
+    assert how == "interpolated between points 5 and 6"
+    want = 0.8 * prof_fn(branches[0].states[5])["T"] + 0.2 * prof_fn(branches[0].states[6])["T"]
+    np.testing.assert_allclose(p["T"], want, rtol=1e-12)
+    assert io.profiles_at(branches, meta, "lam", 7.0) == []
+    png = tmp_path / "p.png"
+    r = run("profiles", str(f), "--at", "lam=0.16", "--names", "nu,T", "-o", str(png))
+    assert r.exit_code == 0, r.output
+    assert "branch 1: at LP2" in r.stderr and png.read_bytes()[:4] == b"\x89PNG"
+    one_error_line(run("profiles", str(f), "--at", "lam=7", "-o", str(png)), "reaches lam=7")
+    one_error_line(run("profiles", str(f), "--at", "lam=0.1", "--names", "q", "-o", str(png)), "no profile 'q'")

@@ -1,0 +1,53 @@
+"""``contin profiles FILE.h5 --at NAME=VALUE``: solution profiles of a stored run."""
+
+from __future__ import annotations
+
+import click
+
+from contin.cli._base import echo_err, fail, main, parse_settings
+
+
+@main.command("profiles")
+@click.argument("file", type=click.Path(exists=True, dir_okay=False))
+@click.option("--at", "at", required=True, metavar="NAME=VALUE", help="Parameter value, e.g. H=25.")
+@click.option("--branch", "branch_ids", multiple=True, metavar="ID", help="Only these branches (repeatable).")
+@click.option("--names", default=None, metavar="LIST", help="Profiles to draw, e.g. nu,u,T [default: all].")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Figure file.")
+def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str | None, output: str) -> None:
+    """Plot the stored profiles (against y) of each branch at NAME=VALUE.
+
+    Exact at a special point located there (e.g. a UZ point), else interpolated linearly
+    between the two stored profiles that bracket the value.
+    """
+    from contin import io
+
+    ((name, value),) = parse_settings([at]).items()
+    if not isinstance(value, float):
+        raise click.BadParameter(f"{at!r} needs a numeric value", param_hint="'--at'")
+    io.check_writable(output)
+    branches, meta = io.load(file)
+    if meta["y"] is None or not meta["profiles"]:
+        fail(f"{file} stores no solution profiles")
+    if branch_ids:
+        missing = [i for i in branch_ids if i not in {b.id for b in branches}]
+        if missing:
+            fail(f"no branch {missing[0]!r} in {file}; branches: {', '.join(b.id for b in branches)}")
+        branches = [b for b in branches if b.id in branch_ids]
+    found = io.profiles_at(branches, meta, name, value)
+    if not found:
+        fail(f"no stored branch of {file} reaches {name}={value:g}")
+    available = list(found[0][2])
+    wanted = [n.strip() for n in names.split(",")] if names else available
+    unknown = [n for n in wanted if n not in available]
+    if unknown:
+        fail(f"no profile {unknown[0]!r}; available: {', '.join(available)}")
+
+    from contin.plot import plot_profiles, save_figure
+
+    data = {n: [f[2][n] for f in found] for n in wanted}
+    fig = plot_profiles(meta["y"], data, wanted, labels=[f"{b.id} ({b.kind})" for b, _, _ in found])
+    fig.suptitle(f"{meta.get('scene') or ''} {name}={value:g}".strip(), fontsize=8)
+    save_figure(fig, output)
+    for b, how, _ in found:
+        echo_err(f"branch {b.id}: {how}")
+    echo_err(f"wrote {output}")
