@@ -65,6 +65,7 @@ __all__ = [
     "SweepSummary",
     "Task",
     "TaskRecord",
+    "check_spec",
     "load_sweep",
     "open_executor",
     "parse_sweep",

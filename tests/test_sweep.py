@@ -34,6 +34,7 @@ from contin.sweep import (
 )
 
 TESTS = Path(__file__).resolve().parent
+REPO = TESTS.parent
 
 SWEEP_TOML = """
 [sweep]
@@ -234,6 +235,12 @@ def test_resume_recomputes_only_missing_tasks(tmp_path, scenes):
     assert {p.name: p.stat().st_mtime_ns for p in (out / "tasks").glob("*.h5") if p.name != Path(victim.file).name} \
         == {k: v for k, v in stamps.items() if k != Path(victim.file).name}
 
+    # a damaged task file (e.g. copied half-way) is not a finished task: it is recomputed
+    (out / first.records[0].file).write_bytes(b"\x89HDF garbage")
+    fourth = run_sweep(spec, out, jobs=2)
+    assert [r.key for r in fourth.records if not r.cached] == [first.records[0].key]
+    assert _points(fourth) == _points(first)
+
     # --retry-failed reruns exactly the MX tasks; a changed option is a new set of tasks
     retried = run_sweep(spec, out, jobs=2, retry_failed=True)
     assert retried.n_computed == 4 and {r.status for r in retried.records if not r.cached} == {"MX"}
@@ -275,17 +282,30 @@ def test_sigkill_mid_sweep_then_resume(tmp_path, scenes):
 
 # --------------------------------------------------------------------------- executors
 
-def test_process_pool_and_local_dask_cluster_agree(tmp_path, scenes):
-    spec = _spec(grid={"a": [-1.0, 0.5, 7.0], "fail": ["none", "mx"]}, fixed={"b": 0.3})
+def test_process_pool_and_local_dask_cluster_agree(tmp_path):
+    """The shipped demo sweep (real Bratu continuations) on a 2-process pool and on a 2-worker
+    LocalCluster: bit-identical special points, the fold at lam* to discretization accuracy,
+    and the deliberately failing tasks (lam_min above the fold) recorded with their reason."""
+    from problems.demo import BRATU_FOLD
+
+    spec = load_sweep(REPO / "results" / "sweeps" / "demo_bratu.toml")
     pool = run_sweep(spec, tmp_path / "pool", jobs=2)
     with open_executor("local-dask", jobs=2) as executor:
         assert type(executor).__name__ == "ClientExecutor"
         assert len(executor._client.scheduler_info()["workers"]) == 2
         dask = run_sweep(spec, tmp_path / "dask", executor=executor)
-    assert dask.n_computed == 6
+    assert dask.n_computed == pool.n_computed == 8
     assert _points(dask) == _points(pool)
     assert [(r.status, r.reason) for r in dask.records] == [(r.status, r.reason) for r in pool.records]
-    assert dask.records[0].special_points[1]["params"]["lam"] == 0.3
+    assert [r.status for r in pool.records] == ["ok"] * 6 + ["error"] * 2
+    assert pool.records[-1].reason.startswith("lam_min must lie below the fold lam*=3.513831")
+    folds = [sp["params"]["lam"] for r in pool.records for sp in r.special_points if sp["type"] == "LP"]
+    assert len(folds) == 6
+    np.testing.assert_allclose(folds, BRATU_FOLD, rtol=0, atol=1e-8)
+    with h5py.File(tmp_path / "dask" / "summary.h5", "r") as f:
+        np.testing.assert_array_equal(f["tasks/n_LP"][()], [1] * 6 + [0] * 2)
+        np.testing.assert_allclose(f["special_points/params/lam"][()][f["special_points/type"].asstr()[()] == "LP"],
+                                   BRATU_FOLD, atol=1e-8)
 
 
 def test_scheduler_errors(monkeypatch):
@@ -326,3 +346,17 @@ def test_cli_sweep(tmp_path, scenes):
         f"Error: unknown table [fixd] in {bad}; allowed: [sweep], [fixed], [grid], [options]"]
     res = runner.invoke(main, ["sweep", str(toml), "-o", str(tmp_path / "x"), "--scheduler", "nowhere"])
     assert res.exit_code == 1 and "unknown scheduler 'nowhere'" in res.stderr
+
+
+def test_shipped_sweep_files_are_valid():
+    """Every results/sweeps/*.toml parses; those whose scene is installed also match its parameters."""
+    from contin.scene import available_scenes
+    from contin.sweep import check_spec
+
+    files = sorted((REPO / "results" / "sweeps").glob("*.toml"))
+    specs = {f.name: load_sweep(f) for f in files}
+    assert "demo_bratu.toml" in specs
+    scenes = available_scenes()
+    checked = [name for name, spec in specs.items() if spec.scene in scenes and check_spec(spec)]
+    assert "demo_bratu.toml" in checked
+    assert specs["demo_bratu.toml"].n_tasks == 8
