@@ -174,3 +174,25 @@ def test_bad_input_is_one_clear_error():
         critical_gap_by_pinning(GPCF(0.15))
     with pytest.raises(ValueError, match="pinning condition"):
         pinned_branch(GPCF(0.3), [0.01], pin="bottom")
+
+
+def test_runner_comparison_picks_cheapest_config_meeting_each_target():
+    from benchmarks.run import comparison_rows, table
+
+    gap = [{"tol": 1e-4, "rel_error": 3e-5}, {"tol": 1e-6, "rel_error": 2e-7}, {"tol": 1e-8, "rel_error": 1e-9}]
+    nat = [{"tol": 1e-4, "status": "reached", "s_per_point": 0.01},
+           {"tol": 1e-6, "status": "reached", "s_per_point": 0.03},
+           {"tol": 1e-8, "status": "failed", "s_per_point": 0.2}]
+    cont = [{"method": "fd2", "N": 64, "rel_error": 3e-3, "banded_points": 20, "banded_phi_end": 0.5,
+             "banded_s_per_point": 0.001},
+            {"method": "cheb", "N": 32, "rel_error": 1e-11, "banded_points": 20, "banded_phi_end": 0.5,
+             "banded_s_per_point": 0.004},
+            {"method": "cheb", "N": 24, "rel_error": 1e-13, "banded_points": 6, "banded_phi_end": 0.3,
+             "banded_s_per_point": 0.0001}]  # fell back onto uniform shear: not a banded branch
+    rows = comparison_rows(gap, nat, cont, targets=(1e-4, 1e-6, 1e-8))
+    assert [r["baseline"] for r in rows] == ["tol=1e-04", "tol=1e-06", "-"]
+    assert [r["contin"] for r in rows] == ["cheb N=32"] * 3
+    assert rows[0]["speedup"] == pytest.approx(2.5) and rows[1]["speedup"] == pytest.approx(7.5)
+    assert np.isnan(rows[2]["speedup"])
+    text = table("t", rows, [("target", "target", ".0e"), ("speedup", "x", ".2f")])
+    assert text.splitlines()[2].split() == ["1e-04", "2.50"]

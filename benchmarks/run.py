@@ -1,0 +1,336 @@
+"""Benchmark runner: ``python -m benchmarks.run [--quick] [--no-contin] [--json FILE]``.
+
+Prints tables of figures (these are measurements, not tests; tests/test_baseline.py checks
+the numbers):
+
+1. Baseline (scipy.integrate.solve_bvp, benchmarks/baseline_solve_bvp.py), nubar = 0.3,
+   e = 0.8, no-slip / zero-flux walls, g = 0:
+   - H_1^c by delta-pinning (3 amplitudes, Richardson in delta^2) at tol 1e-4 ... 1e-8: relative
+     error against n pi psi, seconds per converged point, mesh nodes;
+   - natural-parameter continuation in H along the banded n = 1 branch from 1.02 H_1^c:
+     seconds per converged point, failed solves, mesh nodes;
+   - nubar = 0.16 (subcritical): does natural continuation in H (downwards from the upper
+     branch) get through the fold?  The fold is located independently by a pinning scan.
+2. contin (hooks; skipped with a note if the modules are missing):
+   - :func:`contin_newton_rows`: seconds per Newton iteration against N for cheb/fd2/fd4/fd6;
+   - :func:`contin_trace_rows`: seconds per continuation step (uniform branch through the
+     BP, then the switched banded branch) and the H_1^c error of the located BP against N;
+   - :func:`pitchfork_scene_row`: the whole ``pitchfork`` scene;
+   - :func:`comparison_rows`: seconds per converged point at equal accuracy in H_1^c,
+     baseline against contin, side by side.
+
+Times are wall-clock (time.perf_counter), best of ``repeats``; BLAS threads are whatever the
+environment sets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import sys
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from benchmarks.baseline_solve_bvp import (
+    GPCF,
+    banded_start,
+    critical_gap_by_pinning,
+    fixed_h_point,
+    fold_by_pinning,
+    natural_continuation,
+    start_near_critical,
+)
+
+NUBAR, E = 0.3, 0.8
+H_END = 20.0  # end of the banded branch for the seconds-per-point figures (phi(1/2) ~ 0.567)
+
+
+@dataclass(frozen=True)
+class Config:
+    """What one run measures; ``--quick`` shrinks every list."""
+
+    tols: tuple[float, ...]
+    repeats: int
+    max_nodes: int  # solve_bvp max_nodes in the fold run (each failed solve grows the mesh to it)
+    methods: dict[str, tuple[int, ...]]
+    h_end: float
+    contin: bool
+
+    @classmethod
+    def make(cls, quick: bool, contin: bool) -> Config:
+        if quick:
+            return cls((1e-4, 1e-6, 1e-8), 1, 2000, {"cheb": (24, 48), "fd2": (64,), "fd4": (64,), "fd6": (64,)},
+                       16.0, contin)
+        return cls((1e-4, 1e-5, 1e-6, 1e-7, 1e-8), 3, 5000,
+                   {"cheb": (16, 24, 32, 48, 64, 96), "fd2": (32, 64, 128, 256), "fd4": (32, 64, 128, 256),
+                    "fd6": (32, 64, 128, 256)},
+                   H_END, contin)
+
+
+Row = dict[str, Any]
+
+
+def best_of(repeats: int, fn: Callable[[], Any]) -> tuple[float, Any]:
+    """(smallest wall time, last result) over ``repeats`` calls."""
+    best, out = math.inf, None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+# ------------------------------------------------------------------------------- baseline
+def baseline_critical_gap_rows(cfg: Config) -> list[Row]:
+    """H_1^c by delta-pinning (delta = 0.01, 3 levels) at each solve_bvp tol."""
+    model = GPCF(NUBAR, E)
+    rows = []
+    for tol in cfg.tols:
+        sec, r = best_of(cfg.repeats, lambda tol=tol: critical_gap_by_pinning(model, delta=0.01, levels=3, tol=tol))
+        rows.append({"tol": tol, "Hc": r.estimate, "rel_error": r.relative_error, "points": len(r.points),
+                     "s_per_point": sec / len(r.points), "nodes": max(pt.nodes for pt in r.points)})
+    return rows
+
+
+def baseline_natural_rows(cfg: Config) -> list[Row]:
+    """Natural continuation in H along the n = 1 branch from 1.02 H_1^c to ``cfg.h_end``."""
+    model = GPCF(NUBAR, E)
+    h0 = 1.02 * model.critical_gap()
+    rows = []
+    for tol in cfg.tols:
+        def run(tol=tol):
+            start = start_near_critical(model, h0, 0.05, tol=tol)
+            if not start.success:
+                raise RuntimeError(f"baseline start failed at tol {tol}: {start.message}")
+            return natural_continuation(model, start, cfg.h_end, 0.5, tol=tol)
+
+        sec, r = best_of(cfg.repeats, run)
+        rows.append({"tol": tol, "status": r.status, "points": len(r.points), "failed": r.failed_solves,
+                     "s_per_point": sec / len(r.points), "nodes_max": max(pt.nodes for pt in r.points),
+                     "phi_end": r.phi[-1], "H_end": r.H[-1]})
+    return rows
+
+
+def baseline_fold_row(cfg: Config) -> Row:
+    """nubar = 0.16: natural continuation downwards in H from the upper banded branch."""
+    model = GPCF(0.16, E)
+    tol = 1e-6
+    t = time.perf_counter()
+    fold = fold_by_pinning(model, np.linspace(0.01, 0.1, 19), tol=1e-8)
+    t_fold = time.perf_counter() - t
+    start = fixed_h_point(model, banded_start(model, 0.15, steps=10, tol=tol), tol=tol)
+    t = time.perf_counter()
+    r = natural_continuation(model, start, 30.0, 1.0, tol=tol, dh_min=1 / 64, max_nodes=cfg.max_nodes)
+    sec = time.perf_counter() - t
+    return {"nubar": 0.16, "Hc": model.critical_gap(), "H_LP": fold.H, "phi_LP": fold.phi, "fold_scan_s": t_fold,
+            "status": r.status, "passed_fold": r.passed, "H_last": r.H[-1], "phi_last": r.phi[-1],
+            "points": len(r.points), "failed": r.failed_solves, "seconds": sec, "message": r.message}
+
+
+# ------------------------------------------------------------------------------- contin hooks
+def contin_available() -> str | None:
+    """None if contin's continuation core and the gPCF problem import, else the reason."""
+    try:
+        import contin.continuation  # noqa: F401
+        import problems.couette.model  # noqa: F401
+    except Exception as exc:  # noqa: BLE001 -- report, do not fail the baseline figures
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def _couette(method: str, n: int, h: float):
+    from problems.couette.model import CouetteProblem
+    from problems.couette.params import build_params
+
+    prob = CouetteProblem(method, n)
+    return prob, build_params({"nu": NUBAR, "e": E, "H": h})
+
+
+def _trace_options(h_end: float):
+    from contin.options import ContinuationOptions, StepOptions
+
+    return ContinuationOptions(step=StepOptions(ds=0.5, ds_max=1.0), bounds={"H": (5.0, h_end)}, max_steps=400)
+
+
+def contin_newton_rows(cfg: Config) -> list[Row]:
+    """Seconds per Newton iteration (residual, sparse Jacobian, LU, solve) against N.
+
+    Newton from uniform shear + 0.05 x (mode-1 shape) at H = 16 (a banded solution exists).
+    """
+    from contin.newton import newton
+    from contin.options import NewtonOptions
+
+    rows = []
+    for method, ns in cfg.methods.items():
+        for n in ns:
+            prob, p = _couette(method, n, 16.0)
+            u0 = prob.uniform_state(p)
+            y = prob.grid.y
+            u0[prob.i_nu] -= 0.05 * np.cos(np.pi * (y + 0.5))
+            sec, res = best_of(cfg.repeats, lambda: newton(prob, u0, p, NewtonOptions(tol=1e-10, max_iterations=20)))
+            rows.append({"method": method, "N": n, "unknowns": prob.size, "iterations": res.iterations,
+                         "converged": res.converged, "s_per_iteration": sec / max(res.iterations, 1)})
+    return rows
+
+
+def contin_trace_rows(cfg: Config) -> list[Row]:
+    """Uniform branch in H from 10 to h_end (BP at H_1^c), then the banded branch by switch."""
+    from contin.continuation import switch, trace
+
+    hc = GPCF(NUBAR, E).critical_gap()
+    opts = _trace_options(cfg.h_end)
+    rows = []
+    for method, ns in cfg.methods.items():
+        for n in ns:
+            prob, p = _couette(method, n, 10.0)
+            t = time.perf_counter()
+            br = trace(prob, prob.uniform_state(p), p, "H", opts)
+            t_uniform = time.perf_counter() - t
+            bps = [b for b in br.special_points if b.type == "BP"]
+            row = {"method": method, "N": n, "uniform_steps": len(br), "uniform_s_per_step": t_uniform / max(len(br), 1),
+                   "Hc": math.nan, "rel_error": math.nan, "bp_converged": False, "banded_points": 0,
+                   "banded_s_per_point": math.nan, "banded_phi_end": math.nan, "banded_status": "no BP"}
+            if bps:
+                bp = min(bps, key=lambda b: abs(b.params["H"] - hc))
+                row.update(Hc=bp.params["H"], rel_error=abs(bp.params["H"] - hc) / hc, bp_converged=bp.converged)
+                t = time.perf_counter()
+                try:
+                    new = switch(prob, br, bp, opts, directions=(+1,))
+                except ValueError as exc:
+                    new, row["banded_status"] = [], f"switch failed: {exc}"
+                t_banded = time.perf_counter() - t
+                if new:
+                    b = new[0]
+                    row.update(banded_points=len(b), banded_s_per_point=t_banded / max(len(b), 1),
+                               banded_phi_end=float(b.observables["phi"][-1]), banded_status=b.status,
+                               banded_newton=int(np.sum(b.newton_iterations)))
+            rows.append(row)
+    return rows
+
+
+def pitchfork_scene_row(cfg: Config) -> Row | None:
+    """Wall time of the whole ``pitchfork`` scene (Chebyshev N = 64, k_x = 0 stability)."""
+    from contin.scene import SceneRequest, get_scene
+
+    try:
+        scene = get_scene("pitchfork")
+    except ValueError as exc:
+        return {"status": f"not available: {exc}"}
+    sec, res = best_of(cfg.repeats, lambda: scene.run(SceneRequest()))
+    return {"status": "ok", "seconds": sec, "branches": len(res.branches),
+            "points": sum(len(b) for b in res.branches),
+            "special_points": sum(len(b.special_points) for b in res.branches)}
+
+
+def comparison_rows(base_gap: list[Row], base_nat: list[Row], contin_rows: list[Row],
+                    targets: Sequence[float] = (1e-4, 1e-6, 1e-8, 1e-10)) -> list[Row]:
+    """Cheapest seconds per converged banded point reaching each H_1^c accuracy target.
+
+    Baseline: the solve_bvp tol whose pinning estimate meets the target, timed on natural
+    continuation at that tol.  contin: the (method, N) whose located BP meets it, timed on the
+    switched banded branch.
+    """
+    nat = {r["tol"]: r for r in base_nat if r["status"] == "reached"}
+    base = [(nat[g["tol"]]["s_per_point"], f"tol={g['tol']:.0e}", g["rel_error"]) for g in base_gap
+            if g["tol"] in nat]
+    cont = [(r["banded_s_per_point"], f"{r['method']} N={r['N']}", r["rel_error"]) for r in contin_rows
+            if r["banded_points"] > 1 and r["banded_phi_end"] > NUBAR + 0.1]
+    rows = []
+    for target in targets:
+        b = min((c for c in base if c[2] <= target), default=None)
+        c = min((c for c in cont if c[2] <= target), default=None)
+        rows.append({"target": target,
+                     "baseline": b[1] if b else "-", "baseline_s": b[0] if b else math.nan,
+                     "contin": c[1] if c else "-", "contin_s": c[0] if c else math.nan,
+                     "speedup": (b[0] / c[0]) if (b and c) else math.nan})
+    return rows
+
+
+# ------------------------------------------------------------------------------- printing
+def table(title: str, rows: list[Row], columns: Sequence[tuple[str, str, str]]) -> str:
+    """Plain-text table; columns are (key, header, format spec)."""
+    if not rows:
+        return f"{title}\n  (no rows)\n"
+    cells = [[("-" if r.get(k) is None else format(r[k], f)) for k, _, f in columns] for r in rows]
+    heads = [h for _, h, _ in columns]
+    widths = [max(len(h), *(len(c[i]) for c in cells)) for i, h in enumerate(heads)]
+    line = "  ".join(h.rjust(w) for h, w in zip(heads, widths, strict=True))
+    body = "\n".join("  ".join(c.rjust(w) for c, w in zip(cs, widths, strict=True)) for cs in cells)
+    return f"{title}\n{line}\n{body}\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.run", description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer tolerances, grids and repeats")
+    ap.add_argument("--no-contin", action="store_true", help="baseline figures only")
+    ap.add_argument("--json", metavar="FILE", help="also write all figures as JSON")
+    args = ap.parse_args(argv)
+    cfg = Config.make(args.quick, not args.no_contin)
+    out: dict[str, Any] = {"python": platform.python_version(), "machine": platform.machine(), "quick": args.quick}
+    warnings.simplefilter("ignore", RuntimeWarning)
+
+    print(f"gPCF benchmarks: nubar = {NUBAR}, e = {E}, chi = jj (nu_m = 0.65), no-slip/zero-flux walls, g = 0; "
+          f"H_1^c = pi psi = {GPCF(NUBAR, E).critical_gap():.10f}\n")
+    out["baseline_critical_gap"] = gap = baseline_critical_gap_rows(cfg)
+    print(table("[baseline] solve_bvp, H_1^c by delta-pinning (delta = 0.01/4, 0.01/2, 0.01; Richardson in delta^2)",
+                gap, [("tol", "tol", ".0e"), ("Hc", "H_1^c", ".10f"), ("rel_error", "rel.err", ".1e"),
+                      ("s_per_point", "s/point", ".4f"), ("nodes", "nodes", "d")]))
+    out["baseline_natural"] = nat = baseline_natural_rows(cfg)
+    print(table(f"[baseline] solve_bvp, natural continuation in H, banded n=1 branch, H = 1.02 H_1^c -> {cfg.h_end}, dH = 0.5",
+                nat, [("tol", "tol", ".0e"), ("status", "status", "s"), ("points", "points", "d"),
+                      ("failed", "failed", "d"), ("s_per_point", "s/point", ".4f"), ("nodes_max", "max nodes", "d"),
+                      ("phi_end", "phi(H_end)", ".6f")]))
+    out["baseline_fold"] = fold = baseline_fold_row(cfg)
+    print(table("[baseline] nubar = 0.16 (subcritical): natural continuation in H from H = 49.4 downwards",
+                [fold], [("Hc", "H_1^c", ".3f"), ("H_LP", "H_LP (pinning)", ".4f"), ("status", "status", "s"),
+                         ("passed_fold", "through fold", ""), ("H_last", "last H", ".4f"),
+                         ("phi_last", "last phi", ".4f"), ("phi_LP", "phi_LP", ".4f"), ("points", "points", "d"),
+                         ("failed", "failed", "d"), ("seconds", "seconds", ".2f")]))
+    print(f"  {fold['message']}\n")
+
+    if cfg.contin:
+        reason = contin_available()
+        if reason is not None:
+            print(f"[contin] figures skipped: {reason}\n")
+        else:
+            with np.errstate(all="ignore"):
+                out["contin_newton"] = newton_rows = contin_newton_rows(cfg)
+                print(table("[contin] Newton iteration (residual + sparse Jacobian + LU + solve) at H = 16",
+                            newton_rows, [("method", "method", "s"), ("N", "N", "d"), ("unknowns", "unknowns", "d"),
+                                          ("iterations", "iters", "d"), ("converged", "conv", ""),
+                                          ("s_per_iteration", "s/iter", ".2e")]))
+                out["contin_trace"] = trace_rows = contin_trace_rows(cfg)
+                print(table(f"[contin] trace H: uniform branch 10 -> {cfg.h_end} (BP), switch to banded branch",
+                            trace_rows, [("method", "method", "s"), ("N", "N", "d"),
+                                         ("uniform_s_per_step", "s/step uniform", ".4f"),
+                                         ("Hc", "H_1^c (BP)", ".10f"), ("rel_error", "rel.err", ".1e"),
+                                         ("bp_converged", "located", ""), ("banded_points", "banded pts", "d"),
+                                         ("banded_s_per_point", "s/point banded", ".4f"),
+                                         ("banded_phi_end", "phi end", ".4f"), ("banded_status", "status", "s")]))
+                out["pitchfork_scene"] = scene = pitchfork_scene_row(cfg)
+                if scene and scene.get("status") == "ok":
+                    print(table("[contin] pitchfork scene (whole)", [scene],
+                                [("seconds", "seconds", ".2f"), ("branches", "branches", "d"),
+                                 ("points", "points", "d"), ("special_points", "special", "d")]))
+                else:
+                    print(f"[contin] pitchfork scene: {scene['status'] if scene else 'n/a'}\n")
+                out["comparison"] = comp = comparison_rows(gap, nat, trace_rows)
+                print(table("[side by side] seconds per converged banded point at equal accuracy in H_1^c",
+                            comp, [("target", "rel.err <=", ".0e"), ("baseline", "baseline", "s"),
+                                   ("baseline_s", "s/point", ".4f"), ("contin", "contin", "s"),
+                                   ("contin_s", "s/point", ".4f"), ("speedup", "baseline/contin", ".2f")]))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=1, default=str)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
