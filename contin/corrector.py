@@ -18,7 +18,7 @@ import numpy as np
 
 from contin.extended import ExtendedSystem
 from contin.linalg import Factorization, bordered, factorize
-from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm
+from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm, rounding_floor
 from contin.options import NewtonOptions
 from contin.problem import Array
 
@@ -56,6 +56,7 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         return Correction(x, False, 0, None, row, history, "residual is not finite at the predicted point")
     for it in range(1, options.max_iterations + 1):
         jac, fp = system.jacobian(x)
+        tol = max(options.tol, rounding_floor(jac, x))
         fact = factorize(bordered(jac, fp, row))
         if fact is None:
             return Correction(x, False, it, None, row, history, f"singular bordered Jacobian at iteration {it}")
@@ -69,7 +70,7 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
-        if r <= options.tol and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x)):
+        if r <= tol and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x)):
             return Correction(x, True, it, fact, row, history, "converged")
     return Correction(x, False, options.max_iterations, fact, row, history,
                       f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

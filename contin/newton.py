@@ -43,6 +43,18 @@ def max_norm(a: Array) -> float:
     return float(np.max(np.abs(a))) if a.size else 0.0
 
 
+def rounding_floor(jac: Any, x: Array) -> float:
+    """eps * ||J||_inf * max(1, ||x||_inf): the residual that rounding alone leaves.
+
+    Discretized second derivatives have entries ~ N^2 (FD) or N^4 (Chebyshev), so an absolute
+    residual tolerance can fall below what double precision can reach on fine grids; Newton
+    then accepts this floor instead (together with a converged update).
+    """
+    row_sums = np.asarray(abs(jac).sum(axis=1)).ravel()
+    norm = float(row_sums.max()) if row_sums.size else 0.0
+    return float(np.finfo(float).eps) * norm * max(1.0, max_norm(x))
+
+
 def backtrack(admissible: Any, x: Array, dx: Array) -> tuple[Array, float, str | None]:
     """x + lam dx with lam = 1, 1/2, 1/4, ... until admissible; returns (x_new, lam, reason)."""
     lam = 1.0
@@ -84,7 +96,9 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
     if r <= options.tol:
         return NewtonResult(u, True, 0, history, "converged")
     for it in range(1, options.max_iterations + 1):
-        fact = factorize(as_csc(problem.jacobian(u, p)))
+        jac = as_csc(problem.jacobian(u, p))
+        tol = max(options.tol, rounding_floor(jac, u))
+        fact = factorize(jac)
         if fact is None:
             return NewtonResult(u, False, it, history, f"singular Jacobian at iteration {it}")
         f = np.asarray(problem.residual(u, p), dtype=float)
@@ -97,7 +111,7 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return NewtonResult(u, False, it, history, f"Newton diverged (residual {r:.3g})")
-        if r <= options.tol and lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u)):
+        if r <= tol and lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u)):
             return NewtonResult(u, True, it, history, "converged")
     return NewtonResult(u, False, options.max_iterations, history,
                         f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

@@ -15,7 +15,8 @@ class NewtonOptions:
     """Newton corrector settings.
 
     tol : residual max-norm for convergence (also requires the Newton update below
-        ``step_tol`` relative to the solution size).
+        ``step_tol`` relative to the solution size).  On fine grids where rounding alone
+        leaves a larger residual, eps * ||J||_inf * max(1, ||u||_inf) is used instead.
     max_iterations : iterations before the corrector gives up (the step is then retried
         with a smaller ds; it never raises out of the tracer).
     """
