@@ -230,3 +230,16 @@ def test_check_writable_fails_fast(tmp_path):
         ro.chmod(0o500)
         with pytest.raises(OSError, match="cannot write"):
             io.H5Writer(ro / "x.h5")
+
+
+def test_round_trip_with_save_every_state_index(tmp_path):
+    b = toy_branches()[0]
+    keep = np.array([0, 3, 6, 8])
+    b.states = b.states[keep]
+    b.state_index = keep
+    io.write(tmp_path / "s.h5", [b], y=Y, profiles=profiles)
+    (got,), meta = io.load(tmp_path / "s.h5")
+    assert_same_branch(b, got)
+    np.testing.assert_array_equal(got.state(6), b.states[2])
+    # profiles are indexed by point along the branch, not by row of `states`
+    np.testing.assert_array_equal(meta["profiles"]["0"]["index"], keep)
