@@ -99,7 +99,7 @@ def test_uniform_shear_also_solves_gravity_instance_at_zero_gravity():
     p = problem.params({"nu": 0.4})
     x = problem.uniform_state(p)
     assert np.max(np.abs(problem.residual(x, p))) <= 1e-12
-    assert problem.unpack(x)[4][-1] == pytest.approx(0.4, rel=1e-14)
+    np.testing.assert_allclose(problem.unpack(x)[4], 0.4 * problem.grid.y, rtol=0, atol=1e-15)
 
 
 def test_uniform_state_rejects_elastic_limit():
@@ -213,17 +213,28 @@ def test_reflection_equivariance(method, walls):
 
 
 @pytest.mark.parametrize("walls", ["noslip", "jj"])
-def test_reflection_maps_gravity_to_its_negative(walls):
-    problem = CouetteProblem("fd4", 24, walls=walls, gravity=True)
+@pytest.mark.parametrize("method,N", [("fd4", 24), ("fd4", 25), ("cheb", 15), ("cheb", 16)])
+def test_reflection_maps_gravity_to_its_negative(walls, method, N):
+    """F(Sx, -G) = S F(x, G) with the same S on unknowns and rows (even and odd N)."""
+    problem = CouetteProblem(method, N, walls=walls, gravity=True)
     p = problem.params({"G": 2e-4, "H": 12.0})
     assert not problem.symmetric(p)
     x = perturbed(problem, p, seed=5)
-    S, SF = problem.symmetry_matrix(), problem.residual_symmetry_matrix()
-    np.testing.assert_allclose(S @ (S @ x), x, rtol=0, atol=1e-15)
+    S = problem.symmetry_matrix()
+    np.testing.assert_array_equal(S @ x, problem.symmetry(x))
+    np.testing.assert_array_equal(S @ (S @ x), x)
     F = problem.residual(x, p)
-    FS = problem.residual(problem.symmetry(x), dict(p, G=-p["G"]))
-    assert np.max(np.abs(FS - SF @ F)) < 1e-11 * np.max(np.abs(F))
-    assert np.max(np.abs(problem.residual(problem.symmetry(x), p) - SF @ F)) > 1e-3
+    assert np.max(np.abs(F[problem.i_M])) > 1e-3  # x is off the mass rows' solution set
+    minus = dict(p, G=-p["G"])
+    FS = problem.residual(problem.symmetry(x), minus)
+    assert np.max(np.abs(FS - S @ F)) < 1e-11 * np.max(np.abs(F))
+    assert np.max(np.abs(problem.residual(problem.symmetry(x), p) - S @ F)) > 1e-3
+    J, JS = problem.jacobian(x, p), problem.jacobian(problem.symmetry(x), minus)
+    assert abs(JS @ S - S @ J).max() < 1e-12 * abs(J).max()
+    # at G = 0 the gravity instance is symmetric in the ordinary sense
+    zero = dict(p, G=0.0)
+    assert problem.symmetric(zero)
+    assert np.max(np.abs(problem.residual(problem.symmetry(x), zero) - S @ problem.residual(x, zero))) < 1e-11
 
 
 # --------------------------------------------------------------------------- bifurcations
@@ -308,7 +319,9 @@ def test_gravity_state_balances():
     # below H_1^c gravity compresses the near-uniform state towards the bottom wall
     assert obs["nu_bottom"] > 0.3 > obs["nu_top"]
     nu, _, T, P, M = problem.unpack(x)
-    assert M[0] == 0.0 and M[-1] == pytest.approx(0.3, abs=1e-14)
+    assert M[0] == pytest.approx(-0.15, abs=1e-14) and M[-1] == pytest.approx(0.15, abs=1e-14)
+    np.testing.assert_allclose(M, problem.cumulative_mass(nu), rtol=0, atol=1e-14)
+    assert problem.grid.integrate(nu) == pytest.approx(0.3, abs=1e-14)
     q = problem.heat_flux(x, p)
     assert abs(q[0]) < 1e-14 and abs(q[-1]) < 1e-14  # adiabatic walls
 

@@ -6,17 +6,20 @@ k = f4 sqrt(T) (conductivity), D = f5 T^{3/2} (dissipation) the steady equations
 
     (a u')' = 0                                               x-momentum, S = a u' constant
     (1/H^2) (k T' + k_h nu')' + a u'^2 - D = 0               energy, k_h = f_h T^{3/2} (Dufour)
-    f1(nu) T - P + H^3 G (M - (M(-1/2) + M(1/2)) / 2) = 0    y-momentum, integrated
+    f1(nu) T - P + H^3 G M = 0                                y-momentum, integrated
     integral of nu dy = nu_bar                                mass constraint (fixes P)
-    M' = nu, M(-1/2) = 0                                      cumulative mass (gravity only)
+    M' = nu, M(-1/2) + M(1/2) = 0                             centred cumulative mass (gravity)
 
-i.e. d(f1 T)/dy = -H^3 G nu with G = Fr^-2.  Unknowns on the grid y_0 = -1/2 .. y_N = 1/2:
+i.e. d(f1 T)/dy = -H^3 G nu with G = Fr^-2; M(y) = int_{-1/2}^y nu dy' - nu_bar/2 is the
+cumulative mass centred so that it is odd under reflection (P is then the pressure where half
+of the mass lies below).  Unknowns on the grid y_0 = -1/2 .. y_N = 1/2:
 
     x = [nu (N+1), u (N+1), T (N+1), P (1)]  (+ [M (N+1)] only for ``gravity=True``)
 
 and the residual rows come in the same blocks: y-momentum at every node (algebraic),
 x-momentum and energy at interior nodes with wall conditions in rows 0 and N, the mass
-constraint, and M_0 = 0, M_j - M_j-1 = (cell integral of the interpolant of nu) (rows of M).
+constraint, and (rows of M) the N cell equations M_j - M_j-1 = (integral of the interpolant of
+nu over [y_j-1, y_j]) plus the centring M_0 + M_N = 0.
 The divergences are collocated in expanded form, (a u')' = a u'' + a' u' with a' = D1 a.
 
 Walls (n = outward normal, sigma = -1 at the bottom and +1 at the top, u_w = sigma/2;
@@ -28,10 +31,12 @@ Q = -(1/H^2)(k T' + k_h nu') is the wall-normal heat flux):
   -sigma Q = H s_w (u - u_w)^2 - d_w / H   (heat into the material = slip work - wall loss)
   s_w = phi_w pi nu chi sqrt(T) / (2 sqrt(3) nu_m), d_w = sqrt(3) pi nu chi (1 - ew^2) T^{3/2} / (4 nu_m).
 
-Every wall row is written in the wall's outward orientation, so that the reflection
-(nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y) maps residual rows exactly as it maps unknowns.
-The gravity term uses (M_0 + M_N)/2 (= nu_bar / 2 at every solution) so that the same
-reflection with M -> M_0 + M_N - M(-y) maps F(x, G) to F(Sx, -G) for every x.
+Symmetry.  S: (nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y), P -> P, M(y) -> -M(-y) (a signed
+permutation) satisfies F(Sx, p) = S F(x, p') with p' = p except G -> -G, for every x, with the
+SAME matrix S on unknowns and residual rows.  For this every wall row is written in the wall's
+outward orientation, and the rows of M are laid out so that S maps them like the unknowns:
+slot i < N/2 holds the cell to the right of node i, slot i > N/2 minus the cell to the left of
+node i, and the middle slot(s) the centring row (for odd N combined with the middle cell).
 
 References: M. Alam, YITP 2013 slides (seeds/001); Alam, Arakeri, Nott, Goddard & Herrmann,
 J. Fluid Mech. 523 (2005) 277; Lun, Savage, Jeffrey & Chepurniy, J. Fluid Mech. 140 (1984) 223.
@@ -100,6 +105,10 @@ class CouetteProblem:
     """
 
     parameter_names: tuple[str, ...] = PARAMETER_NAMES
+    #: Parameters whose nonzero values break the reflection symmetry (F(Sx, G) = S F(x, -G)):
+    #: a symmetric start state must not be treated as lying on an S-invariant branch when
+    #: continuing in these (pass ``symmetric=False`` to contin.continuation.trace).
+    symmetry_breaking_parameters: tuple[str, ...] = ("G",)
 
     def __init__(
         self,
@@ -137,13 +146,11 @@ class CouetteProblem:
         self._d2 = sp.csr_matrix(g.d2)
         self._walls_idx = np.array([0, n - 1])
         self._sigma = np.array([-1.0, 1.0])  # outward normal at bottom, top
-        self._d1w = sp.csr_matrix(self._d1[self._walls_idx, :])
-        self._scatter = sp.csr_matrix((np.ones(2), (self._walls_idx, [0, 1])), shape=(n, 2))
-        mask = np.ones(n)
-        mask[self._walls_idx] = 0.0
-        self._inner = sp.diags(mask)
+        self._mask = np.ones(n)
+        self._mask[self._walls_idx] = 0.0
+        self._pattern = _Pattern({"I": sp.eye(n, format="csr"), "d1": self._d1, "d2": self._d2})
         if self.gravity:
-            self._cells = cell_integration_matrix(g)
+            self._mass_M, self._mass_nu = _mass_rows(cell_integration_matrix(g))
 
     # ------------------------------------------------------------------ bookkeeping
     def __repr__(self) -> str:
@@ -187,16 +194,17 @@ class CouetteProblem:
         return x[self.i_nu], x[self.i_u], x[self.i_T], x[self.i_P], m
 
     def pack(self, nu: NDArray, u: NDArray, T: NDArray, P: float, M: NDArray | None = None) -> NDArray:
-        """Inverse of :meth:`unpack`; M defaults to the cumulative integral of nu."""
+        """Inverse of :meth:`unpack`; M defaults to :meth:`cumulative_mass` of nu."""
         parts = [np.asarray(nu), np.asarray(u), np.asarray(T), np.atleast_1d(P)]
         if self.gravity:
             parts.append(self.cumulative_mass(nu) if M is None else np.asarray(M))
         return np.concatenate(parts)
 
     def cumulative_mass(self, nu: NDArray) -> NDArray:
-        """M_j = integral of the interpolant of nu from -1/2 to y_j (M_0 = 0)."""
+        """Centred cumulative mass M_j = int_{-1/2}^{y_j} nu dy - (1/2) int nu dy (interpolant of nu)."""
         cells = cell_integration_matrix(self.grid)
-        return np.concatenate([[0.0], np.cumsum(cells @ nu)])
+        cum = np.concatenate([[0.0], np.cumsum(cells @ nu)])
+        return cum - 0.5 * cum[-1]
 
     # ------------------------------------------------------------------ residual
     def _fields(self, x: NDArray, p: Mapping[str, Any]) -> _Fields:
@@ -244,7 +252,7 @@ class CouetteProblem:
 
         ry = f.c.f1 * f.T - f.P
         if self.gravity:
-            ry = ry + H**3 * p["G"] * (f.M - 0.5 * (f.M[0] + f.M[-1]))
+            ry = ry + H**3 * p["G"] * f.M
         F[self.i_nu] = ry
 
         ru = f.a * f.upp + f.ap * f.up
@@ -266,7 +274,7 @@ class CouetteProblem:
         F[self.i_T] = rT
         F[self.i_P] = self.grid.weights @ f.nu - p["nu"]
         if self.gravity:
-            F[self.i_M] = np.concatenate([[f.M[0]], np.diff(f.M) - self._cells @ f.nu])
+            F[self.i_M] = self._mass_M @ f.M - self._mass_nu @ f.nu
         return F
 
     # ------------------------------------------------------------------ Jacobian
@@ -284,91 +292,94 @@ class CouetteProblem:
         x = np.asarray(x, dtype=float)
         f = self._fields(x, p)
         c, H, n = f.c, p["H"], self.n
-        d1, d2 = self._d1, self._d2
-        diag = sp.diags
-        w, sig, d1w = self._walls_idx, self._sigma, self._d1w
-        inner, scatter = self._inner, self._scatter
+        h2 = 1.0 / H**2
+        w, sig = self._walls_idx, self._sigma
+        m = self._mask  # 1 in the interior, 0 in the wall rows
+        pat = self._pattern
 
-        def at_walls(values: Array) -> sp.csr_matrix:
-            return sp.csr_matrix((values, ([0, 1], w)), shape=(2, n))
+        def at_walls(values: Array) -> Array:
+            out = np.zeros(n)
+            out[w] = values
+            return out
 
         a_nu, a_T = c.f2_nu * f.sT, c.f2 / (2.0 * f.sT)
         k_nu, k_T = c.f4_nu * f.sT, c.f4 / (2.0 * f.sT)
         D_nu, D_T = c.f5_nu * f.T * f.sT, 1.5 * c.f5 * f.sT
 
-        # x-momentum, interior
-        lu = diag(f.upp) + diag(f.up) @ d1
-        ju_u = diag(f.a) @ d2 + diag(f.ap) @ d1
-        ju_nu = lu @ diag(a_nu)
-        ju_T = lu @ diag(a_T)
-        # energy, interior
-        lt = diag(f.Tpp) + diag(f.Tp) @ d1
-        jt_T = (lt @ diag(k_T) + diag(f.k) @ d2 + diag(f.kp) @ d1) / H**2 + diag(f.up**2 * a_T - D_T)
-        jt_nu = lt @ diag(k_nu) / H**2 + diag(f.up**2 * a_nu - D_nu)
-        jt_u = diag(2.0 * f.a * f.up) @ d1
-        flux_T = diag(f.k[w]) @ d1w  # d(k T')/dT at walls, without the k_T T' part
+        # Terms (operator, row factor, column factor): entry = row[i] * op[i, j] * col[j].
+        # x-momentum, interior: da (u'' + u' D1) + (a D2 + a' D1) du, da = a_nu dnu + a_T dT
+        ju_u = [("d2", m * f.a, None), ("d1", m * f.ap, None)]
+        ju_nu = [("I", m * f.upp * a_nu, None), ("d1", m * f.up, a_nu)]
+        ju_T = [("I", m * f.upp * a_T, None), ("d1", m * f.up, a_T)]
+        # energy, interior: (dk (T'' + T' D1) + k D2 dT + k' D1 dT) / H^2 + da u'^2 + 2 a u' D1 du - dD
+        jt_T = [
+            ("I", m * (f.Tpp * k_T * h2 + f.up**2 * a_T - D_T), None),
+            ("d1", m * f.Tp * h2, k_T),
+            ("d2", m * f.k * h2, None),
+            ("d1", m * f.kp * h2, None),
+        ]
+        jt_nu = [("I", m * (f.Tpp * k_nu * h2 + f.up**2 * a_nu - D_nu), None), ("d1", m * f.Tp * h2, k_nu)]
+        jt_u = [("d1", m * 2.0 * f.a * f.up, None)]
+        # wall heat flux k T' (+ k_h nu'): its T- and nu-derivatives at the walls
         flux_T_diag = k_T[w] * f.Tp[w]
         flux_nu_diag = k_nu[w] * f.Tp[w]
-        flux_nu = None
         if self.dufour:
             fh_nu = _dufour_nu_derivative(f.nu, p, self.chi)
             kh_T, kh_nu = 1.5 * c.fh * f.sT, fh_nu * f.T * f.sT
-            ln = diag(f.nupp) + diag(f.nup) @ d1
-            jt_T = jt_T + ln @ diag(kh_T) / H**2
-            jt_nu = jt_nu + (ln @ diag(kh_nu) + diag(f.kh) @ d2 + diag(f.khp) @ d1) / H**2
+            jt_T += [("I", m * f.nupp * kh_T * h2, None), ("d1", m * f.nup * h2, kh_T)]
+            jt_nu += [
+                ("I", m * f.nupp * kh_nu * h2, None),
+                ("d1", m * f.nup * h2, kh_nu),
+                ("d2", m * f.kh * h2, None),
+                ("d1", m * f.khp * h2, None),
+            ]
             flux_T_diag = flux_T_diag + kh_T[w] * f.nup[w]
             flux_nu_diag = flux_nu_diag + kh_nu[w] * f.nup[w]
-            flux_nu = diag(f.kh[w]) @ d1w
 
-        # wall rows (2 x n each)
-        uw = 0.5 * sig
+        # wall rows
         if self.walls == "noslip":
-            bu_u = at_walls(np.ones(2))
-            bu_nu = bu_T = None
+            ju_u.append(("I", at_walls(np.ones(2)), None))
             if self.dufour:
-                bt_T = diag(sig) @ flux_T + at_walls(sig * flux_T_diag)
-                bt_nu = diag(sig) @ flux_nu + at_walls(sig * flux_nu_diag)
+                jt_T += [("d1", at_walls(sig * f.k[w]), None), ("I", at_walls(sig * flux_T_diag), None)]
+                jt_nu += [("d1", at_walls(sig * f.kh[w]), None), ("I", at_walls(sig * flux_nu_diag), None)]
             else:
-                bt_T = diag(sig) @ d1w
-                bt_nu = None
-            bt_u = None
+                jt_T.append(("d1", at_walls(sig), None))
         else:
             sw, dw, sw_nu, sw_T, dw_nu, dw_T = self._wall_coefficients(f, p)
-            slip = f.u[w] - uw
+            slip = f.u[w] - 0.5 * sig
             upw = f.up[w]
-            bu_u = diag(-sig * f.a[w]) @ d1w - H * at_walls(sw)
-            bu_nu = at_walls(-sig * a_nu[w] * upw - H * sw_nu * slip)
-            bu_T = at_walls(-sig * a_T[w] * upw - H * sw_T * slip)
-            bt_T = diag(sig / H**2) @ flux_T + at_walls(
-                sig * flux_T_diag / H**2 - H * sw_T * slip**2 + dw_T / H
-            )
-            bt_nu = at_walls(sig * flux_nu_diag / H**2 - H * sw_nu * slip**2 + dw_nu / H)
-            if flux_nu is not None:
-                bt_nu = bt_nu + diag(sig / H**2) @ flux_nu
-            bt_u = at_walls(-2.0 * H * sw * slip)
+            ju_u += [("d1", at_walls(-sig * f.a[w]), None), ("I", at_walls(-H * sw), None)]
+            ju_nu.append(("I", at_walls(-sig * a_nu[w] * upw - H * sw_nu * slip), None))
+            ju_T.append(("I", at_walls(-sig * a_T[w] * upw - H * sw_T * slip), None))
+            jt_T += [
+                ("d1", at_walls(sig * f.k[w] * h2), None),
+                ("I", at_walls(sig * flux_T_diag * h2 - H * sw_T * slip**2 + dw_T / H), None),
+            ]
+            jt_nu.append(("I", at_walls(sig * flux_nu_diag * h2 - H * sw_nu * slip**2 + dw_nu / H), None))
+            if self.dufour:
+                jt_nu.append(("d1", at_walls(sig * f.kh[w] * h2), None))
+            jt_u.append(("I", at_walls(-2.0 * H * sw * slip), None))
 
-        def rows(interior, wall):
-            out = inner @ interior
-            return out if wall is None else out + scatter @ wall
-
-        blocks: list[list[Any]] = [
-            [diag(c.f1_nu * f.T), None, diag(c.f1), sp.csr_matrix(-np.ones((n, 1)))],
-            [rows(ju_nu, bu_nu), rows(ju_u, bu_u), rows(ju_T, bu_T), None],
-            [rows(jt_nu, bt_nu), rows(jt_u, bt_u), rows(jt_T, bt_T), None],
-            [sp.csr_matrix(self.grid.weights[None, :]), None, None, None],
+        iu, iT, iP = self.i_u.start, self.i_T.start, self.i_P
+        blocks = [
+            (0, 0, _diagonal(c.f1_nu * f.T)),
+            (0, iT, _diagonal(c.f1)),
+            (0, iP, sp.csr_matrix(-np.ones((n, 1)))),
+            (iu, 0, pat.block(ju_nu)),
+            (iu, iu, pat.block(ju_u)),
+            (iu, iT, pat.block(ju_T)),
+            (iT, 0, pat.block(jt_nu)),
+            (iT, iu, pat.block(jt_u)),
+            (iT, iT, pat.block(jt_T)),
+            (iP, 0, sp.csr_matrix(self.grid.weights[None, :])),
         ]
         if self.gravity:
+            iM = self.i_M.start
             hg = H**3 * p["G"]
-            ends = np.zeros(n)
-            ends[[0, -1]] = 0.5
-            jy_M = hg * (sp.eye(n) - sp.csr_matrix(np.outer(np.ones(n), ends)))
-            blocks[0].append(jy_M if hg != 0 else None)
-            for row in blocks[1:]:
-                row.append(None)
-            jm_nu = sp.vstack([sp.csr_matrix((1, n)), -self._cells])
-            jm_M = sp.eye(n) - sp.eye(n, k=-1)
-            blocks.append([jm_nu, None, None, None, jm_M])
-        return sp.csr_matrix(sp.bmat(blocks, format="csr"))
+            if hg != 0:
+                blocks.append((0, iM, _diagonal(np.full(n, hg))))
+            blocks += [(iM, 0, -self._mass_nu), (iM, iM, self._mass_M)]
+        return _assemble(blocks, self.size)
 
     def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
         """dF/dp for the parameter ``name`` by the complex step (exact to rounding)."""
@@ -383,7 +394,7 @@ class CouetteProblem:
         """Uniform shear (physics.md section 4): nu = nu_bar, u = y, T = f2/f5, P = f1 T.
 
         An exact solution of the discrete no-slip problem at G = 0 (D1 and D2 are exact on
-        constants and linear functions); with gravity M is the cumulative integral of nu_bar.
+        constants and linear functions); with gravity M = nu_bar (y + 1/2) - nu_bar/2.
 
         Raises
         ------
@@ -420,7 +431,7 @@ class CouetteProblem:
         return self.pack(nu, gamma * self.grid.y, np.full(self.n, t0), c.f1 * t0)
 
     def profiles(self, x: Array) -> dict[str, Array]:
-        """{'nu', 'u', 'T'} (plus 'M' with gravity) on ``self.grid.y``."""
+        """{'nu', 'u', 'T'} (plus the centred cumulative mass 'M' with gravity) on ``self.grid.y``."""
         nu, u, T, _, M = self.unpack(np.asarray(x))
         out = {"nu": nu.copy(), "u": u.copy(), "T": T.copy()}
         if M is not None:
@@ -519,43 +530,25 @@ class CouetteProblem:
         return p["G"] == 0
 
     def symmetry(self, x: Array) -> Array:
-        """The reflection y -> -y: (nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y), P -> P.
+        """The reflection y -> -y: (nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y), P -> P, M(y) -> -M(-y).
 
-        With gravity, M -> M(-1/2) + M(1/2) - M(-y); then F(Sx, -G) = S_F F(x, G), with S_F
-        from :meth:`residual_symmetry_matrix` (= S when there is no M).  S is an involution.
-        A symmetry of F(., p) only when :meth:`symmetric` (G = 0; both walls share parameters).
+        A signed permutation and an involution with F(Sx, p') = S F(x, p), p' = p with
+        G -> -G; hence a symmetry of F(., p) exactly when :meth:`symmetric` (G = 0).
         """
         x = np.asarray(x)
         r = self.grid.reflection()
         nu, u, T, P, M = self.unpack(x)
         parts = [nu[r], -u[r], T[r], np.atleast_1d(P)]
         if self.gravity:
-            parts.append(M[0] + M[-1] - M[r])
+            parts.append(-M[r])
         return np.concatenate(parts)
 
     def symmetry_matrix(self) -> sp.csr_matrix:
         """Sparse matrix of :meth:`symmetry`."""
         n = self.n
-        rf = sp.csr_matrix(np.eye(n)[::-1])
-        blocks = [rf, -rf, rf, sp.eye(1)]
-        if self.gravity:
-            ends = np.zeros((n, n))
-            ends[:, [0, -1]] = 1.0
-            blocks.append(sp.csr_matrix(ends) - rf)
+        rf = sp.csr_matrix((np.ones(n), (np.arange(n), self.grid.reflection())), shape=(n, n))
+        blocks = [rf, -rf, rf, sp.eye(1)] + ([-rf] if self.gravity else [])
         return sp.csr_matrix(sp.block_diag(blocks))
-
-    def residual_symmetry_matrix(self) -> sp.csr_matrix:
-        """S_F with F(Sx, p') = S_F F(x, p), p' = p with G -> -G (S_F = S without gravity).
-
-        On the rows of M the reflection maps M_0 = 0 to itself and the cell row j to N + 1 - j.
-        """
-        if not self.gravity:
-            return self.symmetry_matrix()
-        n = self.n
-        rf = sp.csr_matrix(np.eye(n)[::-1])
-        perm = np.concatenate([[0], np.arange(n - 1, 0, -1)])
-        cells = sp.csr_matrix((np.ones(n), (np.arange(n), perm)), shape=(n, n))
-        return sp.csr_matrix(sp.block_diag([rf, -rf, rf, sp.eye(1), cells]))
 
     # ------------------------------------------------------------------ stability
     def eigenproblem(self, x: Array, p: Mapping[str, Any], kx: float = 0.0, kz: float = 0.0):
@@ -572,6 +565,90 @@ class CouetteProblem:
             self.grid, nu, u, T, p, walls=self.walls, kx=kx, kz=kz, chi=self.chi,
             dufour=self.dufour, gravity=self.gravity,
         )
+
+
+class _Pattern:
+    """A fixed sparsity pattern, the union of named operators, filled by scaled copies of them.
+
+    ``block([(name, row, col), ...])`` is the CSR matrix sum_k diag(row_k) Op_k diag(col_k)
+    (None = no scaling), built by scattering scaled data arrays into the union pattern: no
+    sparse products or sums in the Newton loop.
+    """
+
+    def __init__(self, ops: Mapping[str, sp.csr_matrix]) -> None:
+        union = sum(abs(sp.csr_matrix(op)) for op in ops.values())
+        union = sp.csr_matrix(union)
+        union.sum_duplicates()
+        union.sort_indices()
+        self.indptr, self.indices, self.shape = union.indptr, union.indices, union.shape
+        key = {(r, c): k for k, (r, c) in enumerate(zip(np.repeat(np.arange(union.shape[0]), np.diff(union.indptr)), union.indices))}
+        self.ops = {}
+        for name, op in ops.items():
+            coo = sp.csr_matrix(op).tocoo()
+            pos = np.array([key[(r, c)] for r, c in zip(coo.row, coo.col)], dtype=np.int64)
+            self.ops[name] = (pos, coo.row, coo.col, coo.data)
+
+    def block(self, terms: list[tuple[str, Array, Array | None]]) -> sp.csr_matrix:
+        data = np.zeros(self.indices.size)
+        for name, row, col in terms:
+            pos, r, c, values = self.ops[name]
+            scaled = values * row[r]
+            if col is not None:
+                scaled = scaled * col[c]
+            data[pos] += scaled
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+
+
+def _diagonal(values: Array) -> sp.csr_matrix:
+    n = values.size
+    return sp.csr_matrix((values, np.arange(n), np.arange(n + 1)), shape=(n, n))
+
+
+def _assemble(blocks: list[tuple[int, int, sp.spmatrix]], size: int) -> sp.csr_matrix:
+    """CSR matrix from blocks placed at (row offset, column offset)."""
+    rows, cols, data = [], [], []
+    for r0, c0, block in blocks:
+        coo = block.tocoo()
+        rows.append(coo.row + r0)
+        cols.append(coo.col + c0)
+        data.append(coo.data)
+    return sp.csr_matrix(
+        (np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size)
+    )
+
+
+def _mass_rows(cells: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """Matrices (A_M, A_nu) of the rows A_M M - A_nu nu = 0 of the centred cumulative mass.
+
+    Raw rows: cell j (j = 1..N), M_j - M_j-1 - C_j nu, and the centring M_0 + M_N.  Under the
+    reflection, cell j <-> cell N+1-j and the centring row changes sign, while the unknowns map
+    M_i -> -M_N-i.  Slot i = 0..N gets: the cell right of node i (i < N/2, cell i+1), minus the
+    cell left of node i (i > N/2, cell i), and the centring row at i = N/2 (N even); for odd N
+    the slots (N-1)/2 and (N+1)/2 get centring +- middle cell.  Then the rows map exactly like
+    the unknowns, slot i -> -slot N-i, so one matrix S serves both (see the module docstring).
+    """
+    nc, n = cells.shape
+    N = nc
+    diff = sp.csr_matrix(sp.eye(n, k=1) - sp.eye(n))[:N]  # row j-1: M_j - M_j-1
+    center = sp.csr_matrix(([1.0, 1.0], ([0, 0], [0, N])), shape=(1, n))
+    raw_M = sp.vstack([diff, center], format="csr")  # rows: cells 1..N, centring
+    raw_nu = sp.vstack([cells, sp.csr_matrix((1, n))], format="csr")
+    rows, cols, vals = [], [], []
+    half = N // 2
+    for i in range(n):  # setup only: n small permutation entries
+        if 2 * i < N - 1:
+            rows.append(i), cols.append(i), vals.append(1.0)  # cell i+1 is raw row i
+        elif 2 * i > N + 1:
+            rows.append(i), cols.append(i - 1), vals.append(-1.0)  # cell i is raw row i-1
+    if N % 2 == 0:
+        rows.append(half), cols.append(N), vals.append(1.0)
+    else:
+        mid = half  # raw index of the middle cell (N+1)/2
+        rows += [half, half, half + 1, half + 1]
+        cols += [mid, N, mid, N]
+        vals += [1.0, 1.0, -1.0, 1.0]
+    t = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    return sp.csr_matrix(t @ raw_M), sp.csr_matrix(t @ raw_nu)
 
 
 def _dufour_nu_derivative(nu: Array, p: Mapping[str, Any], chi: str, h: float = 1e-30) -> Array:
