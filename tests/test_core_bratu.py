@@ -116,3 +116,13 @@ def test_jacobians_match_finite_differences(method):
         chk = check_jacobian(pb, u, {"lam": 2.0}, parameters=("lam",))
         assert chk.relative_error < 1e-8
         assert chk.dp_errors["lam"] < 1e-6
+
+
+def test_fine_grid_traces_past_the_fold_despite_rounding_floor():
+    # fd4 on 2001 nodes: |D2| ~ 1e7 puts the rounding residual near the default tol 1e-10;
+    # the corrector must accept the rounding floor rather than end in MX.
+    pb = Bratu("fd4", 2000)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", ContinuationOptions(
+        bounds={"lam": (0.0, 4.0)}, max_steps=20, step=StepOptions(ds=0.1, ds_max=0.5)))
+    assert br.status == "EP"
+    assert abs(br.fold_points[0].params["lam"] - BRATU_FOLD) < 1e-8
