@@ -435,7 +435,7 @@ def natural_continuation(
         h = prev.H + step
         if (h_stop - h) * direction < 0:
             h = h_stop
-        pt = solve_point(model, prev.sol.x, prev.sol.y, prev.sol.p, h=h, tol=tol, max_nodes=max_nodes,
+        pt = solve_point(model, prev.sol.x, prev.sol.y, prev.sol.p[:1], h=h, tol=tol, max_nodes=max_nodes,
                          exact_jacobian=exact_jacobian)
         seconds += pt.seconds
         jumped = False

@@ -235,13 +235,15 @@ def comparison_rows(base_gap: list[Row], base_nat: list[Row], contin_rows: list[
 
     Baseline: the solve_bvp tol whose pinning estimate meets the target, timed on natural
     continuation at that tol.  contin: the (method, N) whose located BP meets it, timed on the
-    switched banded branch.
+    switched banded branch; a switch that fell back onto uniform shear (|phi_end - nubar| <=
+    0.1, phi = nu(1/2)) is not a banded branch and does not count.  Either mirror image of the
+    branch (phi_end above or below nubar) counts.
     """
     nat = {r["tol"]: r for r in base_nat if r["status"] == "reached"}
     base = [(nat[g["tol"]]["s_per_point"], f"tol={g['tol']:.0e}", g["rel_error"]) for g in base_gap
             if g["tol"] in nat]
     cont = [(r["banded_s_per_point"], f"{r['method']} N={r['N']}", r["rel_error"]) for r in contin_rows
-            if r["banded_points"] > 1 and r["banded_phi_end"] > NUBAR + 0.1]
+            if r["banded_points"] > 1 and abs(r["banded_phi_end"] - NUBAR) > 0.1]
     rows = []
     for target in targets:
         b = min((c for c in base if c[2] <= target), default=None)

@@ -188,11 +188,13 @@ def test_runner_comparison_picks_cheapest_config_meeting_each_target():
             {"method": "cheb", "N": 32, "rel_error": 1e-11, "banded_points": 20, "banded_phi_end": 0.5,
              "banded_s_per_point": 0.004},
             {"method": "cheb", "N": 24, "rel_error": 1e-13, "banded_points": 6, "banded_phi_end": 0.3,
-             "banded_s_per_point": 0.0001}]  # fell back onto uniform shear: not a banded branch
+             "banded_s_per_point": 0.0001},  # fell back onto uniform shear: not a banded branch
+            {"method": "fd6", "N": 32, "rel_error": 1e-7, "banded_points": 28, "banded_phi_end": 0.145,
+             "banded_s_per_point": 0.003}]  # the mirror-image branch counts
     rows = comparison_rows(gap, nat, cont, targets=(1e-4, 1e-6, 1e-8))
     assert [r["baseline"] for r in rows] == ["tol=1e-04", "tol=1e-06", "-"]
-    assert [r["contin"] for r in rows] == ["cheb N=32"] * 3
-    assert rows[0]["speedup"] == pytest.approx(2.5) and rows[1]["speedup"] == pytest.approx(7.5)
+    assert [r["contin"] for r in rows] == ["fd6 N=32", "fd6 N=32", "cheb N=32"]
+    assert rows[0]["speedup"] == pytest.approx(0.01 / 0.003) and rows[1]["speedup"] == pytest.approx(10.0)
     assert np.isnan(rows[2]["speedup"])
     text = table("t", rows, [("target", "target", ".0e"), ("speedup", "x", ".2f")])
-    assert text.splitlines()[2].split() == ["1e-04", "2.50"]
+    assert text.splitlines()[2].split() == ["1e-04", "3.33"]
