@@ -399,7 +399,7 @@ class H5Writer:
         self.max_profiles = max_profiles
         self._branches: dict[str, Branch] = {}
         self._extra_branches: list[Branch] = []
-        self._profile_cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]] | None] = {}
+        self._profile_cache: dict[int, tuple[Branch, tuple[np.ndarray, dict[str, np.ndarray]] | None]] = {}
         for b in branches:
             self._branches[str(b.id)] = b
         self.complete = False
@@ -454,19 +454,22 @@ class H5Writer:
     def _branch_profiles(self, b: Branch) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
         if self.profiles is None or self.y is None:
             return None
-        key = id(b)
-        if key not in self._profile_cache:
-            try:
-                rows = _sample_rows(len(b.states), self.max_profiles)
-                samples = [self.profiles(b.states[i]) for i in rows]
-                names = list(samples[0]) if samples else []
-                state_index = getattr(b, "state_index", None)
-                points = rows if state_index is None else np.asarray(state_index)[rows]
-                self._profile_cache[key] = (points, {n: np.array([s[n] for s in samples]) for n in names})
-            except Exception as exc:  # noqa: BLE001 -- a profile bug must not lose the run
-                _log.warning("profiles of branch %s not stored: %s", b.id, exc)
-                self._profile_cache[key] = None
-        return self._profile_cache[key]
+        cached = self._profile_cache.get(id(b))
+        if cached is not None and cached[0] is b:  # the entry keeps b alive, so id(b) is unique
+            return cached[1]
+        result: tuple[np.ndarray, dict[str, np.ndarray]] | None
+        try:
+            rows = _sample_rows(len(b.states), self.max_profiles)
+            samples = [self.profiles(b.states[i]) for i in rows]
+            names = list(samples[0]) if samples else []
+            state_index = getattr(b, "state_index", None)
+            points = rows if state_index is None else np.asarray(state_index)[rows]
+            result = (points, {n: np.array([s[n] for s in samples]) for n in names})
+        except Exception as exc:  # noqa: BLE001 -- a profile bug must not lose the run
+            _log.warning("profiles of branch %s not stored: %s", b.id, exc)
+            result = None
+        self._profile_cache[id(b)] = (b, result)
+        return result
 
     def _fill(self, f: h5py.File) -> None:
         a = f.attrs

@@ -243,3 +243,13 @@ def test_round_trip_with_save_every_state_index(tmp_path):
     np.testing.assert_array_equal(got.state(6), b.states[2])
     # profiles are indexed by point along the branch, not by row of `states`
     np.testing.assert_array_equal(meta["profiles"]["0"]["index"], keep)
+
+
+def test_broken_profile_function_does_not_lose_the_run(tmp_path, caplog):
+    def bad(u):
+        raise ZeroDivisionError("profile bug")
+
+    io.write(tmp_path / "r.h5", toy_branches(), y=Y, profiles=bad)
+    branches, meta = io.load(tmp_path / "r.h5")
+    assert len(branches) == 3 and meta["profiles"] == {} and meta["complete"]
+    assert "profile bug" in caplog.text
