@@ -1,0 +1,380 @@
+"""Linear stability of steady states: the generalized eigenproblem A x = omega B x.
+
+A steady state u* of  M du/dt = F(u, p)  is linearly stable when every finite eigenvalue
+omega of  J x = omega M x  (J = dF/du at u*) has Re omega < 0.  Problems whose physical
+linearisation is not the Jacobian of their steady residual (e.g. perturbations with
+wavenumbers k_x, k_z, or steady formulations with auxiliary unknowns) provide
+``eigenproblem(u, p, kx=..., kz=...) -> (A, B)`` instead (see :mod:`contin.problem`).
+
+Singular B
+    Rows of B that are zero (boundary conditions, algebraic constraints) give infinite
+    eigenvalues.  QZ returns them as pairs (alpha, beta) with beta ~ eps ||B||, i.e.
+    |omega| ~ ||A|| / (eps ||B||); they are discarded when |omega| exceeds
+    ``inf_cutoff * ||A|| / ||B||`` (max-abs entry norms).  Physical eigenvalues of a
+    discretised operator are bounded by about ||A|| ||B_reg^{-1}||, many orders of magnitude
+    below the cutoff.
+
+Counting unstable eigenvalues
+    An eigenvalue counts as unstable when  Re omega > tol * max(1, |omega|):  relative to
+    |omega| for eigenvalues larger than one time unit of the problem, absolute (tol) below.
+    The absolute floor keeps rounding noise on exactly neutral eigenvalues (Re omega ~
+    1e-14) out of ``n_unstable``; choose ``tol`` above the noise of your discretisation
+    and below the growth rates you want to resolve.
+
+Audit
+    Along a branch, each fold (LP) or simple branch point (BP) is a real eigenvalue
+    crossing zero, so ``n_unstable`` must change across it, and every change of
+    ``n_unstable`` must be explained by such a point (a complex pair crossing would be a
+    Hopf point, which contin does not locate: it is reported as unexplained).  This is
+    the branch invariant of BifurcationKit's ``test_bif_detection.jl``.
+
+References
+----------
+C. B. Moler & G. W. Stewart, "An algorithm for generalized matrix eigenvalue problems",
+SIAM J. Numer. Anal. 10 (1973) 241 (QZ).  R. B. Lehoucq, D. C. Sorensen & C. Yang,
+*ARPACK Users' Guide*, SIAM 1998, section 4.3 (shift-invert spectral transformation).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from contin.branch import Branch
+from contin.problem import has
+
+log = logging.getLogger("contin")
+
+#: Default tolerance of the unstable count (see the module docstring).
+DEFAULT_TOL = 1e-8
+#: Default number of eigenvalues computed by the sparse (ARPACK) path.
+DEFAULT_SPARSE_K = 12
+
+CArray = NDArray[np.complex128]
+
+
+def _max_abs(m: Any) -> float:
+    if sp.issparse(m):
+        data = sp.csr_matrix(m).data
+        return float(np.max(np.abs(data))) if data.size else 0.0
+    return float(np.max(np.abs(m))) if np.size(m) else 0.0
+
+
+def _sort(w: CArray, v: CArray | None) -> tuple[CArray, CArray | None]:
+    """Real part descending; ties (conjugate pairs) with positive imaginary part first."""
+    order = np.lexsort((-w.imag, -w.real))
+    return w[order], None if v is None else v[:, order]
+
+
+def eigenpairs(
+    A: Any,
+    B: Any,
+    *,
+    k: int | None = None,
+    sigma: complex | None = None,
+    dense_max: int = 600,
+    inf_cutoff: float = 1e8,
+    vectors: bool = True,
+) -> tuple[CArray, CArray | None]:
+    """Finite eigenvalues (and right eigenvectors) of A x = omega B x, sorted by Re descending.
+
+    Parameters
+    ----------
+    A, B : (n, n) dense arrays or scipy.sparse matrices (real or complex); B may be singular.
+    k : int, optional
+        Number of eigenvalues returned.  Dense path: the k with the largest real part (all
+        finite ones when None).  Sparse path: the k nearest ``sigma`` (default
+        ``DEFAULT_SPARSE_K``), then sorted by real part.
+    sigma : complex, optional
+        Shift of the sparse path (default 0: for dissipative problems the least-stable
+        eigenvalues are the ones nearest the origin).  Ignored by the dense path.
+    dense_max : int
+        Dense QZ (``scipy.linalg.eig(A, B)``) when n <= dense_max, else shift-invert ARPACK.
+    inf_cutoff : float
+        Eigenvalues with |omega| > inf_cutoff * max|A| / max|B| are infinite (singular B).
+    vectors : bool
+        Also return the eigenvectors as columns (None otherwise).
+
+    Notes
+    -----
+    The sparse path does the spectral transformation itself: ARPACK finds the eigenvalues mu
+    of largest modulus of OP = (A - sigma B)^{-1} B (one sparse LU of A - sigma B), and
+    omega = sigma + 1/mu.  Infinite eigenvalues map to mu = 0, so they are never selected and
+    B need not be symmetric or definite (scipy's ``eigs(A, M=B, sigma=...)`` requires that).
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, or an empty matrix.
+    """
+    n = A.shape[0]
+    if A.shape != (n, n) or B.shape != (n, n) or n == 0:
+        raise ValueError(f"A and B must be square of the same size, got {A.shape} and {B.shape}")
+    if n <= dense_max:
+        return _dense_eigenpairs(A, B, k, inf_cutoff, vectors)
+    return _sparse_eigenpairs(A, B, k, 0.0 if sigma is None else sigma, vectors)
+
+
+def eigenvalues(
+    A: Any,
+    B: Any,
+    *,
+    k: int | None = None,
+    sigma: complex | None = None,
+    dense_max: int = 600,
+    inf_cutoff: float = 1e8,
+) -> CArray:
+    """Finite eigenvalues of A x = omega B x sorted by real part descending.
+
+    See :func:`eigenpairs` for the parameters (this is ``eigenpairs(..., vectors=False)[0]``).
+    """
+    return eigenpairs(A, B, k=k, sigma=sigma, dense_max=dense_max, inf_cutoff=inf_cutoff, vectors=False)[0]
+
+
+def _dense_eigenpairs(A: Any, B: Any, k: int | None, inf_cutoff: float, vectors: bool) -> tuple[CArray, CArray | None]:
+    a = A.toarray() if sp.issparse(A) else np.asarray(A)
+    b = B.toarray() if sp.issparse(B) else np.asarray(B)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("the eigenproblem matrices contain NaN or inf entries")
+    if vectors:
+        ab, v = la.eig(a, b, right=True, homogeneous_eigvals=True)
+    else:
+        ab, v = la.eig(a, b, right=False, homogeneous_eigvals=True), None
+    alpha, beta = ab
+    scale_b = _max_abs(b)
+    if scale_b == 0.0:
+        raise ValueError("B is zero: the eigenproblem has no finite eigenvalues")
+    cutoff = inf_cutoff * max(_max_abs(a), 1e-300) / scale_b
+    finite = np.abs(alpha) < cutoff * np.abs(beta)
+    w = (alpha[finite] / beta[finite]).astype(complex)
+    w, v = _sort(w, None if v is None else v[:, finite].astype(complex))
+    if k is not None:
+        w = w[:k]
+        v = None if v is None else v[:, :k]
+    return w, v
+
+
+def _sparse_eigenpairs(A: Any, B: Any, k: int | None, sigma: complex, vectors: bool) -> tuple[CArray, CArray | None]:
+    n = A.shape[0]
+    k = DEFAULT_SPARSE_K if k is None else k
+    if not 0 < k < n - 1:
+        raise ValueError(f"the sparse eigensolver needs 0 < k < n - 1, got k={k}, n={n}")
+    a = sp.csc_matrix(A)
+    b = sp.csc_matrix(B)
+    dtype = np.result_type(a.dtype, b.dtype, np.asarray(sigma).dtype)
+    lu = spla.splu(sp.csc_matrix(a - sigma * b, dtype=dtype))
+    op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(np.asarray(b @ x, dtype=dtype)), dtype=dtype)
+    ncv = min(n, max(2 * k + 1, 40))
+    if vectors:
+        mu, v = spla.eigs(op, k=k, which="LM", ncv=ncv)
+    else:
+        mu, v = spla.eigs(op, k=k, which="LM", ncv=ncv, return_eigenvectors=False), None
+    keep = np.abs(mu) > 1e-12 * np.max(np.abs(mu))
+    w = sigma + 1.0 / mu[keep]
+    return _sort(w.astype(complex), None if v is None else v[:, keep].astype(complex))
+
+
+def count_unstable(w: CArray, tol: float = DEFAULT_TOL) -> int:
+    """Number of eigenvalues with Re omega > tol * max(1, |omega|) (module docstring)."""
+    w = np.asarray(w)
+    return int(np.count_nonzero(w.real > tol * np.maximum(1.0, np.abs(w))))
+
+
+@dataclass(frozen=True)
+class StabilityResult:
+    """Linear stability of one steady state.
+
+    Attributes
+    ----------
+    eigenvalues : (n_eigs,) complex
+        Leading finite eigenvalues, real part descending (padded with nan if fewer exist).
+    n_unstable : int
+        Unstable eigenvalues among all finite ones computed (:func:`count_unstable`).
+    stable : bool
+        ``n_unstable == 0``.
+    tol : float
+        Tolerance used for the count.
+    kx, kz : float
+        Wavenumbers of the perturbation (0 for the plain Jacobian).
+    n_finite : int
+        Number of finite eigenvalues the count looked at (all of them on the dense path).
+    """
+
+    eigenvalues: CArray
+    n_unstable: int
+    stable: bool
+    tol: float
+    kx: float = 0.0
+    kz: float = 0.0
+    n_finite: int = 0
+
+    @property
+    def leading(self) -> complex:
+        """The least-stable eigenvalue."""
+        return complex(self.eigenvalues[0])
+
+
+def operator_pair(problem: Any, u: NDArray[np.float64], params: Mapping[str, float], *,
+                  kx: float = 0.0, kz: float = 0.0) -> tuple[Any, Any]:
+    """(A, B) of the stability problem of ``problem`` at (u, p).
+
+    ``problem.eigenproblem(u, p, kx=kx, kz=kz)`` when the problem has it, else the Jacobian
+    and ``problem.mass_matrix(u, p)`` (identity when absent).
+
+    Raises
+    ------
+    ValueError
+        kx or kz nonzero for a problem without ``eigenproblem``.
+    """
+    if has(problem, "eigenproblem"):
+        return problem.eigenproblem(u, params, kx=kx, kz=kz)
+    if kx != 0.0 or kz != 0.0:
+        raise ValueError("this problem has no eigenproblem(u, p, kx, kz) method, so only kx = kz = 0 is available")
+    A = problem.jacobian(u, params)
+    B = problem.mass_matrix(u, params) if has(problem, "mass_matrix") else sp.identity(A.shape[0], format="csr")
+    return A, B
+
+
+def stability_of_state(
+    problem: Any,
+    u: NDArray[np.float64],
+    params: Mapping[str, float],
+    *,
+    kx: float = 0.0,
+    kz: float = 0.0,
+    n_eigs: int = 6,
+    tol: float = DEFAULT_TOL,
+    dense_max: int = 600,
+    sigma: complex | None = None,
+) -> StabilityResult:
+    """Leading eigenvalues and unstable count of the steady state ``u`` at ``params``.
+
+    Solves A x = omega B x from :func:`operator_pair` with :func:`eigenvalues`.  On the dense
+    path every finite eigenvalue is counted; on the sparse path (n > dense_max) only the
+    ``max(n_eigs, DEFAULT_SPARSE_K)`` eigenvalues nearest ``sigma``.
+    """
+    if n_eigs < 1:
+        raise ValueError(f"n_eigs must be >= 1, got {n_eigs}")
+    A, B = operator_pair(problem, u, params, kx=kx, kz=kz)
+    k = None if A.shape[0] <= dense_max else max(n_eigs, DEFAULT_SPARSE_K)
+    w = eigenvalues(A, B, k=k, sigma=sigma, dense_max=dense_max)
+    lead = np.full(n_eigs, np.nan + 0j)
+    lead[: min(n_eigs, w.size)] = w[:n_eigs]
+    n_unst = count_unstable(w, tol)
+    return StabilityResult(lead, n_unst, n_unst == 0, tol, float(kx), float(kz), int(w.size))
+
+
+def stability_pass(
+    problem: Any,
+    branch: Branch,
+    params_fixed: Mapping[str, float] | None = None,
+    *,
+    n_eigs: int = 6,
+    tol: float = DEFAULT_TOL,
+    kx: float = 0.0,
+    kz: float = 0.0,
+    dense_max: int = 600,
+) -> None:
+    """Fill ``branch.stable``, ``branch.n_unstable`` and ``branch.eigenvalues`` (S x n_eigs).
+
+    The parameters at point i are ``params_fixed`` updated with ``branch.params[name][i]``
+    for every name the branch records.  A point whose eigenproblem fails (singular shift,
+    ARPACK not converging) is logged and marked ``n_unstable = -1``, ``stable = False``,
+    eigenvalues nan; :func:`audit` reports such points instead of guessing.
+    """
+    s = len(branch)
+    for name, values in branch.params.items():
+        if len(values) != s:
+            raise ValueError(f"branch parameter {name!r} has {len(values)} values but the branch has {s} states")
+    stable = np.zeros(s, dtype=bool)
+    n_unstable = np.full(s, -1, dtype=np.int64)
+    eigs = np.full((s, n_eigs), np.nan + 0j)
+    base = dict(params_fixed or {})
+    for i in range(s):
+        p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
+        try:
+            res = stability_of_state(problem, branch.states[i], p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
+                                     dense_max=dense_max)
+        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
+            log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
+            continue
+        stable[i] = res.stable
+        n_unstable[i] = res.n_unstable
+        eigs[i] = res.eigenvalues
+    branch.stable = stable
+    branch.n_unstable = n_unstable
+    branch.eigenvalues = eigs
+
+
+def audit(branch: Branch) -> list[str]:
+    """Check special points against changes of ``n_unstable``; store and return disagreements.
+
+    Each BP/LP with ``index = i`` lies between stored points i and i + 1 (if its parameter
+    coincides with a stored point's, the interval on the other side of that point is
+    accepted too).  An interval holding an odd number of BP/LP must show a change of
+    ``n_unstable``; an interval whose ``n_unstable`` changes must hold at least one BP/LP
+    (two points in one interval may cancel, so an even number with no change is accepted).
+    Messages are human readable, one per disagreement; the list is also stored in
+    ``branch.audit``.  An empty list means consistent.
+
+    Raises
+    ------
+    ValueError
+        If the stability columns have not been filled (run :func:`stability_pass` first).
+    """
+    if branch.n_unstable is None:
+        raise ValueError(f"branch {branch.id} has no stability data; run stability_pass first")
+    nu = np.asarray(branch.n_unstable)
+    s = len(nu)
+    par = branch.parameter
+    pv = branch.params.get(par, np.full(s, np.nan))
+    messages: list[str] = []
+    per_interval: dict[int, list[Any]] = {}
+    for spt in branch.special_points:
+        if spt.type not in ("BP", "LP"):
+            continue
+        i = spt.index
+        p_sp = spt.params.get(par, np.nan)
+        candidates = [i]
+        if 0 <= i < s and np.isclose(p_sp, pv[i], rtol=1e-12, atol=1e-14):
+            candidates.append(i - 1)
+        if 0 <= i + 1 < s and np.isclose(p_sp, pv[i + 1], rtol=1e-12, atol=1e-14):
+            candidates.append(i + 1)
+        candidates = [c for c in candidates if 0 <= c < s - 1]
+        if not candidates:
+            messages.append(f"{spt.name} at {par}={p_sp:.6g} (index {i}) has no neighbouring points on the branch")
+            continue
+        unknown = [c for c in candidates if nu[c] < 0 or nu[c + 1] < 0]
+        if unknown and len(unknown) == len(candidates):
+            messages.append(f"{spt.name} at {par}={p_sp:.6g}: stability unknown at points "
+                            f"{candidates[0]}..{candidates[0] + 1} (eigenproblem failed)")
+            continue
+        changing = [c for c in candidates if c not in unknown and nu[c] != nu[c + 1]]
+        per_interval.setdefault(changing[0] if changing else candidates[0], []).append(spt)
+    for c, pts in sorted(per_interval.items()):
+        if nu[c] == nu[c + 1] and len(pts) % 2 == 1:
+            names = ", ".join(f"{p.name} at {par}={p.params.get(par, np.nan):.6g}" for p in pts)
+            messages.append(f"{names}: n_unstable does not change between points {c} and {c + 1} "
+                            f"(stays {nu[c]})")
+    for c in range(s - 1):
+        if nu[c] < 0 or nu[c + 1] < 0 or nu[c] == nu[c + 1] or c in per_interval:
+            continue
+        kind = ""
+        if branch.eigenvalues is not None:
+            lead = branch.eigenvalues[c + 1 if nu[c + 1] > nu[c] else c, 0]
+            if np.isfinite(lead) and abs(lead.imag) > 1e-8 * max(1.0, abs(lead)):
+                kind = " (complex pair: possible Hopf point, not detected by contin)"
+        messages.append(f"n_unstable changes {nu[c]} -> {nu[c + 1]} between points {c} and {c + 1} "
+                        f"({par} = {pv[c]:.6g} .. {pv[c + 1]:.6g}) with no BP/LP in between{kind}")
+    for c in np.flatnonzero(nu < 0):
+        messages.append(f"stability unknown at point {c} ({par} = {pv[c]:.6g}): the eigenproblem failed")
+    branch.audit = messages
+    return messages

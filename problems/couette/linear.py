@@ -1,0 +1,527 @@
+"""Linearised granular Couette flow: A X = omega B X about any steady base state.
+
+Implements physics.md section 5 (Alam scaling).  Base state nu0(y), U(y), T0(y) on the nodes
+of a :class:`problems.discretization.Grid`; perturbation X(y) exp(i k_x x + i k_z z + omega t)
+with X = (nu_hat, u_hat, v_hat, w_hat, T_hat), D = d/dy, sigma = omega + i k_x U,
+Delta = i k_x u + D v + i k_z w, k^2 = k_x^2 + k_z^2:
+
+    sigma nu + D(nu0 v) + nu0 (i k_x u + i k_z w) = 0
+    nu0 (sigma u + U' v)  = -(1/H^2) [i k_x P_xx + D P_xy + i k_z P_xz]
+    nu0 sigma v           = -(1/H^2) [i k_x P_xy + D P_yy + i k_z P_yz] - H G nu
+    nu0 sigma w           = -(1/H^2) [i k_x P_xz + D P_yz + i k_z P_zz]
+    (3/2) nu0 (sigma T + T0' v) = (1/H^2) [D(kappa0 D T + kappa_hat T0') - k^2 kappa0 T]
+                                  - p0 Delta + 2 mu0 U' (D u + i k_x v) + mu_hat U'^2 - D_hat
+    P_xx = p_hat - lam0 Delta - 2 mu0 (i k_x u - Delta/3),  P_yy, P_zz alike,
+    P_xy = -mu0 (D u + i k_x v) - mu_hat U',  P_xz = -mu0 (i k_z u + i k_x w),
+    P_yz = -mu0 (D w + i k_z v),
+    p = f1 T, mu = f2 sqrt(T), lam = f3 sqrt(T), kappa = f4 sqrt(T), D = f5 T^{3/2}
+    (hats: linearisations in nu and T), G = Fr^{-2}.
+
+With ``dufour=True`` the heat flux gains -kappa_h grad(nu), kappa_h = f_h T^{3/2}, in the bulk
+and in the wall conditions.
+
+Discretisation
+    Collocation at the grid nodes.  Every term D(a D f) is expanded as a D2 f + a' D f (a' =
+    D1 a of the base profile), never D1 diag(a) D1, because on finite-difference grids the
+    product of two centred first-derivative stencils has a checkerboard null space.  The
+    mass flux D(nu0 v) alone is kept in conservative form D1 diag(nu0), so that the
+    Chebyshev quadrature sums the continuity rows exactly to nu0 v at the walls (= 0).
+
+Boundary conditions (rows of u, v, w, T at y = -1/2 and y = +1/2; those rows of B are 0)
+    ``walls='noslip'``: u = v = w = 0 and zero linearised heat flux; with kappa_h = 0 and a
+    base state with T0' = 0 at the wall this is D T = 0 (physics.md section 5).
+    ``walls='jj'``: v = 0 and the linearised Johnson-Jackson conditions of physics.md
+    section 3(b), with n = +1 at the bottom and -1 at the top, u_w = -n/2 the wall speed:
+        S_x = n H s_w (u - u_w),   S_z = n H s_w w,   Q = n [H s_w (u - u_w)^2 - d_w / H],
+    S_x = -P_xy, S_z = -P_yz the tangential stresses, Q = -(1/H^2)(kappa dT/dy + kappa_h dnu/dy)
+    the wall-normal heat flux, s_w = phi_w pi nu chi sqrt(T) / (2 sqrt(3) nu_m),
+    d_w = sqrt(3) pi nu chi (1 - e_w^2) T^{3/2} / (4 nu_m).  The spanwise condition is the
+    w-component of the vector slip law (traction parallel to the slip velocity).
+
+The mass-conservation neutral mode (k_x = k_z = 0)
+    With k_x = k_z = 0 and v = 0 at both walls, continuity conserves int nu dy, so the
+    unconstrained problem has an exact eigenvalue omega = 0: the derivative of the base state
+    with respect to the mean density nu_bar (a uniform-ish density shift with matching
+    pressure and temperature changes).  Walls at fixed positions fix the mass, so this
+    perturbation is not admissible.  Every eigenvector with omega != 0 already has
+    int nu_hat dy = 0, so we restrict to that subspace: the continuity rows R are replaced by
+    their projection (I - 1 w^T) R onto zero-mean tendencies (w = quadrature weights,
+    sum w = 1), and then one continuity row (the node of largest weight; it is implied by the
+    others once the mean is fixed) is replaced by the constraint w . nu_hat = 0 with a zero
+    row in B.  For Chebyshev grids the projection acts only on the wall values of v, which
+    the boundary rows set to zero, so the spectrum is exactly the unconstrained one minus the
+    neutral mode; for finite differences the projection also removes the O(h^p) mass leak of
+    the discrete flux.  Deflating instead (shifting the zero eigenvalue away) would leave the
+    physically inadmissible mode in the eigenvector space.  With k_x or k_z nonzero the mean
+    over x or z of exp(i k.x) vanishes, there is no constraint, and none is applied.
+
+    Other neutral modes: with JJ walls and phi_w = 0 (frictionless walls) uniform u_hat or
+    w_hat is neutral (momentum conservation); the base state is then unsheared and the case
+    is rejected.  No other zero eigenvalues exist for no-slip or phi_w > 0 JJ walls
+    (checked in tests/test_couette_linear.py).
+
+References
+----------
+physics.md sections 3-5; M. Alam, P. R. Nott, J. Fluid Mech. 377 (1998) 99 (Chebyshev
+collocation for this stability problem); P. C. Johnson, R. Jackson, J. Fluid Mech. 176
+(1987) 67 (wall conditions).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from math import comb
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from contin.stability import eigenpairs, eigenvalues
+from problems.couette.closures import coefficients, packing_limit
+from problems.discretization import Grid
+
+FIELDS = ("nu", "u", "v", "w", "T")
+NU, UX, VY, WZ, TT = range(5)
+WALLS = ("noslip", "jj")
+
+Array = NDArray[np.float64]
+
+
+# --------------------------------------------------------------------------------------------
+# Small symbolic helper: linear expressions  sum_terms a(y) D^m X_var  with product-rule D.
+
+class _Expr:
+    """A linear expression sum a(y) D^m X_var (m = 0, 1, 2) on the grid nodes."""
+
+    def __init__(self, n: int, terms: dict[tuple[int, int], NDArray] | None = None):
+        self.n = n
+        self.terms: dict[tuple[int, int], NDArray] = dict(terms or {})
+
+    @classmethod
+    def var(cls, n: int, var: int, m: int = 0, coef=1.0) -> _Expr:
+        return cls(n, {(var, m): np.broadcast_to(np.asarray(coef, dtype=complex), (n,)).copy()})
+
+    def __add__(self, other: _Expr) -> _Expr:
+        out = dict(self.terms)
+        for key, a in other.terms.items():
+            out[key] = out[key] + a if key in out else a
+        return _Expr(self.n, out)
+
+    def __sub__(self, other: _Expr) -> _Expr:
+        return self + other * -1.0
+
+    def __mul__(self, c) -> _Expr:
+        c = np.asarray(c)
+        return _Expr(self.n, {key: a * c for key, a in self.terms.items()})
+
+    __rmul__ = __mul__
+
+    def d(self, d1: sp.csr_matrix) -> _Expr:
+        """D(expr) by the product rule, D(a D^m f) = a' D^m f + a D^{m+1} f."""
+        out = _Expr(self.n)
+        for (var, m), a in self.terms.items():
+            out = out + _Expr(self.n, {(var, m): d1 @ a, (var, m + 1): a})
+        return out
+
+    def blocks(self, ops: Sequence[sp.spmatrix]) -> list[sp.spmatrix | None]:
+        """The 5 (n x n) blocks of this row; ``ops[m]`` is the matrix of D^m."""
+        out: list[sp.spmatrix | None] = [None] * 5
+        for (var, m), a in self.terms.items():
+            if m >= len(ops):
+                raise AssertionError("third derivatives do not occur in this model")
+            term = sp.diags(a) @ ops[m]
+            out[var] = term if out[var] is None else out[var] + term
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class BaseCoefficients:
+    """Transport coefficients of the base state and their linearisations (physics.md s. 4-5)."""
+
+    p0: Array
+    p_nu: Array
+    p_T: Array
+    mu0: Array
+    mu_nu: Array
+    mu_T: Array
+    lam0: Array
+    kap0: Array
+    kap_nu: Array
+    kap_T: Array
+    D_nu: Array
+    D_T: Array
+    kh0: Array
+    kh_nu: Array
+    kh_T: Array
+    chi: Array
+    chi_nu: Array
+
+
+def base_coefficients(nu0, T0, e: float, chi: str = "jj", nu_max: float = 0.65, dufour: bool = False) -> BaseCoefficients:
+    """p, mu, lambda, kappa, D, kappa_h and their derivatives in nu and T at (nu0, T0)."""
+    c = coefficients(nu0, e, chi, nu_max, dufour=dufour)
+    s = np.sqrt(T0)
+    t32 = T0 * s
+    if dufour:
+        h = 1e-30  # complex step: d f_h / d nu exact to rounding (closures has no analytic form)
+        fh_nu = coefficients(nu0 + 1j * h, e, chi, nu_max, dufour=True).fh.imag / h
+    else:
+        fh_nu = 0.0 * nu0
+    return BaseCoefficients(
+        p0=c.f1 * T0, p_nu=c.f1_nu * T0, p_T=c.f1,
+        mu0=c.f2 * s, mu_nu=c.f2_nu * s, mu_T=c.f2 / (2 * s),
+        lam0=c.f3 * s,
+        kap0=c.f4 * s, kap_nu=c.f4_nu * s, kap_T=c.f4 / (2 * s),
+        D_nu=c.f5_nu * t32, D_T=1.5 * c.f5 * s,
+        kh0=c.fh * t32, kh_nu=fh_nu * t32, kh_T=1.5 * c.fh * s,
+        chi=c.chi, chi_nu=c.chi_nu,
+    )
+
+
+def _param(params: Mapping[str, float], name: str, default: float | None = None) -> float:
+    if name in params:
+        return float(params[name])
+    if default is None:
+        raise ValueError(f"parameter {name!r} is required by the linear operator but missing from params")
+    return default
+
+
+def _check_base(grid: Grid, nu0, u0, T0, nu_max: float, chi: str) -> tuple[Array, Array, Array]:
+    arrays = []
+    for name, f in (("nu0", nu0), ("u0", u0), ("T0", T0)):
+        f = np.asarray(f, dtype=float)
+        if f.shape != (grid.size,):
+            raise ValueError(f"base profile {name} has shape {f.shape}, expected ({grid.size},) on this grid")
+        if not np.all(np.isfinite(f)):
+            raise ValueError(f"base profile {name} contains NaN or inf")
+        arrays.append(f)
+    nu0, u0, T0 = arrays
+    limit = packing_limit(chi, nu_max)
+    if np.any(nu0 <= 0) or np.any(nu0 >= limit):
+        raise ValueError(f"base density must lie in (0, {limit}), got range [{nu0.min():.6g}, {nu0.max():.6g}]")
+    if np.any(T0 <= 0):
+        raise ValueError(f"base temperature must be positive, got min {T0.min():.6g}")
+    return nu0, u0, T0
+
+
+def linear_operator(
+    grid: Grid,
+    nu0,
+    u0,
+    T0,
+    params: Mapping[str, float],
+    *,
+    walls: str = "noslip",
+    kx: float = 0.0,
+    kz: float = 0.0,
+    chi: str = "jj",
+    dufour: bool = False,
+    gravity: bool = True,
+    conserve_mass: bool | None = None,
+) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """The generalized eigenproblem A X = omega B X of physics.md section 5 (module docstring).
+
+    Parameters
+    ----------
+    grid : Grid
+        Discretisation of [-1/2, 1/2] (``problems.discretization.make_grid``).
+    nu0, u0, T0 : (N+1,) arrays
+        Base density, streamwise velocity and granular temperature at the grid nodes.
+    params : mapping
+        ``e``, ``H`` required; ``G`` (= Fr^-2, default 0), ``num`` (nu_max, default 0.65);
+        for JJ walls ``phi_w`` and ``ew``.  ``nu`` (the mean density) is not used.
+    walls : 'noslip' or 'jj'
+    kx, kz : float
+        Streamwise and spanwise wavenumbers (scaled with the gap H~).
+    chi : radial distribution model of :mod:`problems.couette.closures`.
+    dufour : include the kappa_h grad(nu) heat flux.
+    gravity : include the -H G nu_hat body force (G from params).
+    conserve_mass : restrict to int nu_hat = 0; default: exactly when kx = kz = 0.
+
+    Returns
+    -------
+    A, B : (5(N+1), 5(N+1)) CSR matrices, unknowns ordered (nu, u, v, w, T) node by node
+        within each field block; complex when kx or kz is nonzero.
+
+    Raises
+    ------
+    ValueError
+        Unknown wall type, missing parameters, profiles of the wrong size or outside the
+        physical range.
+    """
+    if walls not in WALLS:
+        raise ValueError(f"unknown wall type {walls!r}; choose one of {', '.join(WALLS)}")
+    e = _param(params, "e")
+    H = _param(params, "H")
+    nu_max = _param(params, "num", 0.65)
+    G = _param(params, "G", 0.0) if gravity else 0.0
+    if H <= 0:
+        raise ValueError(f"H must be positive, got {H}")
+    nu0, u0, T0 = _check_base(grid, nu0, u0, T0, nu_max, chi)
+    n = grid.size
+    d1 = sp.csr_matrix(grid.d1)
+    ident = sp.identity(n, format="csr")
+    ops = [ident, d1, sp.csr_matrix(grid.d2)]
+    c = base_coefficients(nu0, T0, e, chi, nu_max, dufour)
+    dU = d1 @ u0
+    dT0 = d1 @ T0
+    dnu0 = d1 @ nu0
+    ikx, ikz = 1j * kx, 1j * kz
+    k2 = kx * kx + kz * kz
+    ih2 = 1.0 / (H * H)
+
+    def V(var: int, m: int = 0, coef=1.0) -> _Expr:
+        return _Expr.var(n, var, m, coef)
+
+    delta = V(UX, 0, ikx) + V(VY, 1) + V(WZ, 0, ikz)
+    p_hat = V(NU, 0, c.p_nu) + V(TT, 0, c.p_T)
+    mu_hat = V(NU, 0, c.mu_nu) + V(TT, 0, c.mu_T)
+    kap_hat = V(NU, 0, c.kap_nu) + V(TT, 0, c.kap_T)
+    kh_hat = V(NU, 0, c.kh_nu) + V(TT, 0, c.kh_T)
+    iso = p_hat - delta * (c.lam0 - 2.0 * c.mu0 / 3.0)
+    Pxx = iso - V(UX, 0, 2.0 * c.mu0 * ikx)
+    Pyy = iso - V(VY, 1, 2.0 * c.mu0)
+    Pzz = iso - V(WZ, 0, 2.0 * c.mu0 * ikz)
+    Pxy = (V(UX, 1) + V(VY, 0, ikx)) * (-c.mu0) - mu_hat * dU
+    Pxz = (V(UX, 0, ikz) + V(WZ, 0, ikx)) * (-c.mu0)
+    Pyz = (V(WZ, 1) + V(VY, 0, ikz)) * (-c.mu0)
+    # kappa dT/dy + kappa_h dnu/dy, linearised (= -H^2 Q_hat)
+    flux = V(TT, 1, c.kap0) + kap_hat * dT0 + V(NU, 1, c.kh0) + kh_hat * dnu0
+
+    adv = ikx * u0  # i k_x U
+    mom_x = V(UX, 0, -adv * nu0) - V(VY, 0, nu0 * dU) - (Pxx * ikx + Pxy.d(d1) + Pxz * ikz) * ih2
+    mom_y = V(VY, 0, -adv * nu0) - (Pxy * ikx + Pyy.d(d1) + Pyz * ikz) * ih2 - V(NU, 0, H * G)
+    mom_z = V(WZ, 0, -adv * nu0) - (Pxz * ikx + Pyz.d(d1) + Pzz * ikz) * ih2
+    energy = (V(TT, 0, -1.5 * nu0 * adv) - V(VY, 0, 1.5 * nu0 * dT0)
+              + (flux.d(d1) - V(TT, 0, k2 * c.kap0) - V(NU, 0, k2 * c.kh0)) * ih2
+              - delta * c.p0 + (V(UX, 1) + V(VY, 0, ikx)) * (2.0 * c.mu0 * dU) + mu_hat * dU**2
+              - V(NU, 0, c.D_nu) - V(TT, 0, c.D_T))
+
+    # Continuity, with the mass flux D(nu0 v) in conservative form.
+    cont = [sp.diags(-adv), sp.diags(-ikx * nu0), -(d1 @ sp.diags(nu0)), sp.diags(-ikz * nu0), None]
+    rows = [cont] + [expr.blocks(ops) for expr in (mom_x, mom_y, mom_z, energy)]
+    dtype = complex if (kx != 0.0 or kz != 0.0) else float
+    zero = sp.csr_matrix((n, n))
+    A = sp.bmat([[blk if blk is not None else zero for blk in row] for row in rows], format="csr").astype(complex)
+
+    # Boundary rows.
+    bc_rows: dict[int, list[tuple[int, _Expr]]] = {}
+    for node, nsign in ((0, 1.0), (n - 1, -1.0)):
+        uw = -0.5 * nsign  # wall speed: -1/2 at the bottom, +1/2 at the top
+        if walls == "noslip":
+            conds = [(UX, V(UX)), (VY, V(VY)), (WZ, V(WZ)), (TT, flux)]
+        else:
+            phi_w = _param(params, "phi_w")
+            ew = _param(params, "ew")
+            if phi_w <= 0:
+                raise ValueError(f"JJ walls need specularity phi_w > 0 (got {phi_w}); frictionless walls cannot shear")
+            cs = phi_w * np.pi / (2.0 * np.sqrt(3.0) * nu_max)
+            cd = np.sqrt(3.0) * np.pi * (1.0 - ew * ew) / (4.0 * nu_max)
+            nchi = nu0 * c.chi
+            nchi_nu = c.chi + nu0 * c.chi_nu
+            sw = cs * nchi * np.sqrt(T0)
+            sw_hat = V(NU, 0, cs * nchi_nu * np.sqrt(T0)) + V(TT, 0, cs * nchi / (2 * np.sqrt(T0)))
+            dw_hat = V(NU, 0, cd * nchi_nu * T0**1.5) + V(TT, 0, cd * nchi * 1.5 * np.sqrt(T0))
+            slip = u0 - uw
+            shear_x = Pxy * -1.0 - (sw_hat * slip + V(UX, 0, sw)) * (nsign * H)
+            shear_z = Pyz * -1.0 - V(WZ, 0, nsign * H * sw)
+            heat = flux * -ih2 - (sw_hat * (H * slip**2) + V(UX, 0, 2 * H * sw * slip) - dw_hat * (1.0 / H)) * nsign
+            conds = [(UX, shear_x), (VY, V(VY)), (WZ, shear_z), (TT, heat)]
+        for var, expr in conds:
+            bc_rows.setdefault(var, []).append((node, expr))
+    # Replace the boundary rows: A <- (I - S S^T) A + S R_bc, S selecting the rows.
+    rows_idx, rows_mat = [], []
+    for var, items in bc_rows.items():
+        for node, expr in items:
+            rows_idx.append(var * n + node)
+            rows_mat.append(sp.hstack([sp.csr_matrix(blk)[node, :] if blk is not None else sp.csr_matrix((1, n))
+                                       for blk in expr.blocks(ops)]))
+    keep = np.ones(5 * n)
+    keep[rows_idx] = 0.0
+    select = sp.csr_matrix((np.ones(len(rows_idx)), (rows_idx, np.arange(len(rows_idx)))),
+                           shape=(5 * n, len(rows_idx)))
+    A = sp.diags(keep) @ A + select @ sp.vstack(rows_mat)
+
+    bdiag = np.concatenate([np.ones(n), nu0, nu0, nu0, 1.5 * nu0])
+    bdiag[rows_idx] = 0.0
+
+    if conserve_mass is None:
+        conserve_mass = kx == 0.0 and kz == 0.0
+    C, Gdir = _density_constraints(grid, conserve_mass)
+    # Continuity rows: project the tendency onto the constrained subspace along Gdir, then
+    # replace m rows (chosen by pivoted QR so that C[J] is well conditioned) by C^T nu = 0.
+    R = A[:n, :].toarray()
+    R -= Gdir @ np.linalg.solve(C.T @ Gdir, C.T @ R)
+    m = C.shape[1]
+    J = la.qr(C.T, pivoting=True, mode="r")[1][:m]
+    R[J, :] = 0.0
+    R[J, :n] = C.T
+    bdiag[J] = 0.0
+    A = sp.vstack([sp.csr_matrix(R), A[n:, :]], format="csr")
+    if dtype is float:
+        if A.nnz and np.max(np.abs(A.data.imag)) > 0:
+            raise AssertionError("imaginary entries at kx = kz = 0")
+        A = sp.csr_matrix(A.real)
+    B = sp.diags(bdiag, format="csr")
+    return A, B
+
+
+@lru_cache(maxsize=64)
+def _spurious_direction(grid: Grid) -> tuple[NDArray, NDArray]:
+    """(q, c): the spurious pressure direction q and a functional c detecting it.
+
+    q spans, with the constants, the null space of the interior rows of D1 (the y-momentum
+    equation is not collocated at the walls, so D1 p = 0 there only).  Chebyshev: q = T_N at
+    the nodes and c its discrete Chebyshev coefficient (c . f = 0 for every polynomial of
+    degree < N).  Finite differences: q from an SVD (the checkerboard for fd2) and c the
+    m-th central difference at the middle node(s), m = order + 2, which is O(h^m) on smooth
+    vectors.  Both are reflection-equivariant with the parity of q.
+    """
+    n = grid.size
+    N = grid.intervals
+    if grid.method == "cheb":
+        q = (-1.0) ** np.arange(n)
+        c = q / N
+        c[[0, -1]] *= 0.5
+        return q, c
+    d1i = sp.csr_matrix(grid.d1)[1:-1, :].toarray()
+    null = la.null_space(d1i)
+    if null.shape[1] != 2:
+        raise AssertionError(f"interior D1 of {grid.method} has a {null.shape[1]}-dimensional null space, expected 2")
+    q = null @ la.null_space((np.ones(n) @ null)[None, :])[:, 0]  # the member orthogonal to constants
+    q /= np.max(np.abs(q))
+    mdiff = int(grid.order) + 2
+    stencil = np.array([(-1.0) ** k * comb(mdiff, k) for k in range(mdiff + 1)])
+    c = np.zeros(n)
+    parity = 1.0 if np.allclose(q[::-1], q) else -1.0
+    for centre, sgn in ((N // 2, 1.0), (N - N // 2, parity)):
+        c[centre - mdiff // 2: centre + mdiff // 2 + 1] += sgn * stencil
+    return q, c
+
+
+def _density_constraints(grid: Grid, conserve_mass: bool) -> tuple[NDArray, NDArray]:
+    """Constraint functionals C (n x m) on nu_hat and the directions G removed with them."""
+    q, c = _spurious_direction(grid)
+    cols_c, cols_g = [c], [q]
+    if conserve_mass:
+        cols_c.append(np.asarray(grid.weights, dtype=float))
+        cols_g.append(np.ones(grid.size))
+    return np.column_stack(cols_c), np.column_stack(cols_g)
+
+
+# --------------------------------------------------------------------------------------------
+# Uniform shear, k_x = k_z = 0: the exact 4 x 4 amplitude system (physics.md section 4).
+
+def uniform_shear_matrix(nu: float, e: float, H: float, n: int, *, chi: str = "jj", nu_max: float = 0.65,
+                         advection: bool = True) -> tuple[NDArray, NDArray]:
+    """(A4, B4) for mode n of uniform shear with no-slip, adiabatic walls, k_x = k_z = 0.
+
+    With k = n pi, [nu, T] = [N, Theta] cos k(y + 1/2), [u, v] = [U, V] sin k(y + 1/2):
+
+        omega N           = -nu k V
+        nu omega U        = -nu V - (1/H^2) [mu0 k^2 U + k (mu_nu N + mu_T Theta)]
+        nu omega V        =  (1/H^2) [k (p_nu N + p_T Theta) - (lam0 + 4 mu0 / 3) k^2 V]
+        (3/2) nu omega Th = -(k^2/H^2) kap0 Th - p0 k V + 2 mu0 k U + (mu_nu - D_nu) N
+                            + (mu_T - D_T) Th
+
+    The term -nu V (advection of the base shear U' = 1 by v_hat, nu0 U' v_hat in the
+    x-momentum equation of section 5) is missing from physics.md section 4 as printed;
+    ``advection=False`` reproduces that printed system (and its quoted growth rates), which
+    has the same neutral curve H_n^c (V = 0 when omega = 0) but different growth rates.
+    """
+    co = coefficients(nu, e, chi, nu_max)
+    T0 = co.f2 / co.f5
+    b = base_coefficients(np.array([nu]), np.array([T0]), e, chi, nu_max)
+    g = {name: float(getattr(b, name)[0]) for name in ("p0", "p_nu", "p_T", "mu0", "mu_nu", "mu_T", "lam0",
+                                                     "kap0", "D_nu", "D_T")}
+    k = n * np.pi
+    ih2 = 1.0 / (H * H)
+    A4 = np.array([
+        [0.0, 0.0, -nu * k, 0.0],
+        [-k * g["mu_nu"] * ih2, -g["mu0"] * k * k * ih2, -nu if advection else 0.0, -k * g["mu_T"] * ih2],
+        [k * g["p_nu"] * ih2, 0.0, -(g["lam0"] + 4.0 * g["mu0"] / 3.0) * k * k * ih2, k * g["p_T"] * ih2],
+        [g["mu_nu"] - g["D_nu"], 2.0 * g["mu0"] * k, -g["p0"] * k,
+         -k * k * g["kap0"] * ih2 + g["mu_T"] - g["D_T"]],
+    ])
+    B4 = np.diag([1.0, nu, nu, 1.5 * nu])
+    return A4, B4
+
+
+def uniform_shear_modes(nu: float, e: float, H: float, n: int, *, chi: str = "jj", nu_max: float = 0.65,
+                        advection: bool = True) -> NDArray[np.complex128]:
+    """Eigenvalues of :func:`uniform_shear_matrix`, real part descending."""
+    A4, B4 = uniform_shear_matrix(nu, e, H, n, chi=chi, nu_max=nu_max, advection=advection)
+    w = la.eigvals(A4, B4)
+    return w[np.lexsort((-w.imag, -w.real))]
+
+
+# --------------------------------------------------------------------------------------------
+# Dispersion curves and eigenfunctions.
+
+@dataclass(frozen=True)
+class Mode:
+    """An eigenvalue and its eigenfunction profiles on the grid nodes.
+
+    The eigenvector is scaled so that its largest component (over all fields and nodes) is
+    1 (real, positive).
+    """
+
+    omega: complex
+    kx: float
+    kz: float
+    y: Array
+    nu: NDArray[np.complex128]
+    u: NDArray[np.complex128]
+    v: NDArray[np.complex128]
+    w: NDArray[np.complex128]
+    T: NDArray[np.complex128]
+
+    @property
+    def phase_speed(self) -> float:
+        """c = omega_i / sqrt(kx^2 + kz^2) (physics.md section 5), nan at k = 0."""
+        k = np.hypot(self.kx, self.kz)
+        return float(self.omega.imag / k) if k > 0 else float("nan")
+
+    def profiles(self) -> dict[str, NDArray[np.complex128]]:
+        return {name: getattr(self, name) for name in FIELDS}
+
+
+def least_stable_mode(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, kx: float = 0.0, kz: float = 0.0,
+                      walls: str = "noslip", chi: str = "jj", dufour: bool = False, gravity: bool = True) -> Mode:
+    """The eigenvalue of largest real part and its eigenfunction (dense QZ)."""
+    A, B = linear_operator(grid, nu0, u0, T0, params, walls=walls, kx=kx, kz=kz, chi=chi, dufour=dufour,
+                           gravity=gravity)
+    w, v = eigenpairs(A, B, k=1, dense_max=A.shape[0])
+    x = v[:, 0]
+    x = x / x[np.argmax(np.abs(x))]
+    f = x.reshape(5, grid.size)
+    return Mode(complex(w[0]), float(kx), float(kz), grid.y.copy(), *f)
+
+
+def growth_rate_curve(grid: Grid, nu0, u0, T0, params: Mapping[str, float], kx_values, *, kz: float = 0.0,
+                      walls: str = "noslip", chi: str = "jj", dufour: bool = False,
+                      gravity: bool = True) -> tuple[Array, Array, Array]:
+    """max Re omega and the phase speed of the least-stable mode against k_x.
+
+    Returns
+    -------
+    kx : (K,) the wavenumbers
+    growth : (K,) max Re omega (dense QZ, all finite eigenvalues)
+    phase_speed : (K,) omega_i / sqrt(kx^2 + kz^2) of that mode (nan where k = 0)
+    """
+    kx_values = np.atleast_1d(np.asarray(kx_values, dtype=float))
+    growth = np.empty(kx_values.size)
+    speed = np.empty(kx_values.size)
+    for i, kx in enumerate(kx_values):
+        A, B = linear_operator(grid, nu0, u0, T0, params, walls=walls, kx=kx, kz=kz, chi=chi, dufour=dufour,
+                               gravity=gravity)
+        w = eigenvalues(A, B, k=1, dense_max=A.shape[0])
+        growth[i] = w[0].real
+        k = np.hypot(kx, kz)
+        speed[i] = w[0].imag / k if k > 0 else np.nan
+    return kx_values, growth, speed
