@@ -55,6 +55,19 @@ The mass-conservation neutral mode (k_x = k_z = 0)
     physically inadmissible mode in the eigenvector space.  With k_x or k_z nonzero the mean
     over x or z of exp(i k.x) vanishes, there is no constraint, and none is applied.
 
+    The spurious pressure mode.  The y-momentum equation is replaced by v = 0 at the walls,
+    so D p_hat = 0 is enforced only at interior nodes, whose null space is spanned by the
+    constants and one grid mode q (T_N on Chebyshev grids, the checkerboard for fd2): with
+    v_hat = 0 this gives an exact, purely numerical omega = 0 eigenvalue at k_x = k_z = 0.
+    It is removed the same way: the continuity tendency is projected along q onto the null
+    space of a functional c that vanishes on smooth profiles (the T_N coefficient for
+    Chebyshev, i.e. continuity is truncated to degree N - 1; an O(h^(order+2)) central
+    difference for FD), and c . nu_hat = 0 replaces a second continuity row.  For smooth
+    eigenfunctions this changes eigenvalues at truncation level only (the uniform-shear
+    modes are reproduced to rounding).  Finite-difference grids nevertheless carry a branch
+    of weakly damped near-Nyquist density modes (see :func:`to_chebyshev`); use Chebyshev
+    grids for spectra, especially at k_x != 0.
+
     Other neutral modes: with JJ walls and phi_w = 0 (frictionless walls) uniform u_hat or
     w_hat is neutral (momentum conservation); the base state is then unsheared and the case
     is rejected.  No other zero eigenvalues exist for no-slip or phi_w > 0 JJ walls
@@ -412,6 +425,27 @@ def _density_constraints(grid: Grid, conserve_mass: bool) -> tuple[NDArray, NDAr
         cols_c.append(np.asarray(grid.weights, dtype=float))
         cols_g.append(np.ones(grid.size))
     return np.column_stack(cols_c), np.column_stack(cols_g)
+
+
+def to_chebyshev(grid: Grid, nu0, u0, T0, intervals: int | None = None) -> tuple[Grid, Array, Array, Array]:
+    """Resample base profiles onto a Chebyshev grid (``grid.interpolate``) for the eigenproblem.
+
+    Collocated finite-difference grids give the density/pressure coupling a spurious
+    branch: centred first-derivative stencils nearly annihilate near-Nyquist density
+    perturbations, whose decay rates then tend to 0 like (pi/2N)^2 instead of staying at the
+    O(1) compressive damping; at k_x != 0 these weakly damped spurious modes (omega ~
+    -i k_x U(y_j)) dominate max Re omega and do not converge with N.  Chebyshev collocation
+    has no such branch (its exact spurious pressure mode T_N is removed, module docstring),
+    so stability of FD base states should be computed after this resampling.
+    ``intervals`` defaults to the grid's own N for Chebyshev grids (returned unchanged) and to
+    min(N, 80) for finite differences.
+    """
+    from problems.discretization import make_grid
+
+    if grid.method == "cheb" and (intervals is None or intervals == grid.intervals):
+        return grid, np.asarray(nu0, float), np.asarray(u0, float), np.asarray(T0, float)
+    target = make_grid("cheb", int(intervals if intervals is not None else min(grid.intervals, 80)))
+    return (target, *(grid.interpolate(np.asarray(f, dtype=float), target.y) for f in (nu0, u0, T0)))
 
 
 # --------------------------------------------------------------------------------------------
