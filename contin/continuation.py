@@ -149,7 +149,9 @@ class _Tracer:
                 params=sys.params_at(best.x[-1]),
                 order_parameter=sys.order_parameter(best.x),
                 state=best.x[:-1].copy(),
-                tangent=best.t.copy(),
+                # At a BP the kernel of [J F_p] is two-dimensional, so the tangent solved at the
+                # located point is an arbitrary mix; the regular neighbours' mean is the branch's.
+                tangent=sys.unit(a.t + b.t) if kind == "BP" else best.t.copy(),
                 bracket=(float(a.x[-1]), float(b.x[-1])),
                 converged=converged,
                 note=full_note,

@@ -35,6 +35,13 @@ class Located(Generic[P]):
     converged: bool
 
 
+#: A bracket narrower than SINGULAR_FLOOR * sqrt(tol) that cannot be split further because
+#: the corrector fails next to the singular point counts as located (near a simple BP the
+#: bordered matrix has condition number ~ 1/distance, so Newton stalls at distances of
+#: order sqrt(eps)).
+SINGULAR_FLOOR = 1e-3
+
+
 def locate_zero(
     evaluate: Callable[[float], Sample[Any] | None],
     a: Sample[P],
@@ -68,6 +75,9 @@ def locate_zero(
             if trial is not None:
                 break
         if trial is None:
+            # The corrector cannot converge this close to a singular point: the bracket is
+            # as narrow as the problem's conditioning allows.
+            converged = abs(hi.s - lo.s) <= SINGULAR_FLOOR * max(tol, 1e-300) ** 0.5
             break
         if trial.g == 0:
             lo = hi = trial
