@@ -65,6 +65,8 @@ from typing import Any
 import h5py
 import numpy as np
 
+from contin.atomic import publish
+
 from contin.branch import Branch, SpecialPoint
 from contin.jsonout import dumps as _json_dumps
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
@@ -292,33 +294,15 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
             spg.create_dataset(name.replace("/", "%2F"), data=np.asarray(arr, dtype=float))
 
 
-def _fsync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
 def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
     """Write a whole file through ``fill`` into PATH.tmp, fsync, and rename it onto PATH."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
+
+    def write(tmp: Path) -> None:
         with h5py.File(tmp, "w") as f:
             fill(f)
             f.flush()
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    _fsync_dir(path.parent)
+
+    publish(path, write)
 
 
 def check_writable(path: str | os.PathLike[str]) -> Path:

@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from contin.atomic import publish
 from contin.branch import Branch, SpecialPoint
 
 __all__ = [
@@ -238,11 +239,5 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], **kw: Any) -> Path:
     """
     p = Path(path)
     fmt = kw.pop("format", None) or p.suffix.lstrip(".").lower() or "png"
-    tmp = p.with_name(f".{p.name}.tmp")
-    try:
-        fig.savefig(tmp, format=fmt, **{"dpi": 150, "bbox_inches": "tight", **kw})
-        os.replace(tmp, p)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return p
+    options = {"dpi": 150, "bbox_inches": "tight", **kw}
+    return publish(p, lambda tmp: fig.savefig(tmp, format=fmt, **options), temporary=p.with_name(f".{p.name}.tmp"))

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from contin.atomic import publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
 from contin.scene import Scene, SceneError, SceneRequest, get_scene
@@ -431,16 +432,13 @@ def _write_task_file(path: str, doc: Mapping[str, Any], scene_name: str, options
     else:
         meta.update(parameters=doc["parameters"], notes=[doc["reason"]])
         branches = []
-    try:
-        io.write(part, branches, **meta)
-        with h5py.File(part, "r+") as f:
+
+    def write(tmp: Path) -> None:
+        io.write(tmp, branches, **meta)
+        with h5py.File(tmp, "r+") as f:
             f.attrs["sweep_task"] = json_dumps(doc)
-        with open(part, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(part, final)
-    except BaseException:
-        part.unlink(missing_ok=True)
-        raise
+
+    publish(final, write, temporary=part)
 
 
 def read_task_file(path: str | os.PathLike[str]) -> dict[str, Any] | None:
@@ -695,15 +693,7 @@ def run_sweep(
 # --------------------------------------------------------------------------- summary files
 
 def _publish(path: Path, write: Callable[[Path], None]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        write(tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    publish(path, write)
 
 
 def _scalar_column(values: Sequence[Any]) -> Any:
