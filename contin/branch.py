@@ -93,6 +93,8 @@ class Branch:
         True if the branch is a closed loop (isola or periodic return to its start).
     stable, n_unstable, eigenvalues : optional stability columns
         Filled by the stability pass (``contin.stability``); eigenvalues has shape (S, k).
+    stability_k : (kx, kz) or None
+        Wavenumbers of the perturbations the stability columns refer to (set by the pass).
     kind : str
         Free label ('primary', 'isola', 'bifurcated', 'fold-curve', ...).
     parent : str
@@ -125,6 +127,7 @@ class Branch:
     id: str = "0"
     audit: list[str] = field(default_factory=list)
     state_index: NDArray[np.int64] | None = None
+    stability_k: tuple[float, float] | None = None
 
     def __len__(self) -> int:
         return int(self.ds.shape[0])
@@ -213,6 +216,7 @@ class Branch:
             id=self.id,
             audit=list(self.audit),
             state_index=state_index,
+            stability_k=self.stability_k,
         )
 
 

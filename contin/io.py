@@ -18,8 +18,11 @@ Layout (format "contin", format_version 1)
         states                (S, n)    or (M, n) with state_index (M,) when only every
                                         k-th state was kept (save_every)
         tangents              (S, n + len(free))
-        stable, n_unstable    (S,)      only when stability was computed
-        eigenvalues           (S, k)    complex, only when computed
+        stable, n_unstable    (S,)      only when stability was computed (n_unstable = -1:
+                                        the eigenproblem failed at that point)
+        eigenvalues           (S, k)    complex, leading eigenvalues, only when computed
+                                        (group attrs stability_kx, stability_kz: the
+                                        wavenumbers of these columns)
         audit                 (A,)      text messages
         profile_index         (P,)      point indices along the branch of the stored profiles
         profiles/<name>       (P, N)    e.g. nu, u, T against /grid/y
@@ -230,6 +233,8 @@ def _write_branch(group: h5py.Group, branch: Branch, position: int,
         value = getattr(branch, name, None)
         if value is not None:
             g.create_dataset(name, data=np.asarray(value))
+    if branch.stability_k is not None:
+        a["stability_kx"], a["stability_kz"] = (float(k) for k in branch.stability_k)
     g.create_dataset("audit", data=np.asarray(list(branch.audit), dtype=object), dtype=_STR)
     if profiles is not None and profile_index is not None:
         g.create_dataset("profile_index", data=profile_index)
@@ -543,6 +548,7 @@ def _read_branch(g: h5py.Group) -> Branch:
         parent=str(a["parent"]),
         id=str(a["id"]),
         audit=_text(g["audit"]) if g["audit"].size else [],
+        stability_k=(float(a["stability_kx"]), float(a["stability_kz"])) if "stability_kx" in a else None,
         **({"state_index": g["state_index"][()] if "state_index" in g else None} if _HAS_STATE_INDEX else {}),
     )
 

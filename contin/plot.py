@@ -27,6 +27,8 @@ __all__ = [
     "branch_values",
     "plot_branch",
     "plot_diagram",
+    "plot_eigenfunction",
+    "plot_growth_rate",
     "plot_profiles",
     "save_figure",
     "stability_runs",
@@ -228,6 +230,67 @@ def plot_profiles(
         ax.set_ylabel(name)
     if labels is not None:
         axes[0].legend(fontsize=7, frameon=False)
+    fig.tight_layout()
+    return fig
+
+
+def plot_growth_rate(
+    kx: np.ndarray,
+    growth: np.ndarray,
+    phase_speed: np.ndarray,
+    *,
+    title: str | None = None,
+) -> Figure:
+    """Dispersion curve of a steady state: two panels against k_x, the growth rate
+    max Re omega (zero line dotted; unstable where above it) and the phase speed
+    c = Im omega / |k| of the least-stable mode (nan points, e.g. k = 0, are left out)."""
+    kx = np.asarray(kx, dtype=float)
+    growth = np.asarray(growth, dtype=float)
+    phase_speed = np.asarray(phase_speed, dtype=float)
+    if not (kx.shape == growth.shape == phase_speed.shape) or kx.ndim != 1 or kx.size == 0:
+        raise ValueError(f"kx, growth and phase_speed must be equal-length 1-d arrays, got shapes "
+                         f"{kx.shape}, {growth.shape}, {phase_speed.shape}")
+    fig = Figure(figsize=(5.0, 4.6))
+    ax_g, ax_c = fig.subplots(2, 1, sharex=True)
+    marker = "o" if kx.size < 3 else None
+    ax_g.plot(kx, growth, marker=marker, color="tab:blue", gid="growth-rate")
+    ax_g.axhline(0.0, color="grey", linewidth=0.6, linestyle=":")
+    ax_g.set_ylabel(r"max Re $\omega$")
+    ok = np.isfinite(phase_speed)
+    ax_c.plot(kx[ok], phase_speed[ok], marker=marker, color="tab:orange", gid="phase-speed")
+    ax_c.set_ylabel(r"$c = \mathrm{Im}\,\omega / |k|$")
+    ax_c.set_xlabel(r"$k_x$")
+    if title:
+        ax_g.set_title(title, fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_eigenfunction(
+    y: np.ndarray,
+    profiles: Mapping[str, np.ndarray],
+    *,
+    title: str | None = None,
+) -> Figure:
+    """Complex eigenfunction profiles, one panel per field: real part solid, imaginary part
+    dashed (the caller normalises, e.g. largest component 1)."""
+    y = np.asarray(y, dtype=float)
+    names = list(profiles)
+    if not names:
+        raise ValueError("no eigenfunction profiles to plot")
+    fig = Figure(figsize=(2.0 * len(names) + 1, 3.0))
+    axes = fig.subplots(1, len(names), squeeze=False)[0]
+    for ax, name in zip(axes, names):
+        f = np.asarray(profiles[name], dtype=complex)
+        if f.shape != y.shape:
+            raise ValueError(f"eigenfunction {name!r} has shape {f.shape} but y has {y.shape}")
+        ax.plot(y, f.real, STABLE_STYLE, color="tab:blue", label="Re", gid=f"{name}-re")
+        ax.plot(y, f.imag, UNSTABLE_STYLE, color="tab:red", label="Im", gid=f"{name}-im")
+        ax.set_xlabel("y")
+        ax.set_title(f"{name} (perturbation)", fontsize=9)
+    axes[0].legend(fontsize=7, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=8)
     fig.tight_layout()
     return fig
 

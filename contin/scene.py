@@ -4,6 +4,20 @@ contin knows no physics; problem packages register scenes through the entry-poin
 ``contin.scenes`` (see ``pyproject.toml``).  Each entry point names a ``dict[str, Scene]``.
 A scene turns a :class:`SceneRequest` (user parameters, discretization, options) into a
 :class:`SceneResult` (branches plus notes and provenance).
+
+Stability.  ``request.stability`` (default True; ``contin trace --no-stability`` clears it)
+asks for the linear-stability pass at k_x = k_z = 0 on every branch, ``request.kx`` for extra
+wavenumbers.  A scene either calls :meth:`SceneRequest.run_stability` (problem, branch) on each
+branch before ``request.finished(branch)``, or leaves it to the CLI, which does it after the
+run when the scene has a ``problem_factory``.
+
+Rebuilding the problem from a file.  ``Scene.problem_factory(parameters, discretization) ->
+problem`` (optional) rebuilds the problem instance from the ``parameters`` and
+``discretization`` dicts of the scene's :class:`SceneResult` (stored as the root attributes of
+the HDF5 file).  It must return the problem whose states the scene's branches hold (same
+size and layout); ``contin stability FILE.h5`` and the CLI's post-run stability pass use it
+together with the parameters stored along each branch.  Without it those features report that
+the file's problem cannot be rebuilt.
 """
 
 from __future__ import annotations
@@ -82,6 +96,32 @@ class SceneRequest:
         """Every options object handed out by :meth:`options_for` (empty if never called)."""
         return list(self._resolved)
 
+    def run_stability(self, problem: Any, branch: Branch, params_fixed: Mapping[str, Any] | None = None, *,
+                      n_eigs: int = 6) -> list[str]:
+        """The stability the user asked for, on one branch; returns the audit messages.
+
+        Nothing when :attr:`stability` is False.  Otherwise: the pass at k_x = k_z = 0
+        (:func:`contin.stability.stability_pass`, skipped if the branch already has stability
+        columns), :func:`contin.stability.audit`, and for every nonzero k_x in :attr:`kx` the
+        columns of :func:`contin.stability.growth_columns` as observables
+        (``growth_rate_kx<k>``, ``n_unstable_kx<k>``).  ``params_fixed``: the problem's
+        parameters (non-numeric entries are ignored); the branch's own columns override them.
+        """
+        if not self.stability:
+            return []
+        from contin.stability import audit, growth_columns, stability_pass
+
+        fixed = {k: v for k, v in dict(params_fixed or {}).items()
+                 if isinstance(v, int | float | np.floating | np.integer) and not isinstance(v, bool)}
+        if branch.n_unstable is None:
+            stability_pass(problem, branch, fixed, n_eigs=n_eigs)
+        messages = audit(branch)
+        for kx in self.kx:
+            if float(kx) != 0.0:
+                for name, column in growth_columns(problem, branch, fixed, kx=float(kx)).items():
+                    branch.observables.setdefault(name, column)
+        return messages
+
     def report(self, message: str) -> None:
         if self.progress is not None:
             self.progress(message)
@@ -114,7 +154,13 @@ class SceneResult:
 
 @dataclass(frozen=True)
 class Scene:
-    """A named job: ``run(request) -> SceneResult``; ``defaults`` documents its parameters."""
+    """A named job: ``run(request) -> SceneResult``; ``defaults`` documents its parameters.
+
+    ``problem_factory(parameters, discretization) -> problem`` (optional) rebuilds the
+    problem of the scene's branches from ``SceneResult.parameters`` and
+    ``SceneResult.discretization`` (module docstring); it enables ``contin stability`` on the
+    scene's files and the CLI's post-run stability pass.
+    """
 
     name: str
     summary: str
@@ -122,6 +168,7 @@ class Scene:
     run: Callable[[SceneRequest], SceneResult]
     x: str = ""  # default x-axis of its diagram (a parameter name)
     y: str = "phi"  # default y-axis (an observable name)
+    problem_factory: Callable[[Mapping[str, Any], Mapping[str, Any]], Any] | None = None
 
 
 _log = logging.getLogger("contin.scene")

@@ -301,7 +301,11 @@ def stability_pass(
     for i in range(s):
         p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
         try:
-            res = stability_of_state(problem, branch.states[i], p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
+            u = branch.state(i)
+        except KeyError:  # save_every > 1 dropped this state: stability stays unknown
+            continue
+        try:
+            res = stability_of_state(problem, u, p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
                                      dense_max=dense_max)
         except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
@@ -312,6 +316,43 @@ def stability_pass(
     branch.stable = stable
     branch.n_unstable = n_unstable
     branch.eigenvalues = eigs
+    branch.stability_k = (float(kx), float(kz))
+
+
+def growth_columns(
+    problem: Any,
+    branch: Branch,
+    params_fixed: Mapping[str, float] | None = None,
+    *,
+    kx: float,
+    kz: float = 0.0,
+    tol: float = DEFAULT_TOL,
+    dense_max: int = 600,
+) -> dict[str, NDArray[np.float64]]:
+    """Stability along a branch at extra wavenumbers, as observable columns.
+
+    Returns ``{"growth_rate_kx<kx>": max Re omega, "n_unstable_kx<kx>": unstable count}``
+    (``<kx>`` formatted with ``:g``; ``_kz<kz>`` appended when kz != 0), shape (S,); nan
+    where the state was not saved or the eigenproblem failed.
+    """
+    s = len(branch)
+    growth = np.full(s, np.nan)
+    count = np.full(s, np.nan)
+    base = dict(params_fixed or {})
+    for i in range(s):
+        p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
+        try:
+            res = stability_of_state(problem, branch.state(i), p, kx=kx, kz=kz, n_eigs=1, tol=tol,
+                                     dense_max=dense_max)
+        except KeyError:
+            continue
+        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
+            log.warning("stability at kx=%g failed at point %d of branch %s: %s", kx, i, branch.id, exc)
+            continue
+        growth[i] = res.leading.real
+        count[i] = res.n_unstable
+    suffix = f"_kx{kx:g}" + (f"_kz{kz:g}" if kz != 0.0 else "")
+    return {"growth_rate" + suffix: growth, "n_unstable" + suffix: count}
 
 
 def audit(branch: Branch) -> list[str]:
@@ -322,8 +363,10 @@ def audit(branch: Branch) -> list[str]:
     accepted too).  An interval holding an odd number of BP/LP must show a change of
     ``n_unstable``; an interval whose ``n_unstable`` changes must hold at least one BP/LP
     (two points in one interval may cancel, so an even number with no change is accepted).
-    Messages are human readable, one per disagreement; the list is also stored in
-    ``branch.audit``.  An empty list means consistent.
+    Messages are human readable, one per disagreement; they replace the messages of any
+    earlier audit in ``branch.audit`` (the rejected-step diagnostics of
+    :mod:`contin.continuation`, which start with ``"step "``, are kept in front).  An empty
+    list means consistent.
 
     Raises
     ------
@@ -376,5 +419,5 @@ def audit(branch: Branch) -> list[str]:
                         f"({par} = {pv[c]:.6g} .. {pv[c + 1]:.6g}) with no BP/LP in between{kind}")
     for c in np.flatnonzero(nu < 0):
         messages.append(f"stability unknown at point {c} ({par} = {pv[c]:.6g}): the eigenproblem failed")
-    branch.audit = messages
+    branch.audit = [m for m in branch.audit if m.startswith("step ")] + messages
     return messages

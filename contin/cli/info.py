@@ -22,7 +22,7 @@ def info_command(file: str, as_json: bool) -> None:
         echo_json(run_document(scene=meta["scene"], parameters=meta["parameters"],
                                discretization=meta["discretization"], branches=branches,
                                notes=meta["notes"], extra=meta["extra"], provenance=prov,
-                               options=meta["options"]))
+                               options=meta["options"], audit={b.id: list(b.audit) for b in branches}))
         return
     click.echo(f"file:           {file}")
     click.echo(f"scene:          {meta['scene']}")
@@ -38,3 +38,13 @@ def info_command(file: str, as_json: bool) -> None:
     click.echo(branches_table(branches))
     click.echo("")
     click.echo(special_points_table(branches))
+    for b in branches:
+        if b.n_unstable is not None:
+            kx, kz = b.stability_k or (0.0, 0.0)
+            nu = [int(v) for v in b.n_unstable]
+            click.echo(f"\nstability of branch {b.id} (kx={fmt(kx)}, kz={fmt(kz)}): n_unstable "
+                       f"{min(nu)}..{max(nu)}, {sum(v < 0 for v in nu)} point(s) unknown")
+        if b.audit:
+            click.echo(f"audit of branch {b.id}:")
+            for message in b.audit:
+                click.echo(f"  {message}")

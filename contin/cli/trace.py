@@ -57,6 +57,53 @@ def _parse_kx(text: str | None) -> tuple[float, ...]:
         raise click.BadParameter(f"expected comma-separated numbers, got {text!r}", param_hint="'--kx'") from None
 
 
+def _stability_after_run(sc: Any, request: Any, result: Any, progress: _Progress, quiet: bool) -> None:
+    """The stability pass the scene left undone, through ``sc.problem_factory``.
+
+    Branches without stability columns (or without the columns of a requested extra k_x) get
+    :meth:`SceneRequest.run_stability`; fold curves and other multi-parameter branches are
+    skipped (their states are not states of the problem).  Failures become warnings: the
+    traced branches are never lost to a stability problem.
+    """
+    def missing(b: Any) -> bool:
+        extra = [kx for kx in request.kx if kx != 0.0 and f"growth_rate_kx{kx:g}" not in b.observables]
+        return len(b.free) == 1 and len(b) > 0 and (b.n_unstable is None or bool(extra))
+
+    todo = [b for b in result.branches if missing(b)]
+    if not todo:
+        return
+    if sc.problem_factory is None:
+        if not quiet and any(b.n_unstable is None for b in todo):
+            echo_err(f"note: scene {sc.name!r} computed no stability and has no problem_factory; "
+                     "branches are stored without stability")
+        return
+    try:
+        problem = sc.problem_factory(result.parameters, result.discretization)
+    except Exception as exc:  # noqa: BLE001 -- report, keep the branches
+        echo_err(f"warning: stability skipped: cannot rebuild the problem ({error_line(exc)})")
+        return
+    for b in todo:
+        progress.status(f"stability of branch {b.id} ({len(b)} points)")
+        try:
+            request.run_stability(problem, b, result.parameters)
+        except Exception as exc:  # noqa: BLE001
+            echo_err(f"warning: stability of branch {b.id} failed: {error_line(exc)}")
+    progress.done()
+
+
+def stability_summary(branch: Any) -> dict[str, Any] | None:
+    """{kx, kz, n_unstable: [...], audit: [...]} of a branch, None without stability."""
+    if branch.n_unstable is None:
+        return None
+    kx, kz = branch.stability_k or (0.0, 0.0)
+    return {"kx": kx, "kz": kz, "n_unstable": branch.n_unstable, "audit": stability_messages(branch)}
+
+
+def stability_messages(branch: Any) -> list[str]:
+    """The audit messages of the stability pass (not the rejected-step diagnostics)."""
+    return [m for m in branch.audit if not m.startswith("step ")]
+
+
 @main.command("trace")
 @click.argument("scene")
 @click.option("-s", "--set", "settings", multiple=True, metavar="NAME=VALUE",
@@ -135,6 +182,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             echo_err(f"note: finished branches are saved in {writer.path} (continue with --resume {writer.path})")
         raise
     progress.done()
+    if request.stability:
+        _stability_after_run(sc, request, result, progress, quiet)
 
     if overrides and not request.resolved_options:
         echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps; they were ignored")
@@ -149,11 +198,15 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     if as_json:
         echo_json(run_document(scene=scene, parameters=result.parameters, discretization=result.discretization,
                                branches=result.branches, notes=result.notes, extra=result.extra,
-                               output=None if writer is None else str(writer.path)))
+                               output=None if writer is None else str(writer.path),
+                               stability={b.id: stability_summary(b) for b in result.branches}))
     if not quiet:
         echo_err(special_points_table(result.branches))
         for note in result.notes:
             echo_err(f"note: {note}")
+        for b in result.branches:
+            for message in stability_messages(b):
+                echo_err(f"audit: branch {b.id}: {message}")
         if writer is not None:
             echo_err(f"wrote {writer.path}")
     failed = [b for b in result.branches if b.status == "MX"]

@@ -149,6 +149,9 @@ class CouetteProblem:
         self._mask = np.ones(n)
         self._mask[self._walls_idx] = 0.0
         self._pattern = _Pattern({"I": sp.eye(n, format="csr"), "d1": self._d1, "d2": self._d2})
+        self._assembler = _Assembler(self.size)
+        self._ones_col = sp.csr_matrix(-np.ones((n, 1)))
+        self._weights_row = sp.csr_matrix(self.grid.weights[None, :])
         if self.gravity:
             self._mass_M, self._mass_nu = _mass_rows(cell_integration_matrix(g))
 
@@ -364,14 +367,14 @@ class CouetteProblem:
         blocks = [
             (0, 0, _diagonal(c.f1_nu * f.T)),
             (0, iT, _diagonal(c.f1)),
-            (0, iP, sp.csr_matrix(-np.ones((n, 1)))),
+            (0, iP, self._ones_col),
             (iu, 0, pat.block(ju_nu)),
             (iu, iu, pat.block(ju_u)),
             (iu, iT, pat.block(ju_T)),
             (iT, 0, pat.block(jt_nu)),
             (iT, iu, pat.block(jt_u)),
             (iT, iT, pat.block(jt_T)),
-            (iP, 0, sp.csr_matrix(self.grid.weights[None, :])),
+            (iP, 0, self._weights_row),
         ]
         if self.gravity:
             iM = self.i_M.start
@@ -379,7 +382,7 @@ class CouetteProblem:
             if hg != 0:
                 blocks.append((0, iM, _diagonal(np.full(n, hg))))
             blocks += [(iM, 0, -self._mass_nu), (iM, iM, self._mass_M)]
-        return _assemble(blocks, self.size)
+        return self._assembler(blocks)
 
     def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
         """dF/dp for the parameter ``name`` by the complex step (exact to rounding)."""
@@ -555,16 +558,41 @@ class CouetteProblem:
         """Generalized eigenproblem A X = omega B X of physics.md section 5 at the steady state x.
 
         Delegates to :func:`problems.couette.linear.linear_operator` (imported lazily) with
-        this instance's grid, wall model, chi, Dufour and gravity switches.  Unknowns of the
-        eigenproblem are (nu, u, v, w, T) perturbations, not the steady state vector.
+        this instance's wall model, chi, Dufour and gravity switches.  Unknowns of the
+        eigenproblem are (nu, u, v, w, T) perturbations, not the steady state vector, on the
+        grid of :meth:`eigen_grid`: this instance's grid for Chebyshev, otherwise the base
+        profiles resampled onto a Chebyshev grid (:func:`problems.couette.linear.to_chebyshev`),
+        because collocated FD grids carry spurious, slowly decaying density modes.
         """
         from problems.couette.linear import linear_operator
 
-        nu, u, T, _, _ = self.unpack(np.asarray(x, dtype=float))
+        grid, nu, u, T = self._eigen_base(x)
         return linear_operator(
-            self.grid, nu, u, T, p, walls=self.walls, kx=kx, kz=kz, chi=self.chi,
+            grid, nu, u, T, p, walls=self.walls, kx=kx, kz=kz, chi=self.chi,
             dufour=self.dufour, gravity=self.gravity,
         )
+
+    def _eigen_base(self, x: Array):
+        from problems.couette.linear import to_chebyshev
+
+        nu, u, T, _, _ = self.unpack(np.asarray(x, dtype=float))
+        return to_chebyshev(self.grid, nu, u, T)
+
+    def eigen_grid(self):
+        """The grid of the eigenproblem unknowns (Chebyshev; see :meth:`eigenproblem`)."""
+        if self.method == "cheb":
+            return self.grid
+        return self._eigen_base(np.ones(self.size))[0]
+
+    def eigenvector_profiles(self, x: Array, vec) -> tuple[Array, dict[str, Any]]:
+        """(y, {'nu', 'u', 'v', 'w', 'T'}) of an eigenvector of :meth:`eigenproblem` at x."""
+        from problems.couette.linear import FIELDS
+
+        grid = self.eigen_grid()
+        vec = np.asarray(vec)
+        if vec.shape != (5 * grid.size,):
+            raise ValueError(f"eigenvector has shape {vec.shape}, expected ({5 * grid.size},)")
+        return grid.y.copy(), dict(zip(FIELDS, vec.reshape(5, grid.size)))
 
 
 class _Pattern:
@@ -604,17 +632,53 @@ def _diagonal(values: Array) -> sp.csr_matrix:
     return sp.csr_matrix((values, np.arange(n), np.arange(n + 1)), shape=(n, n))
 
 
+class _Assembler:
+    """CSR matrix from sparse blocks placed at (row offset, column offset), structure cached.
+
+    The Jacobian's blocks keep their sparsity structure from one Newton step to the next (only
+    their data change), so the global CSR structure and the position of every block entry in
+    it are computed once per block layout; each later call is one ``np.bincount`` scatter of
+    the blocks' data (duplicates, if any, are summed).  The cache is keyed on the layout and
+    verified against the blocks' index arrays, so a block whose structure changes gets a new
+    entry instead of a wrong matrix.
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._cache: dict[tuple, tuple] = {}
+
+    def __call__(self, blocks: list[tuple[int, int, sp.spmatrix]]) -> sp.csr_matrix:
+        csr = [(r0, c0, b if isinstance(b, sp.csr_matrix) and b.has_canonical_format else sp.csr_matrix(b))
+               for r0, c0, b in blocks]
+        for _, _, b in csr:
+            b.sum_duplicates()
+        key = tuple((r0, c0, b.shape, b.nnz) for r0, c0, b in csr)
+        entry = self._cache.get(key)
+        if entry is None or not all(
+            np.array_equal(b.indices, ind) and np.array_equal(b.indptr, ptr)
+            for (_, _, b), (ind, ptr) in zip(csr, entry[3], strict=True)
+        ):
+            entry = self._build(csr)
+            self._cache[key] = entry
+        indptr, indices, pos, _ = entry
+        data = np.bincount(pos, weights=np.concatenate([b.data for _, _, b in csr]), minlength=indices.size)
+        return sp.csr_matrix((data, indices, indptr), shape=(self.size, self.size))
+
+    def _build(self, csr: list[tuple[int, int, sp.csr_matrix]]) -> tuple:
+        rows = np.concatenate([np.repeat(np.arange(b.shape[0]), np.diff(b.indptr)) + r0 for r0, _, b in csr])
+        cols = np.concatenate([b.indices + c0 for _, c0, b in csr])
+        flat = rows.astype(np.int64) * self.size + cols
+        uniq, pos = np.unique(flat, return_inverse=True)
+        urows, ucols = np.divmod(uniq, self.size)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(urows, minlength=self.size))])
+        idx_t = np.int32 if uniq.size < 2**31 else np.int64
+        structure = [(b.indices.copy(), b.indptr.copy()) for _, _, b in csr]
+        return indptr.astype(idx_t), ucols.astype(idx_t), pos.ravel(), structure
+
+
 def _assemble(blocks: list[tuple[int, int, sp.spmatrix]], size: int) -> sp.csr_matrix:
-    """CSR matrix from blocks placed at (row offset, column offset)."""
-    rows, cols, data = [], [], []
-    for r0, c0, block in blocks:
-        coo = block.tocoo()
-        rows.append(coo.row + r0)
-        cols.append(coo.col + c0)
-        data.append(coo.data)
-    return sp.csr_matrix(
-        (np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size)
-    )
+    """CSR matrix from blocks placed at (row offset, column offset) (uncached :class:`_Assembler`)."""
+    return _Assembler(size)(blocks)
 
 
 def _mass_rows(cells: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:

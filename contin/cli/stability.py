@@ -1,0 +1,228 @@
+"""``contin stability FILE.h5``: dispersion curve and least-stable mode of one stored state.
+
+The problem is rebuilt with the scene's ``problem_factory(parameters, discretization)`` from
+the file's root attributes (see :mod:`contin.scene`); the state is row INDEX of
+``/branches/ID/states`` or a located special point (``--point LP1``), and its parameters are the
+file's parameters updated with the branch's columns at that point (or the special point's own
+parameters).  For every k_x the generalized eigenproblem A X = omega B X of
+``problem.eigenproblem(u, p, kx=..., kz=...)`` (or J x = omega M x at k = 0 for problems
+without one) is solved by dense QZ (:func:`contin.stability.eigenpairs`).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import click
+
+from contin.cli._base import echo_err, echo_json, fail, fmt, main, table
+
+#: leading eigenvalues listed per k_x in the JSON document
+N_LEADING = 6
+#: matrices up to this size use dense QZ (all finite eigenvalues: the true max Re omega)
+DENSE_MAX = 2000
+
+
+def parse_kx_spec(text: str) -> list[float]:
+    """``a:b:n`` (n equally spaced values from a to b), ``k1,k2,...`` or one value.
+
+    Raises ValueError with one sentence for anything else (non-numbers, NaN/inf, n < 1,
+    a range with n = 1 and a != b).
+    """
+    t = text.strip()
+    bad = f"bad --kx {text!r}: expected START:STOP:COUNT (e.g. 0:3:61), a comma-separated list or one number"
+    try:
+        if ":" in t:
+            parts = t.split(":")
+            if len(parts) != 3:
+                raise ValueError(bad)
+            a, b = float(parts[0]), float(parts[1])
+            n = int(parts[2])
+            if n < 1:
+                raise ValueError(f"bad --kx {text!r}: COUNT must be at least 1")
+            if n == 1 and a != b:
+                raise ValueError(f"bad --kx {text!r}: COUNT = 1 needs START = STOP")
+            values = [a + (b - a) * i / (n - 1) for i in range(n)] if n > 1 else [a]
+        else:
+            values = [float(x) for x in t.split(",") if x.strip()]
+    except ValueError as exc:
+        raise ValueError(str(exc) if str(exc).startswith("bad --kx") else bad) from None
+    if not values:
+        raise ValueError(bad)
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"bad --kx {text!r}: wavenumbers must be finite numbers")
+    return values
+
+
+def _numeric(values: dict[str, Any]) -> dict[str, float]:
+    return {k: float(v) for k, v in values.items()
+            if isinstance(v, int | float) and not isinstance(v, bool)}
+
+
+def resolve_point(branch: Any, point: str, fixed: dict[str, float], file: str) -> tuple[Any, dict[str, float], int | str]:
+    """(state, parameters, point) of ``point``: an index (returned as int, normalised to
+    0..S-1) or a special-point label (returned as its name, e.g. 'LP1')."""
+    import numpy as np
+
+    s = len(branch)
+    try:
+        index = int(point)
+    except ValueError:
+        index = None
+    if index is not None:
+        if not -s <= index < s:
+            fail(f"point {index} is out of range: branch {branch.id} of {file} has {s} points (0..{s - 1})")
+        index = range(s)[index]
+        try:
+            state = branch.state(index)
+        except KeyError:
+            fail(f"the state of point {index} of branch {branch.id} was not saved in {file} (save_every > 1)")
+        row = {name: float(values[index]) for name, values in branch.params.items()}
+        return np.asarray(state, dtype=float), {**fixed, **row}, index
+    match = [sp for sp in branch.special_points if sp.name.lower() == point.strip().lower()]
+    if not match:
+        labels = ", ".join(sp.name for sp in branch.special_points) or "none"
+        fail(f"no point {point!r} on branch {branch.id} of {file}: give an index 0..{s - 1} "
+             f"or a special-point label ({labels})")
+    sp = match[0]
+    if sp.state is None or not np.all(np.isfinite(sp.state)):
+        fail(f"special point {sp.name} of branch {branch.id} has no stored state")
+    i = min(max(sp.index, 0), s - 1)
+    row = {name: float(values[i]) for name, values in branch.params.items()}
+    return np.asarray(sp.state, dtype=float), {**fixed, **row, **_numeric(dict(sp.params))}, sp.name
+
+
+def _eigenfunction(problem: Any, state: Any, vec: Any, y: Any) -> tuple[Any, dict[str, Any]]:
+    """Named eigenfunction profiles: the problem's ``eigenvector_profiles`` or equal blocks on y."""
+    import numpy as np
+
+    from contin.problem import has
+
+    if has(problem, "eigenvector_profiles"):
+        return problem.eigenvector_profiles(state, vec)
+    if y is not None and len(y) and vec.size % len(y) == 0:
+        blocks = vec.reshape(-1, len(y))
+        return np.asarray(y), {f"x{k}": blk for k, blk in enumerate(blocks)}
+    return np.arange(vec.size, dtype=float), {"x": vec}
+
+
+@main.command("stability")
+@click.argument("file", type=click.Path(exists=True, dir_okay=False))
+@click.option("--branch", "branch_id", default=None, metavar="ID",
+              help="Branch id [default: the only branch of FILE].")
+@click.option("--point", required=True, metavar="INDEX|LABEL",
+              help="Point index along the branch (negative counts from the end) or special-point label (LP1, BP2).")
+@click.option("--kx", "kx_spec", default="0:3:61", metavar="SPEC",
+              help="Streamwise wavenumbers: START:STOP:COUNT, a comma list, or one value.")
+@click.option("--kz", type=float, default=0.0, help="Spanwise wavenumber.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Figure of growth rate and phase speed against kx (.png, .pdf, .svg).")
+@click.option("--eigenfunction", is_flag=True,
+              help="Also plot the least-stable eigenfunction at the first kx (to FIG_eigenfunction.EXT; needs -o).")
+def stability_command(file: str, branch_id: str | None, point: str, kx_spec: str, kz: float, as_json: bool,
+                      output: str | None, eigenfunction: bool) -> None:
+    """Growth rate max Re omega and phase speed of the least-stable mode against kx, for one state of FILE.
+
+    Perturbations exp(i kx x + i kz z + omega t); c = Im omega / sqrt(kx^2 + kz^2) (null at k = 0).
+    """
+    import numpy as np
+
+    from contin import io
+    from contin.scene import get_scene
+    from contin.stability import count_unstable, eigenpairs, operator_pair
+
+    kx_values = parse_kx_spec(kx_spec)
+    if not math.isfinite(kz):
+        fail(f"--kz must be a finite number, got {kz}")
+    eig_path = None
+    if eigenfunction:
+        if output is None:
+            fail("--eigenfunction needs -o FIG (the eigenfunction goes to FIG_eigenfunction.EXT)")
+        p = Path(output)
+        eig_path = p.with_name(f"{p.stem}_eigenfunction{p.suffix or '.png'}")
+    if output is not None:
+        io.check_writable(output)
+        if eig_path is not None:
+            io.check_writable(eig_path)
+
+    branches, meta = io.load(file)
+    ids = [b.id for b in branches]
+    if branch_id is None:
+        if len(branches) != 1:
+            fail(f"{file} holds {len(branches)} branches; choose one with --branch ({', '.join(ids) or 'none'})")
+        branch = branches[0]
+    else:
+        if branch_id not in ids:
+            fail(f"no branch {branch_id!r} in {file}; branches: {', '.join(ids) or 'none'}")
+        branch = branches[ids.index(branch_id)]
+
+    fixed = _numeric(dict(meta.get("parameters", {})))
+    state, params, where = resolve_point(branch, point, fixed, file)
+
+    scene_name = meta.get("scene") or ""
+    if not scene_name:
+        fail(f"{file} does not name its scene, so its problem cannot be rebuilt")
+    try:
+        scene = get_scene(scene_name)
+    except ValueError as exc:
+        fail(f"cannot rebuild the problem of {file}: {exc}")
+    if scene.problem_factory is None:
+        fail(f"cannot rebuild the problem of {file}: scene {scene_name!r} has no problem_factory")
+    problem = scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
+
+    growth, speed, n_unst, leading = [], [], [], {}
+    mode = None
+    for j, kx in enumerate(kx_values):
+        A, B = operator_pair(problem, state, params, kx=kx, kz=kz)
+        want_vec = eigenfunction and j == 0
+        w, v = eigenpairs(A, B, dense_max=DENSE_MAX, vectors=want_vec,
+                          k=None if A.shape[0] <= DENSE_MAX else max(N_LEADING, 12))
+        if w.size == 0:
+            fail(f"the eigenproblem at kx={kx:g} has no finite eigenvalues")
+        k = math.hypot(kx, kz)
+        growth.append(float(w[0].real))
+        speed.append(float(w[0].imag / k) if k > 0 else math.nan)
+        n_unst.append(count_unstable(w))
+        leading[f"{kx:.12g}"] = [[float(z.real), float(z.imag)] for z in w[:N_LEADING]]
+        if want_vec:
+            vec = v[:, 0]
+            vec = vec / vec[np.argmax(np.abs(vec))]
+            mode = (kx, complex(w[0]), *_eigenfunction(problem, state, vec, meta.get("y")))
+
+    label = f"branch {branch.id}, point {where}"
+    if output is not None:
+        from contin.plot import plot_eigenfunction, plot_growth_rate, save_figure
+
+        save_figure(plot_growth_rate(np.array(kx_values), np.array(growth), np.array(speed),
+                                     title=f"{scene_name}: {label}, kz={kz:g}"), output)
+        echo_err(f"wrote {output}")
+        if mode is not None and eig_path is not None:
+            kx0, om, y, prof = mode
+            save_figure(plot_eigenfunction(y, prof, title=f"{label}: kx={kx0:g}, omega={om.real:.6g}{om.imag:+.6g}i"),
+                        eig_path)
+            echo_err(f"wrote {eig_path}")
+
+    if as_json:
+        doc: dict[str, Any] = {
+            "branch": branch.id,
+            "point": where,
+            "params": params,
+            "kz": kz,
+            "kx": kx_values,
+            "growth_rate": growth,
+            "phase_speed": speed,
+            "n_unstable": n_unst,
+            "leading_eigenvalues": leading,
+        }
+        if mode is not None:
+            kx0, om, y, prof = mode
+            doc["eigenfunction"] = {"kx": kx0, "omega": [om.real, om.imag], "y": np.asarray(y),
+                                    "fields": {n: {"re": np.real(f), "im": np.imag(f)} for n, f in prof.items()}}
+        echo_json(doc)
+    elif output is None:
+        rows = [(fmt(kx, 6), fmt(g), fmt(c, 6), n) for kx, g, c, n in zip(kx_values, growth, speed, n_unst)]
+        click.echo(f"{label} ({', '.join(f'{n}={fmt(v, 6)}' for n, v in params.items())}), kz={fmt(kz)}")
+        click.echo(table(rows, ("kx", "growth rate", "phase speed", "n_unstable")))
