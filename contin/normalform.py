@@ -80,6 +80,10 @@ class ReducedFunction:
     nulls: NullVectors
     tol: float = 1e-13
     max_iterations: int = 20
+    # Extra Newton steps once the residual test passes: with tol set at a rounding floor
+    # (eps ||J|| ||u||, often far above the residual actually reachable) the first iterate
+    # that passes can still be far less accurate than the quadratic convergence allows.
+    polish: int = 0
 
     def __call__(self, x: float, shifts: Mapping[str, float]) -> float:
         """Value of g at amplitude x and parameters params + shifts."""
@@ -90,11 +94,14 @@ class ReducedFunction:
         n = phi.size
         w = np.zeros(n)
         g = 0.0
-        for _ in range(self.max_iterations):
+        extra = self.polish
+        for _ in range(self.max_iterations + self.polish):
             u = self.state + x * phi + w
             res = np.concatenate([self.problem.residual(u, p) - g * psi, [phi @ w]])
             if np.max(np.abs(res)) < self.tol:
-                break
+                if extra == 0:
+                    break
+                extra -= 1
             jac = sp.bmat(
                 [[sp.csc_matrix(self.problem.jacobian(u, p)), -psi[:, None]], [phi[None, :], None]], format="csc"
             )
@@ -180,6 +187,8 @@ def pitchfork_normal_form(
     amplitude: float = 1e-2,
     parameter_step: float | None = None,
     unfolding_steps: Mapping[str, float] | None = None,
+    tol: float | None = None,
+    polish: int = 0,
 ) -> PitchforkNormalForm:
     """Normal-form coefficients at a located simple branch point.
 
@@ -194,6 +203,11 @@ def pitchfork_normal_form(
         are fourth order, so the error of g_xxx is O(amplitude^4).
     parameter_step, unfolding_steps : stencil steps in lambda and mu (default 1e-4 of
         max(1, |value|) for lambda and 1e-6 for mu).
+    tol : residual max-norm at which the Lyapunov-Schmidt corrector stops; raise it above
+        the rounding floor of the problem's residual (e.g. ~1e-12 for Chebyshev grids).
+    tol : residual max-norm of the Lyapunov-Schmidt corrector (default 1e-13); raise it to
+        the problem's rounding floor (~ eps ||J|| ||u||) on fine grids where 1e-13 is out of reach.
+    polish : extra corrector steps after the residual passes ``tol`` (use 1 with a floor tol).
 
     Notes
     -----
@@ -205,7 +219,8 @@ def pitchfork_normal_form(
     """
     jac = sp.csc_matrix(problem.jacobian(state, params))
     nulls = null_vectors(jac)
-    g = ReducedFunction(problem, np.asarray(state, float), dict(params), nulls)
+    g = ReducedFunction(problem, np.asarray(state, float), dict(params), nulls,
+                        polish=int(polish), **({} if tol is None else {"tol": float(tol)}))
     h = amplitude
     k = parameter_step if parameter_step is not None else 1e-4 * max(1.0, abs(params[parameter]))
     line = {j: g(j * h, {}) for j in (-3, -2, -1, 0, 1, 2, 3)}
