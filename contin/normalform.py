@@ -203,8 +203,6 @@ def pitchfork_normal_form(
         are fourth order, so the error of g_xxx is O(amplitude^4).
     parameter_step, unfolding_steps : stencil steps in lambda and mu (default 1e-4 of
         max(1, |value|) for lambda and 1e-6 for mu).
-    tol : residual max-norm at which the Lyapunov-Schmidt corrector stops; raise it above
-        the rounding floor of the problem's residual (e.g. ~1e-12 for Chebyshev grids).
     tol : residual max-norm of the Lyapunov-Schmidt corrector (default 1e-13); raise it to
         the problem's rounding floor (~ eps ||J|| ||u||) on fine grids where 1e-13 is out of reach.
     polish : extra corrector steps after the residual passes ``tol`` (use 1 with a floor tol).
