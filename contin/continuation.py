@@ -83,7 +83,8 @@ class _Tracer:
         return _Point(x, t, TestValues(float(t[-1]), bp, anti))
 
     def correct_at(self, x_pred: Array, direction: Array) -> Correction:
-        return correct(self.system, x_pred, self.system.row(direction), self.options.newton)
+        project = self.anti.symmetrize if self.anti is not None else None
+        return correct(self.system, x_pred, self.system.row(direction), self.options.newton, project)
 
     # --- detection and location ----------------------------------------------------------------
     def _test_functions(self) -> list[tuple[str, str, Callable[[TestValues], tuple[float, float] | float]]]:

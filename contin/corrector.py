@@ -12,6 +12,7 @@ iteration is returned so the caller reuses it for the tangent and the test funct
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,17 +37,25 @@ class Correction:
     message: str = ""
 
 
-def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions) -> Correction:
+def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,
+            project: Callable[[Array], Array] | None = None) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0 (see :func:`_correct`)."""
     with np.errstate(all="ignore"):
-        return _correct(system, x_pred, row, options)
+        return _correct(system, x_pred, row, options, project)
 
 
-def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions) -> Correction:
+def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,
+             project: Callable[[Array], Array] | None = None) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0.
 
     At least one iteration is always done so that a factorization at the solution exists (an
     exact predictor, e.g. on a trivial branch, would otherwise leave none).  Never raises.
+
+    ``project`` (optional) maps the u-part of each Newton update into an invariant subspace
+    containing the solution, e.g. the symmetrizer (u + S u)/2 on an S-invariant branch.  In
+    exact arithmetic the update already lies there; projecting removes the rounding noise
+    that a nearly singular mode outside the subspace (a symmetry-breaking BP nearby, where
+    the bordered matrix is singular) would otherwise amplify into the iterate.
     """
     x = np.array(x_pred, dtype=float)
     f = system.residual(x)
@@ -61,6 +70,8 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         if fact is None:
             return Correction(x, False, it, None, row, history, f"singular bordered Jacobian at iteration {it}")
         dx = fact.solve(-np.concatenate([f, [row @ (x - x_pred)]]))
+        if project is not None:
+            dx[:-1] = project(dx[:-1])
         x_new, lam, reason = backtrack(system.admissible, x, dx)
         if reason is not None:
             return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
