@@ -1,0 +1,336 @@
+"""Speed against accuracy: re-run a scene on several discretizations and grids.
+
+For every (method, N) the scene is run once (stability off: it measures the continuation,
+not the eigenvalue pass) and its *key points* are collected:
+
+- ``SceneResult.extra['key_points']`` -- ``{name: value}`` -- if the scene provides it (the
+  scene knows which numbers matter, e.g. the critical gaps H_n^c of gPCF); otherwise
+- every converged BP and LP of every branch, named ``"<branch id>/<type><k>"`` (k-th point
+  of that type along the branch, in branch order) with the value of the branch's
+  continuation parameter.  The same name on two grids is the same point as long as the
+  scene labels its branches deterministically (contin scenes do).
+
+Errors are measured against a reference value per key point:
+
+- the finest Chebyshev grid of the run when 'cheb' is among the methods (spectral
+  convergence: its error is far below every other entry's); else
+- Richardson extrapolation of the highest-order FD method from its two finest grids with
+  its nominal order p: v* = (v1 N1^p - v2 N2^p) / (N1^p - N2^p)  (v(N) = v* + C N^-p).
+
+The observed order between consecutive grids N_a < N_b of one method is
+log(e_a / e_b) / log(N_b / N_a).  Wall time (``time.perf_counter``) and CPU time
+(``time.process_time``) are both recorded: on a shared machine the CPU time is the fairer
+figure.  Peak memory is the tracemalloc peak of a second, separate run (tracemalloc slows
+numpy-heavy code down, so it never overlaps the timed run); ``memory=False`` skips it.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+import tracemalloc
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from contin.scene import Scene, SceneRequest, SceneResult
+
+#: Nominal convergence orders of the FD methods (Richardson reference without Chebyshev).
+NOMINAL_ORDER = {"fd2": 2, "fd4": 4, "fd6": 6}
+#: Default accuracy budgets of the recommendation table (relative error).
+DEFAULT_TARGETS = (1e-3, 1e-4, 1e-6, 1e-8, 1e-10)
+
+
+@dataclass
+class Run:
+    """One scene run at one discretization: timings, cost and its key points."""
+
+    method: str
+    grid: int
+    wall: float
+    cpu: float
+    newton_iterations: int
+    points: int
+    peak_memory_mb: float
+    values: dict[str, float]
+    failed: str = ""  # the reason when the run raised (then values is empty)
+
+
+@dataclass
+class Row:
+    """One key point at one discretization."""
+
+    key: str
+    method: str
+    grid: int
+    value: float
+    reference: float
+    error: float  # relative |value - reference| / max(|reference|, tiny); nan for the reference itself
+    order: float  # observed order against the previous (coarser) grid of the same method
+    wall: float
+    cpu: float
+    newton_iterations: int
+    peak_memory_mb: float
+
+
+@dataclass
+class AccuracyReport:
+    scene: str
+    params: dict[str, Any]
+    reference: dict[str, float]
+    reference_from: str
+    runs: list[Run]
+    rows: list[Row] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "scene": self.scene, "params": {k: _jsonable(v) for k, v in self.params.items()},
+            "reference": self.reference, "reference_from": self.reference_from,
+            "runs": [asdict(r) for r in self.runs], "rows": [asdict(r) for r in self.rows],
+            "recommendations": recommend(self),
+        }
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)
+    return v
+
+
+def key_points(result: SceneResult) -> dict[str, float]:
+    """The scene's key points (module docstring): ``extra['key_points']`` or its BPs/LPs."""
+    given = result.extra.get("key_points") if isinstance(result.extra, Mapping) else None
+    if given:
+        return {str(k): float(v) for k, v in given.items()}
+    out: dict[str, float] = {}
+    for b in result.branches:
+        if len(b.free) != 1:
+            continue  # fold curves etc.: their special points are not one-parameter values
+        counts: dict[str, int] = {}
+        for sp in b.special_points:
+            if sp.type not in ("BP", "LP") or not sp.converged:
+                continue
+            counts[sp.type] = counts.get(sp.type, 0) + 1
+            out[f"{b.id}/{sp.type}{counts[sp.type]}"] = float(sp.params[b.parameter])
+    return out
+
+
+def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int, *, memory: bool = True,
+            overrides: Mapping[str, Any] | None = None) -> Run:
+    """Run ``scene`` once at (method, grid) and time it (plus a tracemalloc run if ``memory``)."""
+
+    def request() -> SceneRequest:
+        return SceneRequest(params=dict(params), method=method, grid=grid, stability=False,
+                            overrides=dict(overrides or {}))
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = scene.run(request())
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    peak = math.nan
+    if memory:
+        tracemalloc.start()
+        try:
+            scene.run(request())
+            peak = tracemalloc.get_traced_memory()[1] / 2**20
+        finally:
+            tracemalloc.stop()
+    iters = sum(int(b.newton_iterations.sum()) for b in result.branches if len(b))
+    points = sum(len(b) for b in result.branches)
+    return Run(method, grid, wall, cpu, iters, points, peak, key_points(result))
+
+
+def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str], grids: Sequence[int], *,
+                 memory: bool = True, overrides: Mapping[str, Any] | None = None,
+                 progress: Callable[[str], None] | None = None) -> AccuracyReport:
+    """Measure every (method, grid) pair and tabulate errors against the reference.
+
+    A pair whose scene run raises ValueError (e.g. a grid too small for the method) is kept as
+    a failed :class:`Run` with the reason; other exceptions propagate.
+    """
+    if not methods or not grids:
+        raise ValueError("need at least one method and one grid")
+    runs: list[Run] = []
+    for method in methods:
+        for n in sorted(set(int(g) for g in grids)):
+            if progress is not None:
+                progress(f"{scene.name}: {method} N={n}")
+            try:
+                runs.append(measure(scene, params, method, n, memory=memory, overrides=overrides))
+            except ValueError as exc:
+                runs.append(Run(method, n, math.nan, math.nan, 0, 0, math.nan, {}, failed=str(exc).splitlines()[0]))
+    reference, source = references(runs)
+    report = AccuracyReport(scene.name, dict(params), reference, source, runs)
+    report.rows = tabulate(runs, reference)
+    return report
+
+
+def references(runs: Iterable[Run]) -> tuple[dict[str, float], str]:
+    """(reference value per key point, description) -- see the module docstring."""
+    ok = [r for r in runs if not r.failed and r.values]
+    cheb = sorted((r for r in ok if r.method == "cheb"), key=lambda r: r.grid)
+    if cheb:
+        best = cheb[-1]
+        return dict(best.values), f"cheb N={best.grid}"
+    for method in sorted(NOMINAL_ORDER, key=NOMINAL_ORDER.get, reverse=True):  # type: ignore[arg-type]
+        rs = sorted((r for r in ok if r.method == method), key=lambda r: r.grid)
+        if len(rs) >= 2:
+            (n2, r2), (n1, r1) = (rs[-2].grid, rs[-2]), (rs[-1].grid, rs[-1])
+            p = NOMINAL_ORDER[method]
+            ref = {k: (r1.values[k] * n1**p - r2.values[k] * n2**p) / (n1**p - n2**p)
+                   for k in r1.values if k in r2.values}
+            return ref, f"Richardson {method} N={n2},{n1} (order {p})"
+    if ok:
+        best = max(ok, key=lambda r: r.grid)
+        return dict(best.values), f"{best.method} N={best.grid} (finest grid; no Richardson possible)"
+    return {}, "none (every run failed)"
+
+
+def relative_error(value: float, reference: float) -> float:
+    return abs(value - reference) / max(abs(reference), 1e-300)
+
+
+def tabulate(runs: Sequence[Run], reference: Mapping[str, float]) -> list[Row]:
+    rows: list[Row] = []
+    finest_cheb = max((r.grid for r in runs if r.method == "cheb" and not r.failed and r.values), default=None)
+    for key, ref in reference.items():
+        by_method: dict[str, list[Row]] = {}
+        for r in runs:
+            if r.failed or key not in r.values:
+                continue
+            is_ref = r.method == "cheb" and r.grid == finest_cheb
+            err = math.nan if is_ref else relative_error(r.values[key], ref)
+            prev = by_method.setdefault(r.method, [])
+            order = math.nan
+            if prev and prev[-1].error > 0 and err > 0 and math.isfinite(err) and math.isfinite(prev[-1].error):
+                order = math.log(prev[-1].error / err) / math.log(r.grid / prev[-1].grid)
+            row = Row(key, r.method, r.grid, r.values[key], ref, err, order, r.wall, r.cpu,
+                      r.newton_iterations, r.peak_memory_mb)
+            prev.append(row)
+            rows.append(row)
+    return rows
+
+
+def recommend(report: AccuracyReport, targets: Sequence[float] = DEFAULT_TARGETS) -> list[dict[str, Any]]:
+    """For each accuracy budget, the cheapest (CPU time) run whose worst key-point error meets it."""
+    worst: dict[tuple[str, int], float] = {}
+    cost: dict[tuple[str, int], float] = {}
+    for row in report.rows:
+        k = (row.method, row.grid)
+        if math.isnan(row.error):
+            continue
+        worst[k] = max(worst.get(k, 0.0), row.error)
+        cost[k] = row.cpu
+    n_keys = len(report.reference)
+    complete = {k for k in worst if sum(1 for r in report.rows if (r.method, r.grid) == k) == n_keys}
+    out = []
+    for target in targets:
+        cands = [k for k in complete if worst[k] <= target]
+        best = min(cands, key=lambda k: cost[k]) if cands else None
+        out.append({"target": target, "method": best[0] if best else None, "grid": best[1] if best else None,
+                    "cpu": cost[best] if best else math.nan, "worst_error": worst[best] if best else math.nan})
+    return out
+
+
+# ------------------------------------------------------------------------------- output
+COLUMNS = ("key", "method", "grid", "value", "reference", "error", "order", "wall", "cpu",
+           "newton_iterations", "peak_memory_mb")
+
+
+def write_outputs(report: AccuracyReport, directory: str | Path, *, plots: bool = True) -> list[Path]:
+    """accuracy_<scene>.csv, .json and (``plots``) error-vs-N / error-vs-time PNGs in ``directory``."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    stem = f"accuracy_{report.scene}"
+    written = []
+    lines = [",".join(COLUMNS)]
+    for r in report.rows:
+        lines.append(",".join(_csv_cell(getattr(r, c)) for c in COLUMNS))
+    for r in report.runs:
+        if r.failed:
+            lines.append(",".join(["#failed", r.method, str(r.grid), _csv_cell(r.failed)] + [""] * (len(COLUMNS) - 4)))
+    _publish_text(d / f"{stem}.csv", "\n".join(lines) + "\n")
+    written.append(d / f"{stem}.csv")
+    _publish_text(d / f"{stem}.json", json.dumps(_clean(report.to_json()), indent=1) + "\n")
+    written.append(d / f"{stem}.json")
+    if plots and report.rows:
+        written += plot_report(report, d / f"{stem}")
+    return written
+
+
+def _publish_text(path: Path, text: str) -> None:
+    """Write ``text`` atomically (temporary file + rename, contin.atomic)."""
+    from contin.atomic import publish
+
+    publish(path, lambda tmp: tmp.write_text(text))
+
+
+def _csv_cell(v: Any) -> str:
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else repr(v)
+    s = str(v)
+    if any(c in s for c in ',"\n'):
+        buf = []
+        w = csv.writer(_ListWriter(buf))
+        w.writerow([s])
+        return buf[0].rstrip("\r\n")
+    return s
+
+
+class _ListWriter:
+    def __init__(self, buf: list[str]) -> None:
+        self.buf = buf
+
+    def write(self, s: str) -> None:
+        self.buf.append(s)
+
+
+def _clean(obj: Any) -> Any:
+    """NaN/inf -> None so the JSON is standard."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    return obj
+
+
+def plot_report(report: AccuracyReport, stem: Path) -> list[Path]:
+    """Two log-log figures, one panel per key point: error against N and against CPU time."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from contin.plot import save_figure
+
+    keys = list(report.reference)
+    ncol = min(3, len(keys))
+    nrow = math.ceil(len(keys) / ncol)
+    out = []
+    for xname, xlabel, suffix in (("grid", "N (grid intervals)", "error_vs_N"), ("cpu", "CPU time of the run [s]", "error_vs_time")):
+        fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.4 * nrow), squeeze=False)
+        for ax, key in zip(axes.ravel(), keys):
+            for method in dict.fromkeys(r.method for r in report.rows):
+                pts = [(getattr(r, xname), r.error) for r in report.rows
+                       if r.key == key and r.method == method and r.error > 0 and math.isfinite(r.error)]
+                if pts:
+                    xs, ys = zip(*pts)
+                    ax.loglog(xs, ys, "o-", label=method, ms=4)
+            ax.set_title(key, fontsize=9)
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel("relative error")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        for ax in axes.ravel()[len(keys):]:
+            ax.set_visible(False)
+        fig.suptitle(f"{report.scene}: error against reference ({report.reference_from})", fontsize=10)
+        fig.tight_layout()
+        path = Path(f"{stem}_{suffix}.png")
+        save_figure(fig, path)
+        plt.close(fig)
+        out.append(path)
+    return out

@@ -1,0 +1,90 @@
+"""``contin accuracy SCENE``: the scene's key points against discretization and grid."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import click
+
+from contin.cli._base import echo_err, echo_json, fmt, main, parse_settings, table
+
+DEFAULT_METHODS = "cheb,fd2,fd4,fd6"
+DEFAULT_GRIDS = "16,24,32,48,64,96,128"
+KNOWN_METHODS = ("cheb", "fd2", "fd4", "fd6")
+
+
+def _split(text: str, kind: type, option: str) -> list[Any]:
+    try:
+        out = [kind(x.strip()) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise click.BadParameter(f"expected a comma-separated list, got {text!r}", param_hint=option) from None
+    if not out:
+        raise click.BadParameter("the list is empty", param_hint=option)
+    return out
+
+
+@main.command("accuracy")
+@click.argument("scene")
+@click.option("-s", "--set", "settings", multiple=True, metavar="NAME=VALUE", help="Set a scene parameter (repeatable).")
+@click.option("--methods", default=DEFAULT_METHODS, help="Comma-separated discretization methods.")
+@click.option("--grids", default=DEFAULT_GRIDS, help="Comma-separated numbers of grid intervals.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document on stdout.")
+@click.option("-o", "--output", "outdir", type=click.Path(file_okay=False), default=None,
+              help="Directory for the CSV, JSON and plots (e.g. results/accuracy).")
+@click.option("--no-memory", is_flag=True, help="Skip the separate tracemalloc run (halves the time).")
+@click.option("--no-plots", is_flag=True, help="Write the table only.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress lines and no table on stderr.")
+def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids: str, as_json: bool,
+                     outdir: str | None, no_memory: bool, no_plots: bool, quiet: bool) -> None:
+    """Re-trace SCENE's key points (BPs, LPs) at every METHOD x GRID.
+
+    Reports each value, its relative error against the finest Chebyshev grid (or a
+    Richardson estimate), the observed order, wall and CPU time, Newton iterations and peak
+    memory, and which discretization is cheapest for each accuracy budget.
+    """
+    import contin.scene as scene_mod
+    from contin.accuracy import recommend, run_accuracy, write_outputs
+
+    params = parse_settings(settings)
+    method_list = _split(methods, str, "'--methods'")
+    unknown = [m for m in method_list if m not in KNOWN_METHODS]
+    if unknown:
+        raise ValueError(f"unknown method {unknown[0]!r}; choose from {', '.join(KNOWN_METHODS)}")
+    grid_list = _split(grids, int, "'--grids'")
+    if min(grid_list) < 2:
+        raise ValueError(f"grids must be at least 2 intervals, got {min(grid_list)}")
+    sc = scene_mod.get_scene(scene)
+    if sc.defaults:
+        bad = [n for n in params if n not in sc.defaults]
+        if bad:
+            raise scene_mod.SceneError(f"unknown parameter {bad[0]!r} for scene {scene!r}; its parameters are {', '.join(sc.defaults)}")
+    if outdir is not None:
+        from pathlib import Path
+
+        Path(outdir).mkdir(parents=True, exist_ok=True)  # fail before computing
+    show = not quiet and sys.stderr.isatty()
+    report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory,
+                          progress=(lambda m: echo_err(f"running {m}")) if show else None)
+    if not report.reference:
+        raise ValueError(f"no key points: every run of scene {scene!r} failed or found no BP/LP "
+                         f"({'; '.join(sorted({r.failed for r in report.runs if r.failed})) or 'no special points'})")
+    written = write_outputs(report, outdir, plots=not no_plots) if outdir is not None else []
+    if as_json:
+        from contin.accuracy import _clean
+
+        echo_json(_clean(report.to_json()))
+    if not quiet:
+        rows = [(r.key, r.method, r.grid, fmt(r.value, 13), fmt(r.error, 2), fmt(r.order, 3), f"{r.cpu:.3f}",
+                 f"{r.wall:.3f}", r.newton_iterations, fmt(r.peak_memory_mb, 3)) for r in report.rows]
+        echo_err(table(rows, ("key point", "method", "N", "value", "rel.error", "order", "cpu s", "wall s",
+                              "newton", "peak MB")))
+        echo_err(f"reference: {report.reference_from}")
+        for r in report.runs:
+            if r.failed:
+                echo_err(f"failed: {r.method} N={r.grid}: {r.failed}")
+        rec = [(f"{x['target']:.0e}", x["method"] or "-", x["grid"] or "-", fmt(x["cpu"], 3), fmt(x["worst_error"], 2))
+               for x in recommend(report)]
+        echo_err(table(rec, ("budget", "method", "N", "cpu s", "worst error")))
+        for path in written:
+            echo_err(f"wrote {path}")
