@@ -1,0 +1,426 @@
+"""Granular Couette flow with gravity: imperfect pitchforks, isolas and fold curves.
+
+With G = Fr^-2 > 0 the wall-normal momentum balance reads d(f1 T)/dy = -H^3 G nu
+(physics.md section 2); the reflection y -> -y maps G -> -G (F(Sx, -G) = S F(x, G)), so
+gravity is an imperfection of every symmetry-breaking pitchfork of uniform shear (A13 slides
+"Bifurcation with gravity"; Alam et al., J. Fluid Mech. 523, 2005).  Uniform shear is no longer a
+solution; the branch from small H (near-uniform) bends continuously onto the bottom-plug state
+(the 'surviving attractor'), while dense-top ('floating plug') states lie on separate,
+fold-bounded branches or isolas.
+
+Pieces:
+
+- :func:`gravity_problem` -- a CouetteProblem with the gravity term;
+- :func:`gravity_free_branches` -- uniform shear and both signs of the banded branches at the
+  first ``modes`` pitchforks (G = 0), via :mod:`problems.couette.pitchfork`;
+- :func:`homotopy_in_G` -- a state continued in G at fixed H from G = 0 to the target G;
+- :func:`trace_in_H` -- a branch at fixed G traced both ways in H (closed loops are closed);
+- :func:`fold_seeds` -- fold points at the target G taken from two-parameter fold curves
+  (the second isola-discovery route);
+- :func:`lies_on`, :func:`deduplicate`, :func:`classify` -- one branch per solution set,
+  labelled 'primary' / 'isola' / 'floating-plug' / 'bottom-plug';
+- :func:`discover` -- all branches at one G (both routes), de-duplicated and labelled;
+- :func:`fold_curves` -- fold curves in (H, G) (or (H, nu)) from the folds of a diagram with
+  the Fr at which each closed component is born and dies (XT extrema of G);
+- :func:`branch_point_normal_forms` -- Lyapunov-Schmidt coefficients at every BP of the
+  gravity-free problem, with the gravity imperfection d/dG;
+- :func:`unfolding_branches` -- short branches near a BP at several small G, for
+  :func:`contin.fit.fit_unfolding`.
+
+Continuation in G: G is ~1e-6 while the state changes by O(1) per unit H^3 G, so the
+arclength weight of the parameter is theta = 1/G_target^2 (the homotopy is then O(1) long).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from contin.branch import Branch, SpecialPoint
+from contin.continuation import newton, trace, trace_both
+from contin.foldcurve import trace_fold_curve
+from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
+from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
+from problems.couette.model import CouetteProblem
+
+log = logging.getLogger("contin")
+Array = np.ndarray
+
+#: Kinds of gravity branches (Branch.kind).
+KINDS = ("primary", "isola", "floating-plug", "bottom-plug")
+
+
+def gravity_problem(method: str = "cheb", N: int = 32, walls: str = "noslip", chi: str = "jj") -> CouetteProblem:
+    """CouetteProblem with the gravity term H^3 G M (needed for G != 0)."""
+    return CouetteProblem(method, N, walls=walls, chi=chi, gravity=True)
+
+
+@dataclass(frozen=True)
+class GravitySettings:
+    """Step control of the gravity runs.
+
+    H_range : gap interval of the diagrams
+    ds_max : largest arclength step in H; near-crossings of the imperfect pitchforks are
+        only O(G^(1/3)) apart, so larger steps jump between branches
+    seed_H : gaps at which gravity-free banded states are continued in G (route 1)
+    modes : pitchforks of uniform shear (n = 1..modes) whose banded branches seed route 1
+    """
+
+    H_range: tuple[float, float] = (1.0, 50.0)
+    ds: float = 0.1
+    ds_max: float = 0.2
+    max_angle: float = 0.1
+    max_steps: int = 1500
+    seed_H: tuple[float, ...] = (16.0, 22.0, 30.0, 38.0, 44.0)
+    modes: int = 2
+
+    def h_options(self) -> ContinuationOptions:
+        return ContinuationOptions(
+            bounds={"H": self.H_range}, max_steps=self.max_steps,
+            step=StepOptions(ds=self.ds, ds_max=self.ds_max, max_angle=self.max_angle),
+            detection=DetectionOptions(detect_branch_points=False),
+        )
+
+    def g0_options(self) -> ContinuationOptions:
+        return ContinuationOptions(bounds={"H": self.H_range}, max_steps=400,
+                                   step=StepOptions(ds=0.3, ds_max=1.0, max_angle=0.2))
+
+
+def g_options(G: float, max_steps: int = 80) -> ContinuationOptions:
+    """Options of a continuation in G from 0 to ``G`` (theta = 1/G^2, see the module docstring)."""
+    if not G > 0:
+        raise ValueError(f"target gravity G must be > 0, got {G}")
+    return ContinuationOptions(
+        bounds={"G": (0.0, G)}, max_steps=max_steps,
+        step=StepOptions(ds=0.1, ds_max=0.25, ds_min=1e-8, theta=1.0 / G**2),
+        detection=DetectionOptions(detect_branch_points=False),
+    )
+
+
+# ----------------------------------------------------------------------------- G = 0
+def gravity_free_branches(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings,
+                          progress: Callable[[str], None] | None = None) -> tuple[Branch, list[Branch]]:
+    """Uniform shear (G = 0) traced in H and both signs of the banded branches at its first
+    ``settings.modes`` branch points (problems.couette.pitchfork.banded_branches)."""
+    from problems.couette.pitchfork import banded_branches, trace_base
+
+    p = {**params, "G": 0.0}
+    opts = settings.g0_options()
+    base = trace_base(problem, p, settings.H_range[0], opts, branch_id="g0", progress=progress)
+    kids: list[Branch] = []
+    for k, bp in enumerate(base.branch_points[: settings.modes], start=1):
+        kids += banded_branches(problem, base, bp, p, opts, prefix=f"g0.{k}")
+    return base, kids
+
+
+# ----------------------------------------------------------------------------- continuation
+def homotopy_in_G(problem: CouetteProblem, state: Array, params: Mapping[str, float], G: float,
+                  max_steps: int = 80) -> Array | None:
+    """The state continued in G at fixed H from params['G'] (usually 0) up to ``G``.
+
+    ``symmetric=False``: gravity breaks the reflection, so a symmetric start must not be
+    treated as lying on an S-invariant branch.  Returns None when the path does not reach G
+    (a fold in G: the state does not survive that much gravity).
+    """
+    br = trace(problem, state, dict(params), "G", g_options(G, max_steps), symmetric=False, branch_id="homotopy")
+    if br.status != "EP" or not br.message.startswith("reached bound G") or abs(br.params["G"][-1] - G) > 1e-12 * G:
+        return None
+    return br.state(-1)
+
+
+def trace_in_H(problem: CouetteProblem, state: Array, params: Mapping[str, float], settings: GravitySettings,
+               *, branch_id: str = "0", kind: str = "", parent: str = "",
+               progress: Callable[[str], None] | None = None) -> Branch:
+    """Both directions in H at fixed G; a closed loop (isola) is returned once, closed."""
+    return trace_both(problem, state, dict(params), "H", settings.h_options(), symmetric=False,
+                      branch_id=branch_id, kind=kind, parent=parent, progress=progress)
+
+
+# ----------------------------------------------------------------------------- bookkeeping
+def _coordinates(branch: Branch, H_scale: float = 10.0) -> Array:
+    """Points of a branch in a scaled (H, Phi, nu_bottom, T_mid) space used for comparisons."""
+    ob = branch.observables
+    cols = [branch.params["H"] / H_scale, ob["phi"], ob["nu_bottom"]]
+    if "T_mid" in ob:
+        cols.append(ob["T_mid"] / max(1.0, float(np.max(np.abs(ob["T_mid"])))))
+    return np.column_stack(cols)
+
+
+def _distance_to_polyline(points: Array, line: Array) -> Array:
+    """Distance of every point to the polyline through ``line`` (rows are vertices)."""
+    if len(line) == 1:
+        return np.linalg.norm(points - line[0], axis=1)
+    a, b = line[:-1], line[1:]
+    d = b - a
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    # (P, S) projections of every point on every segment
+    t = np.clip(np.einsum("pk,sk->ps", points, d) - np.einsum("sk,sk->s", a, d)[None, :], 0.0, None) / dd[None, :]
+    t = np.minimum(t, 1.0)
+    proj = a[None, :, :] + t[:, :, None] * d[None, :, :]
+    return np.min(np.linalg.norm(points[:, None, :] - proj, axis=2), axis=1)
+
+
+def lies_on(a: Branch, b: Branch, tol: float = 5e-3, fraction: float = 0.9) -> bool:
+    """True when at least ``fraction`` of the points of ``a`` lie within ``tol`` of ``b``'s
+    polyline in the scaled (H/10, Phi, nu_bottom, T_mid) space: ``a`` is (part of) ``b``."""
+    if len(a) == 0 or len(b) == 0:
+        return False
+    dist = _distance_to_polyline(_coordinates(a), _coordinates(b))
+    return bool(np.mean(dist <= tol) >= fraction)
+
+
+def on_branch(problem: CouetteProblem, x: Array, p: Mapping[str, float], branch: Branch, tol: float = 2e-3) -> bool:
+    """True when the state (x, p) lies within ``tol`` of ``branch`` (scaled H, Phi, nu_bottom)."""
+    obs = problem.observables(x, p)
+    pt = np.array([[p["H"] / 10.0, obs["phi"], obs["nu_bottom"]]])
+    return bool(np.min(_distance_to_polyline(pt, _coordinates(branch)[:, :3])) < tol)
+
+
+def _arclength(b: Branch) -> float:
+    return float(np.sum(b.ds))
+
+
+def deduplicate(branches: Sequence[Branch], tol: float = 5e-3) -> tuple[list[Branch], list[tuple[str, str]]]:
+    """One branch per solution set: a branch lying on another (:func:`lies_on`) is dropped in
+    favour of the closed or longer one.  Returns (kept, [(dropped id, kept id), ...])."""
+    order = sorted(branches, key=lambda b: (not b.closed, -_arclength(b)))
+    kept: list[Branch] = []
+    dropped: list[tuple[str, str]] = []
+    for b in order:
+        twin = next((k for k in kept if lies_on(b, k, tol)), None)
+        if twin is None:
+            kept.append(b)
+        else:
+            dropped.append((b.id, twin.id))
+    ids = [b.id for b in branches]
+    kept.sort(key=lambda b: ids.index(b.id))
+    return kept, dropped
+
+
+def dense_side(problem: CouetteProblem, branch: Branch) -> str:
+    """'top' when the dense layer is mostly at the top wall (Phi = nu(1/2) > nu(-1/2)) along
+    the branch, else 'bottom'."""
+    top = branch.observables["nu_top"] > branch.observables["nu_bottom"]
+    return "top" if np.mean(top) > 0.5 else "bottom"
+
+
+def classify(problem: CouetteProblem, branch: Branch, H_min: float) -> str:
+    """'isola' (closed), 'primary' (reaches the small-H bound, where the state is near-uniform),
+    else 'floating-plug' / 'bottom-plug' by where the dense layer is (Phi = nu(1/2) vs nu(-1/2))."""
+    if branch.closed:
+        return "isola"
+    H = branch.params["H"]
+    if np.min(H) <= H_min * (1 + 1e-9):
+        return "primary"
+    return "floating-plug" if dense_side(problem, branch) == "top" else "bottom-plug"
+
+
+def _params_at(branch: Branch, i: int) -> dict[str, float]:
+    return {k: float(v[i]) for k, v in branch.params.items()}
+
+
+# ----------------------------------------------------------------------------- discovery
+@dataclass
+class GravityDiagram:
+    """All branches at one G, with how each was found.
+
+    branches : de-duplicated, labelled (kind) branches
+    routes : branch id -> 'small-H', 'homotopy' or 'fold-curve' (the route that found it)
+    duplicates : (dropped id, kept id) pairs (a branch found again by another route)
+    seeds : every seed tried, with its outcome (for the notes)
+    """
+
+    G: float
+    branches: list[Branch]
+    routes: dict[str, str] = field(default_factory=dict)
+    duplicates: list[tuple[str, str]] = field(default_factory=list)
+    seeds: list[str] = field(default_factory=list)
+    gravity_free: list[Branch] = field(default_factory=list)
+
+    def of_kind(self, kind: str) -> list[Branch]:
+        return [b for b in self.branches if b.kind == kind]
+
+
+def homotopy_seeds(problem: CouetteProblem, g0_branches: Sequence[Branch], G: float,
+                   seed_H: Sequence[float]) -> list[tuple[str, Array, dict[str, float]]]:
+    """Route 1: states of the gravity-free banded branches at ``seed_H`` continued in G."""
+    out = []
+    for br in g0_branches:
+        H = br.params["H"]
+        for h in seed_H:
+            if not (H.min() < h < H.max()):
+                continue
+            i = int(np.argmin(np.abs(H - h)))
+            p = _params_at(br, i)
+            x = homotopy_in_G(problem, br.state(i), p, G)
+            if x is not None:
+                out.append((f"homotopy from {br.id} at H={p['H']:.4g}", x, {**p, "G": G}))
+    return out
+
+
+def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
+               H_range: tuple[float, float]) -> list[tuple[str, Array, dict[str, float]]]:
+    """Route 2: points where fold curves in (H, G) cross the target G, polished by Newton at
+    (H, G) fixed (each is a fold of the diagram at G, hence a seed for every fold-bounded
+    branch and isola)."""
+    out = []
+    for c in curves:
+        g = c.params["G"]
+        for i in np.nonzero(np.sign(g[:-1] - G) * np.sign(g[1:] - G) <= 0)[0]:
+            j = int(i) if abs(g[i] - G) < abs(g[i + 1] - G) else int(i) + 1
+            p = {**_params_at(c, j), "G": G}
+            if not H_range[0] < p["H"] < H_range[1]:
+                continue
+            n = problem.size
+            res = newton(problem, c.state(j)[:n], p, NewtonOptions(max_iterations=20))
+            if res.converged:
+                out.append((f"fold curve {c.id} at H={p['H']:.4g}", res.u, p))
+    return out
+
+
+def discover(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings = GravitySettings(), *,
+             g0_branches: Sequence[Branch] | None = None, curves: Sequence[Branch] = (),
+             routes: Sequence[str] = ("homotopy", "fold-curve"),
+             progress: Callable[[str], None] | None = None) -> GravityDiagram:
+    """Every branch at G = params['G'] > 0 reachable from the small-H state, from the
+    gravity-free banded branches (homotopy in G) and from fold curves crossing G.
+
+    Each seed is traced in H (both ways; an isola closes); a seed already lying on a traced
+    branch is skipped; the branches are de-duplicated (:func:`deduplicate`) and labelled
+    (:func:`classify`).
+    """
+    G = float(params["G"])
+    if not G > 0:
+        raise ValueError("discover needs G > 0 (at G = 0 use the pitchfork scene)")
+    p0 = {**params, "H": settings.H_range[0]}
+    say = progress or (lambda m: None)
+    traced: list[Branch] = []
+    route_of: dict[str, str] = {}
+    notes: list[str] = []
+
+    def on_known(x: Array, p: Mapping[str, float]) -> bool:
+        return any(on_branch(problem, x, p, b) for b in traced)
+
+    def run(label: str, x: Array, p: Mapping[str, float], route: str) -> None:
+        if on_known(x, p):
+            notes.append(f"{label}: on a known branch")
+            return
+        bid = f"{len(traced)}"
+        say(f"gravity: tracing branch {bid} ({label})")
+        b = trace_in_H(problem, x, p, settings, branch_id=bid, parent=label)
+        traced.append(b)
+        route_of[bid] = route
+        notes.append(f"{label}: branch {bid} ({len(b)} points{', closed' if b.closed else ''})")
+
+    run("small-H state", problem.initial_guess(p0), p0, "small-H")
+    g0 = list(g0_branches) if g0_branches is not None else []
+    if "homotopy" in routes:
+        if g0_branches is None:
+            _, g0 = gravity_free_branches(problem, params, settings, progress)
+        for label, x, p in homotopy_seeds(problem, g0, G, settings.seed_H):
+            run(label, x, p, "homotopy")
+    if "fold-curve" in routes:
+        for label, x, p in fold_seeds(problem, curves, G, settings.H_range):
+            run(label, x, p, "fold-curve")
+    kept, dup = deduplicate(traced)
+    for b in kept:
+        b.kind = classify(problem, b, settings.H_range[0])
+    return GravityDiagram(G=G, branches=kept, routes={b.id: route_of[b.id] for b in kept}, duplicates=dup,
+                          seeds=notes, gravity_free=g0)
+
+
+# ----------------------------------------------------------------------------- fold curves
+def fold_curves(problem: CouetteProblem, branches: Sequence[Branch], second: str = "G", *,
+                bounds: Mapping[str, tuple[float, float]] | None = None, max_steps: int = 300,
+                ds_max: float = 0.5) -> list[Branch]:
+    """Fold curves in (H, second) through the folds of ``branches``; a fold already lying on
+    a traced curve (within 1e-3 in H/10 and Phi) is not traced again."""
+    opts = ContinuationOptions(bounds=dict(bounds or {}), max_steps=max_steps,
+                               step=StepOptions(ds=0.1, ds_max=ds_max, max_angle=0.2))
+    curves: list[Branch] = []
+    for b in branches:
+        for lp in b.fold_points:
+            if not lp.converged:
+                continue
+            pt = np.array([[lp.params["H"] / 10.0, lp.order_parameter]])
+            if any(np.min(_distance_to_polyline(pt, np.column_stack([c.params["H"] / 10.0, c.observables["phi"]]))) < 1e-3
+                   for c in curves):
+                continue
+            c = trace_fold_curve(problem, lp, second, opts, parameter="H", branch_id=f"fold{len(curves)}")
+            c.parent = f"{lp.name}@{b.id}"
+            curves.append(c)
+    return curves
+
+
+def extrema(curves: Sequence[Branch], second: str = "G") -> list[dict[str, Any]]:
+    """XT points (extrema of ``second``) of fold curves with second > 0: where isolas / fold
+    pairs are born (local minimum of G) or die (local maximum of G)."""
+    out = []
+    for c in curves:
+        g = c.params[second]
+        for s in c.points("XT"):
+            val = s.params[second]
+            if not val > 0:
+                continue
+            i = min(max(s.index, 1), len(g) - 2)
+            around = g[max(i - 3, 0): i + 4]
+            kind = "max" if val >= np.max(around) - 1e-15 else "min"
+            row = {"curve": c.id, "H": s.params["H"], second: val, "phi": s.order_parameter,
+                   "extremum": kind, "converged": s.converged}
+            if second == "G":
+                row["Fr"] = float(val ** -0.5)
+                row["event"] = "death" if kind == "max" else "birth"
+            out.append(row)
+    return out
+
+
+# ----------------------------------------------------------------------------- normal forms
+def branch_point_normal_forms(problem: CouetteProblem, base: Branch, *, amplitude: float = 1e-2) -> list[tuple[SpecialPoint, PitchforkNormalForm]]:
+    """Lyapunov-Schmidt coefficients (a3, a1, a0[G], a2[G]) at every BP of the gravity-free
+    base branch (``problem`` must have gravity=True so that dF/dG exists at G = 0)."""
+    out = []
+    for bp in base.branch_points:
+        if not bp.converged:
+            continue
+        nf = pitchfork_normal_form(problem, bp.state, {**bp.params, "G": 0.0}, "H", unfolding=("G",),
+                                   amplitude=amplitude, tol=1e-11, polish=1)
+        out.append((bp, nf))
+    return out
+
+
+def unfolding_branches(problem: CouetteProblem, bp: SpecialPoint, G_values: Sequence[float], window: float,
+                       *, ds_max: float = 0.02) -> list[Branch]:
+    """Branches near the BP at each small G: every solution component crossing H = H_c
+    within |H - H_c| <= window.
+
+    At H = H_c the imperfect pitchfork has one or three solutions near Phi_c; they are found
+    by homotopy in G from the BP state displaced by +- a small amount along the branch
+    the BP state (the component through the near-uniform state) and from the mirror image of
+    that component's state at H_c + window (the other, fold-bounded component), each traced
+    in H inside the window.
+    """
+    Hc = bp.params["H"]
+    settings = GravitySettings(H_range=(Hc - window, Hc + window), ds=0.005, ds_max=ds_max, max_angle=0.2,
+                               max_steps=2000)
+    out: list[Branch] = []
+    for G in G_values:
+        p = {**bp.params, "G": 0.0}
+        x = homotopy_in_G(problem, bp.state, p, G)
+        if x is None:
+            raise ValueError(f"homotopy in G from the BP at H = {Hc:.6g} failed for G = {G:g}")
+        found: list[Branch] = []
+        b = trace_in_H(problem, x, {**p, "G": G}, settings, branch_id=f"G{G:g}.{len(found)}")
+        found.append(b)
+        # the other component (fold-bounded, dense on the other side) lies near the mirror
+        # image of the first one's end state (the mirror solves the -G problem; G is small)
+        i = int(np.argmax(b.params["H"]))
+        q = _params_at(b, i)
+        res = newton(problem, problem.symmetry(b.state(i)), q, NewtonOptions(max_iterations=20))
+        if res.converged and not on_branch(problem, res.u, q, b):
+            found.append(trace_in_H(problem, res.u, q, settings, branch_id=f"G{G:g}.1"))
+        out += found
+    return out

@@ -1,0 +1,99 @@
+"""The ``gravity`` scene: every branch of granular Couette flow at one Froude number.
+
+``contin trace gravity -s nu=0.3 -s e=0.8 -s Fr=1000 --json``: the primary branch from the
+near-uniform small-H state, plus every branch seeded from the gravity-free banded branches by
+homotopy in G (problems.couette.gravity.discover), de-duplicated and labelled (primary, isola,
+floating-plug, bottom-plug), with the stability pass (k_x = 0) on every branch.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from contin.branch import relabel
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from problems.couette.gravity import GravitySettings, discover, gravity_problem
+
+GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 50.0,
+                                    "walls": "noslip", "modes": 2}
+
+
+def _settings(request: SceneRequest) -> dict[str, Any]:
+    out = dict(GRAVITY_DEFAULTS)
+    for name, value in request.params.items():
+        if name not in out:
+            raise SceneError(f"unknown parameter {name!r} for scene 'gravity'; its parameters are {', '.join(out)}")
+        out[name] = value
+    for name in ("nu", "e", "Fr", "H_min", "H_max", "modes"):
+        try:
+            out[name] = float(out[name])
+        except (TypeError, ValueError):
+            raise SceneError(f"parameter {name} of scene 'gravity' must be a number, got {out[name]!r}") from None
+    if not (out["Fr"] > 0 and not math.isinf(out["Fr"])):
+        raise SceneError(f"scene 'gravity' needs a finite Froude number Fr > 0, got {out['Fr']:g} (Fr = inf is the pitchfork scene)")
+    if not 0 < out["H_min"] < out["H_max"]:
+        raise SceneError(f"need 0 < H_min < H_max, got H_min={out['H_min']:g}, H_max={out['H_max']:g}")
+    if out["walls"] not in ("noslip", "jj"):
+        raise SceneError(f"walls must be 'noslip' or 'jj', got {out['walls']!r}")
+    return out
+
+
+def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> Any:
+    return gravity_problem(discretization.get("method", "cheb"), int(discretization.get("intervals", 32)),
+                           str(parameters.get("walls", "noslip")))
+
+
+def run_gravity(request: SceneRequest) -> SceneResult:
+    s = _settings(request)
+    try:
+        pb = gravity_problem(request.method or "cheb", request.grid or 32, s["walls"])
+        params = pb.params({"nu": s["nu"], "e": s["e"], "Fr": s["Fr"], "H": s["H_min"]})
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    settings = GravitySettings(H_range=(s["H_min"], s["H_max"]), modes=int(s["modes"]))
+    o = request.options_for(settings.h_options())
+    settings = GravitySettings(H_range=settings.H_range, ds=o.step.ds, ds_max=o.step.ds_max,
+                               max_steps=o.max_steps, modes=settings.modes)
+    diagram = discover(pb, params, settings, progress=request.report)
+    branches = diagram.branches
+    relabel(branches)
+    if request.stability:
+        from contin.stability import stability_pass
+
+        for b in branches:
+            request.report(f"gravity: stability of branch {b.id}")
+            stability_pass(pb, b, params)
+    for b in branches:
+        request.finished(b)
+    notes = [f"G = Fr^-2 = {params['G']:.6g}"]
+    notes += [f"branch {b.id}: {b.kind}, found by {diagram.routes[b.id]}, {len(b.fold_points)} folds"
+              + (", closed" if b.closed else "") for b in branches]
+    notes += [f"branch {a} found again as {k} (dropped)" for a, k in diagram.duplicates]
+    return SceneResult(
+        branches=branches,
+        parameters={**s, "G": params["G"]},
+        discretization={"method": pb.grid.method, "intervals": pb.N},
+        y=pb.grid.y,
+        profiles=pb.profiles,
+        notes=notes,
+        extra={"kinds": {b.id: b.kind for b in branches}, "routes": diagram.routes,
+               "duplicates": diagram.duplicates, "seeds": diagram.seeds},
+    )
+
+
+GRAVITY_SCENES = {
+    "gravity": Scene(
+        name="gravity",
+        summary="Couette flow with gravity (Fr finite): primary, isolas, floating/bottom plugs in H",
+        defaults=GRAVITY_DEFAULTS,
+        run=run_gravity,
+        x="H",
+        y="phi",
+        problem_factory=problem_factory,
+    ),
+}
+
+#: alias for problems.couette.scenes (which registers ``SCENES`` of this module)
+SCENES = GRAVITY_SCENES
