@@ -1,0 +1,94 @@
+"""Key points of gPCF for ``contin accuracy``: a small scene traced with the core directly.
+
+``gpcf-keypoints`` (uniform shear, no-slip adiabatic walls, chi = jj, g = 0):
+
+- ``Hc1``: the first symmetry-breaking BP on uniform shear at (nu, e) = (0.3, 0.8), exact
+  value H_1^c = pi psi(nu, e) (physics.md section 4);
+- ``LP_nu0.16``: the fold of the subcritical n = 1 banded branch at nu = 0.16, e = 0.8
+  (H ~ 41.96; the solve_bvp baseline in benchmarks/ finds 41.963 by pinning).
+
+Each is traced as a user would: uniform branch in H through the BP, branch switching, banded
+branch down to the fold.  The result exposes ``extra['key_points']`` (see contin.accuracy).
+Register it for the CLI with ``CONTIN_SCENES=problems.couette.keypoints:SCENES``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from contin.branch import Branch, relabel
+from contin.continuation import switch, trace
+from contin.options import ContinuationOptions, StepOptions
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from problems.couette.closures import critical_gap_factor
+from problems.couette.model import CouetteProblem
+from problems.couette.params import build_params
+
+DEFAULTS: dict[str, Any] = {"e": 0.8, "nu_super": 0.3, "nu_sub": 0.16}
+
+
+def exact_hc1(nu: float, e: float) -> float:
+    """H_1^c = pi psi(nu, e)."""
+    return float(np.pi * critical_gap_factor(nu, e))
+
+
+def first_bp(problem: CouetteProblem, nu: float, e: float, options: ContinuationOptions | None = None) -> tuple[Branch, Any]:
+    """Uniform shear in H from 0.8 H_1^c to 1.2 H_1^c and its first BP (None if none found)."""
+    hc = exact_hc1(nu, e)
+    p = build_params({"nu": nu, "e": e, "H": 0.8 * hc})
+    opts = options or ContinuationOptions(step=StepOptions(ds=0.5, ds_max=2.0), bounds={"H": (0.8 * hc, 1.2 * hc)},
+                                          max_steps=200)
+    br = trace(problem, problem.uniform_state(p), p, "H", opts)
+    bps = [s for s in br.special_points if s.type == "BP"]
+    return br, (bps[0] if bps else None)
+
+
+def banded_fold(problem: CouetteProblem, nu: float, e: float) -> tuple[list[Branch], Any]:
+    """The n = 1 banded branch from H_1^c(nu) downwards and its first LP (None if none)."""
+    hc = exact_hc1(nu, e)
+    # The subcritical branch bends steeply: H - H_c ~ -3500 a^2 in the theta = 1 norm (a the
+    # mode amplitude), so the first step off the BP needs ds ~ 1e-4.  Down-weighting H in the
+    # arclength (theta = 1e-4) makes ds = 0.01 work and halves the number of steps.
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.5, theta=1e-4),
+                               bounds={"H": (0.6 * hc, 1.05 * hc)}, max_steps=300)
+    base, bp = first_bp(problem, nu, e, opts)
+    if bp is None:
+        return [base], None
+    new = switch(problem, base, bp, opts, directions=(+1,))
+    for b in new:
+        lps = [s for s in b.special_points if s.type == "LP"]
+        if lps:
+            return [base, b], lps[0]
+    return [base, *new], None
+
+
+def run(request: SceneRequest) -> SceneResult:
+    values = dict(DEFAULTS)
+    for k, v in request.params.items():
+        if k not in DEFAULTS:
+            raise SceneError(f"unknown parameter {k!r} for scene 'gpcf-keypoints'; its parameters are {', '.join(DEFAULTS)}")
+        values[k] = float(v)
+    try:
+        problem = CouetteProblem(request.method or "cheb", request.grid or 32)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    base, bp = first_bp(problem, values["nu_super"], values["e"])
+    branches, lp = banded_fold(problem, values["nu_sub"], values["e"])
+    keys: dict[str, float] = {}
+    if bp is not None and bp.converged:
+        keys["Hc1"] = bp.params["H"]
+    if lp is not None and lp.converged:
+        keys[f"LP_nu{values['nu_sub']:g}"] = lp.params["H"]
+    base.id = "uniform_super"
+    branches[0].id = "uniform_sub"
+    done = [base, *branches]
+    relabel(done)
+    return SceneResult(branches=done, parameters=values,
+                       discretization={"method": problem.method, "intervals": problem.N},
+                       extra={"key_points": keys, "Hc1_exact": exact_hc1(values["nu_super"], values["e"])})
+
+
+SCENES = {"gpcf-keypoints": Scene("gpcf-keypoints", "gPCF key points: H_1^c (nu=0.3) and the banded-branch fold at nu=0.16",
+                                  DEFAULTS, run, x="H", y="phi")}

@@ -1,0 +1,168 @@
+"""contin.accuracy and ``contin accuracy``: key points against method and grid.
+
+Numbers: the Bratu fold lam* = 3.513830719125162 (problems.demo), gPCF H_1^c = pi psi(0.3, 0.8)
+= 13.0685293255 (physics.md section 4) and the banded-branch fold at nu = 0.16, H = 41.9625
+(independently 41.963 by solve_bvp pinning, benchmarks/baseline_solve_bvp.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import pytest
+from click.testing import CliRunner
+
+from contin.accuracy import key_points, recommend, references, relative_error, run_accuracy, write_outputs
+from contin.cli import main
+from contin.scene import SceneRequest, get_scene
+from problems.demo import BRATU_FOLD
+
+
+@pytest.fixture(scope="module")
+def bratu_report():
+    scene = get_scene("bratu")
+    return run_accuracy(scene, {}, ["cheb", "fd2", "fd4"], [8, 16, 32, 64], memory=False)
+
+
+def _rows(report, method):
+    return sorted((r for r in report.rows if r.method == method), key=lambda r: r.grid)
+
+
+def test_bratu_reference_is_finest_chebyshev_and_exact(bratu_report):
+    assert bratu_report.reference_from == "cheb N=64"
+    assert list(bratu_report.reference) == ["0/LP1"]
+    assert relative_error(bratu_report.reference["0/LP1"], BRATU_FOLD) < 1e-13
+    cheb = _rows(bratu_report, "cheb")
+    assert math.isnan(cheb[-1].error)  # the reference itself
+    assert cheb[2].error < 1e-12  # N = 32
+    assert 1e-6 < cheb[0].error < 1e-3  # N = 8 is visibly under-resolved
+
+
+@pytest.mark.parametrize("method,order", [("fd2", 2.0), ("fd4", 4.0)])
+def test_bratu_observed_orders(bratu_report, method, order):
+    rows = _rows(bratu_report, method)
+    observed = [r.order for r in rows[1:]]
+    assert all(abs(o - order) < 0.7 for o in observed), observed
+    assert abs(observed[-1] - order) < 0.25  # asymptotic on the finest pair
+    for r in rows:  # errors against the exact fold, not just the reference
+        assert r.error == pytest.approx(relative_error(r.value, BRATU_FOLD), rel=1e-6, abs=1e-13)
+
+
+def test_bratu_costs_recorded(bratu_report):
+    for run in bratu_report.runs:
+        assert not run.failed
+        assert run.wall > 0 and run.cpu > 0 and run.newton_iterations > 10 and run.points > 10
+        assert math.isnan(run.peak_memory_mb)  # memory=False
+
+
+def test_recommendation_picks_cheapest_run_meeting_budget(bratu_report):
+    rec = {r["target"]: r for r in recommend(bratu_report, targets=(1e-2, 1e-6, 1e-10, 1e-16))}
+    assert rec[1e-10]["method"] == "cheb" and rec[1e-10]["worst_error"] <= 1e-10
+    assert rec[1e-16]["method"] is None  # nothing is that accurate against a cheb reference
+    ok = [(r.cpu, r.method, r.grid) for r in bratu_report.rows if r.error <= 1e-2]
+    assert (rec[1e-2]["method"], rec[1e-2]["grid"]) == min(ok)[1:]
+
+
+def test_richardson_reference_without_chebyshev():
+    scene = get_scene("bratu")
+    rep = run_accuracy(scene, {}, ["fd2"], [32, 64], memory=False)
+    assert rep.reference_from.startswith("Richardson fd2")
+    fd2_64 = [r for r in rep.rows if r.grid == 64][0]
+    # h^2 extrapolation removes the leading error: 1.3e-4 -> below 1e-6
+    assert relative_error(fd2_64.value, BRATU_FOLD) > 1e-4
+    assert relative_error(rep.reference["0/LP1"], BRATU_FOLD) < 1e-6
+
+
+def test_too_small_grid_is_a_labelled_failure_not_a_crash():
+    rep = run_accuracy(get_scene("bratu"), {}, ["fd6", "cheb"], [6, 16], memory=False)
+    failed = [r for r in rep.runs if r.failed]
+    assert [(r.method, r.grid) for r in failed] == [("fd6", 6)]
+    assert "fd6 needs at least 12 intervals" in failed[0].failed
+    assert rep.reference_from == "cheb N=16"
+
+
+def test_peak_memory_and_outputs(tmp_path):
+    rep = run_accuracy(get_scene("bratu"), {}, ["cheb", "fd4"], [16, 32], memory=True)
+    assert all(0.01 < r.peak_memory_mb < 200 for r in rep.runs)
+    paths = write_outputs(rep, tmp_path)
+    names = sorted(p.name for p in paths)
+    assert names == ["accuracy_bratu.csv", "accuracy_bratu.json", "accuracy_bratu_error_vs_N.png",
+                     "accuracy_bratu_error_vs_time.png"]
+    lines = (tmp_path / "accuracy_bratu.csv").read_text().splitlines()
+    assert lines[0].startswith("key,method,grid,value,reference,error,order")
+    assert len(lines) == 1 + 4
+    doc = json.loads((tmp_path / "accuracy_bratu.json").read_text())
+    assert doc["reference_from"] == "cheb N=32" and len(doc["rows"]) == 4
+    assert doc["recommendations"][0]["target"] == 1e-3
+    assert all((tmp_path / n).stat().st_size > 5000 for n in names if n.endswith(".png"))
+
+
+def test_key_points_from_special_points_skip_unconverged():
+    res = get_scene("bratu").run(SceneRequest(grid=16, stability=False))
+    assert set(key_points(res)) == {"0/LP1"}
+    sps = res.branches[0].special_points
+    res.branches[0].special_points = [dataclasses.replace(s, converged=False) if s.type == "LP" else s for s in sps]
+    assert key_points(res) == {}
+    assert references([])[1] == "none (every run failed)"
+
+
+# ----------------------------------------------------------------------------- gPCF
+@pytest.fixture(scope="module")
+def gpcf():
+    from problems.couette.keypoints import SCENES
+
+    return SCENES["gpcf-keypoints"]
+
+
+@pytest.mark.parametrize("n", [16, 24, 32, 48])
+def test_gpcf_critical_gap_to_1e10_at_chebyshev_n_le_48(gpcf, n):
+    from problems.couette.keypoints import exact_hc1
+
+    res = gpcf.run(SceneRequest(method="cheb", grid=n))
+    hc = exact_hc1(0.3, 0.8)
+    assert hc == pytest.approx(13.0685293255, abs=1e-10)
+    assert relative_error(res.extra["key_points"]["Hc1"], hc) < 1e-10
+
+
+def test_gpcf_banded_fold_converges_and_matches_baseline(gpcf):
+    rep = run_accuracy(gpcf, {}, ["cheb", "fd4"], [32, 48, 64], memory=False)
+    lp = {(r.method, r.grid): r for r in rep.rows if r.key == "LP_nu0.16"}
+    ref = rep.reference["LP_nu0.16"]
+    assert ref == pytest.approx(41.963, abs=1.5e-3)  # solve_bvp pinning scan
+    assert lp["cheb", 32].error < 1e-7 and lp["cheb", 48].error < 1e-9
+    assert 1e-4 < lp["fd4", 32].error < 1e-2
+    assert lp["fd4", 64].error < lp["fd4", 48].error < lp["fd4", 32].error
+    assert 3.5 < lp["fd4", 64].order < 5.5  # fourth order (pre-asymptotic: ~4.7)
+
+
+# ----------------------------------------------------------------------------- CLI
+def test_cli_accuracy_json_and_files(tmp_path):
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "cheb,fd2", "--grids", "16,32", "--json",
+                                  "--no-memory", "-o", str(tmp_path / "acc")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["scene"] == "bratu" and len(doc["rows"]) == 4
+    assert (tmp_path / "acc" / "accuracy_bratu.csv").exists()
+    assert "budget" in r.stderr
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--methods", "cheb,spectral"], "unknown method 'spectral'"),
+    (["--grids", "16,x"], "comma-separated list"),
+    (["--grids", "1,16"], "grids must be at least 2"),
+    (["-s", "mu=1"], "unknown parameter 'mu'"),
+])
+def test_cli_accuracy_bad_input_one_line(args, message):
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--no-memory", *args])
+    assert r.exit_code in (1, 2)
+    err = r.stderr.strip().splitlines()
+    assert message in r.stderr and "Traceback" not in r.stderr
+    assert len([line for line in err if line.startswith("Error")]) == 1
+
+
+def test_cli_accuracy_all_runs_failed():
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "fd6", "--grids", "6", "--no-memory"])
+    assert r.exit_code == 1
+    assert "no key points" in r.stderr and "fd6 needs at least 12 intervals" in r.stderr
