@@ -291,7 +291,8 @@ class FoldCurveEnd:
     nu_end, H_end, delta_end : the traced point with the smallest |delta|
     gap_end : H_end - H_1^c(nu_end) (-> 0 at the end)
     nu_tc : nu at delta = 0 from the fit nu = nu_tc + c2 delta^2 + c3 delta^3
-    nu_tc_error : the change of nu_tc when the fit window is halved (an error estimate)
+    nu_tc_error : the change of nu_tc when a delta^4 term is added to the fit (an error estimate)
+    fit_points : distinct points (crawling steps merged) in the fit window delta_fit
     """
 
     branch: Branch
@@ -308,14 +309,52 @@ class FoldCurveEnd:
     notes: list[str] = field(default_factory=list)
 
 
-def _fit_end(delta: np.ndarray, nu: np.ndarray, window: float) -> tuple[float, float, int]:
+def _clusters(delta: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge the points where the tracer crawled (|delta| equal to 1 %) into their mean.
+
+    Near the tricritical point the augmented system is nearly singular and the tracer takes
+    many tiny steps whose nu scatter at the 1e-9 level; as separate points they would
+    dominate the least-squares fit.
+    """
+    order = np.argsort(np.abs(delta))
+    d, n = np.abs(delta[order]), nu[order]
+    groups: list[list[int]] = [[0]]
+    for k in range(1, d.size):
+        if d[k] <= 1.01 * d[groups[-1][0]]:
+            groups[-1].append(k)
+        else:
+            groups.append([k])
+    sign = np.sign(np.median(delta))  # one half of the fold curve: delta has one sign
+    return (np.array([sign * d[g].mean() for g in groups]), np.array([n[g].mean() for g in groups]))
+
+
+def _fit_end(delta: np.ndarray, nu: np.ndarray, window: float, degree: int = 3) -> tuple[float, float, int]:
+    """nu(0) and c2 of nu = nu_tc + c2 delta^2 + ... + c_degree delta^degree on |delta| <= window."""
     sel = np.abs(delta) <= window
     d, n = delta[sel], nu[sel]
-    if d.size < 4:
+    if d.size < degree + 1:
         raise ValueError(f"only {d.size} fold-curve points with |delta| <= {window:g}; cannot extrapolate to delta = 0")
-    a = np.column_stack([np.ones_like(d), d**2, d**3])
+    a = np.column_stack([np.ones_like(d)] + [d**k for k in range(2, degree + 1)])
     coef = np.linalg.lstsq(a, n, rcond=None)[0]
     return float(coef[0]), float(coef[1]), int(d.size)
+
+
+def _end_of_curve(curve: Branch, delta_fit: float) -> str:
+    """Turn the tracer's failure at the tricritical point into the curve's regular end.
+
+    The augmented fold system is singular where the fold curve meets the BP curve (the BP
+    curve solves it too), so the tracer stops there with MX; once the caller has checked that
+    the curve did reach the BP curve, that stop is the expected end point (EP).
+    """
+    if curve.status != "MX":
+        return curve.message
+    reason = curve.message
+    curve.special_points = [replace(s, type="EP", note=f"fold curve ends on the BP curve (tricritical point); "
+                                     f"the tracer stopped: {s.note}") if s.type == "MX" else s
+                            for s in curve.special_points]
+    curve.status = "EP"
+    curve.message = f"ended on the BP curve at the tricritical point (tracer stopped: {reason})"
+    return curve.message
 
 
 def tricritical_by_fold_curve(problem: CouetteProblem, fold: BandedFold, e: float, *, num: float = 0.65,
@@ -325,7 +364,11 @@ def tricritical_by_fold_curve(problem: CouetteProblem, fold: BandedFold, e: floa
 
     The fold curve is traced towards smaller H (larger nu: the subcritical fold shrinks onto
     the BP as nu -> nu_tc).  It must come within |delta| < delta_fit / 4 of the BP curve;
-    otherwise ValueError (the curve left through a bound or the tracer gave up early).
+    otherwise ValueError (the curve left through a bound or the tracer gave up early).  A
+    final MX at the BP curve becomes the curve's EP (see :func:`_end_of_curve`).
+
+    nu_tc is extrapolated from the points with |delta| <= delta_fit (window doubled until it
+    holds 5 distinct points); its error estimate is the change when a delta^4 term is added.
     """
     h_c = fold.H_c
     opts = options or ContinuationOptions(
@@ -340,28 +383,34 @@ def tricritical_by_fold_curve(problem: CouetteProblem, fold: BandedFold, e: floa
     if not abs(delta[i]) < delta_fit / 4:
         raise ValueError(f"the fold curve did not reach the BP curve: smallest |delta| = {abs(delta[i]):.3g} at "
                          f"nu = {nu[i]:.6g}, H = {H[i]:.6g} ({curve.message})")
-    nu_tc, c2, count = _fit_end(delta, nu, delta_fit)
-    half, _, _ = _fit_end(delta, nu, delta_fit / 2) if np.sum(np.abs(delta) <= delta_fit / 2) >= 4 else (nu_tc, 0, 0)
+    message = _end_of_curve(curve, delta_fit)
+    d, n = _clusters(delta, nu)
+    window = delta_fit
+    while np.sum(np.abs(d) <= window) < 5 and window < 0.1:
+        window *= 2
+    nu_tc, c2, count = _fit_end(d, n, window)
+    nu_tc4, _, _ = _fit_end(d, n, window, degree=4)
     gap = H[i] - critical_gap(nu[i], e, chi=problem.chi, num=num)
     notes = [f"fold curve: {len(curve)} points, closest approach to the BP curve |delta| = {abs(delta[i]):.2e} at "
-             f"nu = {nu[i]:.9f}, H = {H[i]:.6f} (H - H_1^c = {gap:.2e}); {curve.message}"]
+             f"nu = {nu[i]:.9f}, H = {H[i]:.6f} (H - H_1^c = {gap:.2e}); {message}"]
     return FoldCurveEnd(branch=curve, nu_tc=nu_tc, H_tc=critical_gap(nu_tc, e, chi=problem.chi, num=num),
                         nu_end=float(nu[i]), H_end=float(H[i]), delta_end=float(delta[i]), gap_end=float(gap),
-                        nu_tc_error=float(abs(half - nu_tc)), fit_points=count, c2=c2, delta_fit=delta_fit,
+                        nu_tc_error=float(abs(nu_tc4 - nu_tc)), fit_points=count, c2=c2, delta_fit=window,
                         notes=notes)
 
 
 def bend_from_branches(branches: Sequence[Branch], H_c: float, nu: float, *, delta_max: float = 0.02,
                        ) -> tuple[float, float, int]:
     """Finite-amplitude bend: least squares H - H_c = a delta^2 + b delta^3 + c delta^4 on the
-    points of ``branches`` (both halves of a pitchfork) with 0 < |delta| <= delta_max.
+    points of ``branches`` (both halves of a pitchfork) with 1e-9 < |delta| <= delta_max.
 
     Returns (a, b, number of points).  Compare a with :func:`pitchfork_bend`.
     """
     ds, hs = [], []
     for b in branches:
         d = b.observables["phi"] - nu
-        sel = (np.abs(d) > 0) & (np.abs(d) <= delta_max)
+        # points of uniform shear (the BP itself) carry delta at rounding level only
+        sel = (np.abs(d) > 1e-9) & (np.abs(d) <= delta_max)
         ds.append(d[sel])
         hs.append(b.params["H"][sel] - H_c)
     d = np.concatenate(ds)

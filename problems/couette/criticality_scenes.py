@@ -113,6 +113,9 @@ def run_criticality(request: SceneRequest) -> SceneResult:
     try:
         request.report("criticality: threshold density")
         nu_th = cr.threshold_density(e, chi=chi, num=num)
+        if s["nu_fold"] != "auto" and not s["nu_fold"] > nu_th:
+            raise SceneError(f"nu_fold = {s['nu_fold']:g} must lie in the subcritical range above the threshold "
+                             f"density nu_th = {nu_th:.6f} (and below the tricritical density)")
         if not nu > nu_th:
             raise SceneError(f"nu = {nu:g} lies below the threshold density nu_th = {nu_th:.6f} at e = {e:g}: "
                              "uniform shear has no BP there; choose nu > nu_th")
