@@ -219,6 +219,50 @@ def classify(problem: CouetteProblem, branch: Branch, H_min: float) -> str:
     return "floating-plug" if dense_side(problem, branch) == "top" else "bottom-plug"
 
 
+def slice_branch(branch: Branch, i0: int, i1: int) -> Branch:
+    """Points i0..i1 (inclusive) of a fully stored branch, with the special points inside."""
+    keep = slice(i0, i1 + 1)
+    sps = [replace(s, index=s.index - i0) for s in branch.special_points if i0 <= s.index < i1 or
+           (s.type in ("EP", "MX") and i0 <= s.index <= i1)]
+    return replace(
+        branch, params={k: v[keep].copy() for k, v in branch.params.items()},
+        observables={k: v[keep].copy() for k, v in branch.observables.items()},
+        states=branch.states[keep].copy(), tangents=branch.tangents[keep].copy(),
+        ds=np.concatenate([[0.0], branch.ds[i0 + 1: i1 + 1]]), newton_iterations=branch.newton_iterations[keep].copy(),
+        special_points=sps, closed=branch.closed and i0 == 0 and i1 == len(branch) - 1, state_index=None,
+        stable=None, n_unstable=None, eigenvalues=None)
+
+
+def trim_to_new(problem: CouetteProblem, branch: Branch, seed: Array, known: Sequence[Branch],
+                tol: float = 2e-3) -> Branch:
+    """The part of ``branch`` around the seed that does not run along a ``known`` branch.
+
+    Near the imperfect pitchforks two branches pass within O(G^(1/3)) of each other and a
+    step may land on the neighbour; the run then retraces a branch already known.  The
+    contiguous stretch through the seed point whose points are off every known branch is
+    kept (one point of overlap at each end).
+    """
+    if not known or len(branch) < 3 or branch.state_index is not None:
+        return branch
+    pts = _coordinates(branch)
+    on = np.zeros(len(branch), bool)
+    for k in known:
+        on |= _distance_to_polyline(pts[:, :3], _coordinates(k)[:, :3]) < tol
+    if not on.any():
+        return branch
+    i = int(np.argmin(np.linalg.norm(branch.states - seed[None, :], axis=1)))
+    lo = i
+    while lo > 0 and not on[lo - 1]:
+        lo -= 1
+    hi = i
+    while hi < len(branch) - 1 and not on[hi + 1]:
+        hi += 1
+    lo, hi = max(lo - 1, 0), min(hi + 1, len(branch) - 1)
+    out = slice_branch(branch, lo, hi)
+    out.message = f"{branch.message}; trimmed to points {lo}..{hi} (the rest runs along known branches)"
+    return out
+
+
 def _params_at(branch: Branch, i: int) -> dict[str, float]:
     return {k: float(v[i]) for k, v in branch.params.items()}
 
@@ -312,6 +356,8 @@ def discover(problem: CouetteProblem, params: Mapping[str, float], settings: Gra
         bid = f"{len(traced)}"
         say(f"gravity: tracing branch {bid} ({label})")
         b = trace_in_H(problem, x, p, settings, branch_id=bid, parent=label)
+        if not b.closed:
+            b = trim_to_new(problem, b, x, traced)
         traced.append(b)
         route_of[bid] = route
         notes.append(f"{label}: branch {bid} ({len(b)} points{', closed' if b.closed else ''})")
@@ -408,8 +454,10 @@ def unfolding_branches(problem: CouetteProblem, bp: SpecialPoint, G_values: Sequ
                                max_steps=2000)
     out: list[Branch] = []
     for G in G_values:
-        p = {**bp.params, "G": 0.0}
-        x = homotopy_in_G(problem, bp.state, p, G)
+        # start at the window's low end: the BP itself is singular (G ~ delta^3 there)
+        p = {**bp.params, "G": 0.0, "H": Hc - window}
+        x0 = newton(problem, problem.initial_guess(p), p, NewtonOptions(max_iterations=20)).u
+        x = homotopy_in_G(problem, x0, p, G)
         if x is None:
             raise ValueError(f"homotopy in G from the BP at H = {Hc:.6g} failed for G = {G:g}")
         found: list[Branch] = []
