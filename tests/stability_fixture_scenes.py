@@ -4,7 +4,7 @@
 widths H from ``Hmin`` to ``Hmax``, built without continuation, with a BP special point at
 every H_n^c = n pi psi in the range (physics.md section 4).  ``banded=1`` adds branch 'b': the
 n = 1 banded state at H = 14 (Newton from uniform shear plus the critical mode) and its mirror
-image.  ``selfstab=1``: the scene runs ``request.run_stability`` itself; otherwise it leaves the
+image.  ``dropbp=1`` drops the BP at H_2^c (an audit disagreement).  ``selfstab=1``: the scene runs ``request.run_stability`` itself; otherwise it leaves the
 stability pass to the CLI (through ``problem_factory``).
 """
 
@@ -20,7 +20,7 @@ from contin.stability import eigenpairs
 from problems.couette.closures import critical_gap_factor
 from problems.couette.model import CouetteProblem
 
-DEFAULTS = {"nu": 0.3, "e": 0.8, "Hmin": 5.0, "Hmax": 30.0, "n": 11, "banded": 0, "selfstab": 0}
+DEFAULTS = {"nu": 0.3, "e": 0.8, "Hmin": 5.0, "Hmax": 30.0, "n": 11, "banded": 0, "selfstab": 0, "dropbp": 0}
 
 
 def problem_factory(parameters, discretization) -> CouetteProblem:
@@ -63,7 +63,8 @@ def banded_pair(problem: CouetteProblem, nu: float = 0.3, e: float = 0.8, H: flo
     x = problem.uniform_state(p)
     A, B = problem.eigenproblem(x, p)
     _, v = eigenpairs(A, B, k=1)
-    f = np.real(v[:, 0]).reshape(5, -1)
+    egrid = problem.eigen_grid()  # Chebyshev, also for FD problems: interpolate the mode
+    f = np.array([egrid.interpolate(np.real(g), problem.grid.y) for g in np.asarray(v[:, 0]).reshape(5, -1)])
     f /= np.max(np.abs(f[0]))
     x0 = x.copy()
     x0[problem.i_nu] += 0.05 * f[0]
@@ -84,6 +85,8 @@ def run(req: SceneRequest) -> SceneResult:
     problem = problem_factory(par, disc)
     branches = [shear_branch(problem, float(par["nu"]), float(par["e"]),
                              np.linspace(float(par["Hmin"]), float(par["Hmax"]), int(par["n"])))]
+    if int(par["dropbp"]):  # an audit disagreement: the n_unstable change at H_2^c is unexplained
+        branches[0].special_points = branches[0].special_points[:1]
     if int(par["banded"]):
         u, p = banded_pair(problem, float(par["nu"]), float(par["e"]))
         branches.append(_branch(problem, "b", [u, problem.symmetry(u)], [p, p], kind="banded"))

@@ -172,6 +172,10 @@ def stability_command(file: str, branch_id: str | None, point: str, kx_spec: str
     if scene.problem_factory is None:
         fail(f"cannot rebuild the problem of {file}: scene {scene_name!r} has no problem_factory")
     problem = scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
+    size = getattr(problem, "size", None)
+    if isinstance(size, int) and size != state.size:
+        fail(f"the state has {state.size} entries but the problem rebuilt from {file} has {size} unknowns "
+             f"(discretization {meta.get('discretization')})")
 
     growth, speed, n_unst, leading = [], [], [], {}
     mode = None
