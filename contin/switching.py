@@ -39,6 +39,8 @@ from contin.testfunctions import Antisymmetric
 
 #: Relative size of the difference step for second derivatives.
 FD_STEP = 1e-5
+#: Halvings of the first step off the BP before a direction is given up.
+MAX_START_HALVINGS = 24
 
 
 def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_breaking: bool) -> tuple[Array, Array]:
@@ -143,7 +145,10 @@ def switch(
     for k, d in enumerate(directions, start=1):
         step = abs(ds if ds is not None else options.step.ds)
         start = None
-        for _ in range(8):
+        # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
+        # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
+        # the test below passes: halve up to MAX_START_HALVINGS times.
+        for _ in range(MAX_START_HALVINGS):
             x_pred = x0 + d * step * tau
             corr = correct(system, x_pred, system.row(tau), options.newton)
             # A good start lies near the predictor; a large correction means the predictor fell

@@ -1,0 +1,398 @@
+"""The shear-banding pitchfork hierarchy of gravity-free granular Couette flow (physics.md sections 3-4).
+
+Reusable pieces of the ``pitchfork`` and ``jj-walls`` scenes (``problems.couette.scenes``):
+
+- :func:`analytic_critical_gaps` -- H_n^c = n pi psi(nu, e) of uniform shear (no-slip walls);
+- :func:`threshold_density` -- the density below which psi is not finite (uniform shear has no BP,
+  "bifurcation from infinity"), root of the bracket of psi^2;
+- :func:`trace_base` -- uniform shear (no-slip) or the symmetric JJ base branch, traced in H;
+- :func:`banded_branches` -- switching at a BP onto both signs of the banded branch (the second
+  sign as the mirror image S x of the first when the first is not S-invariant);
+- :func:`mirror_branch` -- the image of a branch under the reflection symmetry;
+- :func:`density_continuation` -- a banded state at a density where uniform shear has no BP,
+  reached by continuation in nu at fixed H from a density where the BP exists;
+- :func:`newton_at` -- a branch evaluated at given parameter values by Newton from the nearest point;
+- :func:`criticality` -- the fit H - H_c = a delta^2 + b delta^3 + c delta^4 (delta = Phi - nu_bar)
+  near the BP: a > 0 supercritical, a < 0 subcritical;
+- :func:`confirm_branch_points` -- a BP found on a banded branch is re-located on a 1.5x finer grid;
+  one that moves by more than a few per cent is a discretization artefact and becomes a UZ point;
+- :class:`StabilityOperator`, :func:`stability` -- the k_x = k_z = 0 stability pass (plus extra
+  k_x), always on a Chebyshev grid.
+
+Stability on finite-difference grids.  Collocated FD stencils give the density/pressure coupling
+spurious, slowly decaying modes (decay ~ (pi/2N)^2, see ``problems.couette.linear.to_chebyshev``),
+so for ``fd2/fd4/fd6`` states the eigenproblem is set up on a Chebyshev grid with the same number
+of intervals (at most 80) after interpolating the base profiles; Chebyshev states are used as they
+are.  At k_x = k_z = 0 the spanwise velocity w decouples (its equation is nu0 sigma w =
+(1/H^2) (mu0 w')', Dirichlet, negative definite), so its block is dropped: same unstable count,
+about half the QZ cost.
+
+The secondary BP on banded branches.  Close to random close packing (Phi -> nu_m) the discrete
+banded branch crosses a spurious discrete branch whose profiles carry a grid-scale wiggle at the
+dense wall.  Its location grows like log N (nu = 0.3, e = 0.8, Chebyshev: H = 29.88, 33.15, 35.35,
+38.34, 40.39 for N = 32, 48, 64, 96, 128), the Jacobian has no small eigenvalue next to it and the
+k_x = 0 spectrum does not cross zero: it is not physics.  :func:`confirm_branch_points` demotes it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import scipy.linalg as la
+import scipy.optimize as so
+import scipy.sparse as sp
+
+from contin.branch import Branch, SpecialPoint
+from contin.continuation import newton, switch, trace, trace_both
+from contin.options import ContinuationOptions, NewtonOptions, StepOptions
+from contin.stability import DEFAULT_TOL, audit, count_unstable, eigenvalues
+from problems.couette.closures import coefficients, critical_gap_factor, packing_limit
+from problems.couette.model import CouetteProblem
+
+log = logging.getLogger("contin")
+
+Array = np.ndarray
+
+#: Relative change of a banded-branch BP under 1.5x grid refinement above which it is an artefact.
+BP_REFINEMENT_TOL = 0.02
+
+
+# ----------------------------------------------------------------------------- analytic facts
+def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65) -> list[float]:
+    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4); nan where psi is not finite."""
+    psi = float(critical_gap_factor(nu, e, chi, num))
+    return [n * math.pi * psi for n in range(1, modes + 1)]
+
+
+def _psi_bracket(nu: float, e: float, chi: str, num: float) -> float:
+    """(f1/f1')(f2'/f2 + f5'/f5) - 2: psi^2 = (f4/f5) / bracket (closures.critical_gap_factor)."""
+    c = coefficients(np.float64(nu), e, chi, num)
+    return float((c.f1 / c.f1_nu) * (c.f2_nu / c.f2 + c.f5_nu / c.f5) - 2.0)
+
+
+def threshold_density(e: float, *, chi: str = "jj", num: float = 0.65, below: float | None = None) -> float:
+    """Largest density (below ``below``, default the packing limit) where psi stops being finite.
+
+    Root of the bracket of psi^2 (:func:`_psi_bracket`), bracketed on a grid of nu and refined by
+    Brent's method; e = 0.8, chi_JJ: 0.156139.  nan if psi is finite on the whole range.
+    """
+    top = packing_limit(chi, num) * (1 - 1e-6) if below is None else below
+    grid = np.linspace(1e-3, top, 400)
+    values = np.array([_psi_bracket(v, e, chi, num) for v in grid])
+    change = np.flatnonzero(np.sign(values[:-1]) != np.sign(values[1:]))
+    if change.size == 0:
+        return math.nan
+    i = int(change[-1])
+    return float(so.brentq(_psi_bracket, grid[i], grid[i + 1], args=(e, chi, num), xtol=1e-14, rtol=1e-14))
+
+
+# ----------------------------------------------------------------------------- helpers
+def interpolate_state(source: CouetteProblem, target: CouetteProblem, x: Array) -> Array:
+    """A state of ``source`` resampled onto ``target``'s grid (profiles by the grid interpolant)."""
+    nu, u, T, P, _ = source.unpack(np.asarray(x, dtype=float))
+    y = target.grid.y
+    return target.pack(*(source.grid.interpolate(f, y) for f in (nu, u, T)), P)
+
+
+def newton_at(problem: Any, branch: Branch, values: Mapping[str, float], params: Mapping[str, float],
+              options: NewtonOptions = NewtonOptions()) -> Array:
+    """The state of ``branch`` at ``values`` (e.g. {'H': 12.5}) by Newton at fixed parameters.
+
+    Starts from the stored point nearest in the branch's continuation parameter (no
+    interpolation of states).  Raises ValueError if Newton does not converge.
+    """
+    par = branch.parameter
+    i = int(np.argmin(np.abs(branch.parameter_values - values[par])))
+    p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}, **values}
+    res = newton(problem, branch.state(i), p, options)
+    if not res.converged:
+        raise ValueError(f"Newton failed on branch {branch.id} at {values}: {res.message}")
+    return res.u
+
+
+def mirror_branch(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
+    """The image of ``branch`` under the reflection S (problem.symmetry), with recomputed observables.
+
+    Stability columns are copied: S maps the k_x = 0 eigenproblem at x onto that at S x.
+    """
+    if branch.state_index is not None:
+        raise ValueError("mirror_branch needs every state of the branch (save_every = 1)")
+    smat = problem.symmetry_matrix()
+    states = np.asarray((smat @ branch.states.T).T)
+    obs: dict[str, list[float]] = {}
+    for i, x in enumerate(states):
+        p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
+        for k, v in problem.observables(x, p).items():
+            obs.setdefault(k, []).append(v)
+    tang = branch.tangents.copy()
+    tang[:, :-1] = (smat @ tang[:, :-1].T).T
+    sps = [replace(sp_, state=np.asarray(smat @ sp_.state), order_parameter=problem.order_parameter(smat @ sp_.state),
+                   tangent=None if sp_.tangent is None else np.concatenate([smat @ sp_.tangent[:-1], sp_.tangent[-1:]]))
+           for sp_ in branch.special_points]
+    return dataclasses.replace(
+        branch, observables={k: np.array(v) for k, v in obs.items()}, states=states, tangents=tang,
+        special_points=sps, id=branch_id, kind=branch.kind, audit=list(branch.audit),
+        stable=None if branch.stable is None else branch.stable.copy(),
+        n_unstable=None if branch.n_unstable is None else branch.n_unstable.copy(),
+        eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())
+
+
+def _is_invariant(problem: CouetteProblem, branch: Branch, tol: float = 1e-6) -> bool:
+    """True when the middle state of the branch is S-invariant (the branch maps to itself)."""
+    x = branch.state(len(branch) // 2) if branch.state_index is None else branch.states[len(branch.states) // 2]
+    return float(np.max(np.abs(problem.symmetry(x) - x))) <= tol * max(1.0, float(np.max(np.abs(x))))
+
+
+# ----------------------------------------------------------------------------- branches
+def trace_base(problem: CouetteProblem, params: Mapping[str, float], H_start: float, options: ContinuationOptions,
+               *, branch_id: str = "0", progress: Callable[[str], None] | None = None) -> Branch:
+    """Uniform shear (no-slip walls; exact at every H) or the symmetric JJ base state, traced in H.
+
+    The start is ``problem.initial_guess`` at H = H_start, corrected by Newton inside ``trace``.
+    """
+    p = {**params, "H": H_start}
+    kind = "uniform shear" if problem.walls == "noslip" else "base"
+    return trace(problem, problem.initial_guess(p), p, "H", options, branch_id=branch_id, kind=kind,
+                 progress=progress)
+
+
+def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, params: Mapping[str, float],
+                    options: ContinuationOptions, prefix: str) -> list[Branch]:
+    """Both signs of the branch bifurcating at ``bp``: ids f"{prefix}.1" and f"{prefix}.2".
+
+    The first is traced by :func:`contin.continuation.switch`; the second is its mirror image
+    when the first is not S-invariant (symmetry-breaking BPs), otherwise it is traced too
+    (S-invariant branches, e.g. mode 2, whose two signs are different states).
+    """
+    first = switch(problem, base, bp, options, directions=(+1,), branch_id_prefix=prefix)
+    if not first:
+        raise ValueError(f"switching at {bp.name} (H = {bp.params['H']:.6g}) found no new branch")
+    b1 = first[0]
+    b1.id = f"{prefix}.1"
+    if _is_invariant(problem, b1):
+        second = switch(problem, base, bp, options, directions=(-1,), branch_id_prefix=prefix)
+        if not second:
+            raise ValueError(f"switching at {bp.name} in the second direction found no new branch")
+        b2 = second[0]
+        b2.id = f"{prefix}.2"
+    else:
+        b2 = mirror_branch(problem, b1, params, f"{prefix}.2")
+        b2.message = f"mirror image of branch {b1.id} (reflection y -> -y)"
+    return [b1, b2]
+
+
+def density_continuation(problem: CouetteProblem, params: Mapping[str, float], nu_from: float, nu_to: float,
+                         H_fixed: float, options: ContinuationOptions, *,
+                         progress: Callable[[str], None] | None = None) -> tuple[Array, list[Branch]]:
+    """A banded mode-1 state at (nu_to, H_fixed) from the BP of uniform shear at nu_from.
+
+    Uniform shear at nu_from is traced in H up to its first BP, the banded branch is followed
+    to H_fixed (bound), then that state is continued in nu at fixed H down to nu_to (bound).
+    Returns the state and the auxiliary branches (uniform, banded, density path).
+
+    Raises ValueError if a stage does not reach its target.
+    """
+    hc = analytic_critical_gaps(nu_from, params["e"], 1, chi=problem.chi, num=params["num"])[0]
+    p0 = {**params, "nu": nu_from}
+    H_lo = 0.5 * hc
+    H_hi = max(H_fixed, 1.2 * hc)
+    opts_H = dataclasses.replace(options, bounds={"H": (H_lo, H_hi)})
+    uni = trace(problem, problem.uniform_state({**p0, "H": 0.8 * hc}), {**p0, "H": 0.8 * hc}, "H",
+                dataclasses.replace(opts_H, bounds={"H": (H_lo, 1.1 * hc)}), branch_id="aux.uniform",
+                progress=progress)
+    bps = [b for b in uni.branch_points if "symmetry-breaking" in b.note]
+    if not bps:
+        raise ValueError(f"uniform shear at nu = {nu_from:g} has no symmetry-breaking BP near H = {hc:.6g}")
+    opts_b = dataclasses.replace(opts_H, bounds={"H": (H_lo, H_fixed)})
+    band = switch(problem, uni, bps[0], opts_b, directions=(+1,), branch_id_prefix="aux.banded")
+    if not band or abs(band[0].parameter_values[-1] - H_fixed) > 1e-9 * H_fixed:
+        raise ValueError(f"the banded branch at nu = {nu_from:g} did not reach H = {H_fixed:g}")
+    x = band[0].state(len(band[0]) - 1)
+    lo, hi = sorted((nu_to, nu_from))
+    opts_nu = dataclasses.replace(options, bounds={"nu": (lo, hi + 1e-9)})
+    path = trace(problem, x, {**p0, "H": H_fixed}, "nu", opts_nu, direction=1 if nu_to > nu_from else -1,
+                 branch_id="aux.density", kind="density path", progress=progress)
+    if abs(path.parameter_values[-1] - nu_to) > 1e-12:
+        raise ValueError(f"continuation in nu at H = {H_fixed:g} stopped at nu = {path.parameter_values[-1]:.6g} "
+                         f"before reaching nu = {nu_to:g} ({path.message})")
+    return path.state(len(path) - 1), [uni, band[0], path]
+
+
+# ----------------------------------------------------------------------------- analysis
+def criticality(branch: Branch, H_c: float, nubar: float, *, delta_max: float = 0.06) -> dict[str, Any]:
+    """Least-squares fit of H - H_c = a delta^2 + b delta^3 + c delta^4 near the BP (delta = Phi - nu_bar).
+
+    Uses the points with 0 < |delta| <= delta_max before the first fold (at least 3; with fewer
+    than 4 points only a and b are fitted).  kind = 'supercritical' for a > 0, 'subcritical' for
+    a < 0 (physics.md section 4).
+    """
+    d = branch.observables["phi"] - nubar
+    h = branch.parameter_values - H_c
+    stop = len(branch)
+    lps = branch.fold_points
+    if lps:
+        stop = min(stop, lps[0].index + 1)
+    sel = np.flatnonzero((np.abs(d[:stop]) > 1e-12) & (np.abs(d[:stop]) <= delta_max))
+    if sel.size < 3:
+        sel = np.flatnonzero(np.abs(d[:stop]) > 1e-12)[:4]
+    if sel.size < 2:
+        return {"branch": branch.id, "a": math.nan, "kind": "unknown", "points": int(sel.size)}
+    powers = (2, 3, 4) if sel.size >= 4 else (2, 3)
+    A = np.column_stack([d[sel] ** k for k in powers])
+    coef, *_ = np.linalg.lstsq(A, h[sel], rcond=None)
+    a = float(coef[0])
+    return {"branch": branch.id, "a": a, "b": float(coef[1]), "kind": "supercritical" if a > 0 else "subcritical",
+            "points": int(sel.size), "delta_max": float(np.max(np.abs(d[sel])))}
+
+
+def confirm_branch_points(problem: CouetteProblem, branch: Branch, params: Mapping[str, float],
+                          options: ContinuationOptions, *, factor: float = 1.5,
+                          tol: float = BP_REFINEMENT_TOL) -> list[str]:
+    """Re-locate every BP of a non-uniform branch on a grid ``factor`` times finer.
+
+    From the BP state (interpolated) at H_bp (1 - 2 tol), the refined branch is traced up to
+    H_bp (1 + 2 tol).  A BP whose refined twin is missing, or lies more than ``tol`` (relative)
+    away, is replaced by a UZ point with a note; returns one message per demoted point.  Genuine
+    BPs converge with the grid (exponentially for Chebyshev), the wall-wiggle crossing of the
+    module docstring moves like log N.
+    """
+    bps = branch.branch_points
+    if not bps:
+        return []
+    fine = CouetteProblem(problem.method, int(round(factor * problem.N)), walls=problem.walls, chi=problem.chi,
+                          dufour=problem.dufour)
+    messages = []
+    new_points = []
+    for sp_ in branch.special_points:
+        if sp_.type != "BP":
+            new_points.append(sp_)
+            continue
+        hb = sp_.params["H"]
+        lo, hi = hb * (1 - 2 * tol), hb * (1 + 2 * tol)
+        i0 = int(np.argmin(np.abs(branch.parameter_values - lo)))
+        p = {**params, **{k: float(v[i0]) for k, v in branch.params.items()}}
+        x0 = interpolate_state(problem, fine, branch.state(i0))
+        p["H"] = float(np.clip(p["H"], lo, hi))
+        step = dataclasses.replace(options.step, ds=min(abs(options.step.ds), 0.05 * hb * tol),
+                                   ds_max=min(options.step.ds_max, hb * tol))
+        opts = dataclasses.replace(options, step=step, bounds={"H": (lo, hi)}, max_steps=60)
+        direction = 1 if branch.parameter_values[min(i0 + 1, len(branch) - 1)] >= branch.parameter_values[i0] else -1
+        ref = trace(fine, x0, p, "H", opts, direction=direction, branch_id="refine")
+        twins = [b for b in ref.branch_points if abs(b.params["H"] - hb) <= tol * hb]
+        if twins:
+            new_points.append(sp_)
+            continue
+        moved = ", ".join(f"{b.params['H']:.6g}" for b in ref.branch_points) or "none"
+        note = (f"unconfirmed BP at H = {hb:.6g} (N = {problem.N}): no BP within {100 * tol:g}% at N = {fine.N} "
+                f"(BPs there: {moved}); discretization artefact")
+        messages.append(f"branch {branch.id}: {note}")
+        new_points.append(replace(sp_, type="UZ", note=note))
+    branch.special_points = new_points
+    return messages
+
+
+class StabilityOperator:
+    """Eigenproblem of physics.md section 5 for states of a CouetteProblem, on a Chebyshev grid.
+
+    ``eigenproblem(x, p, kx, kz)`` interpolates FD base profiles onto a Chebyshev grid with the
+    same number of intervals (at most 80; ``linear.to_chebyshev``) and drops the decoupled,
+    always-stable w block at k_x = k_z = 0 (module docstring).
+    """
+
+    def __init__(self, problem: CouetteProblem) -> None:
+        self.problem = problem
+
+    def eigenproblem(self, x: Array, p: Mapping[str, float], kx: float = 0.0, kz: float = 0.0) -> tuple[Any, Any]:
+        from problems.couette.linear import linear_operator, to_chebyshev
+
+        pb = self.problem
+        nu, u, T, _, _ = pb.unpack(np.asarray(x, dtype=float))
+        grid, nu, u, T = to_chebyshev(pb.grid, nu, u, T)
+        A, B = linear_operator(grid, nu, u, T, p, walls=pb.walls, kx=kx, kz=kz, chi=pb.chi, dufour=pb.dufour,
+                               gravity=False)
+        if kx == 0.0 and kz == 0.0:
+            n = grid.size
+            keep = np.r_[0:3 * n, 4 * n:5 * n]
+            A = sp.csr_matrix(A)[keep][:, keep]
+            B = sp.csr_matrix(B)[keep][:, keep]
+        return A, B
+
+
+def finite_eigenvalues(A: Any, B: Any) -> np.ndarray:
+    """All finite eigenvalues of A X = omega B X, real part descending.
+
+    When B is diagonal (the Couette operator: B = diag(1, nu0, nu0, (3/2) nu0) with zero rows at
+    the boundary conditions) the zero-B rows Z are eliminated with the unknowns of the same
+    index: A_ZZ x_Z = -A_ZK x_K, leaving the standard problem
+    B_KK^-1 (A_KK - A_KZ A_ZZ^-1 A_ZK) x_K = omega x_K, whose eigenvalues are exactly the finite
+    ones (about 2.5x cheaper than QZ).  Otherwise, or if A_ZZ is singular, dense QZ
+    (``contin.stability.eigenvalues``).
+    """
+    a = A.toarray() if sp.issparse(A) else np.asarray(A)
+    b = B.toarray() if sp.issparse(B) else np.asarray(B)
+    d = np.diag(b)
+    if np.count_nonzero(b - np.diag(d)) == 0:
+        z = np.flatnonzero(d == 0)
+        k = np.flatnonzero(d != 0)
+        azz = a[np.ix_(z, z)]
+        if z.size == 0 or np.linalg.cond(azz) < 1e12:
+            schur = a[np.ix_(k, k)]
+            if z.size:
+                schur = schur - a[np.ix_(k, z)] @ np.linalg.solve(azz, a[np.ix_(z, k)])
+            w = la.eigvals(schur / d[k][:, None])
+            return w[np.lexsort((-w.imag, -w.real))]
+    return eigenvalues(A, B)
+
+
+def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx: float,
+                       n_eigs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    s = len(branch)
+    stable = np.zeros(s, dtype=bool)
+    n_unstable = np.full(s, -1, dtype=np.int64)
+    eigs = np.full((s, n_eigs), np.nan + 0j)
+    for i in range(s):
+        p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
+        try:
+            w = finite_eigenvalues(*op.eigenproblem(branch.states[i], p, kx=kx))
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
+            continue
+        n_unstable[i] = count_unstable(w, DEFAULT_TOL)
+        stable[i] = n_unstable[i] == 0
+        eigs[i, : min(n_eigs, w.size)] = w[:n_eigs]
+    return stable, n_unstable, eigs
+
+
+def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], *, n_eigs: int = 6) -> list[str]:
+    """k_x = k_z = 0 stability of every stored point, then ``contin.stability.audit``.
+
+    Fills ``branch.stable``, ``n_unstable`` and ``eigenvalues`` with the semantics of
+    ``contin.stability.stability_pass`` (unstable: Re omega > DEFAULT_TOL max(1, |omega|); the
+    n_eigs leading eigenvalues) but solves each eigenproblem by :func:`finite_eigenvalues` on
+    the :class:`StabilityOperator`.  Audit messages are returned and appended to
+    ``branch.audit`` after the continuation's own entries.
+    """
+    before = list(branch.audit)
+    branch.stable, branch.n_unstable, branch.eigenvalues = _stability_columns(
+        StabilityOperator(problem), branch, params, 0.0, n_eigs)
+    msgs = audit(branch)
+    branch.audit = before + [f"stability audit: {m}" for m in msgs]
+    return msgs
+
+
+def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list]:
+    """max Re omega and the unstable count at wavenumber k_x (k_z = 0) at every stored point."""
+    _, counts, eigs = _stability_columns(StabilityOperator(problem), branch, params, kx, 1)
+    return {"growth_rate": [float(v) for v in eigs[:, 0].real], "n_unstable": [int(c) for c in counts]}
+
+
+def fold_table(branches: Sequence[Branch]) -> list[dict[str, Any]]:
+    """Every LP as {branch, label, H, phi}."""
+    return [{"branch": b.id, "label": lp.name, "H": float(lp.params["H"]), "phi": float(lp.order_parameter)}
+            for b in branches for lp in b.fold_points]

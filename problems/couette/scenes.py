@@ -1,0 +1,323 @@
+"""Scenes of granular plane Couette flow: ``contin trace pitchfork`` and ``contin trace jj-walls``.
+
+``pitchfork`` (no-slip, adiabatic walls, no gravity; physics.md sections 3-4):
+  uniform shear is traced in H from H_max/20 to H_max (default 3.3 H_1^c), its BPs H_n^c are
+  detected (compared with n pi psi in ``extra``), and at the first ``modes`` (default 3) BPs both
+  signs of the banded branch are followed to H_max (the second sign of a symmetry-breaking mode as
+  the mirror image of the first).  Folds are marked.  Below the threshold density where psi stops
+  being finite (e = 0.8: nu = 0.15614) uniform shear has no BP ("bifurcation from infinity"): the
+  banded branch is then reached by continuing a banded state in nu at fixed H (parameter ``H``,
+  default 60) from nu = 0.2 and traced in H both ways; a note says so.
+``jj-walls``: the same with Johnson-Jackson walls (``phi_w``, ``ew``): uniform shear is not a
+  solution; the symmetric base branch is traced in H from ``CouetteProblem.initial_guess`` (Newton
+  first) and every BP on it (up to ``modes``) is switched at.
+
+Both: the k_x = 0 stability pass on every branch (FD states on a Chebyshev grid, see
+``problems.couette.pitchfork``), the audit (disagreements in the notes and ``branch.audit``),
+banded-branch BPs re-checked on a 1.5x finer grid, extra wavenumbers (``--kx``) stored in
+``extra['stability_kx'][branch_id][kx] = {'growth_rate': [...], 'n_unstable': [...]}`` (max Re
+omega at k_z = 0 per point).  ``extra`` also holds ``H_c`` (detected, analytic, relative error),
+``criticality`` per banded branch and ``folds``.
+
+Branch ids are deterministic (``--resume`` reuses finished branches): '0' base, 'n<k>.1' / 'n<k>.2'
+the two signs of the branch from the k-th BP.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from contin.branch import Branch, relabel
+from contin.continuation import trace_both
+from contin.options import ContinuationOptions, DetectionOptions, StepOptions
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from problems.couette import pitchfork as pf
+from problems.couette.closures import CHI_MODELS
+from problems.couette.model import WALLS, CouetteProblem
+from problems.couette.params import build_params
+
+PITCHFORK_DEFAULTS: dict[str, Any] = {
+    "nu": 0.3, "e": 0.8, "H": "auto", "H_max": "auto", "modes": 3, "walls": "noslip", "chi": "jj",
+    "num": 0.65, "phi_w": 0.5, "ew": 0.9,
+}
+JJ_DEFAULTS: dict[str, Any] = {**PITCHFORK_DEFAULTS, "walls": "jj"}
+
+#: Density of the banded start state when uniform shear has no BP at the requested density.
+LOW_DENSITY_START = 0.2
+#: Default fixed gap of that density continuation.
+LOW_DENSITY_GAP = 60.0
+
+
+def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> tuple[dict[str, float], dict[str, Any]]:
+    """(model parameters, scene settings) from the request, each checked (SceneError: one sentence)."""
+    values = dict(defaults)
+    for name, value in request.params.items():
+        if name in ("Fr", "G"):
+            raise SceneError(f"scene {scene!r} is gravity-free; use a gravity scene to set {name}")
+        if name not in defaults:
+            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
+        values[name] = value
+    walls, chi = str(values["walls"]), str(values["chi"])
+    if walls not in WALLS:
+        raise SceneError(f"parameter walls = {walls!r} is not a wall model; choose one of {', '.join(WALLS)}")
+    if chi not in CHI_MODELS:
+        raise SceneError(f"parameter chi = {chi!r} is not a radial distribution; choose one of {', '.join(CHI_MODELS)}")
+    try:
+        p = build_params({k: values[k] for k in ("nu", "e", "num", "phi_w", "ew")}, chi=chi)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    if p["e"] >= 1:
+        raise SceneError("parameter e = 1 has no steady sheared state (no collisional dissipation); use e < 1")
+    out: dict[str, Any] = {"walls": walls, "chi": chi}
+    for name in ("H", "H_max"):
+        v = values[name]
+        if v == "auto" or v is None:
+            out[name] = None
+            continue
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise SceneError(f"parameter {name} must be a number or 'auto', got {values[name]!r}") from None
+        if not (math.isfinite(v) and v > 0):
+            raise SceneError(f"parameter {name} = {v:g} is out of range; it must be a positive finite gap")
+        out[name] = v
+    try:
+        modes = float(values["modes"])
+    except (TypeError, ValueError):
+        raise SceneError(f"parameter modes must be an integer 1..6, got {values['modes']!r}") from None
+    if modes != int(modes) or not 1 <= modes <= 6:
+        raise SceneError(f"parameter modes = {values['modes']!r} is out of range; it must be an integer 1..6")
+    out["modes"] = int(modes)
+    return p, out
+
+
+def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64) -> CouetteProblem:
+    try:
+        return CouetteProblem(request.method or "cheb", request.grid or default_grid, walls=walls, chi=chi)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def _options(request: SceneRequest, H_lo: float, H_hi: float, *, ds: float, ds_max: float) -> ContinuationOptions:
+    """Step control for few points per branch: Newton needs ~4 iterations at tol 1e-10, so a
+    target of 6 with growth 2 lets ds reach ds_max within ~10 steps off a BP."""
+    return request.options_for(ContinuationOptions(
+        bounds={"H": (H_lo, H_hi)}, max_steps=200,
+        step=StepOptions(ds=ds, ds_max=ds_max, ds_min=1e-7, newton_target=6, grow=2.0),
+        detection=DetectionOptions(locate_tol=1e-9)))
+
+
+class _Run:
+    """Bookkeeping of one scene run: finished branches in order, resume, notes."""
+
+    def __init__(self, request: SceneRequest, problem: CouetteProblem, params: dict[str, float]) -> None:
+        self.request = request
+        self.problem = problem
+        self.params = params
+        self.done: list[Branch] = []
+        self.notes: list[str] = []
+        self.kx_extra: dict[str, dict[str, Any]] = {}
+
+    def cached(self, *ids: str) -> list[Branch] | None:
+        if all(i in self.request.completed for i in ids):
+            return [self.request.completed[i] for i in ids]
+        return None
+
+    def finish(self, branch: Branch, *, stability_from: Branch | None = None) -> Branch:
+        """Stability (or a copy from the branch it mirrors), audit, extra k_x; then publish."""
+        req, pb = self.request, self.problem
+        fresh = branch.id not in req.completed
+        if req.stability and fresh:
+            if stability_from is not None and stability_from.n_unstable is not None:
+                branch.stable = stability_from.stable.copy()
+                branch.n_unstable = stability_from.n_unstable.copy()
+                branch.eigenvalues = stability_from.eigenvalues.copy()
+                before = list(branch.audit)
+                msgs = pf.audit(branch)
+                branch.audit = before + [f"stability audit: {m}" for m in msgs]
+            else:
+                req.report(f"stability of branch {branch.id} ({len(branch)} points)")
+                msgs = pf.stability(pb, branch, self.params)
+            self.notes += [f"stability audit, branch {branch.id}: {m}" for m in msgs]
+        elif req.stability and branch.n_unstable is not None:
+            self.notes += [f"stability audit, branch {branch.id}: {m[len('stability audit: '):]}"
+                           for m in branch.audit if m.startswith("stability audit: ")]
+        if req.stability:
+            for kx in req.kx:
+                if kx == 0:
+                    continue
+                src = stability_from if stability_from is not None else branch
+                key = f"{kx:g}"
+                cached = self.kx_extra.get(src.id, {}).get(key)
+                data = cached if cached is not None else pf.growth_rates(pb, src, self.params, kx)
+                self.kx_extra.setdefault(branch.id, {})[key] = data
+        self.done.append(branch)
+        relabel(self.done)
+        req.finished(branch)
+        return branch
+
+
+def _h_max(settings: Mapping[str, Any], hc1: float) -> float:
+    if settings["H_max"] is not None:
+        return settings["H_max"]
+    if not math.isfinite(hc1):
+        return 3.3 * LOW_DENSITY_GAP
+    return 3.3 * hc1
+
+
+def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK_DEFAULTS,
+                  scene: str = "pitchfork") -> SceneResult:
+    p, st = _settings(request, defaults, scene)
+    pb = _problem(request, st["walls"], st["chi"])
+    nu, e = p["nu"], p["e"]
+    modes = st["modes"]
+    analytic = pf.analytic_critical_gaps(nu, e, modes, chi=st["chi"], num=p["num"])
+    hc1 = analytic[0]
+    H_max = _h_max(st, hc1)
+    low_density = st["walls"] == "noslip" and not math.isfinite(hc1)
+    H_fixed = st["H"] if st["H"] is not None else LOW_DENSITY_GAP
+    if low_density and not H_fixed < H_max:
+        raise SceneError(f"the density-continuation gap H = {H_fixed:g} must lie below H_max = {H_max:g}")
+    H_lo = H_max / 20.0
+    H_start = st["H"] if (st["walls"] == "jj" and st["H"] is not None) else H_lo
+    if not H_lo <= H_start <= H_max:
+        raise SceneError(f"parameter H = {H_start:g} must lie between H_max/20 = {H_lo:g} and H_max = {H_max:g}")
+    p["H"] = H_start
+    run = _Run(request, pb, p)
+    base_opts = _options(request, H_lo, H_max, ds=0.05 * H_max, ds_max=0.2 * H_max)
+    band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=0.1 * H_max)
+    extra: dict[str, Any] = {"H_max": H_max, "walls": st["walls"], "modes": modes}
+
+    # ---- base branch
+    cached = run.cached("0")
+    if cached:
+        base = cached[0]
+    else:
+        request.report(f"{scene}: tracing the base branch in H from {H_start:.4g} to {H_max:.4g}")
+        base = pf.trace_base(pb, p, H_start, base_opts, progress=request.report)
+    run.finish(base)
+    bps = sorted(base.branch_points, key=lambda b: b.params["H"])
+    if st["walls"] == "noslip":
+        detected = [b.params["H"] for b in bps]
+        rows = []
+        for n, hc in enumerate(analytic, start=1):
+            near = min(detected, key=lambda h: abs(h - hc), default=math.nan) if math.isfinite(hc) else math.nan
+            rows.append({"n": n, "analytic": hc, "detected": near,
+                         "rel_error": abs(near - hc) / hc if math.isfinite(near) else math.nan})
+        extra["H_c"] = rows
+    else:
+        extra["H_c"] = [{"n": k, "detected": b.params["H"], "note": b.note} for k, b in enumerate(bps, start=1)]
+
+    # ---- banded branches
+    banded: list[Branch] = []
+    crit: list[dict[str, Any]] = []
+    for k, bp in enumerate(bps[:modes], start=1):
+        ids = (f"n{k}.1", f"n{k}.2")
+        pair = run.cached(*ids)
+        if pair is None:
+            request.report(f"{scene}: switching at {bp.name} (H = {bp.params['H']:.6g})")
+            try:
+                pair = pf.banded_branches(pb, base, bp, p, band_opts, prefix=f"n{k}")
+            except ValueError as exc:
+                run.notes.append(f"switching at BP H = {bp.params['H']:.6g} failed: {exc}")
+                continue
+            for b in pair:
+                b.kind = f"banded n={k}" if st["walls"] == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
+                if b.message.startswith("mirror image"):
+                    continue
+                run.notes += pf.confirm_branch_points(pb, b, p, band_opts)
+            if pair[1].message.startswith("mirror image"):  # demoted points follow the source
+                pair[1].special_points = [dataclasses.replace(
+                    s2, type=s1.type, note=s1.note) for s1, s2 in zip(pair[0].special_points, pair[1].special_points)]
+        mirror = pair[1].message.startswith("mirror image")
+        run.finish(pair[0])
+        run.finish(pair[1], stability_from=pair[0] if mirror else None)
+        for b in pair:
+            banded.append(b)
+            crit.append({**pf.criticality(b, bp.params["H"], nu), "n": k})
+
+    # ---- low density: no BP on uniform shear
+    if low_density:
+        threshold = pf.threshold_density(e, chi=st["chi"], num=p["num"])
+        run.notes.append(f"uniform shear has no BP at nu = {nu:g}, e = {e:g}: psi is finite only above the threshold "
+                         f"density nu = {threshold:.6f} (bifurcation from infinity); the banded branch was reached by "
+                         f"continuation in nu at H = {H_fixed:g} from nu = {LOW_DENSITY_START:g}")
+        extra["threshold_density"] = threshold
+        ids = ("n1.1", "n1.2")
+        pair = run.cached(*ids)
+        if pair is None:
+            request.report(f"{scene}: continuing a banded state in nu from {LOW_DENSITY_START:g} to {nu:g} at H = {H_fixed:g}")
+            try:
+                x, _aux = pf.density_continuation(pb, p, LOW_DENSITY_START, nu, H_fixed, band_opts,
+                                                  progress=request.report)
+            except ValueError as exc:
+                raise SceneError(f"could not reach a banded state at nu = {nu:g}: {exc}") from None
+            b1 = trace_both(pb, x, {**p, "H": H_fixed}, "H", band_opts, branch_id="n1.1", kind="banded n=1",
+                            parent=f"density continuation from nu={LOW_DENSITY_START:g} at H={H_fixed:g}")
+            b2 = pf.mirror_branch(pb, b1, p, "n1.2")
+            b2.message = f"mirror image of branch {b1.id} (reflection y -> -y)"
+            pair = [b1, b2]
+        run.finish(pair[0])
+        run.finish(pair[1], stability_from=pair[0])
+        banded += pair
+    elif st["walls"] == "noslip" and len(bps) < min(modes, sum(h <= H_max for h in analytic)):
+        run.notes.append(f"only {len(bps)} BPs found on uniform shear below H_max = {H_max:.6g}")
+    if st["walls"] == "jj" and not bps:
+        run.notes.append(f"the JJ base branch has no BP for H in [{H_lo:.4g}, {H_max:.4g}]")
+
+    extra["criticality"] = crit
+    extra["folds"] = pf.fold_table(run.done)
+    if run.kx_extra:
+        extra["stability_kx"] = run.kx_extra
+    for row in crit:
+        if row["n"] == 1 and row["branch"].endswith(".1"):
+            run.notes.append(f"pitchfork at H = {bps[0].params['H']:.10g} is {row['kind']} "
+                             f"(H - H_c = a delta^2, a = {row['a']:.6g})")
+    if st["walls"] == "noslip" and "H_c" in extra:
+        for row in extra["H_c"]:
+            if math.isfinite(row["detected"]):
+                run.notes.append(f"H_{row['n']}^c = {row['detected']:.10g} (analytic n pi psi = {row['analytic']:.10g}, "
+                                 f"relative error {row['rel_error']:.2g})")
+    return SceneResult(
+        branches=run.done,
+        parameters={**{k: p[k] for k in ("nu", "e", "num")}, **({"phi_w": p["phi_w"], "ew": p["ew"]} if st["walls"] == "jj" else {}),
+                    "H": H_fixed if low_density else H_start, "H_max": H_max, "modes": modes,
+                    "walls": st["walls"], "chi": st["chi"]},
+        discretization={"method": pb.method, "intervals": pb.N},
+        y=pb.grid.y,
+        profiles=lambda state: {k: v for k, v in pb.profiles(np.asarray(state)).items() if k in ("nu", "u", "T")},
+        notes=run.notes,
+        extra=extra,
+    )
+
+
+def run_jj_walls(request: SceneRequest) -> SceneResult:
+    return run_pitchfork(request, JJ_DEFAULTS, "jj-walls")
+
+
+SCENES: dict[str, Scene] = {
+    "pitchfork": Scene(
+        name="pitchfork",
+        summary="gPCF, no-slip walls, no gravity: uniform shear in H, BPs at H_n^c = n pi psi, banded branches n = 1..3",
+        defaults=PITCHFORK_DEFAULTS,
+        run=run_pitchfork,
+        x="H",
+        y="phi",
+    ),
+    "jj-walls": Scene(
+        name="jj-walls",
+        summary="gPCF with Johnson-Jackson walls, no gravity: symmetric base branch in H and the branches at its BPs",
+        defaults=JJ_DEFAULTS,
+        run=run_jj_walls,
+        x="H",
+        y="phi",
+    ),
+}
+
+# ---- gravity scenes (owned by problems/couette/gravity_scenes.py): register them on the next line.
+SCENES.update(__import__("problems.couette.gravity_scenes", fromlist=["GRAVITY_SCENES"]).GRAVITY_SCENES)
