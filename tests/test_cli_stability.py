@@ -123,7 +123,7 @@ def test_json_document_is_strict_and_complete(tmp_path):
 
 
 def test_growth_rate_curve_is_continuous_in_kx(tmp_path):
-    f = shear_file(tmp_path / "s.h5", [14.0], banded=True)
+    f = shear_file(tmp_path / "s.h5", [14.0], N=24, banded=True)
     jumps = []
     curves = {}
     for count in (11, 21, 41):  # kx steps 0.2, 0.1, 0.05
