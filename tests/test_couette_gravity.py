@@ -172,7 +172,7 @@ def test_isola_closed_even_folds_found_by_both_routes(pb):
     Hf = sorted(s.params["H"] for s in iso.fold_points)
     assert Hf[0] == pytest.approx(14.42, abs=0.05) and Hf[1] == pytest.approx(33.56, abs=0.05)
     assert np.mean(iso.observables["nu_top"] > iso.observables["nu_bottom"]) > 0.5  # floating plug
-    curves = fold_curves(pb, [iso], max_steps=120)
+    curves = fold_curves(pb, [iso], max_steps=300)
     seeds = fold_seeds(pb, curves, p["G"], st.H_range)
     assert len(seeds) >= 2
     for _, x, q in seeds:

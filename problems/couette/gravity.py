@@ -472,3 +472,66 @@ def unfolding_branches(problem: CouetteProblem, bp: SpecialPoint, G_values: Sequ
             found.append(trace_in_H(problem, res.u, q, settings, branch_id=f"G{G:g}.1"))
         out += found
     return out
+
+
+# ----------------------------------------------------------------------------- phase diagram
+@dataclass
+class PhaseDiagram:
+    """Fold curves in (H, G) from the symmetry-breaking pitchforks of uniform shear.
+
+    curves : fold-curve branches (params 'H', 'G')
+    extrema : :func:`extrema` rows (birth / death of fold pairs and isolas, with Fr)
+    fr_min_floating_plug : the smallest Fr at which a floating-plug (dense-top) state exists:
+        the largest G on the fold curve of the first pitchfork (its two folds merge there)
+    """
+
+    curves: list[Branch]
+    extrema: list[dict[str, Any]]
+    fr_min_floating_plug: float
+    critical_gaps: list[float]
+
+
+def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_range: tuple[float, float] = (1.0, 50.0),
+                  Fr_start: float = 2000.0, max_steps: int = 300,
+                  progress: Callable[[str], None] | None = None) -> PhaseDiagram:
+    """Fold curves in (H, G) through the imperfect pitchforks (symmetry-breaking BPs of uniform
+    shear inside ``H_range``).
+
+    For each BP: the dense-top banded state at H_c + 3 (G = 0) is continued in G to
+    Fr_start^-2, traced in H down to its fold, and the fold is continued in (H, G) both ways
+    (through G = 0 at the BP into the mirror half G < 0, which is the reflected curve).
+    """
+    say = progress or (lambda m: None)
+    settings = GravitySettings(H_range=H_range, modes=3)
+    base, kids = gravity_free_branches(problem, {**params, "G": 0.0}, settings, progress)
+    bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note]
+    G0 = Fr_start ** -2.0
+    curves: list[Branch] = []
+    for k, bp in enumerate(bps):
+        Hc = bp.params["H"]
+        # dense-top half of the banded branch of this BP (ids g0.<mode>.1/2, both signs)
+        mode = base.branch_points.index(bp) + 1
+        tops = [b for b in kids if b.id.startswith(f"g0.{mode}.") and b.observables["phi"][-1] > params["nu"]]
+        if not tops:
+            continue
+        top = tops[0]
+        i = int(np.argmin(np.abs(top.params["H"] - (Hc + 3.0))))
+        p = _params_at(top, i)
+        x = homotopy_in_G(problem, top.state(i), p, G0)
+        if x is None:
+            continue
+        local = GravitySettings(H_range=(max(H_range[0], Hc - 2.0), min(H_range[1], Hc + 4.0)), max_steps=400)
+        b = trace_in_H(problem, x, {**p, "G": G0}, local, branch_id=f"seed{k}")
+        lps = [lp for lp in b.fold_points if lp.converged and abs(lp.params["H"] - Hc) < 2.0]
+        if not lps:
+            continue
+        say(f"unfold: fold curve from the pitchfork at H = {Hc:.6g}")
+        c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps)[0]
+        c.id = f"fold{k}"
+        c.parent = f"BP at H={Hc:.6g}"
+        curves.append(c)
+    ext = extrema(curves)
+    first = [r for r in ext if r["curve"] == "fold0" and r["extremum"] == "max"]
+    fr_min = min((r["Fr"] for r in first), default=float("nan"))
+    return PhaseDiagram(curves=curves, extrema=ext, fr_min_floating_plug=fr_min,
+                        critical_gaps=[bp.params["H"] for bp in bps])
