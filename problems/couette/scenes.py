@@ -239,7 +239,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         run.finish(pair[1], stability_from=pair[0] if mirror else None)
         for b in pair:
             banded.append(b)
-            crit.append({**pf.criticality(b, bp.params["H"], nu), "n": k})
+            crit.append({**pf.criticality(b, bp.params["H"], bp.order_parameter), "n": k})
 
     # ---- low density: no BP on uniform shear
     if low_density:
