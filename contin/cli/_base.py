@@ -81,6 +81,9 @@ def main(debug: bool, verbose: int) -> None:
     Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure).
     """
     _setup_logging(verbose)
+    from contin.blas import limit_blas_threads
+
+    limit_blas_threads()  # one BLAS thread for small matrices (contin/blas.py); CONTIN_BLAS_THREADS
 
 
 # --------------------------------------------------------------------------- helpers
