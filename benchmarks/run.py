@@ -19,8 +19,9 @@ the numbers):
    - :func:`comparison_rows`: seconds per converged point at equal accuracy in H_1^c,
      baseline against contin, side by side.
 
-Times are wall-clock (time.perf_counter), best of ``repeats``; BLAS threads are whatever the
-environment sets.
+Times are wall-clock (time.perf_counter), best of ``repeats``, with the CPU time
+(time.process_time) of that call alongside ("cpu" columns: the fairer figure on a shared
+machine).  BLAS is limited to one thread as in the CLI (contin.blas; CONTIN_BLAS_THREADS).
 """
 
 from __future__ import annotations
@@ -77,13 +78,19 @@ class Config:
 Row = dict[str, Any]
 
 
+#: CPU seconds (time.process_time) of the fastest call of the last :func:`best_of`.
+LAST_CPU = [math.nan]
+
+
 def best_of(repeats: int, fn: Callable[[], Any]) -> tuple[float, Any]:
-    """(smallest wall time, last result) over ``repeats`` calls."""
+    """(smallest wall time, last result) over ``repeats`` calls; its CPU time in LAST_CPU[0]."""
     best, out = math.inf, None
     for _ in range(repeats):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = fn()
-        best = min(best, time.perf_counter() - t)
+        wall = time.perf_counter() - t
+        if wall < best:
+            best, LAST_CPU[0] = wall, time.process_time() - c
     return best, out
 
 
@@ -176,7 +183,8 @@ def contin_newton_rows(cfg: Config) -> list[Row]:
             u0[prob.i_nu] -= 0.05 * np.cos(np.pi * (y + 0.5))
             sec, res = best_of(cfg.repeats, lambda: newton(prob, u0, p, NewtonOptions(tol=1e-10, max_iterations=20)))
             rows.append({"method": method, "N": n, "unknowns": prob.size, "iterations": res.iterations,
-                         "converged": res.converged, "s_per_iteration": sec / max(res.iterations, 1)})
+                         "converged": res.converged, "s_per_iteration": sec / max(res.iterations, 1),
+                         "cpu_per_iteration": LAST_CPU[0] / max(res.iterations, 1)})
     return rows
 
 
@@ -190,25 +198,28 @@ def contin_trace_rows(cfg: Config) -> list[Row]:
     for method, ns in cfg.methods.items():
         for n in ns:
             prob, p = _couette(method, n, 10.0)
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             br = trace(prob, prob.uniform_state(p), p, "H", opts)
-            t_uniform = time.perf_counter() - t
+            t_uniform, c_uniform = time.perf_counter() - t, time.process_time() - c
             bps = [b for b in br.special_points if b.type == "BP"]
             row = {"method": method, "N": n, "uniform_steps": len(br), "uniform_s_per_step": t_uniform / max(len(br), 1),
+                   "uniform_cpu_per_step": c_uniform / max(len(br), 1),
                    "Hc": math.nan, "rel_error": math.nan, "bp_converged": False, "banded_points": 0,
                    "banded_s_per_point": math.nan, "banded_phi_end": math.nan, "banded_status": "no BP"}
             if bps:
                 bp = min(bps, key=lambda b: abs(b.params["H"] - hc))
                 row.update(Hc=bp.params["H"], rel_error=abs(bp.params["H"] - hc) / hc, bp_converged=bp.converged)
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 try:
                     new = switch(prob, br, bp, opts, directions=(+1,))
                 except ValueError as exc:
                     new, row["banded_status"] = [], f"switch failed: {exc}"
-                t_banded = time.perf_counter() - t
+                t_banded, c_banded = time.perf_counter() - t, time.process_time() - c
                 if new:
                     b = new[0]
                     row.update(banded_points=len(b), banded_s_per_point=t_banded / max(len(b), 1),
+                               banded_cpu_per_point=c_banded / max(len(b), 1),
+                               banded_s_per_newton=t_banded / max(int(np.sum(b.newton_iterations)), 1),
                                banded_phi_end=float(b.observables["phi"][-1]), banded_status=b.status,
                                banded_newton=int(np.sum(b.newton_iterations)))
             rows.append(row)
@@ -224,9 +235,32 @@ def pitchfork_scene_row(cfg: Config) -> Row | None:
     except ValueError as exc:
         return {"status": f"not available: {exc}"}
     sec, res = best_of(cfg.repeats, lambda: scene.run(SceneRequest()))
-    return {"status": "ok", "seconds": sec, "branches": len(res.branches),
+    cpu = LAST_CPU[0]
+    t, c = time.perf_counter(), time.process_time()
+    scene.run(SceneRequest(stability=False))
+    wall_ns, cpu_ns = time.perf_counter() - t, time.process_time() - c
+    return {"status": "ok", "seconds": sec, "cpu": cpu, "seconds_no_stability": wall_ns, "cpu_no_stability": cpu_ns,
+            "branches": len(res.branches),
             "points": sum(len(b) for b in res.branches),
             "special_points": sum(len(b.special_points) for b in res.branches)}
+
+
+def contin_fold_row(method: str = "cheb", n: int = 32) -> Row:
+    """nubar = 0.16: contin's banded branch from H_1^c through the fold (problems.couette.keypoints)."""
+    from problems.couette.keypoints import banded_fold
+    from problems.couette.model import CouetteProblem
+
+    prob = CouetteProblem(method, n)
+    t, c = time.perf_counter(), time.process_time()
+    branches, lp = banded_fold(prob, 0.16, E)
+    wall, cpu = time.perf_counter() - t, time.process_time() - c
+    banded = branches[-1]
+    h = banded.parameter_values
+    passed = lp is not None and bool(np.any(h[lp.index + 1:] > lp.params["H"] + 1.0))
+    return {"method": f"{method} N={n}", "H_LP": lp.params["H"] if lp else math.nan,
+            "phi_LP": lp.order_parameter if lp else math.nan, "passed_fold": passed,
+            "points": sum(len(b) for b in branches), "seconds": wall, "cpu": cpu,
+            "s_per_point": wall / max(sum(len(b) for b in branches), 1)}
 
 
 def comparison_rows(base_gap: list[Row], base_nat: list[Row], contin_rows: list[Row],
@@ -275,6 +309,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--json", metavar="FILE", help="also write all figures as JSON")
     args = ap.parse_args(argv)
     cfg = Config.make(args.quick, not args.no_contin)
+    from contin.blas import limit_blas_threads
+
+    limit_blas_threads()  # as the CLI does: one BLAS thread unless CONTIN_BLAS_THREADS says otherwise
     out: dict[str, Any] = {"python": platform.python_version(), "machine": platform.machine(), "quick": args.quick}
     warnings.simplefilter("ignore", RuntimeWarning)
 
@@ -307,22 +344,34 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(table("[contin] Newton iteration (residual + sparse Jacobian + LU + solve) at H = 16",
                             newton_rows, [("method", "method", "s"), ("N", "N", "d"), ("unknowns", "unknowns", "d"),
                                           ("iterations", "iters", "d"), ("converged", "conv", ""),
-                                          ("s_per_iteration", "s/iter", ".2e")]))
+                                          ("s_per_iteration", "s/iter", ".2e"),
+                                          ("cpu_per_iteration", "cpu s/iter", ".2e")]))
                 out["contin_trace"] = trace_rows = contin_trace_rows(cfg)
                 print(table(f"[contin] trace H: uniform branch 10 -> {cfg.h_end} (BP), switch to banded branch",
                             trace_rows, [("method", "method", "s"), ("N", "N", "d"),
                                          ("uniform_s_per_step", "s/step uniform", ".4f"),
+                                         ("uniform_cpu_per_step", "cpu s/step", ".4f"),
                                          ("Hc", "H_1^c (BP)", ".10f"), ("rel_error", "rel.err", ".1e"),
                                          ("bp_converged", "located", ""), ("banded_points", "banded pts", "d"),
                                          ("banded_s_per_point", "s/point banded", ".4f"),
+                                         ("banded_cpu_per_point", "cpu s/point", ".4f"),
+                                         ("banded_s_per_newton", "s/Newton", ".2e"),
                                          ("banded_phi_end", "phi end", ".4f"), ("banded_status", "status", "s")]))
                 out["pitchfork_scene"] = scene = pitchfork_scene_row(cfg)
                 if scene and scene.get("status") == "ok":
                     print(table("[contin] pitchfork scene (whole)", [scene],
-                                [("seconds", "seconds", ".2f"), ("branches", "branches", "d"),
+                                [("seconds", "wall s", ".2f"), ("cpu", "cpu s", ".2f"),
+                                 ("seconds_no_stability", "wall s (no stab.)", ".2f"),
+                                 ("cpu_no_stability", "cpu s (no stab.)", ".2f"), ("branches", "branches", "d"),
                                  ("points", "points", "d"), ("special_points", "special", "d")]))
                 else:
                     print(f"[contin] pitchfork scene: {scene['status'] if scene else 'n/a'}\n")
+                out["contin_fold"] = cfold = contin_fold_row()
+                print(table("[contin] nubar = 0.16: banded branch from H_1^c = 63.50 downwards (theta = 1e-4)",
+                            [cfold], [("method", "grid", "s"), ("H_LP", "H_LP", ".6f"), ("phi_LP", "phi_LP", ".4f"),
+                                      ("passed_fold", "through fold", ""), ("points", "points", "d"),
+                                      ("seconds", "wall s", ".2f"), ("cpu", "cpu s", ".2f"),
+                                      ("s_per_point", "s/point", ".4f")]))
                 out["comparison"] = comp = comparison_rows(gap, nat, trace_rows)
                 print(table("[side by side] seconds per converged banded point at equal accuracy in H_1^c",
                             comp, [("target", "rel.err <=", ".0e"), ("baseline", "baseline", "s"),
