@@ -60,14 +60,14 @@ def _parse_kx(text: str | None) -> tuple[float, ...]:
 def _stability_after_run(sc: Any, request: Any, result: Any, progress: _Progress, quiet: bool) -> None:
     """The stability pass the scene left undone, through ``sc.problem_factory``.
 
-    Branches without stability columns (or without the columns of a requested extra k_x) get
-    :meth:`SceneRequest.run_stability`; fold curves and other multi-parameter branches are
-    skipped (their states are not states of the problem).  Failures become warnings: the
-    traced branches are never lost to a stability problem.
+    Branches the scene left without stability columns get :meth:`SceneRequest.run_stability`
+    (k_x = k_z = 0, audit, and the extra ``--kx`` columns); a scene that computed stability
+    itself is trusted with the extra wavenumbers too.  Fold curves and other multi-parameter
+    branches are skipped (their states are not states of the problem).  Failures become
+    warnings: the traced branches are never lost to a stability problem.
     """
     def missing(b: Any) -> bool:
-        extra = [kx for kx in request.kx if kx != 0.0 and f"growth_rate_kx{kx:g}" not in b.observables]
-        return len(b.free) == 1 and len(b) > 0 and (b.n_unstable is None or bool(extra))
+        return len(b.free) == 1 and len(b) > 0 and b.n_unstable is None
 
     todo = [b for b in result.branches if missing(b)]
     if not todo:
@@ -100,8 +100,10 @@ def stability_summary(branch: Any) -> dict[str, Any] | None:
 
 
 def stability_messages(branch: Any) -> list[str]:
-    """The audit messages of the stability pass (not the rejected-step diagnostics)."""
-    return [m for m in branch.audit if not m.startswith("step ")]
+    """The audit messages of the stability pass (not the rejected-step diagnostics that
+    :mod:`contin.continuation` stores as ``"step N: ..."``); a ``"stability audit: "`` prefix,
+    which some scenes add, is removed."""
+    return [m.removeprefix("stability audit: ") for m in branch.audit if not m.startswith("step ")]
 
 
 @main.command("trace")
@@ -206,7 +208,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             echo_err(f"note: {note}")
         for b in result.branches:
             for message in stability_messages(b):
-                echo_err(f"audit: branch {b.id}: {message}")
+                if not any(message in note for note in result.notes):  # the scene reported it already
+                    echo_err(f"audit: branch {b.id}: {message}")
         if writer is not None:
             echo_err(f"wrote {writer.path}")
     failed = [b for b in result.branches if b.status == "MX"]
