@@ -13,3 +13,6 @@ for nu in 0.5 0.16 0.15; do
     contin trace pitchfork -s "nu=$nu" -s e=0.8 -q -o "results/pitchfork_nu$nu.h5"
     contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"
 done
+# accuracy: key points of gPCF against method and grid (~2 min)
+CONTIN_SCENES=problems.couette.keypoints:SCENES contin accuracy gpcf-keypoints \
+    --grids 16,24,32,48,64,96,128,256 -q -o results/accuracy
