@@ -8,6 +8,7 @@ section 4 (problems.couette.linear.uniform_shear_modes) and H_n^c = n pi psi.
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 
@@ -116,7 +117,7 @@ def test_json_document_is_strict_and_complete(tmp_path):
     for kx, g in zip(doc["kx"], doc["growth_rate"]):
         lead = doc["leading_eigenvalues"][f"{kx:.12g}"]
         assert len(lead) == 6 and lead[0][0] == g
-        assert all(a[0] >= b[0] for a, b in zip(lead, lead[1:]))  # real part descending
+        assert all(a[0] >= b[0] for a, b in itertools.pairwise(lead))  # real part descending
     # phase speed = Im omega / |k| of the least-stable mode
     lead = doc["leading_eigenvalues"]["0.5"][0]
     assert doc["phase_speed"][2] == pytest.approx(lead[1] / 0.5, rel=1e-12)
