@@ -51,13 +51,19 @@ import scipy.sparse as sp
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, switch, trace, trace_both
 from contin.options import ContinuationOptions, NewtonOptions, StepOptions
-from contin.stability import DEFAULT_TOL, audit, count_unstable, eigenvalues
+from contin.stability import audit, count_unstable, eigenvalues
 from problems.couette.closures import coefficients, critical_gap_factor, packing_limit
 from problems.couette.model import CouetteProblem
 
 log = logging.getLogger("contin")
 
 Array = np.ndarray
+
+#: Unstable-count tolerance of the stability pass: an exactly neutral eigenvalue (at a BP) comes out
+#: at ~1e-15 (Chebyshev N <= 96), while banded states next to a subcritical BP grow at
+#: ~1e-11 .. 1e-8; contin's default 1e-8 would count those as stable and the audit would see the
+#: change of n_unstable several points after the BP.
+STABILITY_TOL = 1e-12
 
 #: Relative change of a banded-branch BP under 1.5x grid refinement above which it is an artefact.
 BP_REFINEMENT_TOL = 0.02
@@ -225,14 +231,15 @@ def density_continuation(problem: CouetteProblem, params: Mapping[str, float], n
 
 
 # ----------------------------------------------------------------------------- analysis
-def criticality(branch: Branch, H_c: float, nubar: float, *, delta_max: float = 0.06) -> dict[str, Any]:
-    """Least-squares fit of H - H_c = a delta^2 + b delta^3 + c delta^4 near the BP (delta = Phi - nu_bar).
+def criticality(branch: Branch, H_c: float, phi_c: float, *, delta_max: float = 0.06) -> dict[str, Any]:
+    """Least-squares fit of H - H_c = a delta^2 + b delta^3 + c delta^4 near the BP, delta = Phi - Phi_c.
 
+    Phi_c is Phi at the BP (nu_bar on uniform shear; the base state's Phi with JJ walls).
     Uses the points with 0 < |delta| <= delta_max before the first fold (at least 3; with fewer
     than 4 points only a and b are fitted).  kind = 'supercritical' for a > 0, 'subcritical' for
     a < 0 (physics.md section 4).
     """
-    d = branch.observables["phi"] - nubar
+    d = branch.observables["phi"] - phi_c
     h = branch.parameter_values - H_c
     stop = len(branch)
     lps = branch.fold_points
@@ -363,7 +370,7 @@ def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx:
         except (np.linalg.LinAlgError, ValueError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
             continue
-        n_unstable[i] = count_unstable(w, DEFAULT_TOL)
+        n_unstable[i] = count_unstable(w, STABILITY_TOL)
         stable[i] = n_unstable[i] == 0
         eigs[i, : min(n_eigs, w.size)] = w[:n_eigs]
     return stable, n_unstable, eigs
@@ -373,7 +380,7 @@ def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, floa
     """k_x = k_z = 0 stability of every stored point, then ``contin.stability.audit``.
 
     Fills ``branch.stable``, ``n_unstable`` and ``eigenvalues`` with the semantics of
-    ``contin.stability.stability_pass`` (unstable: Re omega > DEFAULT_TOL max(1, |omega|); the
+    ``contin.stability.stability_pass`` (unstable: Re omega > STABILITY_TOL max(1, |omega|); the
     n_eigs leading eigenvalues) but solves each eigenproblem by :func:`finite_eigenvalues` on
     the :class:`StabilityOperator`.  Audit messages are returned and appended to
     ``branch.audit`` after the continuation's own entries.
@@ -381,9 +388,24 @@ def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, floa
     before = list(branch.audit)
     branch.stable, branch.n_unstable, branch.eigenvalues = _stability_columns(
         StabilityOperator(problem), branch, params, 0.0, n_eigs)
-    msgs = audit(branch)
+    msgs = audit_branch(branch)
     branch.audit = before + [f"stability audit: {m}" for m in msgs]
     return msgs
+
+
+def audit_branch(branch: Branch) -> list[str]:
+    """``contin.stability.audit`` of the branch, except at the start of a switched branch.
+
+    Point 0 of a branch from :func:`contin.continuation.switch` is the parent's BP itself: one
+    eigenvalue is exactly zero there and its computed sign is rounding noise, and the BP is a
+    special point of the parent, not of this branch.  The audit therefore sees point 0 with the
+    unstable count of point 1 (the stored columns keep the computed values).
+    """
+    n_unstable = branch.n_unstable
+    if "@" in branch.parent and n_unstable is not None and len(n_unstable) > 1:
+        view = dataclasses.replace(branch, n_unstable=np.concatenate([n_unstable[1:2], n_unstable[1:]]))
+        return audit(view)
+    return audit(branch)
 
 
 def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list]:

@@ -138,7 +138,7 @@ class _Run:
                 branch.n_unstable = stability_from.n_unstable.copy()
                 branch.eigenvalues = stability_from.eigenvalues.copy()
                 before = list(branch.audit)
-                msgs = pf.audit(branch)
+                msgs = pf.audit_branch(branch)
                 branch.audit = before + [f"stability audit: {m}" for m in msgs]
             else:
                 req.report(f"stability of branch {branch.id} ({len(branch)} points)")

@@ -1,0 +1,375 @@
+"""The gravity-free gPCF scenes (``pitchfork``, ``jj-walls``) and the pieces in problems/couette/pitchfork.py.
+
+Numbers: H_n^c = n pi psi (physics.md section 4), the mode-n scaling of section 3, criticality at
+e = 0.8 (A13: nu = 0.3, 0.5 supercritical, 0.16 subcritical with an LP; solve_bvp baseline LP at
+H = 41.963, Phi = 0.2737), convergence orders of the discretizations, integrated balances,
+stability (issue 4).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from contin.continuation import switch
+from contin.options import ContinuationOptions, DetectionOptions, StepOptions
+from contin.scene import SceneError, SceneRequest, get_scene
+from contin.stability import eigenvalues
+from problems.couette import pitchfork as pf
+from problems.couette.model import CouetteProblem
+from problems.demo import ImperfectPitchfork
+
+
+def opts(lo, hi, *, ds=0.02, ds_max=3.0, max_steps=200, locate_tol=1e-9):
+    return ContinuationOptions(bounds={"H": (lo, hi)}, max_steps=max_steps,
+                               step=StepOptions(ds=ds, ds_max=ds_max, newton_target=6, grow=2.0),
+                               detection=DetectionOptions(locate_tol=locate_tol))
+
+
+def base_and_band(nu, *, method="cheb", N=48, H_hi_factor=1.6, H_lo_factor=0.8, e=0.8, ds_max=3.0):
+    """Uniform shear around H_1^c and the first banded branch (one sign) up to H_hi_factor H_1^c."""
+    pb = CouetteProblem(method, N)
+    p = pb.params({"nu": nu, "e": e})
+    hc = pf.analytic_critical_gaps(nu, e, 1)[0]
+    o = opts(H_lo_factor * hc, H_hi_factor * hc, ds_max=ds_max)
+    base = pf.trace_base(pb, p, 0.9 * hc, dataclass_replace_ds(o, 0.05 * hc))
+    bp = min(base.branch_points, key=lambda b: abs(b.params["H"] - hc))
+    band = switch(pb, base, bp, o, directions=(+1,))[0]
+    return pb, p, hc, base, bp, band
+
+
+def dataclass_replace_ds(o, ds):
+    import dataclasses
+    return dataclasses.replace(o, step=dataclasses.replace(o.step, ds=ds, ds_max=max(o.step.ds_max, ds)))
+
+
+# ----------------------------------------------------------------------------- H_n^c
+@pytest.mark.parametrize("nu", [0.2, 0.3, 0.5])
+@pytest.mark.parametrize("e", [0.5, 0.8, 0.95])
+def test_detected_critical_gaps_equal_n_pi_psi(nu, e):
+    pb = CouetteProblem("cheb", 40)
+    p = pb.params({"nu": nu, "e": e})
+    exact = pf.analytic_critical_gaps(nu, e, 3)
+    o = opts(0.5 * exact[0], 3.3 * exact[0], ds=0.1 * exact[0], ds_max=0.3 * exact[0])
+    base = pf.trace_base(pb, p, 0.5 * exact[0], o)
+    hs = [b.params["H"] for b in base.branch_points]
+    assert len(hs) == 3
+    for h, ex in zip(hs, exact):
+        assert abs(h - ex) / ex < 1e-8
+    assert [b.note.split(";")[0] for b in base.branch_points] == ["symmetry-breaking", "symmetric", "symmetry-breaking"]
+
+
+def test_threshold_density_is_where_psi_stops_being_finite():
+    th = pf.threshold_density(0.8)
+    assert th == pytest.approx(0.15614, abs=1e-5)  # STATUS.md / physics.md section 1.3
+    assert math.isnan(pf.analytic_critical_gaps(th - 1e-6, 0.8, 1)[0])
+    assert math.isfinite(pf.analytic_critical_gaps(th + 1e-6, 0.8, 1)[0])
+
+
+# ----------------------------------------------------------------------------- mode-n scaling
+def test_mode_n_scaling_on_computed_branches():
+    """Branch n at gap H equals branch 1 at H/n (Phi and shear stress within 1e-8)."""
+    pb = CouetteProblem("cheb", 64)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    hc = pf.analytic_critical_gaps(0.3, 0.8, 1)[0]
+    o = opts(0.5 * hc, 2.6 * hc, ds_max=2.0)
+    base = pf.trace_base(pb, p, 0.5 * hc, dataclass_replace_ds(o, 0.1 * hc))
+    bps = sorted(base.branch_points, key=lambda b: b.params["H"])
+    b1 = pf.banded_branches(pb, base, bps[0], p, o, "n1")
+    b2 = switch(pb, base, bps[1], o, directions=(+1, -1))
+    checked = 0
+    for branch in b2:
+        for i in range(1, len(branch), 2):
+            H = branch.params["H"][i]
+            obs2 = pb.observables(branch.state(i), {**p, "H": H})
+            if abs(obs2["delta"]) < 0.01:  # next to the BP Newton could fall onto uniform shear
+                continue
+            # the mode-2 state is made of mirrored mode-1 halves: it matches one of the two signs
+            errs = []
+            for one in b1:
+                x1 = pf.newton_at(pb, one, {"H": H / 2}, p)
+                obs1 = pb.observables(x1, {**p, "H": H / 2})
+                errs.append((abs(obs1["phi"] - obs2["phi"]), abs(obs1["shear_stress"] - obs2["shear_stress"])))
+            best = min(errs)
+            assert best[0] < 1e-8 and best[1] < 1e-8 * abs(obs2["shear_stress"]) + 1e-12, (H, best)
+            checked += 1
+    assert checked >= 10
+
+
+# ----------------------------------------------------------------------------- criticality
+@pytest.mark.parametrize("nu", [0.3, 0.5])
+def test_supercritical_at_nu_03_and_05(nu):
+    pb, p, hc, base, bp, band = base_and_band(nu, N=48, H_hi_factor=1.3)
+    c = pf.criticality(band, bp.params["H"], nu)
+    assert c["kind"] == "supercritical" and c["a"] > 10 and c["points"] >= 3
+    assert not band.fold_points
+    assert np.all(band.params["H"][1:] > bp.params["H"])
+
+
+def test_subcritical_at_nu_016_with_fold_matching_solve_bvp():
+    pb, p, hc, base, bp, band = base_and_band(0.16, N=48, H_lo_factor=0.6, H_hi_factor=1.05, ds_max=2.0)
+    c = pf.criticality(band, bp.params["H"], 0.16)
+    assert c["kind"] == "subcritical" and c["a"] < -1e3
+    (lp,) = band.fold_points
+    assert lp.params["H"] == pytest.approx(41.963, abs=2e-3)   # solve_bvp baseline (benchmarks/)
+    assert lp.order_parameter == pytest.approx(0.2737, abs=3e-4)
+
+
+def test_criticality_coefficient_scales_with_mode_number():
+    """H - H_c = a delta^2 on branch n is branch 1 with H -> H/n: a_n = n a_1 (fit accuracy ~1 %)."""
+    res = get_scene("pitchfork").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "H_max": 27.0, "modes": 2},
+                                                  grid=48, stability=False))
+    a = {r["branch"]: r["a"] for r in res.extra["criticality"]}
+    assert a["n1.1"] > 0 and a["n1.2"] > 0
+    a1 = 0.5 * (a["n1.1"] + a["n1.2"])
+    a2 = 0.5 * (a["n2.1"] + a["n2.2"])
+    assert a2 / a1 == pytest.approx(2.0, rel=0.02)
+
+
+# ----------------------------------------------------------------------------- convergence
+def hc1(method, N, nu=0.3, e=0.8):
+    pb = CouetteProblem(method, N)
+    p = pb.params({"nu": nu, "e": e})
+    exact = pf.analytic_critical_gaps(nu, e, 1)[0]
+    base = pf.trace_base(pb, p, 0.8 * exact, opts(0.8 * exact, 1.2 * exact, ds=0.1 * exact, ds_max=0.3 * exact,
+                                                  locate_tol=1e-13))
+    (bp,) = base.branch_points
+    return bp.params["H"], exact
+
+
+@pytest.mark.parametrize("method, order, Ns", [
+    ("fd2", 2, (64, 128)), ("fd4", 4, (128, 192)),
+    pytest.param("fd6", 6, (80, 120), marks=pytest.mark.xfail(strict=False, reason=(
+        "fd6: observed order 6.53, 6.34, 6.21 on 48->64, 72->108, 80->120, still approaching 6 when the "
+        "error (4e-10) reaches the rounding floor of the BP location; not yet within 0.2")))])
+def test_fd_order_of_critical_gap(method, order, Ns):
+    errs = []
+    for N in Ns:
+        h, ex = hc1(method, N)
+        errs.append(h - ex)
+    observed = math.log(errs[0] / errs[1]) / math.log(Ns[1] / Ns[0])
+    assert abs(observed - order) < 0.2, observed
+
+
+def test_chebyshev_critical_gap_converges_exponentially():
+    errs = []
+    for N in (6, 8, 10, 12, 14):
+        h, ex = hc1("cheb", N)
+        errs.append(abs(h - ex) / ex)
+    logs = np.log10(errs)
+    slope = np.polyfit([6, 8, 10, 12, 14], logs, 1)[0]
+    assert slope < -0.5  # a decade per 2 nodes or faster: geometric, not algebraic, decay
+    assert np.all(np.diff(logs) < -0.5)
+
+
+def lp016(method, N):
+    pb, p, hc, base, bp, band = base_and_band(0.16, method=method, N=N, H_lo_factor=0.6, H_hi_factor=1.05, ds_max=2.0)
+    (lp,) = band.fold_points
+    return lp.params["H"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method, order, N", [("fd2", 2, 96), ("fd4", 4, 48), ("fd6", 6, 32)])
+def test_fd_order_of_fold_at_nu_016(method, order, N):
+    ref = lp016("cheb", 96)
+    e1, e2 = abs(lp016(method, N) - ref), abs(lp016(method, 2 * N) - ref)
+    assert abs(math.log2(e1 / e2) - order) < 0.2
+
+
+@pytest.mark.slow
+def test_chebyshev_fold_at_nu_016_converges_exponentially():
+    ref = lp016("cheb", 96)
+    errs = [abs(lp016("cheb", N) - ref) for N in (24, 32, 40)]
+    assert errs[0] > errs[1] > errs[2] and errs[2] < 1e-6
+
+
+# ----------------------------------------------------------------------------- balances
+@pytest.mark.parametrize("walls", ["noslip", "jj"])
+def test_energy_and_momentum_balance_along_branches(walls):
+    res = get_scene("pitchfork").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "walls": walls, "H_max": 24.0,
+                                                          "modes": 1}, grid=40, stability=False))
+    pb = CouetteProblem("cheb", 40, walls=walls)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    checked = 0
+    for b in res.branches:
+        for i in range(len(b)):
+            pi = {**p, "H": b.params["H"][i]}
+            x = b.state(i)
+            source, flux = pb.energy_balance(x, pi)
+            scale = abs(pb.observables(x, pi)["shear_stress"])
+            assert abs(source - flux) < 1e-8 * scale
+            mb = pb.momentum_balance(x, pi)
+            assert mb["shear_stress"] < 1e-8 and mb["normal_stress"] < 1e-10
+            checked += 1
+    assert checked > 20
+    if walls == "jj":  # heat does leave through JJ walls: the balance is not trivially 0 = 0
+        b = res.branches[0]
+        x = b.state(len(b) // 2)
+        assert abs(pb.energy_balance(x, {**p, "H": b.params["H"][len(b) // 2]})[1]) > 1e-4
+
+
+def test_energy_balance_on_fd2_branch_is_small():
+    """fd2: the integrated balance holds to ~1e-6 of the viscous heating (it does not decrease
+    between N = 32 and 64: 3.6e-7 -> 8.5e-7, the wall nodes carry the boundary conditions
+    instead of the energy equation; reported, not yet explained)."""
+    for N in (32, 64):
+        pb, p, hc, base, bp, band = base_and_band(0.3, method="fd2", N=N, H_hi_factor=1.4)
+        x = pf.newton_at(pb, band, {"H": 1.3 * hc}, p)
+        pp = {**p, "H": 1.3 * hc}
+        s, f = pb.energy_balance(x, pp)
+        heating = pb.observables(x, pp)["shear_stress"]  # int a u'^2 dy = S int u' dy = S
+        assert abs(s - f) < 1e-5 * heating
+        assert pb.momentum_balance(x, pp)["shear_stress"] < 1e-8
+
+
+# ----------------------------------------------------------------------------- stability
+def test_reduced_eigenvalues_equal_qz():
+    pb, p, hc, base, bp, band = base_and_band(0.3, N=32, H_hi_factor=1.5)
+    op = pf.StabilityOperator(pb)
+    x = band.state(len(band) // 2)
+    pp = {**p, "H": band.params["H"][len(band) // 2]}
+    for kx in (0.0, 1.0):
+        A, B = op.eigenproblem(x, pp, kx=kx)
+        w1, w2 = pf.finite_eigenvalues(A, B), eigenvalues(A, B)
+        assert w1.size == w2.size
+        assert np.max(np.abs(w1[:10] - w2[:10])) < 1e-8 * max(1.0, np.max(np.abs(w2[:10])))
+
+
+def test_stability_supercritical_nu_03_banded_stable_uniform_unstable():
+    pb, p, hc, base, bp, band = base_and_band(0.3, N=48, H_hi_factor=1.2)
+    pf.stability(pb, band, p)
+    pf.stability(pb, base, p)
+    past = (band.params["H"] > hc * 1.001) & (band.params["H"] < 1.2 * hc)
+    assert past.sum() >= 3 and np.all(band.n_unstable[past] == 0)
+    Hb = base.params["H"]
+    assert np.all(base.n_unstable[(Hb > hc) & (Hb < 2 * hc)] == 1)
+    assert np.all(base.n_unstable[Hb < hc] == 0)
+    assert not band.audit or not any(m.startswith("stability audit") for m in band.audit)
+
+
+def test_stability_subcritical_nu_016_between_bp_and_lp_unstable():
+    pb, p, hc, base, bp, band = base_and_band(0.16, N=48, H_lo_factor=0.6, H_hi_factor=1.05, ds_max=2.0)
+    pf.stability(pb, band, p)
+    lp = band.fold_points[0]
+    between = np.arange(1, lp.index + 1)
+    assert between.size >= 5 and np.all(band.n_unstable[between] >= 1)
+    after = np.arange(lp.index + 2, len(band))
+    assert np.all(band.n_unstable[after] == 0)  # the upper (large-amplitude) part is stable
+    assert not [m for m in band.audit if m.startswith("stability audit")]
+
+
+@pytest.mark.parametrize("nu, H_max", [(0.3, 30.0), pytest.param(0.5, 30.0, marks=pytest.mark.slow),
+                                       pytest.param(0.16, 80.0, marks=pytest.mark.slow)])
+def test_scene_audit_has_no_disagreement(nu, H_max):
+    res = get_scene("pitchfork").run(SceneRequest(params={"nu": nu, "e": 0.8, "H_max": H_max, "modes": 2}, grid=48))
+    assert all(b.n_unstable is not None and np.all(b.n_unstable >= 0) for b in res.branches)
+    assert not [n for n in res.notes if n.startswith("stability audit")]
+
+
+# ----------------------------------------------------------------------------- scene behaviour
+def test_low_density_scene_finds_banded_branch_without_bp():
+    res = get_scene("pitchfork").run(SceneRequest(params={"nu": 0.15, "e": 0.8, "H_max": 100.0, "modes": 1},
+                                                  grid=40, stability=False))
+    uniform = res.branches[0]
+    assert not uniform.branch_points
+    banded = [b for b in res.branches if b.id == "n1.1"]
+    assert banded and np.max(np.abs(banded[0].observables["delta"])) > 0.1
+    assert any("no BP at nu = 0.15" in n and "0.156139" in n for n in res.notes)
+    assert banded[0].fold_points  # the branch comes back from large H: a fold in between
+    assert res.extra["threshold_density"] == pytest.approx(0.156139, abs=1e-6)
+
+
+def test_mirror_branch_is_the_reflected_image():
+    res = get_scene("pitchfork").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "H_max": 20.0, "modes": 1}, grid=32))
+    b1, b2 = (b for b in res.branches if b.id.startswith("n1"))
+    pb = CouetteProblem("cheb", 32)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    for i in range(len(b1)):
+        pp = {**p, "H": b2.params["H"][i]}
+        assert np.max(np.abs(pb.residual(b2.state(i), pp))) < 1e-9
+    assert np.allclose(b2.observables["nu_top"], b1.observables["nu_bottom"], atol=1e-14)
+    assert np.array_equal(b1.n_unstable, b2.n_unstable)
+
+
+def test_resume_reuses_finished_branches():
+    req = SceneRequest(params={"nu": 0.3, "e": 0.8, "H_max": 20.0, "modes": 1}, grid=32, stability=False)
+    first = get_scene("pitchfork").run(req)
+    done = {b.id: b for b in first.branches}
+    second = get_scene("pitchfork").run(SceneRequest(params=req.params, grid=32, stability=False, completed=done))
+    assert [b.id for b in second.branches] == ["0", "n1.1", "n1.2"]
+    assert all(b is done[b.id] for b in second.branches)
+
+
+def test_extra_kx_growth_rates_are_stored():
+    res = get_scene("pitchfork").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "H_max": 16.0, "modes": 1},
+                                                  grid=24, kx=(0.5,)))
+    kx = res.extra["stability_kx"]
+    assert set(kx) == {"0", "n1.1", "n1.2"}
+    assert len(kx["n1.1"]["0.5"]["growth_rate"]) == len(res.branches[1])
+
+
+@pytest.mark.parametrize("params, words", [({"nu": 0.9}, "nu"), ({"modes": 0}, "modes"), ({"H_max": -1}, "H_max"),
+                                            ({"walls": "rough"}, "walls"), ({"Fr": 100}, "gravity"),
+                                            ({"bogus": 1}, "unknown parameter"), ({"e": 1.0}, "e = 1")])
+def test_bad_parameters_raise_one_sentence(params, words):
+    with pytest.raises(SceneError, match=words) as exc:
+        get_scene("pitchfork").run(SceneRequest(params=params, grid=16))
+    assert "\n" not in str(exc.value)
+
+
+def test_jj_walls_scene_has_nonuniform_base_and_a_symmetry_breaking_bp():
+    res = get_scene("jj-walls").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "H_max": 24.0, "modes": 1},
+                                                 grid=32, stability=False))
+    base = res.branches[0]
+    assert base.kind == "base" and np.all(np.abs(base.observables["phi"] - 0.3) > 1e-4)  # not uniform
+    (bp,) = base.branch_points
+    assert "symmetry-breaking" in bp.note and bp.params["H"] == pytest.approx(18.1513, abs=1e-3)
+    assert len(res.branches) == 3
+
+
+# ----------------------------------------------------------------------------- core fix
+def test_switch_onto_strongly_bent_pitchfork(monkeypatch):
+    """The first step off a BP is halved until accepted (fix: 8 halvings were too few when the
+    new branch bends with curvature ~1e4 in the step norm, e.g. gPCF at nu = 0.16)."""
+    import dataclasses
+
+    import contin.switching as sw
+    from contin.continuation import trace_both
+
+    pb = ImperfectPitchfork()
+    o = ContinuationOptions(bounds={"lam": (-1.0, 1.0)}, step=StepOptions(ds=0.05, ds_max=0.1))
+    br = trace_both(pb, np.array([0.0]), {"lam": -0.5, "alpha": 0.0, "beta": 0.0}, "lam", o)
+    (bp,) = br.branch_points
+    bent = dataclasses.replace(o, max_steps=10, step=dataclasses.replace(o.step, theta=1e8))
+    new = switch(pb, br, bp, bent)
+    assert len(new) == 2
+    for nb in new:
+        assert len(nb) > 5 and np.max(np.abs(nb.order_parameter ** 2 - nb.parameter_values)) < 1e-10
+    monkeypatch.setattr(sw, "MAX_START_HALVINGS", 8)  # the old behaviour finds nothing
+    assert switch(pb, br, bp, bent) == []
+
+
+# ----------------------------------------------------------------------------- CLI
+def test_cli_trace_json_and_diagram(tmp_path):
+    h5 = tmp_path / "tmp.h5"
+    png = tmp_path / "d.png"
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    r = subprocess.run([sys.executable, "-m", "contin", "trace", "pitchfork", "-s", "nu=0.3", "-s", "e=0.8",
+                        "-s", "H_max=30", "--grid", "32", "--json", "-o", str(h5)],
+                       capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["scene"] == "pitchfork"
+    hs = [row["detected"] for row in doc["extra"]["H_c"]]
+    assert hs[0] == pytest.approx(13.0685293255, rel=1e-8) and hs[1] == pytest.approx(2 * 13.0685293255, rel=1e-8)
+    assert {b["id"] for b in doc["branches"]} >= {"0", "n1.1", "n1.2", "n2.1", "n2.2"}
+    r = subprocess.run([sys.executable, "-m", "contin", "diagram", str(h5), "-o", str(png)],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
