@@ -16,3 +16,9 @@ done
 # accuracy: key points of gPCF against method and grid (~2 min)
 CONTIN_SCENES=problems.couette.keypoints:SCENES contin accuracy gpcf-keypoints \
     --grids 16,24,32,48,64,96,128,256 -q -o results/accuracy
+# criticality: threshold and tricritical densities at e = 0.8, and the two shipped sweeps (~3 min)
+contin trace criticality -s e=0.8 --json --no-stability -q -o results/criticality_e0.8.h5 > results/criticality_e0.8.json
+rm -rf results/sweeps/threshold_tricritical results/sweeps/critical_gap  # recompute, do not resume
+contin sweep results/sweeps/threshold_tricritical.toml -o results/sweeps/threshold_tricritical -j 2
+contin sweep results/sweeps/critical_gap.toml -o results/sweeps/critical_gap -j 2
+python results/sweeps/plot_criticality.py
