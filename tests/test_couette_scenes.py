@@ -225,7 +225,6 @@ def test_energy_balance_on_fd2_branch_is_small():
         s, f = pb.energy_balance(x, pp)
         heating = pb.observables(x, pp)["shear_stress"]  # int a u'^2 dy = S int u' dy = S
         assert abs(s - f) < 1e-5 * heating
-        assert pb.momentum_balance(x, pp)["shear_stress"] < 1e-8
 
 
 # ----------------------------------------------------------------------------- stability
