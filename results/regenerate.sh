@@ -22,3 +22,9 @@ rm -rf results/sweeps/threshold_tricritical results/sweeps/critical_gap  # recom
 contin sweep results/sweeps/threshold_tricritical.toml -o results/sweeps/threshold_tricritical -j 2
 contin sweep results/sweeps/critical_gap.toml -o results/sweeps/critical_gap -j 2
 python results/sweeps/plot_criticality.py
+
+# ---- gravity (issue 5)
+mkdir -p results/gravity
+contin unfold --json -o results/gravity/phase_diagram_nu0.3.png > results/gravity/unfold_nu0.3.json
+contin fit --compute results/gravity/bp_unfolding.h5
+python results/gravity/make_figures.py all

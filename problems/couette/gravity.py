@@ -42,7 +42,7 @@ import numpy as np
 
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, trace, trace_both
-from contin.foldcurve import trace_fold_curve
+from contin.foldcurve import FoldProblem, trace_fold_curve
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 from problems.couette.model import CouetteProblem
@@ -319,10 +319,16 @@ def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
             p = {**_params_at(c, j), "G": G}
             if not H_range[0] < p["H"] < H_range[1]:
                 continue
+            # polish on the fold system at G fixed with H free (Newton in the state at a
+            # fixed H next to a fold may have no solution to converge to)
             n = problem.size
-            res = newton(problem, c.state(j)[:n], p, NewtonOptions(max_iterations=20))
+            st = c.state(j)
+            phi = st[n: 2 * n]
+            fp = FoldProblem(problem, "H", phi / float(phi @ phi))
+            res = newton(fp, np.concatenate([st[: 2 * n], [p["H"]]]), p, NewtonOptions(max_iterations=20))
             if res.converged:
-                out.append((f"fold curve {c.id} at H={p['H']:.4g}", res.u, p))
+                p = {**p, "H": float(res.u[2 * n])}
+                out.append((f"fold curve {c.id} at H={p['H']:.6g}", res.u[:n], p))
     return out
 
 

@@ -1,0 +1,115 @@
+"""Issue-5 figures (gravity): Phi vs H at several Fr, isola profiles, growth rates.
+
+Usage: python results/gravity/make_figures.py [panels|profiles|growth] (default: all)
+"""
+
+from __future__ import annotations
+
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from contin.plot import save_figure
+from problems.couette.gravity import GravitySettings, discover, gravity_free_branches, gravity_problem
+
+OUT = "results/gravity"
+STYLE = {"primary": "k", "isola": "tab:red", "floating-plug": "tab:blue", "bottom-plug": "tab:green"}
+
+
+def panels(nu: float, frs: list[float], name: str, H_max: float = 50.0) -> None:
+    pb = gravity_problem("cheb", 32)
+    st = GravitySettings(H_range=(1.0, H_max))
+    p0 = pb.params({"nu": nu, "e": 0.8})
+    base, g0 = gravity_free_branches(pb, p0, st)
+    fig, axes = plt.subplots(2, (len(frs) + 1) // 2, figsize=(3.2 * ((len(frs) + 1) // 2), 6), sharex=True, sharey=True)
+    for ax, fr in zip(axes.flat, frs):
+        if np.isinf(fr):
+            for b in [base] + g0:
+                ax.plot(b.params["H"], b.observables["phi"], "k-", lw=1)
+        else:
+            d = discover(pb, pb.params({"nu": nu, "e": 0.8, "Fr": fr}), st, g0_branches=g0)
+            for b in d.branches:
+                ax.plot(b.params["H"], b.observables["phi"], "-", color=STYLE[b.kind], lw=1, label=b.kind)
+                for lp in b.fold_points:
+                    ax.plot(lp.params["H"], lp.order_parameter, "o", color=STYLE[b.kind], ms=3)
+        ax.set_title(f"Fr = {fr:g}")
+        ax.axhline(nu, color="0.8", lw=0.5)
+    handles = {l: h for a in axes.flat for h, l in zip(*a.get_legend_handles_labels())}
+    fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=4, fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("H")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("Phi = nu(1/2)")
+    fig.suptitle(f"nu = {nu:g}, e = 0.8, no-slip walls, cheb N = 32")
+    save_figure(fig, f"{OUT}/{name}.png")
+    plt.close(fig)
+
+
+def profiles() -> None:
+    pb = gravity_problem("cheb", 32)
+    st = GravitySettings(H_range=(1.0, 50.0))
+    d = discover(pb, pb.params({"nu": 0.3, "e": 0.8, "Fr": 400.0}), st)
+    fig, axes = plt.subplots(1, 3, figsize=(10, 3.5))
+    for b in d.branches:
+        if b.kind not in ("isola", "floating-plug"):
+            continue
+        for i in np.linspace(0, len(b) - 1, 6).astype(int):
+            x = b.state(i)
+            pr = pb.profiles(x)
+            lab = f"{b.kind} H={b.params['H'][i]:.1f} Phi={b.observables['phi'][i]:.2f}"
+            for ax, k in zip(axes, ("nu", "u", "T")):
+                ax.plot(pr[k], pb.grid.y, label=lab if k == "nu" else None)
+        break
+    for ax, k in zip(axes, ("nu", "u", "T")):
+        ax.set_xlabel(k)
+        ax.set_ylabel("y")
+    axes[0].legend(fontsize=6)
+    fig.suptitle("profiles on the floating-plug isola, nu = 0.3, e = 0.8, Fr = 400")
+    save_figure(fig, f"{OUT}/isola_profiles.png")
+    plt.close(fig)
+
+
+def growth() -> None:
+    from problems.couette.linear import growth_rate_curve
+
+    pb = gravity_problem("cheb", 32)
+    st = GravitySettings(H_range=(1.0, 50.0))
+    p = pb.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0})
+    d = discover(pb, p, st, routes=("homotopy",))
+    kx = np.concatenate([[0.0], np.logspace(-2, 0.5, 25)])
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for b in d.branches:
+        Hs = b.params["H"]
+        for i in np.nonzero(np.abs(np.diff(np.sign(Hs - 25.0))) > 0)[0]:
+            x = b.state(int(i))
+            nu, u, T, _, _ = pb.unpack(x)
+            q = {**p, "H": float(Hs[i])}
+            side = "floating plug" if b.observables["nu_top"][i] > b.observables["nu_bottom"][i] else "bottom plug"
+            _, g, _ = growth_rate_curve(pb.grid, nu, u, T, q, kx, gravity=True)
+            ax.plot(kx, g, label=f"{side}, branch {b.id} ({b.kind}), Phi={b.observables['phi'][i]:.3f}")
+    ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_xscale("symlog", linthresh=1e-2)
+    ax.set_xlabel("k_x")
+    ax.set_ylabel("max Re omega")
+    ax.set_title("nu = 0.3, e = 0.8, Fr = 1000, H ~ 25")
+    ax.legend(fontsize=6)
+    save_figure(fig, f"{OUT}/growth_H25.png")
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    what = sys.argv[1] if len(sys.argv) > 1 else "all"
+    if what in ("panels", "all"):
+        panels(0.3, [np.inf, 2000, 1000, 922, 750, 400, 300, 250], "phi_vs_H_nu0.3")
+    if what in ("profiles", "all"):
+        profiles()
+    if what in ("growth", "all"):
+        growth()
+    if what in ("others", "all"):
+        panels(0.5, [np.inf, 1000, 500, 300], "phi_vs_H_nu0.5")
+        panels(0.16, [np.inf, 5000, 2500, 2350], "phi_vs_H_nu0.16", H_max=70.0)
+        panels(0.15, [np.inf, 10000, 5000, 4000], "phi_vs_H_nu0.15", H_max=70.0)
