@@ -339,7 +339,7 @@ def _fit_end(delta: np.ndarray, nu: np.ndarray, window: float, degree: int = 3) 
     return float(coef[0]), float(coef[1]), int(d.size)
 
 
-def _end_of_curve(curve: Branch, delta_fit: float) -> str:
+def _end_of_curve(curve: Branch) -> str:
     """Turn the tracer's failure at the tricritical point into the curve's regular end.
 
     The augmented fold system is singular where the fold curve meets the BP curve (the BP
@@ -383,7 +383,7 @@ def tricritical_by_fold_curve(problem: CouetteProblem, fold: BandedFold, e: floa
     if not abs(delta[i]) < delta_fit / 4:
         raise ValueError(f"the fold curve did not reach the BP curve: smallest |delta| = {abs(delta[i]):.3g} at "
                          f"nu = {nu[i]:.6g}, H = {H[i]:.6g} ({curve.message})")
-    message = _end_of_curve(curve, delta_fit)
+    message = _end_of_curve(curve)
     d, n = _clusters(delta, nu)
     window = delta_fit
     while np.sum(np.abs(d) <= window) < 5 and window < 0.1:
