@@ -6,11 +6,14 @@ for scene in bratu allen-cahn; do
     contin trace "$scene" -q -o "results/$scene.h5"
     contin diagram "results/$scene.h5" -o "results/$scene.png"
 done
+# ---- pitchfork (issue 3; ~1-2 min): nu = 0.3 default H_max; the others capped where N = 64 resolves the plug
 contin trace pitchfork -s nu=0.3 -s e=0.8 -q -o results/pitchfork.h5
 contin diagram results/pitchfork.h5 -o results/pitchfork.png
 contin profiles results/pitchfork.h5 --at H=25 --names nu,u,T -o results/profiles_H25.png
-for nu in 0.5 0.16 0.15; do
-    contin trace pitchfork -s "nu=$nu" -s e=0.8 -q -o "results/pitchfork_nu$nu.h5"
+contin profiles results/pitchfork.h5 --at H=30 --names nu,u,T -o results/profiles_H30.png
+for spec in 0.5:40 0.16:100 0.15:100; do
+    nu=${spec%%:*}; hmax=${spec##*:}
+    contin trace pitchfork -s "nu=$nu" -s e=0.8 -s "H_max=$hmax" -q -o "results/pitchfork_nu$nu.h5"
     contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"
 done
 # accuracy: key points of gPCF against method and grid (~2 min)

