@@ -96,6 +96,12 @@ def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) ->
     return p, out
 
 
+def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> CouetteProblem:
+    """Rebuild the gravity-free problem of a stored run (``contin stability`` uses it)."""
+    return CouetteProblem(str(discretization.get("method", "cheb")), int(discretization.get("intervals", 64)),
+                          walls=str(parameters.get("walls", "noslip")), chi=str(parameters.get("chi", "jj")))
+
+
 def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64) -> CouetteProblem:
     try:
         return CouetteProblem(request.method or "cheb", request.grid or default_grid, walls=walls, chi=chi)
@@ -306,6 +312,7 @@ SCENES: dict[str, Scene] = {
         summary="gPCF, no-slip walls, no gravity: uniform shear in H, BPs at H_n^c = n pi psi, banded branches n = 1..3",
         defaults=PITCHFORK_DEFAULTS,
         run=run_pitchfork,
+        problem_factory=problem_factory,
         x="H",
         y="phi",
     ),
@@ -314,10 +321,13 @@ SCENES: dict[str, Scene] = {
         summary="gPCF with Johnson-Jackson walls, no gravity: symmetric base branch in H and the branches at its BPs",
         defaults=JJ_DEFAULTS,
         run=run_jj_walls,
+        problem_factory=problem_factory,
         x="H",
         y="phi",
     ),
 }
 
 # ---- gravity scenes (owned by problems/couette/gravity_scenes.py): register them on the next line.
-SCENES.update(__import__("problems.couette.gravity_scenes", fromlist=["GRAVITY_SCENES"]).GRAVITY_SCENES)
+from problems.couette.gravity_scenes import GRAVITY_SCENES  # noqa: E402  (gravity scenes live in their own module)
+
+SCENES.update(GRAVITY_SCENES)

@@ -1,0 +1,9 @@
+"""Test-session set-up: one BLAS thread, as the CLI uses (contin.blas).
+
+The tests factorize and diagonalize many small matrices; multithreaded OpenBLAS on a shared
+2-core machine made some of them ten times slower without changing any result.
+"""
+
+from contin.blas import limit_blas_threads
+
+limit_blas_threads(1)
