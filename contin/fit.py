@@ -82,11 +82,18 @@ def fit_unfolding(
     y = np.concatenate(rhs)
     if a.shape[0] <= a.shape[1]:
         raise ValueError(f"only {a.shape[0]} points inside the fit window; widen delta_max or window")
-    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    # Columns differ by many orders of magnitude (mu ~ 1e-8 against delta ~ 1e-2): solve and
+    # form the covariance in unit-norm columns, where (A^T A)^-1 is well conditioned, and scale
+    # back; a pseudo-inverse of the raw normal matrix truncates and reports tiny errors.
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    q, r = np.linalg.qr(a / scale)
+    coef = np.linalg.solve(r, q.T @ y) / scale
     res = y - a @ coef
     dof = a.shape[0] - a.shape[1]
     sigma2 = float(res @ res) / dof
-    cov = sigma2 * np.linalg.pinv(a.T @ a)
+    r_inv = np.linalg.inv(r)
+    cov = sigma2 * (r_inv @ r_inv.T) / np.outer(scale, scale)
     err = np.sqrt(np.abs(np.diag(cov)))
     if critical_value is None:
         b1, b1lc, alpha1, beta1 = coef

@@ -45,3 +45,21 @@ def test_fit_error_bars_cover_higher_order_bias():
     assert fit.b1_err > 0
     with pytest.raises(ValueError, match="points inside the fit window"):
         fit_unfolding(lams, deltas, mus, delta_max=1e-9)
+
+
+def test_fit_errors_are_honest_for_badly_scaled_imperfections():
+    # mu ~ 1e-8 (gravity G = Fr^-2) makes the raw normal matrix singular to working precision;
+    # the reported sigma of beta1 must still cover its actual error under noise.
+    rng = np.random.default_rng(1)
+    lams, deltas, mus = [], [], []
+    for mu in (2e-8, 5e-8, 1e-7, -5e-8):
+        for sign in (1, -1):
+            d = sign * np.linspace(0.005, 0.03, 25)
+            lam, d = _branch(0.8, 13.07, -5000.0, 40000.0, mu, d)
+            lams.append(lam + 1e-7 * rng.standard_normal(lam.size))
+            deltas.append(d)
+            mus.append(mu)
+    fit = fit_unfolding(lams, deltas, mus, critical_value=13.07)
+    for value, err, truth in ((fit.b1, fit.b1_err, 0.8), (fit.alpha1, fit.alpha1_err, -5000.0), (fit.beta1, fit.beta1_err, 40000.0)):
+        assert err > 0
+        assert abs(value - truth) < 5 * err
