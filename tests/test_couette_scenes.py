@@ -143,18 +143,79 @@ def hc1(method, N, nu=0.3, e=0.8):
     return bp.params["H"], exact
 
 
+def discrete_critical_gap(method, N, nu=0.3, e=0.8):
+    """H_1^c of the discrete problem: the root of the bordered neutral-mode function along uniform shear.
+
+    Uniform shear is exact on every grid, so the discrete BP is the root in H of
+    s(H) = last component of [[J, b], [c^T, 0]]^{-1} e_{n+1} (b, c = left/right null vectors of J
+    at the analytic H_1^c; s is smooth with a simple root where J is singular).  Each solve is
+    refined with residuals in extended precision so that s carries no LU rounding; the root is
+    found by brentq to 1e-15 relative.  What remains is the rounding of the matrix itself.
+    """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from scipy.optimize import brentq
+
+    from contin.normalform import null_vectors
+
+    pb = CouetteProblem(method, N)
+    p = pb.params({"nu": nu, "e": e})
+    exact = pf.analytic_critical_gaps(nu, e, 1)[0]
+
+    def jac(H):
+        q = {**p, "H": H}
+        x = pb.uniform_state(q)
+        assert np.max(np.abs(pb.residual(x, q))) < 1e-13
+        return sp.csc_matrix(pb.jacobian(x, q))
+
+    nv = null_vectors(jac(exact))
+    rhs = np.zeros(nv.phi.size + 1)
+    rhs[-1] = 1.0
+
+    def s(H):
+        m = sp.bmat([[jac(H), sp.csc_matrix(nv.psi[:, None])], [sp.csc_matrix(nv.phi[None, :]), None]], format="csc")
+        lu, ml = spla.splu(m), m.astype(np.longdouble)
+        x = lu.solve(rhs).astype(np.longdouble)
+        for _ in range(3):
+            x = x + lu.solve(np.asarray(rhs - ml @ x, float))
+        return float(x[-1])
+
+    return brentq(s, 0.95 * exact, 1.05 * exact, xtol=1e-15, rtol=1e-15), exact
+
+
+def fitted_order(Ns, errs):
+    """Least-squares slope of log|err| against log N (3+ grids)."""
+    assert len(Ns) >= 3
+    return -np.polyfit(np.log(Ns), np.log(np.abs(errs)), 1)[0]
+
+
+# fd6: measured (fitted over 48, 64, 80, 96 / pairwise 24->32->48->64->96): 6.38 / 6.49, 6.46, 6.40,
+# 6.28 -- still falling at N = 96 where the error is 1.5e-9.  Beyond N ~ 112 the discrete BP itself
+# is noisy at ~3e-10 (N = 128, 160, 192, 256: +1.7e-10, +8.9e-11, -1.6e-10, -3.3e-10 with the solves
+# refined in extended precision, so this is the rounding of the assembled FD Jacobian, ~eps N^2),
+# so the asymptotic range cannot be reached above the floor.  Fits with a correction term
+# (N^-p (a + b N^-1 [+ c N^-2])) give 5.70 / 4.53: the data do not fix the order to +-0.2.
+FD6_OPEN = pytest.mark.xfail(strict=False, reason=(
+    "fd6 H_1^c: observed 6.38 (LS over 48..96), still approaching; discrete-BP rounding floor 3e-10 "
+    "(FD Jacobian, not the locator) reached before the asymptotic range"))
+
+
 @pytest.mark.parametrize("method, order, Ns", [
-    ("fd2", 2, (64, 128)), ("fd4", 4, (128, 192)),
-    pytest.param("fd6", 6, (80, 120), marks=pytest.mark.xfail(strict=False, reason=(
-        "fd6: observed order 6.53, 6.34, 6.21 on 48->64, 72->108, 80->120, still approaching 6 when the "
-        "error (4e-10) reaches the rounding floor of the BP location; not yet within 0.2")))])
+    ("fd2", 2, (64, 128, 256)), ("fd4", 4, (128, 192, 256)),
+    pytest.param("fd6", 6, (48, 64, 80, 96), marks=FD6_OPEN)])
 def test_fd_order_of_critical_gap(method, order, Ns):
-    errs = []
-    for N in Ns:
-        h, ex = hc1(method, N)
-        errs.append(h - ex)
-    observed = math.log(errs[0] / errs[1]) / math.log(Ns[1] / Ns[0])
+    errs = [h - ex for h, ex in (discrete_critical_gap(method, N) for N in Ns)]
+    assert np.all(np.array(errs) > 0)  # monotone approach from above: no sign change into the noise
+    observed = fitted_order(Ns, errs)
     assert abs(observed - order) < 0.2, observed
+
+
+@pytest.mark.parametrize("method, N", [("fd4", 64), ("fd6", 48)])
+def test_continuation_bp_equals_discrete_root(method, N):
+    """The BP located by the tracer is the discrete BP (root of the neutral-mode function)."""
+    h_cont, _ = hc1(method, N)
+    h_root, _ = discrete_critical_gap(method, N)
+    assert abs(h_cont - h_root) < 1e-9 * h_root, (h_cont, h_root)
 
 
 def test_chebyshev_critical_gap_converges_exponentially():
