@@ -48,6 +48,18 @@ flushes and fsyncs it, then renames it over ``FILE`` (``os.replace`` is atomic o
 moment leaves the last published version (attr ``complete=False`` while the run is still going)
 and at worst a stale ``FILE.tmp``.  :class:`H5Writer` republishes after every finished branch;
 the runs are small (a few MB), so rewriting is cheap and far simpler than in-place appends.
+
+Non-finite data
+---------------
+Nothing non-finite that must be finite reaches a file: before every publish each branch is
+checked (:func:`check_finite`) and a violation raises :class:`NonFiniteError` (a ValueError,
+so the CLI prints one ``Error:`` line) naming the branch, the quantity and the first bad row;
+the previously published file is left untouched.  Must be finite: ``states``, ``tangents``,
+``ds``, the free parameter columns, every observable column that has any finite value, and
+the states and free-parameter values of the special points.  Allowed: ``inf`` (not NaN) in a
+fixed parameter column (``Fr = inf`` means no gravity), an observable that is NaN at every
+point (the problem does not define it), and NaN ``phi``/``bracket`` of a special point (no
+order parameter / no bracket).
 """
 
 from __future__ import annotations
@@ -79,6 +91,8 @@ __all__ = [
     "FORMAT_VERSION",
     "FileFormatError",
     "H5Writer",
+    "NonFiniteError",
+    "check_finite",
     "git_commit",
     "load",
     "options_from_dict",
@@ -104,6 +118,58 @@ _HAS_STATE_INDEX = "state_index" in {f.name for f in dataclasses.fields(Branch)}
 
 class FileFormatError(ValueError):
     """A file that is not a readable contin HDF5 file (corrupt, truncated or foreign)."""
+
+
+class NonFiniteError(ValueError):
+    """A branch holds NaN or inf where a stored value must be finite (see the module docstring)."""
+
+
+def _first_bad(values: Any, allow_inf: bool = False) -> int | None:
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "fc" or arr.size == 0:
+        return None
+    bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
+    if arr.ndim > 1:
+        bad = bad.reshape(arr.shape[0], -1).any(axis=1)
+    hits = np.flatnonzero(bad)
+    return int(hits[0]) if hits.size else None
+
+
+def check_finite(branch: Branch) -> None:
+    """Raise :class:`NonFiniteError` if ``branch`` holds NaN/inf where a file needs finite data.
+
+    Rules (module docstring, "Non-finite data"): states, tangents, ds, free parameters, partly
+    defined observables and special-point states/free parameters must be finite; fixed
+    parameters may be inf but not NaN.
+    """
+    free = set(branch.free) | {branch.parameter}
+
+    def refuse(what: str, row: int) -> None:
+        raise NonFiniteError(f"branch {branch.id}: {what} is not finite at point {row}; "
+                             f"refusing to write non-finite data (the solver produced an invalid state)")
+
+    for what, values in (("the state", branch.states), ("the tangent", branch.tangents), ("the step ds", branch.ds)):
+        row = _first_bad(values)
+        if row is not None:
+            refuse(what, row)
+    for name, values in branch.params.items():
+        row = _first_bad(values, allow_inf=name not in free)
+        if row is not None:
+            refuse(f"parameter {name}", row)
+    for name, values in branch.observables.items():
+        arr = np.asarray(values)
+        if arr.dtype.kind in "fc" and arr.size and np.isnan(arr).all():
+            continue  # not defined by the problem
+        row = _first_bad(arr)
+        if row is not None:
+            refuse(f"observable {name}", row)
+    for sp in branch.special_points:
+        if sp.state is not None and _first_bad(np.ravel(sp.state)) is not None:
+            refuse(f"the located state of {sp.name}", sp.index)
+        for name in free & set(sp.params):
+            v = sp.params[name]
+            if not isinstance(v, str) and not np.isfinite(v):
+                refuse(f"parameter {name} of {sp.name}", sp.index)
 
 
 # --------------------------------------------------------------------------- provenance
@@ -489,7 +555,10 @@ class H5Writer:
         _write_special_points(f, branches, sp_profiles)
 
     def publish(self) -> None:
-        """Write the current state atomically to :attr:`path`."""
+        """Write the current state atomically to :attr:`path` (:class:`NonFiniteError` first
+        if a branch holds non-finite data; the published file is then left as it was)."""
+        for b in self._all_branches():
+            check_finite(b)
         _publish(self.path, self._fill)
         self.publishes += 1
 
