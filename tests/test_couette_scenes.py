@@ -246,12 +246,12 @@ def lp016(method, N):
 @functools.lru_cache(maxsize=1)
 def lp016_start():
     """The LP on the banded n = 1 branch at nu = 0.16 located by the tracer on cheb 48."""
-    pb, p, hc, base, bp, band = base_and_band(0.16, N=48, H_lo_factor=0.6, H_hi_factor=1.05, ds_max=2.0)
+    pb, _p, _hc, _base, _bp, band = base_and_band(0.16, N=48, H_lo_factor=0.6, H_hi_factor=1.05, ds_max=2.0)
     lp = min(band.fold_points, key=lambda f: abs(f.params["H"] - 41.963))
     return pb, lp
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def lp016_fold(method, N):
     """H at the LP on grid (method, N) by Newton on the fold system F = 0, J phi = 0, c.phi = 1 with
     unknowns (x, phi, H) at fixed (nu, e) (contin.foldcurve.FoldProblem), started from the
@@ -277,7 +277,7 @@ def lp016_fold(method, N):
 
 @pytest.mark.slow
 def test_fold_newton_equals_traced_lp():
-    source, lp = lp016_start()
+    _, lp = lp016_start()
     assert lp016_fold("cheb", 48) == pytest.approx(lp.params["H"], abs=1e-8)
     assert lp016_fold("cheb", 96) == pytest.approx(41.963, abs=2e-3)  # solve_bvp baseline (benchmarks/)
     assert abs(lp016_fold("cheb", 80) - lp016_fold("cheb", 96)) < 1e-9  # the reference is converged
