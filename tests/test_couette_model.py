@@ -474,3 +474,12 @@ def test_constructor_rejects_bad_options():
         problem.params({"Fr": 100})
     with pytest.raises(ValueError, match="parameter G is missing"):
         problem.validate({k: v for k, v in DEFAULTS.items() if k != "G"})
+
+
+def test_uniform_shear_refuses_elastic_limit():
+    from problems.couette.closures import uniform_shear
+
+    with pytest.raises(ValueError, match="e = 1 has no steady uniform shear"):
+        uniform_shear(0.3, 1.0)
+    t0, s0, p0 = uniform_shear(0.3, 0.8)
+    assert (t0, s0, p0) == pytest.approx((0.48174, 0.32282, 0.83152), abs=1e-5)

@@ -117,7 +117,13 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
 
 
 def uniform_shear(nu, e, model: str = "jj", nu_max: float = 0.65):
-    """Uniform shear state (physics.md section 4): T0 = f2/f5, S0 = f2 sqrt(T0), p0 = f1 T0."""
+    """Uniform shear state (physics.md section 4): T0 = f2/f5, S0 = f2 sqrt(T0), p0 = f1 T0.
+
+    Raises ValueError for e = 1 (f5 = 0: no collisional dissipation balances viscous heating,
+    so there is no steady uniform temperature).
+    """
+    if np.any(np.real(np.asarray(e)) >= 1.0):
+        raise ValueError("e = 1 has no steady uniform shear (no collisional dissipation, T0 = f2/f5 is infinite); use e < 1")
     c = coefficients(nu, e, model, nu_max)
     t0 = c.f2 / c.f5
     return t0, c.f2 * np.sqrt(t0), c.f1 * t0
