@@ -1,10 +1,11 @@
 """Issue-5 figures (gravity): Phi vs H at several Fr, isola profiles, growth rates.
 
-Usage: python results/gravity/make_figures.py [panels|profiles|growth] (default: all)
+Usage: python results/gravity/make_figures.py [panels|profiles|growth|others] (default: all)
 """
 
 from __future__ import annotations
 
+import json
 import sys
 
 import matplotlib
@@ -81,7 +82,8 @@ def growth() -> None:
     p = pb.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0})
     d = discover(pb, p, st, routes=("homotopy",))
     kx = np.concatenate([[0.0], np.logspace(-2, 0.5, 25)])
-    fig, ax = plt.subplots(figsize=(5, 4))
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    rows = []
     for b in d.branches:
         Hs = b.params["H"]
         for i in np.nonzero(np.abs(np.diff(np.sign(Hs - 25.0))) > 0)[0]:
@@ -90,14 +92,22 @@ def growth() -> None:
             q = {**p, "H": float(Hs[i])}
             side = "floating plug" if b.observables["nu_top"][i] > b.observables["nu_bottom"][i] else "bottom plug"
             _, g, _ = growth_rate_curve(pb.grid, nu, u, T, q, kx, gravity=True)
-            ax.plot(kx, g, label=f"{side}, branch {b.id} ({b.kind}), Phi={b.observables['phi'][i]:.3f}")
+            lab = f"{side}, branch {b.id} ({b.kind}), H={Hs[i]:.2f}, Phi={b.observables['phi'][i]:.3f}"
+            ax.plot(kx, g, "o-", ms=2, label=lab)
+            rows.append({"label": lab, "H": float(Hs[i]), "phi": float(b.observables["phi"][i]),
+                         "kx": kx.tolist(), "growth": g.tolist()})
+    # the growth rates span ~1e-4 .. 40 (a near-packing state is violently unstable): symlog y
     ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_yscale("symlog", linthresh=1e-3)
     ax.set_xscale("symlog", linthresh=1e-2)
+    ax.set_xlim(0, kx[-1])
     ax.set_xlabel("k_x")
     ax.set_ylabel("max Re omega")
     ax.set_title("nu = 0.3, e = 0.8, Fr = 1000, H ~ 25")
     ax.legend(fontsize=6)
     save_figure(fig, f"{OUT}/growth_H25.png")
+    with open(f"{OUT}/growth_H25.json", "w") as fh:
+        json.dump(rows, fh, indent=1)
     plt.close(fig)
 
 
