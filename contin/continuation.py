@@ -32,7 +32,7 @@ from contin.branch import Branch, SpecialPoint, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
-from contin.linalg import bordered, factorize
+from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions
@@ -79,7 +79,7 @@ class _Tracer:
             x = self.system.pack(self.anti.symmetrize(x[:-1]), x[-1])
         t = tangent(self.system, corr.factorization, orient)
         bp = bp_value(corr.factorization, corr.row, t)
-        anti = self.anti.det(self.system.jacobian(x)[0]) if self.anti is not None else None
+        anti = self.anti.det(self.system.state_jacobian(x)) if self.anti is not None else None
         return _Point(x, t, TestValues(float(t[-1]), bp, anti))
 
     def correct_at(self, x_pred: Array, direction: Array) -> Correction:
@@ -338,11 +338,11 @@ def trace(
         guess = system.unit(guess)
     jac, fp = system.jacobian(x0)
     row = system.row(guess)
-    fact = factorize(bordered(jac, fp, row))
+    fact = factorize_bordered(jac, fp, row)
     if fact is None:
         guess = system.unit(guess + 1e-3 * np.random.default_rng(0).standard_normal(n + 1))
         row = system.row(guess)
-        fact = factorize(bordered(jac, fp, row))
+        fact = factorize_bordered(jac, fp, row)
     if fact is None:
         msg = f"singular extended Jacobian at the start point {parameter}={p0:g} (not a regular point)"
         tracer.append(_Point(x0, guess, TestValues(float(guess[-1]), (0.0, 0.0))), 0.0, start.iterations)

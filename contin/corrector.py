@@ -5,8 +5,9 @@ Solves, for x = (u, p) near a predicted point x_pred,
     F(u, p) = 0,       c . (x - x_pred) = 0,
 
 with c the theta-weighted predictor direction (``ExtendedSystem.row``).  Each iteration builds
-and factorizes the sparse bordered matrix [[J, F_p], [c^T]] once; the factorization of the last
-iteration is returned so the caller reuses it for the tangent and the test functions.
+and factorizes the bordered matrix [[J, F_p], [c^T]] once (``contin.linalg.factorize_bordered``:
+dense LAPACK for small n, SuperLU above); the factorization of the last iteration is returned
+so the caller reuses it for the tangent and the test functions.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from contin.extended import ExtendedSystem
-from contin.linalg import Factorization, bordered, factorize
+from contin.linalg import Factorization, factorize_bordered
 from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm, rounding_floor
 from contin.options import NewtonOptions
 from contin.problem import Array
@@ -66,10 +67,13 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
     for it in range(1, options.max_iterations + 1):
         jac, fp = system.jacobian(x)
         tol = max(options.tol, rounding_floor(jac, x))
-        fact = factorize(bordered(jac, fp, row))
+        fact = factorize_bordered(jac, fp, row)
         if fact is None:
             return Correction(x, False, it, None, row, history, f"singular bordered Jacobian at iteration {it}")
-        dx = fact.solve(-np.concatenate([f, [row @ (x - x_pred)]]))
+        rhs = np.empty(x.size)
+        rhs[:-1] = f
+        rhs[-1] = row @ (x - x_pred)
+        dx = fact.solve(-rhs)
         if project is not None:
             dx[:-1] = project(dx[:-1])
         x_new, lam, reason = backtrack(system.admissible, x, dx)

@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from contin.linalg import as_csc
 from contin.problem import Array, has
 
 
@@ -66,12 +65,17 @@ class ExtendedSystem:
     def residual(self, x: Array) -> Array:
         return np.asarray(self.problem.residual(x[:-1], self.params_at(x[-1])), dtype=float)
 
-    def jacobian(self, x: Array) -> tuple[sp.csc_matrix, Array]:
-        """(J = dF/du as CSC, F_p = dF/dp) at x."""
+    def jacobian(self, x: Array) -> tuple[sp.spmatrix, Array]:
+        """(J = dF/du as the problem returns it (sparse, or dense for tiny problems), F_p = dF/dp) at x."""
         q = self.params_at(x[-1])
-        jac = as_csc(self.problem.jacobian(x[:-1], q))
+        jac = self.state_jacobian(x, q)
         fp = np.asarray(self.problem.dresidual_dp(x[:-1], q, self.parameter), dtype=float).ravel()
         return jac, fp
+
+    def state_jacobian(self, x: Array, q: Mapping[str, float] | None = None) -> sp.spmatrix | Array:
+        """J = dF/du at x (no F_p); sparse as the problem returns it, dense input as a 2-D array."""
+        jac = self.problem.jacobian(x[:-1], self.params_at(x[-1]) if q is None else q)
+        return jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
 
     def admissible(self, x: Array) -> str | None:
         """None, or the problem's reason why x is outside its physical domain."""

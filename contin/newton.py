@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.linalg import as_csc, factorize
+from contin.linalg import factorize, inf_norm
 from contin.options import NewtonOptions
 from contin.problem import Array, has
 
@@ -22,6 +22,7 @@ from contin.problem import Array, has
 MAX_BACKTRACKS = 12
 #: Growth of the residual (relative to the first one) treated as divergence.
 DIVERGENCE_FACTOR = 1e10
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass
@@ -40,7 +41,8 @@ class NewtonResult:
 
 
 def max_norm(a: Array) -> float:
-    return float(np.max(np.abs(a))) if a.size else 0.0
+    # max(-min, max) avoids the temporary of abs(a); NaN propagates through both.
+    return float(max(-a.min(), a.max())) if a.size else 0.0
 
 
 def rounding_floor(jac: Any, x: Array) -> float:
@@ -50,9 +52,7 @@ def rounding_floor(jac: Any, x: Array) -> float:
     residual tolerance can fall below what double precision can reach on fine grids; Newton
     then accepts this floor instead (together with a converged update).
     """
-    row_sums = np.asarray(abs(jac).sum(axis=1)).ravel()
-    norm = float(row_sums.max()) if row_sums.size else 0.0
-    return float(np.finfo(float).eps) * norm * max(1.0, max_norm(x))
+    return _EPS * inf_norm(jac) * max(1.0, max_norm(x))
 
 
 def backtrack(admissible: Any, x: Array, dx: Array) -> tuple[Array, float, str | None]:
@@ -69,7 +69,7 @@ def backtrack(admissible: Any, x: Array, dx: Array) -> tuple[Array, float, str |
 
 
 def newton(problem: Any, u0: Array, params: Mapping[str, float], options: NewtonOptions = NewtonOptions()) -> NewtonResult:
-    """Solve F(u, params) = 0 from u0 by Newton's method with sparse LU.
+    """Solve F(u, params) = 0 from u0 by Newton's method (LU by ``contin.linalg.factorize``).
 
     Returns a :class:`NewtonResult`; non-convergence (singular Jacobian, divergence, too many
     iterations, inadmissible iterates) is reported in ``message``, never raised.  Floating-point
@@ -96,7 +96,7 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
     if r <= options.tol:
         return NewtonResult(u, True, 0, history, "converged")
     for it in range(1, options.max_iterations + 1):
-        jac = as_csc(problem.jacobian(u, p))
+        jac = problem.jacobian(u, p)
         tol = max(options.tol, rounding_floor(jac, u))
         fact = factorize(jac)
         if fact is None:

@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from contin.branch import Branch, SpecialPoint
 from contin.corrector import correct
 from contin.extended import ExtendedSystem
-from contin.linalg import bordered, factorize, inverse_iteration
+from contin.linalg import bordered, factorize, factorize_bordered, inverse_iteration
 from contin.options import ContinuationOptions
 from contin.problem import Array
 from contin.testfunctions import Antisymmetric
@@ -53,9 +53,10 @@ def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_break
         phi = system.pack(right, 0.0)
         psi = left
     else:
-        a = bordered(jac, fp, system.row(t1))
-        fact = factorize(a)
+        row = system.row(t1)
+        fact = factorize_bordered(jac, fp, row)
         if fact is None:  # exactly singular at the located point: shift by a rounding-level amount
+            a = bordered(jac, fp, row)
             shift = 1e-14 * max(1.0, float(abs(a).max()))
             fact = factorize(a + shift * sp.identity(n + 1, format="csc"))
         if fact is None:

@@ -1,4 +1,4 @@
-"""Sparse LU determinant signs, permutation parity, bordered assembly, step-size law."""
+"""LU (dense and sparse back ends) determinant signs, permutation parity, bordered assembly, step-size law."""
 
 import itertools
 
@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 
 from contin.extended import ExtendedSystem
-from contin.linalg import bordered, factorize, inverse_iteration, permutation_parity
+from contin.linalg import bordered, bordered_dense, factorize, factorize_bordered, inf_norm, inverse_iteration, permutation_parity
 from contin.options import StepOptions
 from contin.stepsize import next_step
 from problems.demo import ImperfectPitchfork
@@ -26,8 +26,18 @@ def test_permutation_parity_matches_inversion_count():
             assert permutation_parity(perm) == inversion_parity(list(perm))
 
 
+@pytest.fixture(params=["dense", "sparse"])
+def backend(request, monkeypatch):
+    """Both LU back ends of contin.linalg.factorize (dense getrf below DENSE_LIMIT, SuperLU above)."""
+    import contin.linalg
+
+    if request.param == "sparse":
+        monkeypatch.setattr(contin.linalg, "DENSE_LIMIT", 0)
+    return request.param
+
+
 @pytest.mark.parametrize("seed", range(25))
-def test_lu_determinant_sign_equals_numpy(seed):
+def test_lu_determinant_sign_equals_numpy(seed, backend):
     rng = np.random.default_rng(seed)
     n = int(rng.integers(2, 9))
     # A sparse matrix whose pivoting needs both row and column permutations: a random signed
@@ -43,7 +53,7 @@ def test_lu_determinant_sign_equals_numpy(seed):
     assert logabs == pytest.approx(ref_log, abs=1e-10)
 
 
-def test_singular_matrix_gives_none_and_null_vector_by_inverse_iteration():
+def test_singular_matrix_gives_none_and_null_vector_by_inverse_iteration(backend):
     a = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
     assert factorize(a) is None
     near = factorize(sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 4.0 + 1e-9]])))
@@ -57,6 +67,28 @@ def test_bordered_assembly_equals_dense_block_matrix():
     dense = np.block([[j.toarray(), col[:, None]], [row[None, :]]])
     assert np.array_equal(bordered(j, col, row).toarray(), dense)
     assert np.array_equal(bordered(j.tocsc(), col, row).toarray(), dense)
+    assert np.array_equal(bordered_dense(j, col, row), dense)
+    assert np.array_equal(bordered_dense(j.toarray(), col, row), dense)
+
+
+def test_bordered_factorization_solves_and_matches_determinant(backend):
+    rng = np.random.default_rng(7)
+    j = sp.random(9, 9, density=0.4, random_state=5, format="csr") + sp.eye(9)
+    col, row = rng.standard_normal(9), rng.standard_normal(10)
+    dense = np.block([[j.toarray(), col[:, None]], [row[None, :]]])
+    fact = factorize_bordered(j, col, row)
+    b = rng.standard_normal(10)
+    assert np.allclose(dense @ fact.solve(b), b, atol=1e-12)
+    assert np.allclose(dense.T @ fact.solve(b, trans="T"), b, atol=1e-12)
+    sign, logabs = fact.det_sign_log()
+    assert (sign, logabs) == pytest.approx(np.linalg.slogdet(dense), abs=1e-10)
+
+
+def test_inf_norm_sparse_and_dense():
+    a = np.array([[1.0, -2.0, 0.0], [0.0, 0.0, 0.0], [-4.0, 0.5, 0.25]])
+    assert inf_norm(a) == 4.75
+    assert inf_norm(sp.csr_matrix(a)) == 4.75  # an empty row in between
+    assert inf_norm(sp.csc_matrix(a)) == 4.75
 
 
 def test_theta_weighted_row_reproduces_inner_product():
