@@ -594,6 +594,17 @@ class CouetteProblem:
             raise ValueError(f"eigenvector has shape {vec.shape}, expected ({5 * grid.size},)")
         return grid.y.copy(), dict(zip(FIELDS, vec.reshape(5, grid.size)))
 
+    # ------------------------------------------------------------------ resolution
+    def under_resolved(self, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
+        """None if the grid resolves x to estimated relative error ``tol``, else the reason.
+
+        The contin hook (``ContinuationOptions.resolution_tol``); the estimate, a Chebyshev tail
+        measured against the distance to packing, is :mod:`problems.couette.resolution`.
+        """
+        from problems.couette.resolution import under_resolved
+
+        return under_resolved(self, x, p, tol)
+
 
 class _Pattern:
     """A fixed sparsity pattern, the union of named operators, filled by scaled copies of them.
