@@ -1,0 +1,198 @@
+"""Is a gPCF state resolved by its grid?  The a-posteriori guard behind ``CouetteProblem.under_resolved``.
+
+Measure.  Each profile f in (nu, T, u) is expanded in Chebyshev polynomials on [-1/2, 1/2],
+f(y) = sum_k a_k T_k(2y), with the coefficients from the DCT-I of the nodal values at the
+Gauss-Lobatto points (Trefethen, *Spectral Methods in MATLAB*, ch. 8; Boyd, *Chebyshev and
+Fourier Spectral Methods*, 2nd ed., section 2.12: the truncation error of a Chebyshev
+interpolant is of the order of its last coefficients).  The *tail* is
+
+    tail(f) = max_{k > N - TAIL_MODES} |a_k|
+
+(the last four coefficients, so that both parities of a reflection-symmetric profile count),
+and the estimated relative error of the state is
+
+    error = max( tail(nu) / min(|a(nu)|_max, nu_m - max nu),  tail(T) / |a(T)|_max,  tail(u) / |a(u)|_max ).
+
+Why the distance to packing.  chi, hence f1..f5, diverge like (nu_m - nu)^-1 or faster
+(closures), so an absolute error delta in nu changes the transport coefficients by about
+delta / (nu_m - nu), not delta / nu.  Near a dense plug the plain relative tail of nu misses the
+loss of resolution by orders of magnitude: on the n = 1 banded branch at nu = 0.5, e = 0.8,
+cheb 64, the relative tail is only 2e-10 at H = 36.7 where the k_x = 0 spectrum first shows
+spurious unstable modes, while tail / (nu_m - max nu) is 5e-5 there (3e-6 at H = 34.5, still
+right).  The same number follows the Fr = 50 bottom plug: 1e-5 at H = 21.3 (shear-stress defect
+6e-7), 6e-4 at H = 23.6 (defect 1e-4, pressure drop off by 5e-7).
+
+Finite-difference grids.  The nodal profiles are carried to the Chebyshev grid with the same N
+by local Lagrange interpolation on FD_WIDTH = 8 nodes (degree 7, whatever the scheme's order)
+and measured there.  The error of an FD solution is itself a smooth function, so a high-order
+interpolant of the nodal values keeps a small tail unless the *sampling* fails to resolve a
+structure (a boundary layer a few nodes wide, grid-scale wiggles); the scheme's O(h^order)
+truncation error is the user's accuracy trade, measured by ``contin accuracy``, not what this
+guard is for.  Uniform shear (constants and u = y) is reproduced exactly.
+
+Advice.  The reason names the grid to try: for Chebyshev, from the geometric decay rate of the
+coefficient envelope over the upper half of the spectrum, the N at which the tail would fall
+to tol / 10 (at least 1.5 N, rounded up to a multiple of 16); for FD grids, the N at which an
+O(h^order) error falls below tol / 10.  It is an estimate at the rejected state only: a plug that
+keeps approaching nu_m needs ever finer grids.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+import scipy.fft as sfft
+from numpy.typing import NDArray
+
+from problems.discretization import Grid, fornberg_weights, make_grid
+
+Array = NDArray[np.float64]
+
+#: Number of highest Chebyshev coefficients whose maximum is the tail.
+TAIL_MODES = 4
+
+#: Nodes of the local interpolant that carries FD profiles to the Chebyshev grid.
+FD_WIDTH = 8
+
+#: Fields measured, in the order they are reported.
+FIELDS = ("nu", "T", "u")
+
+
+def chebyshev_coefficients(values: Array) -> Array:
+    """a_0..a_N of the interpolant sum a_k T_k(2y) through values at ascending Gauss-Lobatto nodes.
+
+    DCT-I: a_k = (2/N) sum_j'' f(x_j) cos(pi j k / N) with x_j = cos(pi j / N) (descending, hence
+    the reversal), the first and last terms of the sum and a_0, a_N halved.
+    """
+    f = np.asarray(values, dtype=float)[::-1]
+    n = f.size - 1
+    a = sfft.dct(f, type=1) / n
+    a[0] *= 0.5
+    a[-1] *= 0.5
+    return a
+
+
+def tail(coefficients: Array, modes: int = TAIL_MODES) -> float:
+    """max |a_k| over the last ``modes`` coefficients."""
+    return float(np.max(np.abs(coefficients[-modes:])))
+
+
+@lru_cache(maxsize=16)
+def _to_chebyshev_matrix(grid: Grid) -> Array:
+    """Local Lagrange interpolation (FD_WIDTH nodes) from an FD grid onto the Chebyshev nodes with the same N."""
+    target = make_grid("cheb", grid.intervals).y
+    width = min(FD_WIDTH, grid.size)
+    h = 1.0 / grid.intervals
+    out = np.zeros((target.size, grid.size))
+    for k, yk in enumerate(target):  # once per grid (cached)
+        i = int(np.clip(np.floor((yk + 0.5) / h), 0, grid.intervals))
+        start = min(max(i - width // 2 + 1, 0), grid.size - width)
+        idx = np.arange(start, start + width)
+        out[k, idx] = fornberg_weights(yk, grid.y[idx], 0)[:, 0]
+    return out
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """The resolution estimate of one state.
+
+    error : the estimated relative error (module docstring); the guard compares it with tol
+    field : the field that sets ``error``
+    tails, scales : tail and the scale it is divided by, per field
+    gap : nu_m - max nu (distance of the densest point from the packing limit)
+    limit : the packing limit nu_m
+    method, N : the grid
+    suggested_N : the grid the advice names for a given tol (see :func:`resolution`)
+    """
+
+    error: float
+    field: str
+    tails: dict[str, float]
+    scales: dict[str, float]
+    gap: float
+    limit: float
+    method: str
+    N: int
+    suggested_N: int
+
+    def reason(self, tol: float) -> str:
+        """One line: what is under-resolved, by how much, near packing or not, and the grid to try."""
+        f = self.field
+        if f == "nu" and self.scales["nu"] == self.gap:
+            what = (f"Chebyshev tail of nu {self.tails['nu']:.2g} is {self.error:.2g} of the distance to packing "
+                    f"(> {tol:.2g}): plug within {self.gap:.2g} of the packing limit nu_m = {self.limit:g}")
+        else:
+            what = f"relative Chebyshev tail of {f} {self.error:.2g} > {tol:.2g}"
+            if self.gap < 1e-2:
+                what += f"; plug within {self.gap:.2g} of the packing limit nu_m = {self.limit:g}"
+        grid = "" if self.method == "cheb" else f" (after interpolation from {self.method} to cheb {self.N})"
+        return f"{what}{grid}; refine the grid (try --grid {self.suggested_N})"
+
+
+def _envelope_rate(a: Array) -> float:
+    """Geometric decay factor per index of max |a_j| over blocks of TAIL_MODES (upper half of the spectrum)."""
+    n = a.size - 1
+    k = np.arange(n // 2, n - TAIL_MODES + 2)
+    env = np.array([np.max(np.abs(a[j:j + TAIL_MODES])) for j in k])
+    env = np.maximum(env, 1e-300)
+    slope = np.polyfit(k, np.log(env), 1)[0] if k.size >= 2 else 0.0
+    return float(slope)
+
+
+def _suggest(method: str, n: int, error: float, tol: float, a: Array | None) -> int:
+    target = tol / 10.0
+    if method == "cheb":
+        slope = _envelope_rate(a) if a is not None else 0.0
+        extra = math.log(target / error) / slope if slope < -1e-3 and error > target else 0.5 * n
+        want = max(1.5 * n, n + extra)
+    else:  # the degree-7 interpolant's error falls like h^8
+        want = n * (error / target) ** (1.0 / FD_WIDTH) if error > target else 1.5 * n
+        want = max(want, 1.5 * n)
+    want = min(want, 8.0 * n)
+    return int(16 * math.ceil(want / 16))
+
+
+def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
+    """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem`.
+
+    ``tol`` only enters the grid suggestion.
+    """
+    from problems.couette.closures import packing_limit
+
+    profiles = problem.profiles(np.asarray(x, dtype=float))
+    grid = problem.grid
+    limit = packing_limit(problem.chi, float(np.real(p["num"])))
+    if grid.method != "cheb":
+        m = _to_chebyshev_matrix(grid)
+        profiles = {k: m @ v for k, v in profiles.items()}
+    tails: dict[str, float] = {}
+    scales: dict[str, float] = {}
+    errors: dict[str, float] = {}
+    coeffs: dict[str, Array] = {}
+    gap = float(limit - np.max(profiles["nu"]))
+    for name in FIELDS:
+        a = chebyshev_coefficients(profiles[name])
+        coeffs[name] = a
+        scale = float(np.max(np.abs(a)))
+        if name == "nu":
+            scale = min(scale, gap)
+        tails[name] = tail(a)
+        scales[name] = scale
+        errors[name] = tails[name] / scale if scale > 0 else math.inf
+    field = max(FIELDS, key=lambda k: errors[k])
+    error = errors[field]
+    suggested = _suggest(grid.method, grid.intervals, error, tol, coeffs[field])
+    return Resolution(error, field, tails, scales, gap, limit, grid.method, grid.intervals, suggested)
+
+
+def under_resolved(problem: Any, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
+    """None if the estimated relative error of x (module docstring) is at most ``tol``, else the reason."""
+    r = resolution(problem, x, p, tol)
+    if r.error <= tol:
+        return None
+    return r.reason(tol)
