@@ -80,37 +80,42 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     """
     chi, chi1 = radial_distribution(nu, model, nu_max)
     eta = (1.0 + e) / 2.0
-    nu2 = nu * nu
+    # Shared pieces: q = nu^2 chi and its nu-derivative, 1/chi and its nu-derivative.
+    g = nu * chi
+    q = nu * g
+    q_nu = 2.0 * g + nu * nu * chi1
+    ic = 1.0 / chi
+    ic_nu = -chi1 * ic * ic
 
-    f1 = nu * (1.0 + 4.0 * eta * nu * chi)
-    f1_nu = 1.0 + 8.0 * eta * nu * chi + 4.0 * eta * nu2 * chi1
+    f1 = nu + (4.0 * eta) * q
+    f1_nu = 1.0 + (4.0 * eta) * q_nu
 
     a2 = 5.0 * SQRT_PI / 96.0
-    b2 = 1.0 / (eta * (2.0 - eta))
-    c2 = 1.6 * (3.0 * eta - 1.0) / (2.0 - eta)
-    d2 = 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi)
-    f2 = a2 * (b2 / chi + c2 * nu + d2 * nu2 * chi)
-    f2_nu = a2 * (-b2 * chi1 / chi**2 + c2 + d2 * (2.0 * nu * chi + nu2 * chi1))
+    b2 = a2 / (eta * (2.0 - eta))
+    c2 = a2 * 1.6 * (3.0 * eta - 1.0) / (2.0 - eta)
+    d2 = a2 * 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi)
+    f2 = b2 * ic + c2 * nu + d2 * q
+    f2_nu = b2 * ic_nu + (c2 + d2 * q_nu)
 
     a3 = 8.0 / (3.0 * SQRT_PI) * eta
-    f3 = a3 * nu2 * chi
-    f3_nu = a3 * (2.0 * nu * chi + nu2 * chi1)
+    f3 = a3 * q
+    f3_nu = a3 * q_nu
 
     a4 = 25.0 * SQRT_PI / 16.0
-    g = 41.0 - 33.0 * eta
-    b4 = 1.0 / (eta * g)
-    c4 = 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g
-    d4 = 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g + 4.0 / np.pi)
-    f4 = a4 * (b4 / chi + c4 * nu + d4 * nu2 * chi)
-    f4_nu = a4 * (-b4 * chi1 / chi**2 + c4 + d4 * (2.0 * nu * chi + nu2 * chi1))
+    g4 = 41.0 - 33.0 * eta
+    b4 = a4 / (eta * g4)
+    c4 = a4 * 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g4
+    d4 = a4 * 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g4 + 4.0 / np.pi)
+    f4 = b4 * ic + c4 * nu + d4 * q
+    f4_nu = b4 * ic_nu + (c4 + d4 * q_nu)
 
     a5 = 12.0 / SQRT_PI * (1.0 - e * e)
-    f5 = a5 * nu2 * chi
-    f5_nu = a5 * (2.0 * nu * chi + nu2 * chi1)
+    f5 = a5 * q
+    f5_nu = a5 * q_nu
 
     if dufour:
         fh = (15.0 * SQRT_PI / 4.0) * (eta - 1.0) * (2.0 * eta - 1.0) * (1.0 + 2.4 * eta * nu * chi) \
-            * (2.0 * chi + nu * chi1) / (g * chi)
+            * (2.0 * chi + nu * chi1) / (g4 * chi)
     else:
         fh = 0.0 * nu
     return Coefficients(f1, f2, f3, f4, f5, fh, f1_nu, f2_nu, f3_nu, f4_nu, f5_nu, chi, chi1)

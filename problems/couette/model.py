@@ -61,6 +61,8 @@ Array = NDArray[np.float64]
 WALLS = ("noslip", "jj")
 
 _SQRT3 = np.sqrt(3.0)
+#: Grids up to this many nodes differentiate with dense operators (see CouetteProblem.__init__).
+DENSE_DERIVATIVES = 160
 
 
 @dataclass(frozen=True)
@@ -144,16 +146,25 @@ class CouetteProblem:
         g = self.grid
         self._d1 = sp.csr_matrix(g.d1)
         self._d2 = sp.csr_matrix(g.d2)
+        # Derivatives of several fields in one product V @ D^T (V: one field per row).  Dense
+        # BLAS for dense (Chebyshev) or small operators: a sparse product costs ~6 us of call
+        # overhead each, more than the arithmetic at continuation sizes.
+        dense = n <= DENSE_DERIVATIVES or self._d1.nnz > 0.25 * n * n
+        self._d1t = np.ascontiguousarray(self._d1.T.toarray()) if dense else sp.csr_matrix(self._d1.T)
+        self._d2t = np.ascontiguousarray(self._d2.T.toarray()) if dense else sp.csr_matrix(self._d2.T)
         self._walls_idx = np.array([0, n - 1])
         self._sigma = np.array([-1.0, 1.0])  # outward normal at bottom, top
         self._mask = np.ones(n)
         self._mask[self._walls_idx] = 0.0
-        self._pattern = _Pattern({"I": sp.eye(n, format="csr"), "d1": self._d1, "d2": self._d2})
-        self._assembler = _Assembler(self.size)
-        self._ones_col = sp.csr_matrix(-np.ones((n, 1)))
-        self._weights_row = sp.csr_matrix(self.grid.weights[None, :])
+        ops = {"I": sp.eye(n, format="csr"), "d1": self._d1, "d2": self._d2,
+               "ones_col": sp.csr_matrix(-np.ones((n, 1))), "weights": sp.csr_matrix(self.grid.weights[None, :])}
         if self.gravity:
             self._mass_M, self._mass_nu = _mass_rows(cell_integration_matrix(g))
+            ops.update(mass_M=self._mass_M, mass_nu=-self._mass_nu)
+        self._ops = {name: sp.coo_matrix(op) for name, op in ops.items()}
+        self._layouts: dict[tuple, _Layout] = {}
+        self._cache: tuple | None = None  # (x, (e, num), _Fields) of the last real evaluation
+        self._mid_weights: Array | None = None
 
     # ------------------------------------------------------------------ bookkeeping
     def __repr__(self) -> str:
@@ -211,27 +222,50 @@ class CouetteProblem:
 
     # ------------------------------------------------------------------ residual
     def _fields(self, x: NDArray, p: Mapping[str, Any]) -> _Fields:
+        """Fields, closures and derivatives at x (depend on p only through e and num).
+
+        The last real evaluation is cached: within a Newton iteration the residual at an
+        iterate is followed by the Jacobian (and the observables) at the same iterate.
+        """
+        key = (p["e"], p["num"])
+        real = x.dtype == np.float64 and not isinstance(key[0], complex) and not isinstance(key[1], complex)
+        cached = self._cache
+        if real and cached is not None and cached[1] == key and np.array_equal(cached[0], x):
+            return cached[2]  # type: ignore[no-any-return]
+        f = self._compute_fields(x, p)
+        if real:
+            self._cache = (x.copy(), key, f)
+        return f
+
+    def _compute_fields(self, x: NDArray, p: Mapping[str, Any]) -> _Fields:
         nu, u, T, P, M = self.unpack(x)
         c = coefficients(nu, p["e"], self.chi, p["num"], self.dufour)
-        d1, d2 = self._d1, self._d2
         sT = np.sqrt(T)
         a = c.f2 * sT
         k = c.f4 * sT
         # Differentiate after removing the parts D1, D2 map exactly to 0 or 1 (constants,
         # u = y): the same operators in exact arithmetic, but the cheb D2 has entries ~N^4
         # whose rounding would otherwise leave ~1e-10 in the residual of uniform shear.
-        y = self.grid.y
-        du = u - y
-        dT = T - T[0]
+        # Rows: [u - y, T - T0, (nu - nu0,)] get D1 and D2, then [a - a0, k - k0, (kh - kh0)] D1.
+        nd = 3 if self.dufour else 2
+        v = np.empty((2 * nd, self.n), dtype=np.result_type(x, c.f2))
+        v[0] = u - self.grid.y
+        v[1] = T - T[0]
+        v[nd] = a - a[0]
+        v[nd + 1] = k - k[0]
         if self.dufour:
             kh = c.fh * T * sT
-            dnu = nu - nu[0]
-            nup, nupp, khp = d1 @ dnu, d2 @ dnu, d1 @ (kh - kh[0])
+            v[2] = nu - nu[0]
+            v[5] = kh - kh[0]
+        d1v = v @ self._d1t
+        d2v = v[:nd] @ self._d2t
+        if self.dufour:
+            nup, nupp, khp = d1v[2], d2v[2], d1v[5]
         else:
             kh = nup = nupp = khp = None
         return _Fields(
             nu, u, T, P, M, c, sT, a, k, c.f5 * T * sT,
-            d1 @ du + 1.0, d2 @ du, d1 @ dT, d2 @ dT, d1 @ (a - a[0]), d1 @ (k - k[0]), kh, nup, nupp, khp,
+            d1v[0] + 1.0, d2v[0], d1v[1], d2v[1], d1v[nd], d1v[nd + 1], kh, nup, nupp, khp,
         )
 
     def _wall_coefficients(self, f: _Fields, p: Mapping[str, Any]):
@@ -298,7 +332,6 @@ class CouetteProblem:
         h2 = 1.0 / H**2
         w, sig = self._walls_idx, self._sigma
         m = self._mask  # 1 in the interior, 0 in the wall rows
-        pat = self._pattern
 
         def at_walls(values: Array) -> Array:
             out = np.zeros(n)
@@ -364,25 +397,26 @@ class CouetteProblem:
             jt_u.append(("I", at_walls(-2.0 * H * sw * slip), None))
 
         iu, iT, iP = self.i_u.start, self.i_T.start, self.i_P
-        blocks = [
-            (0, 0, _diagonal(c.f1_nu * f.T)),
-            (0, iT, _diagonal(c.f1)),
-            (0, iP, self._ones_col),
-            (iu, 0, pat.block(ju_nu)),
-            (iu, iu, pat.block(ju_u)),
-            (iu, iT, pat.block(ju_T)),
-            (iT, 0, pat.block(jt_nu)),
-            (iT, iu, pat.block(jt_u)),
-            (iT, iT, pat.block(jt_T)),
-            (iP, 0, self._weights_row),
+        terms: list[tuple[int, int, str, Array | None, Array | None]] = [
+            (0, 0, "I", c.f1_nu * f.T, None),
+            (0, iT, "I", c.f1, None),
+            (0, iP, "ones_col", None, None),
+            (iP, 0, "weights", None, None),
         ]
+        for r0, c0, block in ((iu, 0, ju_nu), (iu, iu, ju_u), (iu, iT, ju_T), (iT, 0, jt_nu), (iT, iu, jt_u),
+                              (iT, iT, jt_T)):
+            terms.extend((r0, c0, name, row, col) for name, row, col in block)
         if self.gravity:
             iM = self.i_M.start
             hg = H**3 * p["G"]
             if hg != 0:
-                blocks.append((0, iM, _diagonal(np.full(n, hg))))
-            blocks += [(iM, 0, -self._mass_nu), (iM, iM, self._mass_M)]
-        return self._assembler(blocks)
+                terms.append((0, iM, "I", np.full(n, hg), None))
+            terms += [(iM, 0, "mass_nu", None, None), (iM, iM, "mass_M", None, None)]
+        key = tuple((r0, c0, name, row is None, col is None) for r0, c0, name, row, col in terms)
+        layout = self._layouts.get(key)
+        if layout is None:
+            layout = self._layouts[key] = _Layout(self.size, self._ops, key)
+        return layout.assemble([t[3] for t in terms], [t[4] for t in terms])
 
     def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
         """dF/dp for the parameter ``name`` by the complex step (exact to rounding)."""
@@ -491,9 +525,16 @@ class CouetteProblem:
             "nu_bottom": float(f.nu[0]),
             "nu_top": phi,
             "T_bottom": float(f.T[0]),
-            "T_mid": float(self.grid.interpolate(f.T, np.array([0.0]))[0]),
+            "T_mid": float(self._mid_interpolation() @ f.T),
             "T_top": float(f.T[-1]),
         }
+
+    def _mid_interpolation(self) -> Array:
+        """Weights w with w . f = grid.interpolate(f, 0) (the interpolant is linear in f)."""
+        if self._mid_weights is None:
+            eye = np.eye(self.n)
+            self._mid_weights = np.array([self.grid.interpolate(e, np.array([0.0]))[0] for e in eye])
+        return self._mid_weights
 
     def energy_balance(self, x: Array, p: Mapping[str, Any]) -> tuple[float, float]:
         """(integral of a u'^2 - D dy, Q(1/2) - Q(-1/2)).
@@ -606,90 +647,49 @@ class CouetteProblem:
         return under_resolved(self, x, p, tol)
 
 
-class _Pattern:
-    """A fixed sparsity pattern, the union of named operators, filled by scaled copies of them.
+class _Layout:
+    """CSR structure of J = sum_k diag(row_k) Op_k diag(col_k) placed at block offsets (r0_k, c0_k).
 
-    ``block([(name, row, col), ...])`` is the CSR matrix sum_k diag(row_k) Op_k diag(col_k)
-    (None = no scaling), built by scattering scaled data arrays into the union pattern: no
-    sparse products or sums in the Newton loop.
+    Built once per term list (operators are fixed per problem instance); each Jacobian is then
+    one gather-multiply of all operator entries by their row and column factors and one
+    ``np.bincount`` scatter into the CSR data (overlapping terms are summed): no sparse
+    products, sums or per-block matrices in the Newton loop.  A factor given as None is 1.
     """
 
-    def __init__(self, ops: Mapping[str, sp.csr_matrix]) -> None:
-        union = sum(abs(sp.csr_matrix(op)) for op in ops.values())
-        union = sp.csr_matrix(union)
-        union.sum_duplicates()
-        union.sort_indices()
-        self.indptr, self.indices, self.shape = union.indptr, union.indices, union.shape
-        key = {(r, c): k for k, (r, c) in enumerate(zip(np.repeat(np.arange(union.shape[0]), np.diff(union.indptr)), union.indices))}
-        self.ops = {}
-        for name, op in ops.items():
-            coo = sp.csr_matrix(op).tocoo()
-            pos = np.array([key[(r, c)] for r, c in zip(coo.row, coo.col)], dtype=np.int64)
-            self.ops[name] = (pos, coo.row, coo.col, coo.data)
-
-    def block(self, terms: list[tuple[str, Array, Array | None]]) -> sp.csr_matrix:
-        data = np.zeros(self.indices.size)
-        for name, row, col in terms:
-            pos, r, c, values = self.ops[name]
-            scaled = values * row[r]
-            if col is not None:
-                scaled = scaled * col[c]
-            data[pos] += scaled
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
-
-
-def _diagonal(values: Array) -> sp.csr_matrix:
-    n = values.size
-    return sp.csr_matrix((values, np.arange(n), np.arange(n + 1)), shape=(n, n))
-
-
-class _Assembler:
-    """CSR matrix from sparse blocks placed at (row offset, column offset), structure cached.
-
-    The Jacobian's blocks keep their sparsity structure from one Newton step to the next (only
-    their data change), so the global CSR structure and the position of every block entry in
-    it are computed once per block layout; each later call is one ``np.bincount`` scatter of
-    the blocks' data (duplicates, if any, are summed).  The cache is keyed on the layout and
-    verified against the blocks' index arrays, so a block whose structure changes gets a new
-    entry instead of a wrong matrix.
-    """
-
-    def __init__(self, size: int) -> None:
+    def __init__(self, size: int, ops: Mapping[str, sp.coo_matrix], key: tuple) -> None:
         self.size = size
-        self._cache: dict[tuple, tuple] = {}
-
-    def __call__(self, blocks: list[tuple[int, int, sp.spmatrix]]) -> sp.csr_matrix:
-        csr = [(r0, c0, b if isinstance(b, sp.csr_matrix) and b.has_canonical_format else sp.csr_matrix(b))
-               for r0, c0, b in blocks]
-        for _, _, b in csr:
-            b.sum_duplicates()
-        key = tuple((r0, c0, b.shape, b.nnz) for r0, c0, b in csr)
-        entry = self._cache.get(key)
-        if entry is None or not all(
-            np.array_equal(b.indices, ind) and np.array_equal(b.indptr, ptr)
-            for (_, _, b), (ind, ptr) in zip(csr, entry[3], strict=True)
-        ):
-            entry = self._build(csr)
-            self._cache[key] = entry
-        indptr, indices, pos, _ = entry
-        data = np.bincount(pos, weights=np.concatenate([b.data for _, _, b in csr]), minlength=indices.size)
-        return sp.csr_matrix((data, indices, indptr), shape=(self.size, self.size))
-
-    def _build(self, csr: list[tuple[int, int, sp.csr_matrix]]) -> tuple:
-        rows = np.concatenate([np.repeat(np.arange(b.shape[0]), np.diff(b.indptr)) + r0 for r0, _, b in csr])
-        cols = np.concatenate([b.indices + c0 for _, c0, b in csr])
-        flat = rows.astype(np.int64) * self.size + cols
+        rows, cols, vals, rsrc, csrc = [], [], [], [], []
+        r_off = c_off = 1  # slot 0 of the stacked factors holds the constant 1
+        for r0, c0, name, row_none, col_none in key:
+            op = ops[name]
+            rows.append(op.row + r0)
+            cols.append(op.col + c0)
+            vals.append(op.data)
+            rsrc.append(np.zeros(op.nnz, dtype=np.int64) if row_none else op.row + r_off)
+            csrc.append(np.zeros(op.nnz, dtype=np.int64) if col_none else op.col + c_off)
+            r_off += 0 if row_none else op.shape[0]
+            c_off += 0 if col_none else op.shape[1]
+        flat = np.concatenate(rows).astype(np.int64) * size + np.concatenate(cols)
         uniq, pos = np.unique(flat, return_inverse=True)
-        urows, ucols = np.divmod(uniq, self.size)
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(urows, minlength=self.size))])
+        urows, ucols = np.divmod(uniq, size)
         idx_t = np.int32 if uniq.size < 2**31 else np.int64
-        structure = [(b.indices.copy(), b.indptr.copy()) for _, _, b in csr]
-        return indptr.astype(idx_t), ucols.astype(idx_t), pos.ravel(), structure
+        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(urows, minlength=size))]).astype(idx_t)
+        self.indices = ucols.astype(idx_t)
+        self.pos = pos.ravel()
+        self.vals = np.concatenate(vals).astype(float)
+        self.rsrc = np.concatenate(rsrc)
+        self.csrc = np.concatenate(csrc)
+        self.nnz = uniq.size
+
+    def assemble(self, rows: list[Array | None], cols: list[Array | None]) -> sp.csr_matrix:
+        one = _ONE
+        rstack = np.concatenate([one] + [r for r in rows if r is not None])
+        cstack = np.concatenate([one] + [c for c in cols if c is not None])
+        data = np.bincount(self.pos, weights=self.vals * rstack[self.rsrc] * cstack[self.csrc], minlength=self.nnz)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
 
 
-def _assemble(blocks: list[tuple[int, int, sp.spmatrix]], size: int) -> sp.csr_matrix:
-    """CSR matrix from blocks placed at (row offset, column offset) (uncached :class:`_Assembler`)."""
-    return _Assembler(size)(blocks)
+_ONE = np.ones(1)
 
 
 def _mass_rows(cells: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
