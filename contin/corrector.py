@@ -4,10 +4,12 @@ Solves, for x = (u, p) near a predicted point x_pred,
 
     F(u, p) = 0,       c . (x - x_pred) = 0,
 
-with c the theta-weighted predictor direction (``ExtendedSystem.row``).  Each iteration builds
-and factorizes the bordered matrix [[J, F_p], [c^T]] once (``contin.linalg.factorize_bordered``:
-dense LAPACK for small n, SuperLU above); the factorization of the last iteration is returned
-so the caller reuses it for the tangent and the test functions.
+with c the theta-weighted predictor direction (``ExtendedSystem.row``).  A Newton iteration
+builds and factorizes the bordered matrix [[J, F_p], [c^T]] once (``contin.linalg``: dense
+LAPACK for small n, SuperLU above); once the update is below CHORD_START (relative), the next
+iterations are chord iterations that reuse that LU while they contract (Deuflhard, *Newton
+Methods for Nonlinear Problems*, 2004, sec. 2.1.4: the simplified Newton method).  The last
+factorization is returned so the caller reuses it for the tangent and the test functions.
 """
 
 from __future__ import annotations
@@ -19,15 +21,25 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from contin.extended import ExtendedSystem
-from contin.linalg import Factorization, factorize_bordered
-from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm, rounding_floor
+from contin.linalg import Factorization, factorize_bordered_norm
+from contin.newton import _EPS, DIVERGENCE_FACTOR, backtrack, max_norm
 from contin.options import NewtonOptions
 from contin.problem import Array
 
 
+#: Relative Newton update below which the next iterations reuse the factorization (chord).
+CHORD_START = 1e-3
+#: A chord update must be at most this fraction of the previous update to keep the chord going.
+CHORD_CONTRACTION = 0.1
+
+
 @dataclass
 class Correction:
-    """Result of :func:`correct`: the point, its last factorization and the residual history."""
+    """Result of :func:`correct`: the point, its last factorization and the residual history.
+
+    iterations : number of Jacobian factorizations (Newton iterations; chord iterations, which
+        reuse one, are not counted); the residual history has one entry per iteration of either kind.
+    """
 
     x: Array
     converged: bool
@@ -39,15 +51,21 @@ class Correction:
 
 
 def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,
-            project: Callable[[Array], Array] | None = None) -> Correction:
+            project: Callable[[Array], Array] | None = None, *, chord: bool = True) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0 (see :func:`_correct`)."""
     with np.errstate(all="ignore"):
-        return _correct(system, x_pred, row, options, project)
+        return _correct(system, x_pred, row, options, project, chord)
 
 
 def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,
-             project: Callable[[Array], Array] | None = None) -> Correction:
+             project: Callable[[Array], Array] | None = None, allow_chord: bool = True) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0.
+
+    With ``allow_chord`` the returned factorization may be that of an iterate up to
+    CHORD_START (relative) away from the solution: accurate enough for the next tangent and
+    the signs of the test functions along a branch.  Locating a special point needs the test
+    functions to rounding accuracy at the trial points: pass ``allow_chord=False`` (plain
+    Newton; its last factorization is within the final update of the solution).
 
     At least one iteration is always done so that a factorization at the solution exists (an
     exact predictor, e.g. on a trivial branch, would otherwise leave none).  Never raises.
@@ -64,13 +82,20 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
     fact: Factorization | None = None
     if not math.isfinite(history[0]):
         return Correction(x, False, 0, None, row, history, "residual is not finite at the predicted point")
+    chord = False
+    previous = math.inf
+    lus = 0  # factorizations: the iteration count reported (step-size control reads it)
+    tol = options.tol
+    rhs = np.empty(x.size)
     for it in range(1, options.max_iterations + 1):
-        jac, fp = system.jacobian(x)
-        tol = max(options.tol, rounding_floor(jac, x))
-        fact = factorize_bordered(jac, fp, row)
-        if fact is None:
-            return Correction(x, False, it, None, row, history, f"singular bordered Jacobian at iteration {it}")
-        rhs = np.empty(x.size)
+        if not chord:
+            jac, fp = system.jacobian(x)
+            fact, jnorm = factorize_bordered_norm(jac, fp, row)
+            lus += 1
+            tol = max(options.tol, _EPS * jnorm * max(1.0, max_norm(x)))
+            if fact is None:
+                return Correction(x, False, lus, None, row, history, f"singular bordered Jacobian at iteration {it}")
+        assert fact is not None
         rhs[:-1] = f
         rhs[-1] = row @ (x - x_pred)
         dx = fact.solve(-rhs)
@@ -78,14 +103,24 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
             dx[:-1] = project(dx[:-1])
         x_new, lam, reason = backtrack(system.admissible, x, dx)
         if reason is not None:
-            return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
+            return Correction(x, False, lus, fact, row, history, f"Newton iterate inadmissible: {reason}")
         x = x_new
         f = system.residual(x)
         r = max_norm(f)
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
-            return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
-        if r <= tol and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x)):
-            return Correction(x, True, it, fact, row, history, "converged")
-    return Correction(x, False, options.max_iterations, fact, row, history,
+            return Correction(x, False, lus, fact, row, history, f"Newton diverged (residual {r:.3g})")
+        step = lam * max_norm(dx)
+        scale = max(1.0, max_norm(x))
+        if r <= tol and step <= options.step_tol * scale:
+            return Correction(x, True, lus, fact, row, history, "converged")
+        # Chord iterations: once the update is small the Jacobian barely changes, so the next
+        # iteration reuses this LU (residual + back-substitution only), for as long as each
+        # chord update contracts by CHORD_CONTRACTION; otherwise a fresh Jacobian is built.
+        if chord:
+            chord = step <= CHORD_CONTRACTION * previous
+        else:
+            chord = allow_chord and lam == 1.0 and step <= CHORD_START * scale
+        previous = step
+    return Correction(x, False, lus, fact, row, history,
                       f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

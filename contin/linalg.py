@@ -183,9 +183,17 @@ def bordered_dense(jac: object, column: Array, row: Array) -> Array:
 
 def factorize_bordered(jac: object, column: Array, row: Array) -> Factorization | None:
     """:func:`factorize` of the bordered matrix of :func:`bordered`, built densely when small."""
-    if jac.shape[0] + 1 <= DENSE_LIMIT:  # type: ignore[attr-defined]
-        return _dense_lu(bordered_dense(jac, column, row))
-    return factorize(bordered(jac, column, row))
+    return factorize_bordered_norm(jac, column, row)[0]
+
+
+def factorize_bordered_norm(jac: object, column: Array, row: Array) -> tuple[Factorization | None, float]:
+    """(:func:`factorize_bordered`, ||J||_inf): the norm from the dense copy when there is one."""
+    n = jac.shape[0]  # type: ignore[attr-defined]
+    if n + 1 <= DENSE_LIMIT:
+        a = bordered_dense(jac, column, row)
+        norm = float(np.abs(a[:n, :n]).sum(axis=1).max()) if n else 0.0
+        return _dense_lu(a), norm
+    return factorize(bordered(jac, column, row)), inf_norm(jac)
 
 
 def inf_norm(a: object) -> float:

@@ -160,7 +160,11 @@ def switch(
             step *= 0.5
         if start is None:
             continue
-        new = trace(problem, start[:-1], system.params_at(start[-1]), param, options,
+        # The accepted first step measures the branch's scale near the BP: continue with it
+        # instead of restarting at options.step.ds, which the halvings above just rejected.
+        sopt = options.step
+        first = replace(options, step=replace(sopt, ds=math.copysign(min(max(step, sopt.ds_min), sopt.ds_max), sopt.ds)))
+        new = trace(problem, start[:-1], system.params_at(start[-1]), param, first,
                     tangent=d * tau, branch_id=f"{prefix}.{k}", kind="bifurcated", parent=parent,
                     symmetric=symmetric)
         out.append(_prepend(system, new, x0, d * tau))
