@@ -68,6 +68,9 @@ STABILITY_TOL = 1e-12
 #: Relative change of a banded-branch BP under 1.5x grid refinement above which it is an artefact.
 BP_REFINEMENT_TOL = 0.02
 
+#: Halvings of ds_max when a base-branch trace jumped between branches (:func:`trace_base`).
+BASE_RETRACES = 4
+
 
 # ----------------------------------------------------------------------------- analytic facts
 def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65) -> list[float]:
@@ -160,12 +163,129 @@ def trace_base(problem: CouetteProblem, params: Mapping[str, float], H_start: fl
                *, branch_id: str = "0", progress: Callable[[str], None] | None = None) -> Branch:
     """Uniform shear (no-slip walls; exact at every H) or the symmetric JJ base state, traced in H.
 
-    The start is ``problem.initial_guess`` at H = H_start, corrected by Newton inside ``trace``.
+    The start is ``problem.initial_guess`` at H = H_start, corrected by Newton inside ``trace``;
+    traces that jumped between branches are repeated with smaller steps (:func:`retrace_on_jumps`).
     """
     p = {**params, "H": H_start}
     kind = "uniform shear" if problem.walls == "noslip" else "base"
-    return trace(problem, problem.initial_guess(p), p, "H", options, branch_id=branch_id, kind=kind,
-                 progress=progress)
+    return retrace_on_jumps(
+        lambda o: trace(problem, problem.initial_guess(p), p, "H", o, branch_id=branch_id, kind=kind,
+                        progress=progress), options, what="base branch")
+
+
+def retrace_on_jumps(run: Callable[[ContinuationOptions], Branch], options: ContinuationOptions, *, what: str,
+                     jumped: Callable[[Branch], str | None] | None = None, unconverged_bp: bool = True) -> Branch:
+    """``run(options)``, repeated with ds_max halved (at most :data:`BASE_RETRACES` times) while it jumped.
+
+    Why.  With JJ walls the base branch steepens where JJ walls unfold the no-slip mode-2
+    pitchfork (module docstring), next to a fold-bounded isolated symmetric branch.  The
+    step-length norm is dominated by H (the state enters with weight 1/n), so a step long in H
+    can land on the other branch: the tangent orientation there is the opposite one, the BP test
+    function changes sign and a spurious 'symmetric' BP appears whose location does not converge
+    (nu = 0.3, e = 0.8, cheb 32, ds_max = 8.6: "BP" at H = 33.48).  Likewise a banded branch
+    bending away from the base branch (H - H_c ~ a delta^2) can fall back onto it after a long
+    step (JJ, cheb 64, ds_max = 4.3: the n = 1 branch back on the base branch at H = 22.3).
+    A jump is a BP whose location did not converge (if ``unconverged_bp``), or whatever
+    ``jumped(branch)`` reports (a reason, or None).  The retrace is recorded in ``branch.audit``
+    ("<what> re-traced with ds_max = ...").
+    """
+    opts = options
+    retraced: list[str] = []
+    for attempt in range(BASE_RETRACES + 1):
+        branch = run(opts)
+        bad = [b for b in branch.branch_points if not b.converged] if unconverged_bp else []
+        reason = f"BP location did not converge at H = {', '.join(format(b.params['H'], '.6g') for b in bad)}" \
+            if bad else (jumped(branch) if jumped is not None else None)
+        if reason is None or attempt == BASE_RETRACES:
+            break
+        retraced.append(f"ds_max = {opts.step.ds_max:.4g} ({reason})")
+        half = 0.5 * opts.step.ds_max
+        step = replace(opts.step, ds_max=half, ds=math.copysign(min(abs(opts.step.ds), half), opts.step.ds),
+                       ds_min=min(opts.step.ds_min, half))
+        opts = replace(opts, step=step)
+        log.info("%s re-traced with ds_max = %g: a step jumped between branches", what, half)
+    if retraced:
+        branch.audit = [*branch.audit, f"{what} re-traced with ds_max = {opts.step.ds_max:.4g}: the traces with "
+                        + "; ".join(retraced) + " jumped between branches"]
+    return branch
+
+
+def first_point_on(problem: CouetteProblem, base: Branch, branch: Branch, params: Mapping[str, float], *,
+                   start: int = 0, tol: float = 1e-6) -> str | None:
+    """Where ``branch`` (from point ``start`` on) lies on ``base``, or None.
+
+    Point i lies on the base branch when Newton on the base problem at its H, started from the
+    nearest stored base point, lands within tol max(1, |x|) (max norm) of it.
+    """
+    for i in range(start, len(branch)):
+        h = float(branch.parameter_values[i])
+        x = branch.state(i)
+        try:
+            xb = newton_at(problem, base, {"H": h}, params)
+        except ValueError:
+            continue
+        if float(np.max(np.abs(xb - x))) <= tol * max(1.0, float(np.max(np.abs(x)))):
+            return f"point {i} (H = {h:.6g}) lies on the base branch {base.id}"
+    return None
+
+
+def base_phi(problem: CouetteProblem, base: Branch, H: Array, params: Mapping[str, float]) -> Array:
+    """Phi of the base branch at the gaps ``H`` (Newton from the nearest stored base point; nan on failure)."""
+    out = np.full(len(H), np.nan)
+    for i, h in enumerate(np.asarray(H, dtype=float)):
+        try:
+            out[i] = problem.order_parameter(newton_at(problem, base, {"H": float(h)}, params))
+        except ValueError:
+            continue
+    return out
+
+
+def departure(problem: CouetteProblem, branch: Branch, base: Branch, params: Mapping[str, float]) -> Array:
+    """|Phi - Phi_base(H)| at every point of ``branch``: a branch that really leaves the base branch
+    has it growing from 0 at the BP (like sqrt(H - H_c) at a pitchfork)."""
+    return np.abs(branch.observables["phi"] - base_phi(problem, base, branch.parameter_values, params))
+
+
+def isolated_symmetric_branch(problem: CouetteProblem, base: Branch, params: Mapping[str, float],
+                              options: ContinuationOptions, *, branch_id: str = "s1",
+                              progress: Callable[[str], None] | None = None) -> tuple[Branch | None, str]:
+    """A symmetric branch not connected to the base branch within the H bounds, or None; and a note.
+
+    Newton from ``problem.initial_guess`` (the near-uniform slip state) at the upper H bound.
+    With JJ walls at nu = 0.3, e = 0.8 (phi_w = 0.5, ew = 0.9) the base branch has turned into the
+    dense-wall state there, and the slip guess converges instead onto the near-uniform sheet of
+    an isolated branch whose other sheet is the dense-centre state (the two halves of the
+    no-slip mode-2 pitchfork that JJ walls disconnect); it is traced both ways in H.  None if
+    Newton fails, the state is not S-invariant, or it lies on the base branch (the note says which).
+    """
+    lo, hi = options.bounds["H"]
+    p = {**params, "H": hi}
+    res = newton(problem, problem.initial_guess(p), p, options.newton)
+    if not res.converged:
+        return None, f"no second symmetric state: Newton from the slip guess at H = {hi:.6g} did not converge"
+    x = res.u
+    scale = max(1.0, float(np.max(np.abs(x))))
+    if float(np.max(np.abs(problem.symmetry(x) - x))) > 1e-8 * scale:
+        return None, f"no second symmetric state: the slip guess at H = {hi:.6g} converged to a non-symmetric state"
+    try:
+        x_base: Array | None = newton_at(problem, base, {"H": hi}, params)
+    except ValueError:
+        x_base = None
+    if x_base is not None and float(np.max(np.abs(x_base - x))) <= 1e-6 * scale:
+        return None, f"no second symmetric state: the slip guess at H = {hi:.6g} converges onto the base branch"
+
+    def on_base(branch: Branch) -> str | None:
+        return first_point_on(problem, base, branch, params)
+
+    branch = retrace_on_jumps(
+        lambda o: trace_both(problem, x, p, "H", o, branch_id=branch_id, kind="isolated symmetric",
+                             parent=f"slip guess at H={hi:.6g}", progress=progress),
+        options, what=f"isolated branch {branch_id}", jumped=on_base)
+    if on_base(branch) is not None:
+        return None, f"the symmetric state from the slip guess at H = {hi:.6g} is connected to the base branch"
+    return branch, (f"isolated symmetric branch {branch_id}: the slip guess at H = {hi:.6g} converges to Phi = "
+                    f"{problem.order_parameter(x):.6g}, off the base branch (Phi = "
+                    f"{problem.order_parameter(x_base) if x_base is not None else math.nan:.6g}); traced both ways")
 
 
 def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, params: Mapping[str, float],
@@ -176,16 +296,23 @@ def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, par
     when the first is not S-invariant (symmetry-breaking BPs), otherwise it is traced too
     (S-invariant branches, e.g. mode 2, whose two signs are different states).
     """
-    first = switch(problem, base, bp, options, directions=(+1,), branch_id_prefix=prefix)
-    if not first:
-        raise ValueError(f"switching at {bp.name} (H = {bp.params['H']:.6g}) found no new branch")
-    b1 = first[0]
+    def switched(direction: int) -> Branch:
+        def run(o: ContinuationOptions) -> Branch:
+            new = switch(problem, base, bp, o, directions=(direction,), branch_id_prefix=prefix)
+            if not new:
+                side = "" if direction == 1 else " in the second direction"
+                raise ValueError(f"switching at {bp.name} (H = {bp.params['H']:.6g}){side} found no new branch")
+            return new[0]
+
+        # A new branch must not come back onto its parent (from point 2 on: points 0 and 1 are
+        # within one short step of the BP).
+        return retrace_on_jumps(run, options, what=f"branch from {bp.name}", unconverged_bp=False,
+                                jumped=lambda b: first_point_on(problem, base, b, params, start=2))
+
+    b1 = switched(+1)
     b1.id = f"{prefix}.1"
     if _is_invariant(problem, b1):
-        second = switch(problem, base, bp, options, directions=(-1,), branch_id_prefix=prefix)
-        if not second:
-            raise ValueError(f"switching at {bp.name} in the second direction found no new branch")
-        b2 = second[0]
+        b2 = switched(-1)
         b2.id = f"{prefix}.2"
     else:
         b2 = mirror_branch(problem, b1, params, f"{prefix}.2")

@@ -46,6 +46,11 @@ PITCHFORK_DEFAULTS: dict[str, Any] = {
     "num": 0.65, "phi_w": 0.5, "ew": 0.9,
 }
 JJ_DEFAULTS: dict[str, Any] = {**PITCHFORK_DEFAULTS, "walls": "jj"}
+#: ds_max of the JJ branches as a fraction of H_max: at nu = 0.3, e = 0.8 steps of ~4 in H jump
+#: from the steep part of the base branch onto the isolated symmetric branch next to it, and from
+#: the n = 1 branch back onto the base branch (``pitchfork.retrace_on_jumps`` halves ds_max when
+#: that happens anyway).
+JJ_BASE_DS_MAX = 0.025
 
 #: Density of the banded start state when uniform shear has no BP at the requested density.
 LOW_DENSITY_START = 0.2
@@ -162,6 +167,8 @@ class _Run:
                 cached = self.kx_extra.get(src.id, {}).get(key)
                 data = cached if cached is not None else pf.growth_rates(pb, src, self.params, kx)
                 self.kx_extra.setdefault(branch.id, {})[key] = data
+        if branch.status == "MX" and not branch.message.startswith("mirror image"):
+            self.notes.append(f"branch {branch.id} stopped (MX): {branch.message}")
         self.done.append(branch)
         relabel(self.done)
         req.finished(branch)
@@ -195,8 +202,10 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         raise SceneError(f"parameter H = {H_start:g} must lie between H_max/20 = {H_lo:g} and H_max = {H_max:g}")
     p["H"] = H_start
     run = _Run(request, pb, p)
-    base_opts = _options(request, H_lo, H_max, ds=0.05 * H_max, ds_max=0.2 * H_max)
-    band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=0.1 * H_max)
+    jj = st["walls"] == "jj"
+    base_ds_max = (JJ_BASE_DS_MAX if jj else 0.2) * H_max
+    base_opts = _options(request, H_lo, H_max, ds=min(0.05 * H_max, base_ds_max), ds_max=base_ds_max)
+    band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=(JJ_BASE_DS_MAX if jj else 0.1) * H_max)
     extra: dict[str, Any] = {"H_max": H_max, "walls": st["walls"], "modes": modes}
 
     # ---- base branch
@@ -207,6 +216,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         request.report(f"{scene}: tracing the base branch in H from {H_start:.4g} to {H_max:.4g}")
         base = pf.trace_base(pb, p, H_start, base_opts, progress=request.report)
     run.finish(base)
+    run.notes += [m for m in base.audit if " re-traced with " in m]
     bps = sorted(base.branch_points, key=lambda b: b.params["H"])
     if st["walls"] == "noslip":
         detected = [b.params["H"] for b in bps]
@@ -217,7 +227,8 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
                          "rel_error": abs(near - hc) / hc if math.isfinite(near) else math.nan})
         extra["H_c"] = rows
     else:
-        extra["H_c"] = [{"n": k, "detected": b.params["H"], "note": b.note} for k, b in enumerate(bps, start=1)]
+        extra["H_c"] = [{"n": k, "detected": b.params["H"], "phi": b.order_parameter, "note": b.note,
+                         "converged": b.converged} for k, b in enumerate(bps, start=1)]
 
     # ---- banded branches
     banded: list[Branch] = []
@@ -236,6 +247,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
                 b.kind = f"banded n={k}" if st["walls"] == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
                 if b.message.startswith("mirror image"):
                     continue
+                run.notes += [f"branch {b.id}: {m}" for m in b.audit if " re-traced with " in m]
                 run.notes += pf.confirm_branch_points(pb, b, p, band_opts)
             if pair[1].message.startswith("mirror image"):  # demoted points follow the source
                 pair[1].special_points = [dataclasses.replace(
@@ -273,8 +285,8 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         banded += pair
     elif st["walls"] == "noslip" and len(bps) < min(modes, sum(h <= H_max for h in analytic)):
         run.notes.append(f"only {len(bps)} BPs found on uniform shear below H_max = {H_max:.6g}")
-    if st["walls"] == "jj" and not bps:
-        run.notes.append(f"the JJ base branch has no BP for H in [{H_lo:.4g}, {H_max:.4g}]")
+    if jj:
+        _jj_walls(run, base, bps, banded, base_opts, extra, H_lo, H_max)
 
     extra["criticality"] = crit
     extra["folds"] = pf.fold_table(run.done)
@@ -300,6 +312,72 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         notes=run.notes,
         extra=extra,
     )
+
+
+def _describe(branch: Branch, dep: np.ndarray | None = None) -> str:
+    """One sentence on what a branch does: H range, Phi at its ends, folds, BPs, k_x = 0 stability."""
+    H, phi = branch.parameter_values, branch.observables["phi"]
+    parts = [f"H {H.min():.6g}..{H.max():.6g}, Phi {phi[0]:.6g} -> {phi[-1]:.6g}"]
+    lps = branch.fold_points
+    if lps:
+        parts.append("folds at H = " + ", ".join(f"{lp.params['H']:.8g} (Phi = {lp.order_parameter:.6g})" for lp in lps))
+    if branch.branch_points:
+        parts.append("BPs at H = " + ", ".join(f"{b.params['H']:.8g} ({b.note or 'BP'})" for b in branch.branch_points))
+    uz = [s for s in branch.special_points if s.type == "UZ"]
+    if uz:
+        parts.append("demoted grid artefacts at H = " + ", ".join(f"{s.params['H']:.6g}" for s in uz))
+    if dep is not None and np.any(np.isfinite(dep)):
+        parts.append(f"|Phi - Phi_base| grows to {np.nanmax(dep):.4g}")
+    if branch.n_unstable is not None:
+        counts = sorted({int(c) for c in branch.n_unstable[1:] if c >= 0}) if "@" in branch.parent else \
+            sorted({int(c) for c in branch.n_unstable if c >= 0})
+        parts.append("k_x = 0 unstable modes: " + ", ".join(str(c) for c in counts))
+    parts.append(f"ends: {branch.message}")
+    return "; ".join(parts)
+
+
+def _jj_walls(run: _Run, base: Branch, bps: list, banded: list[Branch], options: ContinuationOptions,
+              extra: dict[str, Any], H_lo: float, H_max: float) -> None:
+    """JJ walls: the isolated symmetric branch (traced with the base branch's ``options``), departures
+    from the base branch, and the notes."""
+    pb, p, request = run.problem, run.params, run.request
+    if not bps:
+        run.notes.append(f"the JJ base branch has no BP for H in [{H_lo:.4g}, {H_max:.4g}]")
+    for b in bps:
+        if b.note.startswith("symmetric"):
+            run.notes.append(f"symmetric BP on the JJ base branch at H = {b.params['H']:.10g}")
+    if not any(b.note.startswith("symmetric") for b in bps):
+        phi, H = base.observables["phi"], base.parameter_values
+        slope = np.abs(np.diff(phi) / np.diff(H))
+        k = int(np.argmax(slope))
+        run.notes.append(
+            f"no symmetric BP on the JJ base branch: JJ walls unfold the no-slip mode-2 pitchfork (no hidden symmetry "
+            f"keeps it); the base branch steepens near H = {0.5 * (H[k] + H[k + 1]):.4g} (dPhi/dH = {slope[k]:.3g}) "
+            f"into the dense-wall state (Phi = {phi[-1]:.6g} at H = {H[-1]:.6g})")
+    cached = run.cached("s1")
+    if cached:
+        iso, note = cached[0], "isolated symmetric branch s1 (resumed)"
+    else:
+        request.report("jj-walls: looking for a symmetric branch off the base branch")
+        iso, note = pf.isolated_symmetric_branch(pb, base, p, options, progress=request.report)
+        if iso is not None:
+            run.notes += pf.confirm_branch_points(pb, iso, p, options)
+            run.notes += [m for m in iso.audit if " re-traced with " in m]
+    run.notes.append(note)
+    if iso is not None:
+        run.finish(iso)
+    departures: dict[str, dict[str, float]] = {}
+    for b in [*banded, *([iso] if iso is not None else [])]:
+        dep = pf.departure(pb, b, base, p)
+        departures[b.id] = {"max": float(np.nanmax(dep)), "end": float(dep[-1]),
+                            "first": float(dep[1]) if len(dep) > 1 else math.nan}
+        if b.id.startswith("n") and not departures[b.id]["max"] > 1e-3:
+            run.notes.append(f"branch {b.id} does not leave the base branch (max |Phi - Phi_base| = "
+                             f"{departures[b.id]['max']:.2g}): the switch fell back")
+        run.notes.append(f"branch {b.id} ({b.kind}): {_describe(b, dep)}")
+    run.notes.insert(0, f"base branch 0: {_describe(base)}")
+    extra["departure"] = departures
+    extra["isolated"] = {"found": iso is not None, "note": note}
 
 
 def run_jj_walls(request: SceneRequest) -> SceneResult:
