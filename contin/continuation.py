@@ -15,7 +15,9 @@ changes are located (``contin.locate``) by re-correcting at intermediate arcleng
 are rejected (ds halved) on corrector failure, inadmissible states or a tangent turning by
 more than ``max_angle``; at ds_min a failure ends the run with MX.  Parameter bounds end the
 run with EP exactly at the bound, and a branch that returns to its start is closed
-(``contin.closure``).
+(``contin.closure``).  A converged point the problem reports as under-resolved (optional
+``under_resolved(u, p, tol)``, ``ContinuationOptions.resolution_tol``) ends the run with MX
+without being stored: a smaller step cannot help, the grid must be refined.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from contin.locate import Sample, locate_zero
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions
 from contin.predictor import secant, tangent
-from contin.problem import Array
+from contin.problem import Array, has
 from contin.stepsize import angle, next_step, reduced_step
 from contin.testfunctions import Antisymmetric, TestValues, bp_value, signed_value
 
@@ -235,6 +237,19 @@ def _symmetry(problem: Any, u: Array, symmetric: bool | None) -> Antisymmetric |
     return anti
 
 
+def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float | None) -> str | None:
+    """The problem's reason why the converged point x = (u, p) is not resolved by its grid, or None.
+
+    None also when the guard is off (tol None) or the problem has no ``under_resolved`` hook.
+    """
+    if tol is None or not has(problem, "under_resolved"):
+        return None
+    reason = problem.under_resolved(x[:-1], system.params_at(x[-1]), tol)
+    if reason is None:
+        return None
+    return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
+
+
 def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0: float) -> tuple[float, float]:
     for name in options.bounds:
         if name not in problem.parameter_names:
@@ -266,8 +281,10 @@ def trace(
     ----------
     problem : Problem
         See ``contin.problem``.  Optional ``admissible(u, p) -> str | None`` restricts states
-        to a physical domain; optional ``symmetry``/``symmetry_matrix`` enables the
-        symmetry-breaking BP test on S-invariant branches.
+        to a physical domain; optional ``under_resolved(u, p, tol) -> str | None`` ends the
+        run (MX, point not stored) where the grid no longer resolves the state; optional
+        ``symmetry``/``symmetry_matrix`` enables the symmetry-breaking BP test on
+        S-invariant branches.
     u0 : (n,) array
         Start guess; it is first corrected by Newton at fixed parameters.
     params : dict
@@ -289,8 +306,9 @@ def trace(
     Returns
     -------
     Branch
-        status 'EP' (bound, max_steps, closed loop) or 'MX' (failure), with the reason in
-        ``message`` and in the note of the final EP/MX special point.  Never raises for a
+        status 'EP' (bound, max_steps, closed loop) or 'MX' (failure, or a converged point
+        under-resolved by the grid: 'under-resolved at p = ...: <problem's reason>'), with the
+        reason in ``message`` and in the note of the final EP/MX special point.  Never raises for a
         failed Newton step; raises ValueError for invalid input.
     """
     if direction not in (1, -1):
@@ -325,6 +343,12 @@ def trace(
     anti = _symmetry(problem, start.u, symmetric)
     tracer.anti = anti
     x0 = system.pack(anti.symmetrize(start.u) if anti is not None else start.u, p0)
+    coarse = _under_resolved(problem, system, x0, options.resolution_tol)
+    if coarse is not None:
+        msg = f"start point {coarse}"
+        tracer.special.append(tracer.end_point("MX", msg, x=x0))
+        say(msg)
+        return tracer.build(parameter, "MX", msg, False, n, **meta)
 
     # Start tangent: bordered solve with the guess as bordering row; the guess is e_p (natural
     # direction) unless a tangent is given; a random row rescues a start exactly at a fold.
@@ -409,6 +433,10 @@ def trace(
             if not land.converged or system.admissible(land.x) is not None:
                 message = f"reached bound {parameter}={bound:g} (landing on it failed: {land.message}; stopped before it)"
                 break
+            coarse = _under_resolved(problem, system, land.x, options.resolution_tol)
+            if coarse is not None:
+                status, message = "MX", coarse
+                break
             land.x[-1] = bound  # exact up to rounding already; make it exact
             new = tracer.finish_point(land, cur.t)
             tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
@@ -416,6 +444,10 @@ def trace(
             message = f"reached bound {parameter}={bound:g}"
             break
 
+        coarse = _under_resolved(problem, system, new.x, options.resolution_tol)
+        if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
+            status, message = "MX", coarse
+            break
         tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
         step_len = system.norm(new.x - cur.x)
         travelled += step_len

@@ -90,6 +90,16 @@ class ContinuationOptions:
     max_steps : maximum number of continuation steps (EP when reached).
     detect_closed : stop with EP 'closed loop' when the branch returns to its start.
     save_every : keep every k-th state in Branch.states (special points always kept).
+    resolution_tol : largest estimated relative discretization error of an accepted state,
+        passed to the problem's optional ``under_resolved(u, p, tol)`` hook
+        (``contin.problem``); a converged point above it ends the run with MX *before* it is
+        stored, with the problem's reason in the message.  ``None`` switches the guard off
+        (e.g. for convergence studies that want the coarse grids' answers as they are).  It
+        is a run setting, like the Newton tolerance, not a property of the problem: the
+        problem defines the estimate, the user how much error a run may accept.  The default
+        3e-5 is calibrated on gPCF (``problems.couette.resolution``): above the 3e-7 of the
+        densest results that are right (pitchfork scene at nu = 0.3 and 0.15, cheb 64) and
+        below the 5e-5 where spurious unstable modes appear (nu = 0.5, H = 36.7, cheb 64).
     """
 
     newton: NewtonOptions = field(default_factory=NewtonOptions)
@@ -99,14 +109,17 @@ class ContinuationOptions:
     max_steps: int = 500
     detect_closed: bool = True
     save_every: int = 1
+    resolution_tol: float | None = 3e-5
 
     def __post_init__(self) -> None:
         if self.max_steps < 1:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
+        if self.resolution_tol is not None and not self.resolution_tol > 0:
+            raise ValueError(f"resolution_tol must be > 0 (or None to switch the guard off), got {self.resolution_tol}")
         for name, (lo, hi) in self.bounds.items():
             if not lo < hi:
                 raise ValueError(f"bounds for {name!r} must satisfy lo < hi, got ({lo}, {hi})")
 
     def __hash__(self) -> int:  # bounds is a dict; hash its items so options stay usable as keys
         return hash((self.newton, self.step, self.detection, tuple(sorted(self.bounds.items())),
-                     self.max_steps, self.detect_closed, self.save_every))
+                     self.max_steps, self.detect_closed, self.save_every, self.resolution_tol))

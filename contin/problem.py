@@ -59,6 +59,19 @@ class Problem(Protocol):
         The inner product used for step lengths; default is the Euclidean dot / n.
     validate(p) -> None
         Raise ``ValueError`` with one clear sentence for an invalid parameter set.
+    admissible(u, p) -> str | None
+        None for a state inside the physical domain, else a one-line reason.  Newton
+        backtracks to stay admissible; the tracer rejects (and retries with a smaller step)
+        inadmissible points.
+    under_resolved(u, p, tol) -> str | None
+        None if the discretization resolves the converged state u to an estimated relative
+        error ``tol`` (``ContinuationOptions.resolution_tol``), else a one-line reason (what
+        is under-resolved, by how much, and what grid to try).  contin attaches no meaning to
+        the estimate beyond "relative error of the state"; the problem chooses it (e.g. the
+        relative size of the last spectral coefficients).  The tracer calls it on every
+        converged candidate point before accepting it; an under-resolved point ends the run
+        with status MX and message "under-resolved at <parameter> = <value>: <reason>",
+        without being stored (a smaller step cannot help; the grid must be refined).
     """
 
     parameter_names: tuple[str, ...]
