@@ -15,7 +15,8 @@ model's behaviour and not an operator defect:
 - the long-wave limit: the least-stable mode at small k_x is the mass mode, omega = i c k_x +
   w2 k_x^2 + O(k_x^3) with c = -dq/d nu_bar the kinematic-wave speed of the steady mass flux
   q = int nu u dy (computed from steady solutions only), and w2 > 0 (the instability);
-- spanwise mass modes (k_x = 0, k_z > 0) decay diffusively.
+- spanwise mass modes (k_x = 0, k_z > 0) decay diffusively;
+- stronger gravity (Fr < 166 at H = 25) makes the bottom plug stable for all k_x, k_z.
 """
 
 from __future__ import annotations
@@ -28,7 +29,13 @@ from contin.continuation import newton, trace
 from contin.foldcurve import fold_start
 from contin.options import NewtonOptions
 from problems.couette.closures import coefficients, uniform_shear
-from problems.couette.gravity import GravitySettings, g_options, gravity_free_branches, gravity_problem, homotopy_in_G
+from problems.couette.gravity import (
+    GravitySettings,
+    g_options,
+    gravity_free_branches,
+    gravity_problem,
+    homotopy_in_G,
+)
 from problems.couette.linear import _density_constraints, linear_operator
 from problems.discretization import make_grid
 
@@ -285,3 +292,29 @@ def test_spanwise_mass_mode_decays(plugs):
     a, b = omega(pb, x, p, 0.0, kz=1e-3), omega(pb, x, p, 0.0, kz=2e-3)
     assert a.real < 0 and b.real / a.real == pytest.approx(4.0, rel=1e-3)
     assert a.real / 1e-6 == pytest.approx(-0.155, abs=0.01)
+
+
+def test_bottom_plug_is_stable_for_all_k_at_low_Fr(plugs):
+    """Stronger gravity removes the long-wave instability of the bottom plug (the surviving
+    attractor): w2 = Re omega / k_x^2 changes sign at Fr = 166.2 (cheb 48; cheb 64 agrees to 3
+    digits: w2 = +1.08 at Fr = 200, -0.36 at 150), and at Fr = 120 max Re omega < 0 for every
+    k_x in [1e-4, 3] and k_z in {0, 0.1, 1} (the mass mode is neutral only at k = 0)."""
+    pb32 = plugs["problem"]
+    pb = gravity_problem("cheb", 48)
+    p = plugs["p0"]
+    nu, u, T = (pb32.grid.interpolate(f, pb.grid.y) for f in profiles(pb32, plugs["bottom0"]))
+    r = newton(pb, pb.pack(nu, u, T, pb32.unpack(plugs["bottom0"])[3]), p, NewtonOptions())
+    assert r.converged
+    w2 = {}
+    x = r.u
+    G_prev = 0.0
+    for fr in (200.0, 150.0, 120.0):
+        x = homotopy_in_G(pb, x, {**p, "G": G_prev}, fr**-2, max_steps=300)
+        G_prev = fr**-2
+        q = {**p, "G": G_prev}
+        w2[fr] = omega(pb, x, q, 1e-4).real / 1e-8
+    assert w2[200.0] == pytest.approx(1.079, abs=0.01)
+    assert w2[150.0] == pytest.approx(-0.365, abs=0.01)
+    assert pb.unpack(x)[0][0] < 0.65  # still a bottom plug below packing
+    growth = [omega(pb, x, q, kx, kz).real for kz in (0.0, 0.1, 1.0) for kx in np.logspace(-4, 0.5, 12)]
+    assert max(growth) < 0.0
