@@ -482,11 +482,13 @@ def test_switch_onto_strongly_bent_pitchfork(monkeypatch):
 
 # ----------------------------------------------------------------------------- CLI
 def test_cli_trace_json_and_diagram(tmp_path):
+    # grid 48: at cheb 32 the n = 1 banded branch meets the plug's discretization artefact near
+    # H = 29.9 and the resolution guard ends it MX (exit code 3) before H_max = 30
     h5 = tmp_path / "tmp.h5"
     png = tmp_path / "d.png"
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     r = subprocess.run([sys.executable, "-m", "contin", "trace", "pitchfork", "-s", "nu=0.3", "-s", "e=0.8",
-                        "-s", "H_max=30", "--grid", "32", "--json", "-o", str(h5)],
+                        "-s", "H_max=30", "--grid", "48", "--json", "-o", str(h5)],
                        capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
