@@ -68,6 +68,18 @@ The mass-conservation neutral mode (k_x = k_z = 0)
     of weakly damped near-Nyquist density modes (see :func:`to_chebyshev`); use Chebyshev
     grids for spectra, especially at k_x != 0.
 
+    The long-wave limit.  The mass mode is excluded only at k_x = k_z = 0 exactly; the
+    eigenvalue is continuous in k (the unconstrained k = 0 spectrum is the constrained one plus
+    omega = 0).  For small k_x it is the least-stable mode, a kinematic wave of the mean density
+    in x: omega = i c k_x + w2 k_x^2 + O(k_x^3) with c = -dq/d nu_bar, q = int nu U dy the
+    steady mass flux (A13 sign convention), and w2 set mainly by its coupling to the slowest
+    k = 0 mode (second-order perturbation theory).  So max Re omega(k_x) is discontinuous at
+    k_x = 0 whenever the constrained k = 0 spectrum is stable; for spanwise waves (k_z) there is
+    no advection and the mode decays like -k_z^2.  Checked in tests/test_linear_gravity.py,
+    together with an independent complex-step linearisation of the x-, z-dependent equations
+    (gravity included) and the k = 0 links to CouetteProblem.jacobian (d base/d nu_bar is the
+    unconstrained null vector; folds of the steady problem are zeros of the constrained one).
+
     Other neutral modes: with JJ walls and phi_w = 0 (frictionless walls) uniform u_hat or
     w_hat is neutral (momentum conservation); the base state is then unsheared and the case
     is rejected.  No other zero eigenvalues exist for no-slip or phi_w > 0 JJ walls
