@@ -483,3 +483,21 @@ def test_uniform_shear_refuses_elastic_limit():
         uniform_shear(0.3, 1.0)
     t0, s0, p0 = uniform_shear(0.3, 0.8)
     assert (t0, s0, p0) == pytest.approx((0.48174, 0.32282, 0.83152), abs=1e-5)
+
+
+@pytest.mark.parametrize("kw", [dict(method="cheb", N=24), dict(method="fd4", N=64, walls="jj"),
+                                dict(method="fd6", N=40, dufour=True),
+                                dict(method="cheb", N=16, walls="jj", dufour=True, gravity=True)])
+def test_analytic_dF_dH_equals_complex_step(kw):
+    """dresidual_dp(.., 'H') is analytic; it must equal the complex step to rounding."""
+    from contin.problem import complex_step_dp
+
+    pb = CouetteProblem(**kw)
+    p = pb.params({"nu": 0.3, "e": 0.8, "H": 16.0, **({"G": 1e-3} if kw.get("gravity") else {})})
+    x = pb.initial_guess(p)
+    y = pb.grid.y
+    x[pb.i_nu] += 0.02 * np.sin(np.pi * y) + 0.01 * np.cos(np.pi * (y + 0.5))
+    x[pb.i_T] *= 1 + 0.1 * y**2
+    x[pb.i_u] += 0.01 * np.cos(np.pi * y)
+    ref = complex_step_dp(pb, x, p, "H")
+    assert np.max(np.abs(pb.dresidual_dp(x, p, "H") - ref)) < 1e-12 * np.max(np.abs(ref))

@@ -165,6 +165,7 @@ class CouetteProblem:
         self._layouts: dict[tuple, _Layout] = {}
         self._cache: tuple | None = None  # (x, (e, num), _Fields) of the last real evaluation
         self._mid_weights: Array | None = None
+        self._symmetry_matrix: sp.csr_matrix | None = None
 
     # ------------------------------------------------------------------ bookkeeping
     def __repr__(self) -> str:
@@ -424,7 +425,39 @@ class CouetteProblem:
             raise ValueError(f"unknown parameter {name!r}; known parameters are {', '.join(self.parameter_names)}")
         if name == "G" and not self.gravity:
             raise ValueError("continuation in G needs a problem built with gravity=True")
+        if name == "H":
+            return self._residual_dH(np.asarray(x, dtype=float), p)
         return complex_step_dp(self, np.asarray(x, dtype=float), p, name)
+
+    def _residual_dH(self, x: Array, p: Mapping[str, Any]) -> Array:
+        """dF/dH, analytic (H, the usual continuation parameter, enters F explicitly only).
+
+        Energy rows: -2 (k T'' + k' T' [+ k_h nu'' + k_h' nu']) / H^3; JJ wall rows:
+        -sigma S = H s_w slip gives -s_w slip, the heat-flux row -2 sigma H^2 Q / H^3
+        - s_w slip^2 - d_w / H^2; gravity: 3 H^2 G M.  Equal to the complex step (tested).
+        """
+        self._check_gravity(p)
+        f = self._fields(x, p)
+        H = p["H"]
+        w, sig = self._walls_idx, self._sigma
+        out = np.zeros(self.size)
+        cond = f.k * f.Tpp + f.kp * f.Tp
+        flux = f.k[w] * f.Tp[w]
+        if self.dufour:
+            cond = cond + f.kh * f.nupp + f.khp * f.nup
+            flux = flux + f.kh[w] * f.nup[w]
+        dT = (-2.0 / H**3) * cond
+        if self.walls == "noslip":
+            dT[w] = 0.0
+        else:
+            sw, dw = self._wall_coefficients(f, p)[:2]
+            slip = f.u[w] - 0.5 * sig
+            out[self.i_u.start + w] = -sw * slip
+            dT[w] = -2.0 * sig * flux / H**3 - sw * slip**2 - dw / H**2
+        out[self.i_T] = dT
+        if self.gravity:
+            out[self.i_nu] = 3.0 * H**2 * p["G"] * f.M
+        return out
 
     # ------------------------------------------------------------------ states
     def uniform_state(self, p: Mapping[str, Any]) -> Array:
@@ -588,7 +621,12 @@ class CouetteProblem:
         return np.concatenate(parts)
 
     def symmetry_matrix(self) -> sp.csr_matrix:
-        """Sparse matrix of :meth:`symmetry`."""
+        """Sparse matrix of :meth:`symmetry` (built once per instance; a copy is returned)."""
+        if self._symmetry_matrix is None:
+            self._symmetry_matrix = self._build_symmetry_matrix()
+        return self._symmetry_matrix.copy()
+
+    def _build_symmetry_matrix(self) -> sp.csr_matrix:
         n = self.n
         rf = sp.csr_matrix((np.ones(n), (np.arange(n), self.grid.reflection())), shape=(n, n))
         blocks = [rf, -rf, rf, sp.eye(1)] + ([-rf] if self.gravity else [])
