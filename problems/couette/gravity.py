@@ -68,6 +68,9 @@ class GravitySettings:
         only O(G^(1/3)) apart, so larger steps jump between branches
     seed_H : gaps at which gravity-free banded states are continued in G (route 1)
     modes : pitchforks of uniform shear (n = 1..modes) whose banded branches seed route 1
+    Fr_start : Froude number at which route 2 first finds the fold of each imperfect pitchfork
+        (:func:`pitchfork_fold_curves`)
+    fold_steps : steps per direction of each fold curve (route 2)
     """
 
     H_range: tuple[float, float] = (1.0, 50.0)
@@ -75,8 +78,10 @@ class GravitySettings:
     ds_max: float = 0.2
     max_angle: float = 0.1
     max_steps: int = 1500
-    seed_H: tuple[float, ...] = (16.0, 22.0, 30.0, 38.0, 44.0)
-    modes: int = 2
+    seed_H: tuple[float, ...] = (16.0, 22.0, 30.0, 38.0, 44.0, 52.0, 60.0)
+    modes: int = 3
+    Fr_start: float = 2000.0
+    fold_steps: int = 300
 
     def h_options(self) -> ContinuationOptions:
         return ContinuationOptions(
@@ -267,6 +272,19 @@ def _params_at(branch: Branch, i: int) -> dict[str, float]:
     return {k: float(v[i]) for k, v in branch.params.items()}
 
 
+#: Largest estimated relative discretization error of a seed or fold-curve extremum that is
+#: used (the continuation default, contin.options.ContinuationOptions.resolution_tol).
+RESOLUTION_TOL = 3e-5
+
+
+def resolved(problem: CouetteProblem, x: Array, p: Mapping[str, float], tol: float = RESOLUTION_TOL) -> bool:
+    """True when the grid resolves the state (CouetteProblem.under_resolved: Chebyshev tail
+    against the distance to packing).  Fold curves are traced on the augmented fold system,
+    which has no resolution guard, so their points near packing are checked with this."""
+    check = getattr(problem, "under_resolved", None)
+    return check is None or check(np.asarray(x)[: problem.size], p, tol) is None
+
+
 # ----------------------------------------------------------------------------- discovery
 @dataclass
 class GravityDiagram:
@@ -276,6 +294,8 @@ class GravityDiagram:
     routes : branch id -> 'small-H', 'homotopy' or 'fold-curve' (the route that found it)
     duplicates : (dropped id, kept id) pairs (a branch found again by another route)
     seeds : every seed tried, with its outcome (for the notes)
+    found_by : branch id -> every route with a seed on that branch (first the tracing one)
+    curves : the fold curves of route 2
     """
 
     G: float
@@ -284,6 +304,8 @@ class GravityDiagram:
     duplicates: list[tuple[str, str]] = field(default_factory=list)
     seeds: list[str] = field(default_factory=list)
     gravity_free: list[Branch] = field(default_factory=list)
+    found_by: dict[str, list[str]] = field(default_factory=dict)
+    curves: list[Branch] = field(default_factory=list)
 
     def of_kind(self, kind: str) -> list[Branch]:
         return [b for b in self.branches if b.kind == kind]
@@ -310,7 +332,7 @@ def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
                H_range: tuple[float, float]) -> list[tuple[str, Array, dict[str, float]]]:
     """Route 2: points where fold curves in (H, G) cross the target G, polished by Newton at
     (H, G) fixed (each is a fold of the diagram at G, hence a seed for every fold-bounded
-    branch and isola)."""
+    branch and isola).  Crossings the grid does not resolve (near packing) are skipped."""
     out = []
     for c in curves:
         g = c.params["G"]
@@ -326,38 +348,52 @@ def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
             phi = st[n: 2 * n]
             fp = FoldProblem(problem, "H", phi / float(phi @ phi))
             res = newton(fp, np.concatenate([st[: 2 * n], [p["H"]]]), p, NewtonOptions(max_iterations=20))
-            if res.converged:
+            if res.converged and resolved(problem, res.u[:n], {**p, "H": float(res.u[2 * n])}):
                 p = {**p, "H": float(res.u[2 * n])}
                 out.append((f"fold curve {c.id} at H={p['H']:.6g}", res.u[:n], p))
     return out
 
 
 def discover(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings = GravitySettings(), *,
-             g0_branches: Sequence[Branch] | None = None, curves: Sequence[Branch] = (),
+             g0_branches: Sequence[Branch] | None = None, base: Branch | None = None,
+             curves: Sequence[Branch] | None = None,
              routes: Sequence[str] = ("homotopy", "fold-curve"),
              progress: Callable[[str], None] | None = None) -> GravityDiagram:
     """Every branch at G = params['G'] > 0 reachable from the small-H state, from the
-    gravity-free banded branches (homotopy in G) and from fold curves crossing G.
+    gravity-free banded branches (route 'homotopy': homotopy in G) and from fold curves
+    crossing G (route 'fold-curve').
+
+    ``g0_branches`` / ``base``: the gravity-free banded branches and uniform shear
+    (:func:`gravity_free_branches`; computed when needed and not given).  ``curves``: fold
+    curves in (H, G) for route 2; None = the pitchfork fold curves
+    (:func:`pitchfork_fold_curves`, started at ``settings.Fr_start``).
 
     Each seed is traced in H (both ways; an isola closes); a seed already lying on a traced
-    branch is skipped; the branches are de-duplicated (:func:`deduplicate`) and labelled
-    (:func:`classify`).
+    branch is not traced again but recorded (``found_by``: every route whose seeds lie on the
+    branch); the branches are de-duplicated (:func:`deduplicate`) and labelled (:func:`classify`).
     """
     G = float(params["G"])
     if not G > 0:
         raise ValueError("discover needs G > 0 (at G = 0 use the pitchfork scene)")
+    bad = set(routes) - {"homotopy", "fold-curve"}
+    if bad:
+        raise ValueError(f"unknown discovery route(s) {sorted(bad)}; use 'homotopy' and/or 'fold-curve'")
     p0 = {**params, "H": settings.H_range[0]}
     say = progress or (lambda m: None)
     traced: list[Branch] = []
     route_of: dict[str, str] = {}
+    found_by: dict[str, list[str]] = {}
     notes: list[str] = []
 
-    def on_known(x: Array, p: Mapping[str, float]) -> bool:
-        return any(on_branch(problem, x, p, b) for b in traced)
+    def known(x: Array, p: Mapping[str, float]) -> Branch | None:
+        return next((b for b in traced if on_branch(problem, x, p, b)), None)
 
     def run(label: str, x: Array, p: Mapping[str, float], route: str) -> None:
-        if on_known(x, p):
-            notes.append(f"{label}: on a known branch")
+        twin = known(x, p)
+        if twin is not None:
+            notes.append(f"{label}: on known branch {twin.id}")
+            if route not in found_by[twin.id]:
+                found_by[twin.id].append(route)
             return
         bid = f"{len(traced)}"
         say(f"gravity: tracing branch {bid} ({label})")
@@ -366,23 +402,32 @@ def discover(problem: CouetteProblem, params: Mapping[str, float], settings: Gra
             b = trim_to_new(problem, b, x, traced)
         traced.append(b)
         route_of[bid] = route
+        found_by[bid] = [route]
         notes.append(f"{label}: branch {bid} ({len(b)} points{', closed' if b.closed else ''})")
 
     run("small-H state", problem.initial_guess(p0), p0, "small-H")
     g0 = list(g0_branches) if g0_branches is not None else []
+    need_g0 = "homotopy" in routes or ("fold-curve" in routes and curves is None)
+    if need_g0 and (g0_branches is None or (base is None and "fold-curve" in routes and curves is None)):
+        base, g0 = gravity_free_branches(problem, params, settings, progress)
     if "homotopy" in routes:
-        if g0_branches is None:
-            _, g0 = gravity_free_branches(problem, params, settings, progress)
         for label, x, p in homotopy_seeds(problem, g0, G, settings.seed_H):
             run(label, x, p, "homotopy")
     if "fold-curve" in routes:
+        if curves is None:
+            assert base is not None
+            curves = pitchfork_fold_curves(problem, params, base, g0, H_range=settings.H_range,
+                                           Fr_start=settings.Fr_start, max_steps=settings.fold_steps, progress=progress)
         for label, x, p in fold_seeds(problem, curves, G, settings.H_range):
             run(label, x, p, "fold-curve")
     kept, dup = deduplicate(traced)
+    for a, k in dup:
+        found_by[k] += [r for r in found_by[a] if r not in found_by[k]]
     for b in kept:
         b.kind = classify(problem, b, settings.H_range[0])
     return GravityDiagram(G=G, branches=kept, routes={b.id: route_of[b.id] for b in kept}, duplicates=dup,
-                          seeds=notes, gravity_free=g0)
+                          seeds=notes, gravity_free=g0, found_by={b.id: found_by[b.id] for b in kept},
+                          curves=list(curves or []))
 
 
 # ----------------------------------------------------------------------------- fold curves
@@ -408,9 +453,10 @@ def fold_curves(problem: CouetteProblem, branches: Sequence[Branch], second: str
     return curves
 
 
-def extrema(curves: Sequence[Branch], second: str = "G") -> list[dict[str, Any]]:
+def extrema(curves: Sequence[Branch], second: str = "G", *, problem: CouetteProblem | None = None) -> list[dict[str, Any]]:
     """XT points (extrema of ``second``) of fold curves with second > 0: where isolas / fold
-    pairs are born (local minimum of G) or die (local maximum of G)."""
+    pairs are born (local minimum of G) or die (local maximum of G).  With ``problem`` each
+    row also says whether the grid resolves the state there ('resolved', :func:`resolved`)."""
     out = []
     for c in curves:
         g = c.params[second]
@@ -426,6 +472,8 @@ def extrema(curves: Sequence[Branch], second: str = "G") -> list[dict[str, Any]]
             if second == "G":
                 row["Fr"] = float(val ** -0.5)
                 row["event"] = "death" if kind == "max" else "birth"
+            if problem is not None:
+                row["resolved"] = resolved(problem, s.state, s.params)
             out.append(row)
     return out
 
@@ -489,28 +537,29 @@ class PhaseDiagram:
     extrema : :func:`extrema` rows (birth / death of fold pairs and isolas, with Fr)
     fr_min_floating_plug : the smallest Fr at which a floating-plug (dense-top) state exists:
         the largest G on the fold curve of the first pitchfork (its two folds merge there)
+    unresolved : extrema at states the grid does not resolve (near packing), not trusted
     """
 
     curves: list[Branch]
     extrema: list[dict[str, Any]]
     fr_min_floating_plug: float
     critical_gaps: list[float]
+    unresolved: list[dict[str, Any]] = field(default_factory=list)
 
 
-def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_range: tuple[float, float] = (1.0, 50.0),
-                  Fr_start: float = 2000.0, max_steps: int = 300,
-                  progress: Callable[[str], None] | None = None) -> PhaseDiagram:
-    """Fold curves in (H, G) through the imperfect pitchforks (symmetry-breaking BPs of uniform
-    shear inside ``H_range``).
+def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], base: Branch, kids: Sequence[Branch],
+                          *, H_range: tuple[float, float] = (1.0, 50.0), Fr_start: float = 2000.0,
+                          max_steps: int = 300, progress: Callable[[str], None] | None = None) -> list[Branch]:
+    """Fold curves in (H, G) through the imperfect symmetry-breaking pitchforks of ``base``
+    (gravity-free uniform shear with its banded branches ``kids``, :func:`gravity_free_branches`).
 
-    For each BP: the dense-top banded state at H_c + 3 (G = 0) is continued in G to
-    Fr_start^-2, traced in H down to its fold, and the fold is continued in (H, G) both ways
-    (through G = 0 at the BP into the mirror half G < 0, which is the reflected curve).
+    For each symmetry-breaking BP: the dense-top banded state at H_c + 3 (G = 0) is continued
+    in G to Fr_start^-2, traced in H down to its fold, and the fold is continued in (H, G)
+    both ways (through G = 0 at the BP into the mirror half G < 0, the reflected curve).
+    Curve ids are 'fold<k>' (k-th symmetry-breaking BP), parents 'BP at H=...'.
     """
     say = progress or (lambda m: None)
-    settings = GravitySettings(H_range=H_range, modes=3)
-    base, kids = gravity_free_branches(problem, {**params, "G": 0.0}, settings, progress)
-    bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note]
+    bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
     G0 = Fr_start ** -2.0
     curves: list[Branch] = []
     for k, bp in enumerate(bps):
@@ -531,13 +580,33 @@ def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_ran
         lps = [lp for lp in b.fold_points if lp.converged and abs(lp.params["H"] - Hc) < 2.0]
         if not lps:
             continue
-        say(f"unfold: fold curve from the pitchfork at H = {Hc:.6g}")
+        say(f"gravity: fold curve from the pitchfork at H = {Hc:.6g}")
         c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps)[0]
         c.id = f"fold{k}"
         c.parent = f"BP at H={Hc:.6g}"
         curves.append(c)
-    ext = extrema(curves)
-    first = [r for r in ext if r["curve"] == "fold0" and r["extremum"] == "max"]
+    return curves
+
+
+def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_range: tuple[float, float] = (1.0, 50.0),
+                  Fr_start: float = 2000.0, max_steps: int = 300,
+                  progress: Callable[[str], None] | None = None) -> PhaseDiagram:
+    """Fold curves in (H, G) through the imperfect pitchforks (symmetry-breaking BPs of uniform
+    shear inside ``H_range``, :func:`pitchfork_fold_curves`) and their G-extrema.
+
+    Extrema whose state the grid does not resolve (:func:`resolved`; e.g. the N = 32 pairs at
+    H ~ 40.5-40.9, Fr = 926/1036 and 565/570, Phi = 0.62-0.63, that are absent at N = 48 and
+    64) are left out of ``extrema`` and listed in ``unresolved``.
+    """
+    settings = GravitySettings(H_range=H_range, modes=3)
+    base, kids = gravity_free_branches(problem, {**params, "G": 0.0}, settings, progress)
+    curves = pitchfork_fold_curves(problem, params, base, kids, H_range=H_range, Fr_start=Fr_start,
+                                   max_steps=max_steps, progress=progress)
+    ext = extrema(curves, problem=problem)
+    ok = [r for r in ext if r["resolved"]]
+    bad = [r for r in ext if not r["resolved"]]
+    first = [r for r in ok if r["curve"] == "fold0" and r["extremum"] == "max"]
     fr_min = min((r["Fr"] for r in first), default=float("nan"))
-    return PhaseDiagram(curves=curves, extrema=ext, fr_min_floating_plug=fr_min,
-                        critical_gaps=[bp.params["H"] for bp in bps])
+    bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
+    return PhaseDiagram(curves=curves, extrema=ok, fr_min_floating_plug=fr_min,
+                        critical_gaps=[bp.params["H"] for bp in bps], unresolved=bad)

@@ -1,23 +1,34 @@
 """The ``gravity`` scene: every branch of granular Couette flow at one Froude number.
 
 ``contin trace gravity -s nu=0.3 -s e=0.8 -s Fr=1000 --json``: the primary branch from the
-near-uniform small-H state, plus every branch seeded from the gravity-free banded branches by
-homotopy in G (problems.couette.gravity.discover), de-duplicated and labelled (primary, isola,
-floating-plug, bottom-plug), with the stability pass (k_x = 0) on every branch.
+near-uniform small-H state, plus every branch seeded from the gravity-free banded branches of
+the first ``modes`` pitchforks by homotopy in G (route 1) and from the crossings of the
+pitchforks' fold curves in (H, G) with G = Fr^-2 (route 2; problems.couette.gravity.discover),
+de-duplicated and labelled (primary, isola, floating-plug, bottom-plug), with the stability pass
+(k_x = 0) on every branch.  The notes and ``extra['found_by']`` say which routes found each
+branch.
+
+Defaults: Chebyshev N = 48 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
+under-resolved already at H ~ 30-40 (the continuation stops them with MX 'under-resolved'),
+and at nu = 0.3, Fr = 1000 the isola of the third pitchfork spans H = 41.90 .. 63.48.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 from contin.branch import relabel
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 from problems.couette.gravity import GravitySettings, discover, gravity_problem
 
-GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 50.0,
-                                    "walls": "noslip", "modes": 2}
+GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 70.0,
+                                    "walls": "noslip", "modes": 3}
+
+#: Default Chebyshev grid of the scene (see the module docstring).
+GRAVITY_GRID = 48
 
 
 def _settings(request: SceneRequest) -> dict[str, Any]:
@@ -35,27 +46,28 @@ def _settings(request: SceneRequest) -> dict[str, Any]:
         raise SceneError(f"scene 'gravity' needs a finite Froude number Fr > 0, got {out['Fr']:g} (Fr = inf is the pitchfork scene)")
     if not 0 < out["H_min"] < out["H_max"]:
         raise SceneError(f"need 0 < H_min < H_max, got H_min={out['H_min']:g}, H_max={out['H_max']:g}")
+    if not (out["modes"] >= 1 and out["modes"] == int(out["modes"])):
+        raise SceneError(f"modes must be a positive integer, got {out['modes']:g}")
     if out["walls"] not in ("noslip", "jj"):
         raise SceneError(f"walls must be 'noslip' or 'jj', got {out['walls']!r}")
     return out
 
 
 def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> Any:
-    return gravity_problem(discretization.get("method", "cheb"), int(discretization.get("intervals", 32)),
+    return gravity_problem(discretization.get("method", "cheb"), int(discretization.get("intervals", GRAVITY_GRID)),
                            str(parameters.get("walls", "noslip")))
 
 
 def run_gravity(request: SceneRequest) -> SceneResult:
     s = _settings(request)
     try:
-        pb = gravity_problem(request.method or "cheb", request.grid or 32, s["walls"])
+        pb = gravity_problem(request.method or "cheb", request.grid or GRAVITY_GRID, s["walls"])
         params = pb.params({"nu": s["nu"], "e": s["e"], "Fr": s["Fr"], "H": s["H_min"]})
     except ValueError as exc:
         raise SceneError(str(exc)) from None
     settings = GravitySettings(H_range=(s["H_min"], s["H_max"]), modes=int(s["modes"]))
     o = request.options_for(settings.h_options())
-    settings = GravitySettings(H_range=settings.H_range, ds=o.step.ds, ds_max=o.step.ds_max,
-                               max_steps=o.max_steps, modes=settings.modes)
+    settings = replace(settings, ds=o.step.ds, ds_max=o.step.ds_max, max_steps=o.max_steps)
     diagram = discover(pb, params, settings, progress=request.report)
     branches = diagram.branches
     relabel(branches)
@@ -68,7 +80,8 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     for b in branches:
         request.finished(b)
     notes = [f"G = Fr^-2 = {params['G']:.6g}"]
-    notes += [f"branch {b.id}: {b.kind}, found by {diagram.routes[b.id]}, {len(b.fold_points)} folds"
+    notes += [f"branch {b.id}: {b.kind}, traced from a {diagram.routes[b.id]} seed, found by "
+              f"{' + '.join(diagram.found_by[b.id])}, {len(b.fold_points)} folds"
               + (", closed" if b.closed else "") for b in branches]
     notes += [f"branch {a} found again as {k} (dropped)" for a, k in diagram.duplicates]
     return SceneResult(
@@ -79,7 +92,7 @@ def run_gravity(request: SceneRequest) -> SceneResult:
         profiles=pb.profiles,
         notes=notes,
         extra={"kinds": {b.id: b.kind for b in branches}, "routes": diagram.routes,
-               "duplicates": diagram.duplicates, "seeds": diagram.seeds},
+               "found_by": diagram.found_by, "duplicates": diagram.duplicates, "seeds": diagram.seeds},
     )
 
 
