@@ -458,6 +458,113 @@ def test_jj_walls_scene_has_nonuniform_base_and_a_symmetry_breaking_bp():
     assert len(res.branches) == 3
 
 
+# jj-walls at the scene defaults (nu = 0.3, e = 0.8, phi_w = 0.5, ew = 0.9, H_max = 3.3 H_1^c(no-slip)
+# = 43.126): one symmetry-breaking BP on the base branch, no symmetric BP (JJ walls unfold the no-slip
+# mode-2 pitchfork), the n = 1 branch (two signs) and the isolated symmetric branch s1 with a fold.
+JJ_BP = 18.15134523
+JJ_FOLD = (33.14946041, 0.27560880)
+
+
+@functools.lru_cache(maxsize=None)
+def jj_run(N, stability=False, **overrides):
+    res = get_scene("jj-walls").run(SceneRequest(params={"nu": 0.3, "e": 0.8}, grid=N, stability=stability,
+                                                 overrides=overrides))
+    return res, {b.id: b for b in res.branches}
+
+
+def test_jj_walls_branch_points_and_fold_converge_between_grids():
+    (_, a), (_, b) = jj_run(48), jj_run(64)
+    assert set(a) == set(b) == {"0", "n1.1", "n1.2", "s1"}
+    for br in (a, b):
+        (bp,) = br["0"].branch_points  # the former 'symmetric BP near 33.48' was a jump between branches
+        assert bp.note == "symmetry-breaking" and bp.converged
+        assert bp.params["H"] == pytest.approx(JJ_BP, abs=1e-7)
+        (lp,) = br["s1"].fold_points
+        assert lp.params["H"] == pytest.approx(JJ_FOLD[0], abs=1e-7) and lp.order_parameter == pytest.approx(JJ_FOLD[1], abs=1e-7)
+        assert not br["s1"].branch_points and not br["n1.1"].branch_points  # n1: the grid artefact is a UZ
+    assert a["0"].branch_points[0].params["H"] == pytest.approx(b["0"].branch_points[0].params["H"], rel=1e-9)
+    assert a["s1"].fold_points[0].params["H"] == pytest.approx(b["s1"].fold_points[0].params["H"], rel=1e-9)
+    for k in ("0", "s1"):  # every branch ends at H_max with the same Phi on both grids
+        assert a[k].observables["phi"][-1] == pytest.approx(b[k].observables["phi"][-1], abs=1e-7)
+    ends = sorted(b_.observables["phi"][-1] for b_ in (a["n1.1"], a["n1.2"]))
+    ends_b = sorted(b_.observables["phi"][-1] for b_ in (b["n1.1"], b["n1.2"]))
+    assert ends == pytest.approx(ends_b, abs=1e-5) and ends_b == pytest.approx([0.18682020, 0.63952603], abs=1e-6)
+
+
+def test_jj_walls_new_branches_leave_the_base_branch():
+    res, br = jj_run(64)
+    pb = CouetteProblem("cheb", 64, walls="jj")
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    base = br["0"]
+    for k in ("n1.1", "n1.2"):
+        dep = pf.departure(pb, br[k], base, p)[1:]  # point 0 is the BP itself (Newton there is singular)
+        assert dep[0] < 0.01 and np.all(np.diff(dep[:12]) > 0) and dep.max() > 0.2  # grows away from the base
+        assert pf.first_point_on(pb, base, br[k], p, start=1) is None
+        assert res.extra["departure"][k]["max"] == pytest.approx(dep.max(), rel=1e-9) and res.extra["departure"][k]["max"] > 0.2
+    dep = pf.departure(pb, br["s1"], base, p)
+    assert dep.min() > 0.1  # s1 is nowhere near the base branch (it is not connected to it)
+    # The base branch is symmetric and monotone in H: from near-uniform to the dense-wall state.
+    assert np.all(np.diff(base.observables["phi"]) > 0) and base.observables["phi"][-1] == pytest.approx(0.50780424, abs=1e-7)
+    assert any("no symmetric BP on the JJ base branch" in n for n in res.notes)
+    assert any(n.startswith("branch n1.1 (") and "|Phi - Phi_base| grows to" in n for n in res.notes)
+
+
+def test_jj_walls_retrace_removes_the_spurious_symmetric_bp(monkeypatch):
+    """The old step control (ds_max = 0.2 H_max = 8.6) jumps from the steep part of the base branch
+    onto s1 and reports a 'symmetric' BP whose location does not converge; the retrace removes it."""
+    res, br = jj_run(48, ds_max=8.6)
+    assert [b.note for b in br["0"].branch_points] == ["symmetry-breaking"]
+    assert br["0"].branch_points[0].params["H"] == pytest.approx(JJ_BP, abs=1e-7)
+    assert any(n.startswith("base branch re-traced with ds_max") for n in res.notes)
+    monkeypatch.setattr(pf, "BASE_RETRACES", 0)
+    pb = CouetteProblem("cheb", 48, walls="jj")
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    jumped = pf.trace_base(pb, p, 43.126 / 20, opts(43.126 / 20, 43.126, ds=2.2, ds_max=8.6))
+    assert any(b.note.startswith("symmetric") and not b.converged for b in jumped.branch_points)
+
+
+def test_jj_walls_energy_and_momentum_balances_converge():
+    """On every stored jj state the integrated balances hold to the discretization error, which falls
+    with N (heat does leave through JJ walls: |flux| >= 1e-4 of the shear stress, not 0 = 0)."""
+    worst = {}
+    for N in (48, 64):
+        _, br = jj_run(N)
+        pb = CouetteProblem("cheb", N, walls="jj")
+        p = pb.params({"nu": 0.3, "e": 0.8})
+        e = s = n = 0.0
+        for b in br.values():
+            for i in range(len(b)):
+                pi = {**p, "H": b.params["H"][i]}
+                x = b.state(i)
+                source, flux = pb.energy_balance(x, pi)
+                scale = abs(pb.observables(x, pi)["shear_stress"])
+                assert abs(flux) > 1e-4 * scale
+                mb = pb.momentum_balance(x, pi)
+                e, s, n = max(e, abs(source - flux) / scale), max(s, mb["shear_stress"]), max(n, mb["normal_stress"])
+        worst[N] = (e, s, n)
+    assert worst[64][0] < 1e-8 and worst[64][1] < 3e-6 and worst[64][2] < 1e-8
+    assert worst[64][0] < 0.05 * worst[48][0] and worst[64][1] < 0.05 * worst[48][1]
+
+
+def test_jj_walls_stability_agrees_with_the_audit():
+    """k_x = 0: base stable up to the BP, one unstable mode after it (the symmetric mode never
+    crosses: no second BP); n = 1 stable; s1 two unstable modes on the near-uniform sheet, one on
+    the dense-centre sheet, exchanging at its fold; no audit disagreement."""
+    res, br = jj_run(48, stability=True)
+    assert not [n for n in res.notes if n.startswith("stability audit")]
+    base = br["0"]
+    h = base.parameter_values
+    bp = JJ_BP
+    assert np.all(base.n_unstable[h < bp] == 0) and np.all(base.n_unstable[h > bp] == 1)
+    for k in ("n1.1", "n1.2"):
+        assert np.all(br[k].n_unstable[1:] == 0)
+    s1 = br["s1"]
+    (lp,) = s1.fold_points
+    phi = s1.observables["phi"]
+    upper = phi > lp.order_parameter
+    assert np.all(s1.n_unstable[upper] == 2) and np.all(s1.n_unstable[~upper] == 1)
+
+
 # ----------------------------------------------------------------------------- core fix
 def test_switch_onto_strongly_bent_pitchfork(monkeypatch):
     """The first step off a BP is halved until accepted (fix: 8 halvings were too few when the

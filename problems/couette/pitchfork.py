@@ -40,7 +40,7 @@ import dataclasses
 import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -50,7 +50,7 @@ import scipy.sparse as sp
 
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, switch, trace, trace_both
-from contin.options import ContinuationOptions, NewtonOptions, StepOptions
+from contin.options import ContinuationOptions, NewtonOptions
 from contin.stability import audit, count_unstable, eigenvalues
 from problems.couette.closures import coefficients, critical_gap_factor, packing_limit
 from problems.couette.model import CouetteProblem
@@ -258,7 +258,7 @@ def isolated_symmetric_branch(problem: CouetteProblem, base: Branch, params: Map
     no-slip mode-2 pitchfork that JJ walls disconnect); it is traced both ways in H.  None if
     Newton fails, the state is not S-invariant, or it lies on the base branch (the note says which).
     """
-    lo, hi = options.bounds["H"]
+    _, hi = options.bounds["H"]
     p = {**params, "H": hi}
     res = newton(problem, problem.initial_guess(p), p, options.newton)
     if not res.converged:
