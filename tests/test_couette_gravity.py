@@ -13,6 +13,7 @@ from problems.couette.gravity import (
     branch_point_normal_forms,
     deduplicate,
     discover,
+    extrema,
     fold_curves,
     fold_seeds,
     gravity_free_branches,
@@ -20,6 +21,7 @@ from problems.couette.gravity import (
     homotopy_in_G,
     lies_on,
     on_branch,
+    pitchfork_fold_curves,
     trace_in_H,
     unfolding_branches,
 )
@@ -160,8 +162,9 @@ def test_scene_rejects_bad_input():
 def test_isola_closed_even_folds_found_by_both_routes(pb):
     """Fr = 400 (nu = 0.3, e = 0.8): the floating-plug states form an isola (closed, two
     folds, H in about [14.4, 33.6]); seeded again from the fold curve through its folds it
-    is found again and not duplicated.  (At Fr = 1000 our floating-plug branch is
-    fold-bounded, its upper fold at H = 59 lies outside H <= 50, so there is no isola there.)"""
+    is found again and not duplicated.  (At Fr = 1000 the floating-plug component of the
+    first pitchfork reaches the packing limit, Phi > 0.649, before its right fold at H ~ 59:
+    not resolved; the isola there is the third pitchfork's, tested below.)"""
     p = pb.params({"nu": 0.3, "e": 0.8, "Fr": 400.0})
     st = GravitySettings(H_range=(1.0, 50.0))
     d = discover(pb, p, st, routes=("homotopy",))
@@ -184,3 +187,103 @@ def test_isola_closed_even_folds_found_by_both_routes(pb):
     Hs = sorted(q["H"] for _, _, q in seeds)
     for lp, h in zip(sorted(iso.fold_points, key=lambda s: s.params["H"]), Hs):
         assert h == pytest.approx(lp.params["H"], abs=1e-6 * lp.params["H"])
+
+
+# ----------------------------------------------------------------------------- Fr = 1000 isola
+# The isola of the third pitchfork (H_3^c = 39.206) at Fr = 1000, nu = 0.3, e = 0.8: closed,
+# folds at H = 41.90019 (Phi = 0.3885) and 63.47750 (Phi = 0.5804) on cheb 48; cheb 64 gives
+# 41.90019 and 63.47749.  Its fold curve has its largest G at Fr = 783.973, H = 47.7535 (cheb 48
+# and 64 agree to 1e-7): the isola dies there.  (cheb 32 cannot resolve it: the guard stops it.)
+FR1000_FOLDS = (41.90019, 63.47750)
+FR_ISOLA_DEATH = 783.973
+
+
+@pytest.fixture(scope="module")
+def pb48():
+    return gravity_problem("cheb", 48)
+
+
+@pytest.fixture(scope="module")
+def g0_48(pb48):
+    p = pb48.params({"nu": 0.3, "e": 0.8})
+    return gravity_free_branches(pb48, p, GravitySettings(H_range=(1.0, 70.0), modes=3))
+
+
+def _isola_checks(d):
+    """Every isola of a diagram is closed, has an even (non-zero) number of folds and no
+    other branch of the diagram lies on it."""
+    isolas = d.of_kind("isola")
+    for iso in isolas:
+        assert iso.closed and iso.status == "EP" and "closed loop" in iso.message
+        assert len(iso.fold_points) > 0 and len(iso.fold_points) % 2 == 0
+        assert not any(lies_on(b, iso) for b in d.branches if b is not iso)
+    return isolas
+
+
+def test_isola_at_Fr_1000_found_by_both_routes(pb48, g0_48):
+    """Fr = 1000 (nu = 0.3, e = 0.8), the third pitchfork: the dense-top banded state continued
+    in G (route 1) lies on a closed isola with two folds at H = 41.900 and 63.478; the fold
+    curve of that pitchfork, started at Fr = 2000 near the BP (route 2), crosses G = 1e-6 at
+    both folds and its seeds trace the same isola; with both routes the isola is found once,
+    by both.  The fold curve's G-maximum (death of the isola) is at Fr = 783.97, H = 47.75."""
+    base, kids = g0_48
+    p = pb48.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0})
+    mode3 = [b for b in kids if b.id.startswith("g0.3.")]
+    assert len(mode3) == 2
+    st = GravitySettings(H_range=(1.0, 70.0), seed_H=(44.0,))
+    curves = pitchfork_fold_curves(pb48, p, base, mode3, H_range=(30.0, 70.0), max_steps=120)
+    assert [c.parent for c in curves] == ["BP at H=39.2056"]
+
+    by_homotopy = discover(pb48, p, st, g0_branches=mode3, routes=("homotopy",))
+    (iso,) = _isola_checks(by_homotopy)
+    folds = sorted(s.params["H"] for s in iso.fold_points)
+    assert folds == pytest.approx(FR1000_FOLDS, abs=2e-4)
+    assert np.mean(iso.observables["nu_top"] > iso.observables["nu_bottom"]) > 0.9  # dense top
+
+    by_fold_curve = discover(pb48, p, st, curves=curves, routes=("fold-curve",))
+    (again,) = _isola_checks(by_fold_curve)
+    assert by_fold_curve.routes[again.id] == "fold-curve"
+    assert lies_on(again, iso) and lies_on(iso, again)
+    seeds = sorted(q["H"] for _, _, q in fold_seeds(pb48, curves, p["G"], st.H_range))
+    assert seeds == pytest.approx(folds, abs=1e-6 * 64)  # fold points lie on the fold curve
+
+    both = discover(pb48, p, st, g0_branches=mode3, curves=curves)
+    (once,) = _isola_checks(both)
+    assert both.found_by[once.id] == ["homotopy", "fold-curve"]
+    assert lies_on(once, iso)
+
+    deaths = [r for r in extrema(curves, problem=pb48) if r["event"] == "death"]
+    assert len(deaths) == 1 and deaths[0]["resolved"]
+    assert deaths[0]["Fr"] == pytest.approx(FR_ISOLA_DEATH, rel=1e-5)
+    assert deaths[0]["H"] == pytest.approx(47.7535, abs=1e-3)
+    assert folds[0] < deaths[0]["H"] < folds[1]  # the isola shrinks onto that point
+
+
+@pytest.mark.slow
+def test_scene_fr1000_reports_every_isola_closed_and_found_twice():
+    """``contin trace gravity -s nu=0.3 -s e=0.8 -s Fr=1000 --json`` (cheb 48, H <= 70, both
+    routes): every isola is closed, has an even number of folds, is found by both routes and
+    appears once; the third-pitchfork isola (folds 41.900, 63.478) is among them."""
+    import json
+
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    r = CliRunner().invoke(main, ["trace", "gravity", "-s", "nu=0.3", "-s", "e=0.8", "-s", "Fr=1000", "--json",
+                                  "--no-stability", "-q"])
+    doc = json.loads(r.stdout)
+    assert doc["discretization"] == {"method": "cheb", "intervals": 48}
+    extra = doc["extra"]
+    isolas = [b for b in doc["branches"] if b["kind"] == "isola"]
+    assert len(isolas) >= 1
+    folds_of = {}
+    for sp in doc["special_points"]:
+        if sp["type"] == "LP":
+            folds_of.setdefault(sp["branch"], []).append(sp["params"]["H"])
+    for b in isolas:
+        assert b["closed"] and b["status"] == "EP"
+        assert len(folds_of[b["id"]]) % 2 == 0 and folds_of[b["id"]]
+        assert extra["found_by"][b["id"]] == ["homotopy", "fold-curve"]
+        assert all(k != b["id"] for _, k in extra["duplicates"]) or len(isolas) == 1
+    assert any(sorted(folds_of[b["id"]]) == pytest.approx(FR1000_FOLDS, abs=2e-4) for b in isolas)

@@ -354,6 +354,21 @@ def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
     return out
 
 
+def off_fold(problem: CouetteProblem, x: Array, p: Mapping[str, float], settings: GravitySettings,
+             steps: int = 4) -> tuple[Array, dict[str, float]]:
+    """A point a few continuation steps away from the fold (x, p) along its branch.
+
+    A branch traced from exactly a fold does not report that fold (its test function is zero
+    at the start, so no sign change is seen), and a closed isola would then show an odd
+    number of folds; starting next to the fold, the run passes it and locates it.
+    """
+    opts = replace(settings.h_options(), max_steps=steps)
+    b = trace(problem, x, dict(p), "H", opts, symmetric=False, branch_id="off-fold")
+    if len(b) < 2:
+        return x, dict(p)
+    return b.state(len(b) - 1), _params_at(b, len(b) - 1)
+
+
 def discover(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings = GravitySettings(), *,
              g0_branches: Sequence[Branch] | None = None, base: Branch | None = None,
              curves: Sequence[Branch] | None = None,
@@ -389,6 +404,8 @@ def discover(problem: CouetteProblem, params: Mapping[str, float], settings: Gra
         return next((b for b in traced if on_branch(problem, x, p, b)), None)
 
     def run(label: str, x: Array, p: Mapping[str, float], route: str) -> None:
+        if route == "fold-curve":
+            x, p = off_fold(problem, x, p, settings)
         twin = known(x, p)
         if twin is not None:
             notes.append(f"{label}: on known branch {twin.id}")
