@@ -292,20 +292,22 @@ def contin_fold_row(method: str = "cheb", n: int = 32) -> Row:
 
 def comparison_rows(base_gap: list[Row], base_nat: list[Row], contin_rows: list[Row],
                     targets: Sequence[float] = (1e-4, 1e-6, 1e-8, 1e-10)) -> list[Row]:
-    """Cheapest seconds per converged banded point reaching each H_1^c accuracy target.
+    """Cheapest CPU seconds per converged banded point reaching each H_1^c accuracy target.
 
     Baseline: the solve_bvp tol whose pinning estimate meets the target, timed on natural
     continuation at that tol.  contin: the (method, N) whose located BP meets it, timed on the
-    switched banded branch; a switch that fell back onto uniform shear (|phi_end - nubar| <=
-    0.1, phi = nu(1/2)) is not a banded branch and does not count.  Either mirror image of the
-    branch (phi_end above or below nubar) counts.
+    switched banded branch; a switch that fell back onto uniform shear (both wall densities at
+    the end within 0.1 of nubar; rows without them: |phi_end - nubar| <= 0.1, phi = nu(1/2)) is
+    not a banded branch and does not count.  Either mirror image of the branch counts.  Times
+    are CPU seconds where the rows have them (the wall-clock figures otherwise).
     """
     nat = {r["tol"]: r for r in base_nat if r["status"] == "reached"}
-    base = [(nat[g["tol"]]["cpu_per_point"], f"tol={g['tol']:.0e}", g["rel_error"], nat[g["tol"]]["cpu"])
-            for g in base_gap if g["tol"] in nat]
-    cont = [(r["banded_cpu_per_point"], f"{r['method']} N={r['N']}", r["rel_error"], r["banded_cpu"])
-            for r in contin_rows
-            if r["banded_points"] > 1 and max(abs(w - NUBAR) for w in r.get("banded_walls_end", [NUBAR])) > 0.1]
+    base = [(nat[g["tol"]].get("cpu_per_point", nat[g["tol"]]["s_per_point"]), f"tol={g['tol']:.0e}", g["rel_error"],
+             nat[g["tol"]].get("cpu", math.nan)) for g in base_gap if g["tol"] in nat]
+    cont = [(r.get("banded_cpu_per_point", r["banded_s_per_point"]), f"{r['method']} N={r['N']}", r["rel_error"],
+             r.get("banded_cpu", math.nan)) for r in contin_rows
+            if r["banded_points"] > 1
+            and max(abs(w - NUBAR) for w in r.get("banded_walls_end", [r["banded_phi_end"]])) > 0.1]
     rows = []
     for target in targets:
         b = min((c for c in base if c[2] <= target), default=None)
