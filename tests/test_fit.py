@@ -13,7 +13,7 @@ def _branch(b1, lam_c, alpha1, beta1, mu, delta, cubic_extra=0.0):
 
 
 def test_fit_recovers_exact_unfolding():
-    truth = dict(b1=0.8, lam_c=13.07, alpha1=-2.5, beta1=4.0)
+    truth = {"b1": 0.8, "lam_c": 13.07, "alpha1": -2.5, "beta1": 4.0}
     lams, deltas, mus = [], [], []
     for mu in (0.0, 1e-5, -1e-5, 2e-5):
         for sign in (1, -1):

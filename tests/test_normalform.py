@@ -1,10 +1,17 @@
 """Lyapunov-Schmidt normal forms against problems with known coefficients."""
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from contin.normalform import hysteresis_alpha, null_vectors, pitchfork_normal_form, pitchfork_unfolding
+from contin.normalform import (
+    hysteresis_alpha,
+    null_vectors,
+    pitchfork_normal_form,
+    pitchfork_unfolding,
+)
 from problems.discretization import make_grid
 
 
@@ -98,7 +105,7 @@ class UnfoldedPitchfork:
     with a decoupled linear component."""
 
     parameter_names = ("lam", "mu")
-    coef = dict(b1=0.8, a1=2.0, be=-3.0, c=0.7, q5=0.5, q3=-0.4, q1=0.3)
+    coef: ClassVar[dict[str, float]] = {"b1": 0.8, "a1": 2.0, "be": -3.0, "c": 0.7, "q5": 0.5, "q3": -0.4, "q1": 0.3}
 
     def __init__(self, m=0.0, n=0.0):
         self.m, self.n = m, n
