@@ -10,13 +10,24 @@ quadrature weights of matching order and an interpolator onto other points.
   finite difference formulas on arbitrarily spaced grids", Math. Comp. 51 (1988) 699),
   centred stencils in the interior and one-sided stencils of the same order near the walls;
   banded sparse matrices.  Quadrature: cell-wise integrals of local interpolants of the
-  same order.
+  same order.  Weights are computed exactly in rational arithmetic and rounded once, and
+  each derivative row sums to zero up to one rounding of its diagonal: floating-point
+  Fornberg weights on rounded nodes carried ~30 eps N^2 of noise in the D2 row sums, which
+  set a rounding floor (~3e-10 in H_1^c for fd6) above the truncation error on fine grids.
+
+Truncation orders (measured in tests/test_discretization.py): interior rows O(h^p), the
+one-sided wall rows O(h^p) with a larger constant, quadrature O(h^p); a Neumann model BVP
+converges globally at O(h^p).  The one-sided closures make the global error expansion
+contain every power h^p, h^(p+1), ... (not only even ones), which matters for quantities
+whose h^p boundary term vanishes (see tests/test_couette_scenes.py, H_1^c orders).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from functools import lru_cache
+from fractions import Fraction
+from functools import cache, lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -28,80 +39,134 @@ METHODS = ("cheb", "fd2", "fd4", "fd6")
 MIN_INTERVALS = {"cheb": 4, "fd2": 4, "fd4": 8, "fd6": 12}
 
 
-def fornberg_weights(z: float, x: NDArray[np.float64], m: int) -> NDArray[np.float64]:
-    """Finite-difference weights at z for derivatives 0..m on nodes x (Fornberg 1988).
-
-    Returns an array c of shape (len(x), m + 1) with f^(k)(z) ~ sum_j c[j, k] f(x_j).
-    """
+def _fornberg(z, x, m: int) -> list[list]:
+    """Fornberg's recursion on any field (float or Fraction): c[j][k] for derivative k at z."""
     n = len(x)
-    c = np.zeros((n, m + 1))
-    c1 = 1.0
+    zero = z - z
+    c = [[zero] * (m + 1) for _ in range(n)]
+    c1 = zero + 1
     c4 = x[0] - z
-    c[0, 0] = 1.0
+    c[0][0] = zero + 1
     for i in range(1, n):
         mn = min(i, m)
-        c2 = 1.0
+        c2 = zero + 1
         c5 = c4
         c4 = x[i] - z
         for j in range(i):
             c3 = x[i] - x[j]
-            c2 *= c3
+            c2 = c2 * c3
             if j == i - 1:
                 for k in range(mn, 0, -1):
-                    c[i, k] = c1 * (k * c[i - 1, k - 1] - c5 * c[i - 1, k]) / c2
-                c[i, 0] = -c1 * c5 * c[i - 1, 0] / c2
+                    c[i][k] = c1 * (k * c[i - 1][k - 1] - c5 * c[i - 1][k]) / c2
+                c[i][0] = -c1 * c5 * c[i - 1][0] / c2
             for k in range(mn, 0, -1):
-                c[j, k] = (c4 * c[j, k] - k * c[j, k - 1]) / c3
-            c[j, 0] = c4 * c[j, 0] / c3
+                c[j][k] = (c4 * c[j][k] - k * c[j][k - 1]) / c3
+            c[j][0] = c4 * c[j][0] / c3
         c1 = c2
     return c
 
 
-def _fd_matrix(y: NDArray[np.float64], deriv: int, order: int) -> sp.csr_matrix:
-    """Banded matrix of the ``deriv``-th derivative, accurate to O(h^order).
+def fornberg_weights(z: float, x: NDArray[np.float64], m: int) -> NDArray[np.float64]:
+    """Finite-difference weights at z for derivatives 0..m on nodes x (Fornberg 1988).
+
+    Returns an array c of shape (len(x), m + 1) with f^(k)(z) ~ sum_j c[j, k] f(x_j).
+    Floating point; the uniform-grid matrices use :func:`uniform_stencil` (exact) instead.
+    """
+    return np.array(_fornberg(float(z), [float(v) for v in x], m), dtype=float).reshape(len(x), m + 1)
+
+
+@cache
+def uniform_stencil(offsets: tuple[int, ...], deriv: int) -> tuple[Fraction, ...]:
+    """Exact weights of the ``deriv``-th derivative at 0 on the integer nodes ``offsets`` (h = 1).
+
+    Fornberg's recursion in rational arithmetic: the weights on a uniform grid of spacing h are
+    these numbers times h^-deriv, so the matrices get correctly rounded entries instead of the
+    O(N^deriv * eps * stencil width) noise of the floating-point recursion on rounded nodes.
+    """
+    c = _fornberg(Fraction(0), [Fraction(o) for o in offsets], deriv)
+    return tuple(row[deriv] for row in c)
+
+
+@cache
+def uniform_cell_weights(offsets: tuple[int, ...]) -> tuple[Fraction, ...]:
+    """Exact integrals over [0, 1] of the Lagrange basis polynomials on the integer nodes ``offsets``."""
+    out = []
+    for j, oj in enumerate(offsets):
+        poly = [Fraction(1)]  # coefficients of prod_(k != j) (s - o_k) / (o_j - o_k), ascending powers
+        for k, ok in enumerate(offsets):
+            if k == j:
+                continue
+            scale = Fraction(1, oj - ok)
+            nxt = [Fraction(0)] * (len(poly) + 1)
+            for n, a in enumerate(poly):
+                nxt[n + 1] += a * scale
+                nxt[n] -= a * ok * scale
+            poly = nxt
+        out.append(sum(a / (n + 1) for n, a in enumerate(poly)))
+    return tuple(out)
+
+
+def _fd_stencil(i: int, n: int, deriv: int, order: int) -> NDArray[np.int64]:
+    """Node indices of row i: the centred order + 1 points, or at a wall the first/last
+    order + deriv points (the fewest that keep the order, see :func:`_fd_matrix`)."""
+    half = order // 2
+    if half <= i <= n - 1 - half:
+        return np.arange(i - half, i + half + 1)
+    edge = order + deriv
+    return np.arange(0, edge) if i < half else np.arange(n - edge, n)
+
+
+def _fd_matrix(n: int, deriv: int, order: int) -> sp.csr_matrix:
+    """Banded matrix of the ``deriv``-th derivative on the uniform grid of n nodes, O(h^order).
 
     Interior rows use the centred (order + 1)-point stencil; rows too close to a wall use a
     one-sided stencil of order + deriv points (the fewest that keep the order), mirrored at
-    the two walls so that the matrix commutes with the reflection y -> -y.
+    the two walls.  The weights are exact rationals times (n - 1)^deriv, correctly rounded
+    (:func:`uniform_stencil`), hence exactly odd (deriv = 1) or even (deriv = 2) under
+    y -> -y; the diagonal is then set to minus the exactly summed off-diagonal entries, so
+    each row sum (the image of a constant, 0 in exact arithmetic) is one rounding of the
+    diagonal, ~eps |D_ii|, instead of ~eps * stencil width * max |D_ij|.
     """
-    n = len(y)
-    half = order // 2
-    edge = order + deriv
+    scale = Fraction(n - 1) ** deriv
     rows, cols, vals = [], [], []
     for i in range(n):
-        if half <= i <= n - 1 - half:
-            idx = np.arange(i - half, i + half + 1)
-        elif i < half:
-            idx = np.arange(0, edge)
-        else:
-            idx = np.arange(n - edge, n)
-        w = fornberg_weights(y[i], y[idx], deriv)[:, deriv]
+        idx = _fd_stencil(i, n, deriv, order)
+        w = [float(c * scale) for c in uniform_stencil(tuple(int(j) - i for j in idx), deriv)]
+        diag = int(np.flatnonzero(idx == i)[0])
+        w[diag] = -math.fsum(v for k, v in enumerate(w) if k != diag)
         rows.extend([i] * len(idx))
         cols.extend(idx)
         vals.extend(w)
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
 
 
-def interpolatory_weights(y: NDArray[np.float64], order: int) -> NDArray[np.float64]:
-    """Quadrature weights from integrating local Lagrange interpolants cell by cell.
-
-    Each cell [y_i, y_i+1] integrates the polynomial through the ``order`` nodes centred on
-    the cell (shifted inside the domain near the walls), with Gauss-Legendre points that are
-    exact for it.  The rule is O(h^order), symmetric under y -> -y, and reduces to the
-    trapezoid rule for order 2.
-    """
-    n = len(y)
+def _fd_cells(n: int, order: int) -> list[tuple[NDArray[np.int64], list[Fraction]]]:
+    """Per cell [y_i, y_i+1]: the nodes of its local interpolant and their exact weights."""
     width = max(order, 2)
-    gx, gw = np.polynomial.legendre.leggauss(width // 2 + 1)
-    w = np.zeros(n)
+    h = Fraction(1, n - 1)
+    out = []
     for i in range(n - 1):
         start = min(max(i - width // 2 + 1, 0), n - width)
         idx = np.arange(start, start + width)
-        a, b = y[i], y[i + 1]
-        for xg, wg in zip(gx, gw):
-            z = 0.5 * (a + b) + 0.5 * (b - a) * xg
-            w[idx] += 0.5 * (b - a) * wg * fornberg_weights(z, y[idx], 0)[:, 0]
-    return 0.5 * (w + w[::-1])
+        out.append((idx, [h * c for c in uniform_cell_weights(tuple(int(j) - i for j in idx))]))
+    return out
+
+
+def interpolatory_weights(y: NDArray[np.float64], order: int) -> NDArray[np.float64]:
+    """Quadrature weights from integrating local Lagrange interpolants cell by cell.
+
+    Each cell [y_i, y_i+1] of the uniform grid integrates the polynomial through the
+    ``order`` nodes centred on the cell (shifted inside the domain near the walls), exactly
+    in rational arithmetic (:func:`uniform_cell_weights`).  The rule is O(h^order), exactly
+    symmetric under y -> -y, sums to 1 up to one rounding per weight, and reduces to the
+    trapezoid rule for order 2.
+    """
+    n = len(y)
+    w = [Fraction(0)] * n
+    for idx, cw in _fd_cells(n, order):
+        for j, c in zip(idx, cw):
+            w[j] += c
+    return np.array([float(c) for c in w])
 
 
 def chebyshev(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -224,14 +289,10 @@ def make_grid(method: str, intervals: int) -> Grid:
         d2 = sp.csr_matrix(0.5 * (dd + dd[::-1, ::-1]))
         return Grid(method, intervals, y, d1, d2, w, float("inf"))
     order = int(method[2:])
-    y = np.linspace(-0.5, 0.5, intervals + 1)
-    y = 0.5 * (y - y[::-1])  # exactly antisymmetric nodes
-    d1 = _fd_matrix(y, 1, order)
-    d2 = _fd_matrix(y, 2, order)
-    # Impose the exact parity under y -> -y that rounding in the weights breaks.
-    flip = sp.csr_matrix(np.eye(intervals + 1)[::-1])
-    d1 = sp.csr_matrix(0.5 * (d1 - flip @ d1 @ flip))
-    d2 = sp.csr_matrix(0.5 * (d2 + flip @ d2 @ flip))
+    # y_j = (2j - N) / (2N), correctly rounded and exactly antisymmetric.
+    y = np.arange(-intervals, intervals + 1, 2, dtype=float) / (2 * intervals)
+    d1 = _fd_matrix(intervals + 1, 1, order)
+    d2 = _fd_matrix(intervals + 1, 2, order)
     w = interpolatory_weights(y, order)
     return Grid(method, intervals, y, d1, d2, w, float(order))
 
@@ -242,8 +303,8 @@ def cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
 
     ``cheb``: the global Chebyshev interpolant integrated exactly (coefficients from the
     Chebyshev-Vandermonde matrix at the Gauss-Lobatto nodes, antiderivative by
-    ``numpy.polynomial.chebyshev.chebint``).  ``fd*``: the same local Lagrange interpolants
-    and Gauss-Legendre rule as :func:`interpolatory_weights` (banded).
+    ``numpy.polynomial.chebyshev.chebint``).  ``fd*``: the same local Lagrange interpolants,
+    integrated exactly, as :func:`interpolatory_weights` (banded).
 
     The rows are symmetrized under y -> -y and corrected by rounding-level amounts so that
     ``C.sum(axis=0) == grid.weights`` (cell integrals add up to the grid's quadrature), hence
@@ -259,17 +320,9 @@ def cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
         cumulative = 0.5 * np.linalg.solve(vander.T, anti.T).T  # anti @ inv(vander), dy = dx / 2
         cells = cumulative[1:] - cumulative[:-1]
     else:
-        order = int(grid.order)
-        width = max(order, 2)
-        gx, gw = np.polynomial.legendre.leggauss(width // 2 + 1)
         cells = np.zeros((n - 1, n))
-        for i in range(n - 1):
-            start = min(max(i - width // 2 + 1, 0), n - width)
-            idx = np.arange(start, start + width)
-            a, b = y[i], y[i + 1]
-            for xg, wg in zip(gx, gw):
-                z = 0.5 * (a + b) + 0.5 * (b - a) * xg
-                cells[i, idx] += 0.5 * (b - a) * wg * fornberg_weights(z, y[idx], 0)[:, 0]
+        for i, (idx, cw) in enumerate(_fd_cells(n, int(grid.order))):
+            cells[i, idx] = [float(c) for c in cw]
     cells = 0.5 * (cells + cells[::-1, ::-1])
     # Give each node's rounding discrepancy to the (one or two) cells it bounds: keeps the
     # band and the reflection symmetry.
