@@ -16,6 +16,9 @@ for spec in 0.5:40 0.16:100 0.15:100; do
     contin trace pitchfork -s "nu=$nu" -s e=0.8 -s "H_max=$hmax" -q -o "results/pitchfork_nu$nu.h5"
     contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"
 done
+# jj-walls (issue 3; ~10 s): Johnson-Jackson walls at the scene defaults
+contin trace jj-walls -s nu=0.3 -s e=0.8 -q -o results/jj_walls.h5
+contin diagram results/jj_walls.h5 -o results/jj_walls.png
 # accuracy: key points of gPCF against method and grid (~2 min)
 CONTIN_SCENES=problems.couette.keypoints:SCENES contin accuracy gpcf-keypoints \
     --grids 16,24,32,48,64,96,128,256 -q -o results/accuracy

@@ -506,6 +506,8 @@ def test_jj_walls_new_branches_leave_the_base_branch():
     # The base branch is symmetric and monotone in H: from near-uniform to the dense-wall state.
     assert np.all(np.diff(base.observables["phi"]) > 0) and base.observables["phi"][-1] == pytest.approx(0.50780424, abs=1e-7)
     assert any("no symmetric BP on the JJ base branch" in n for n in res.notes)
+    assert any(n.startswith("BP on the JJ base branch at H = 18.151345") and n.endswith("switched: branches n1.1, n1.2")
+               for n in res.notes)
     assert any(n.startswith("branch n1.1 (") and "|Phi - Phi_base| grows to" in n for n in res.notes)
 
 

@@ -5,7 +5,11 @@ Reusable pieces of the ``pitchfork`` and ``jj-walls`` scenes (``problems.couette
 - :func:`analytic_critical_gaps` -- H_n^c = n pi psi(nu, e) of uniform shear (no-slip walls);
 - :func:`threshold_density` -- the density below which psi is not finite (uniform shear has no BP,
   "bifurcation from infinity"), root of the bracket of psi^2;
-- :func:`trace_base` -- uniform shear (no-slip) or the symmetric JJ base branch, traced in H;
+- :func:`trace_base` -- uniform shear (no-slip) or the symmetric JJ base branch, traced in H,
+  re-traced with smaller steps when a step jumped between branches (:func:`retrace_on_jumps`);
+- :func:`isolated_symmetric_branch` -- a symmetric branch not connected to the JJ base branch;
+- :func:`departure`, :func:`first_point_on` -- |Phi - Phi_base(H)| along a branch, and whether a
+  branch comes back onto the base branch;
 - :func:`banded_branches` -- switching at a BP onto both signs of the banded branch (the second
   sign as the mirror image S x of the first when the first is not S-invariant);
 - :func:`mirror_branch` -- the image of a branch under the reflection symmetry;
@@ -26,6 +30,22 @@ of intervals (at most 80) after interpolating the base profiles; Chebyshev state
 are.  At k_x = k_z = 0 the spanwise velocity w decouples (its equation is nu0 sigma w =
 (1/H^2) (mu0 w')', Dirichlet, negative definite), so its block is dropped: same unstable count,
 about half the QZ cost.
+
+Johnson-Jackson walls (nu = 0.3, e = 0.8, phi_w = 0.5, ew = 0.9, H <= 43.13; cheb 48/64/96 agree).
+Uniform shear is not a solution; the symmetric base branch starts near-uniform (Phi = 0.3007 at
+H = 2.16) and has one BP, symmetry-breaking, at H = 18.15134523 (the JJ counterpart of H_1^c =
+13.07; supercritical, k_x = 0: one unstable mode after it).  There is no symmetric BP: with no-slip,
+zero-flux walls the mode-2 pitchfork is kept by the hidden symmetry of the mode-n scaling property
+(physics.md section 3), which JJ walls break, so it unfolds.  The base branch turns smoothly, but
+steeply near H ~ 29.5 (dPhi/dH ~ 0.019), into the dense-wall state (Phi = 0.5078 at H = 43.13), and
+the other halves form an isolated symmetric branch: a near-uniform sheet (Phi ~ 0.30, two unstable
+modes) and a dense-centre sheet (Phi -> 0.21, one unstable mode) joined at a fold at H = 33.14946,
+Phi = 0.27561.  The earlier 'symmetric BP near H = 33.48' was a base-branch step that jumped onto
+that isolated branch (the orientation of the tangent flips, so the BP test function changed sign
+and the location could not converge); n2.1 then "fell back" onto the base branch because there
+was no second branch there.  The n = 1 branch drives a dense plug against one wall (Phi -> 0.6395
+or 0.1868 at H = 43.13, max nu = 0.644); at cheb 32 it is under-resolved above H ~ 35 and a
+log N-moving wall-wiggle BP appears (H = 34.6, 38.8, 41.5 for N = 32, 48, 64; demoted to UZ).
 
 The secondary BP on banded branches.  Close to random close packing (Phi -> nu_m) the discrete
 banded branch crosses a spurious discrete branch whose profiles carry a grid-scale wiggle at the

@@ -10,7 +10,16 @@
   default 60) from nu = 0.2 and traced in H both ways; a note says so.
 ``jj-walls``: the same with Johnson-Jackson walls (``phi_w``, ``ew``): uniform shear is not a
   solution; the symmetric base branch is traced in H from ``CouetteProblem.initial_guess`` (Newton
-  first) and every BP on it (up to ``modes``) is switched at.
+  first) with ds_max = 0.025 H_max (longer steps jump between the base branch and the isolated
+  branch next to it; a trace that still jumps is repeated with ds_max halved), and every BP on it
+  (up to ``modes``) is switched at; a switched branch that comes back onto the base branch is
+  re-traced with smaller steps.  A symmetric branch not connected to the base branch (the slip
+  guess at H_max converging off the base branch: JJ walls unfold the no-slip mode-2 pitchfork) is
+  traced both ways as branch 's1'.  The notes say, per branch, its H range, Phi at both ends,
+  folds, BPs, max |Phi - Phi_base(H)| and the k_x = 0 unstable counts (also ``extra['departure']``,
+  ``extra['isolated']``).  Defaults (nu = 0.3, e = 0.8, phi_w = 0.5, ew = 0.9, cheb 64, H <= 43.13):
+  one BP (symmetry-breaking, H = 18.15134523), the n = 1 branch both signs, s1 with a fold at
+  H = 33.14946 (problems.couette.pitchfork docstring).
 
 Both: the k_x = 0 stability pass on every branch (FD states on a Chebyshev grid, see
 ``problems.couette.pitchfork``), the audit (disagreements in the notes and ``branch.audit``),
@@ -20,7 +29,7 @@ omega at k_z = 0 per point).  ``extra`` also holds ``H_c`` (detected, analytic, 
 ``criticality`` per banded branch and ``folds``.
 
 Branch ids are deterministic (``--resume`` reuses finished branches): '0' base, 'n<k>.1' / 'n<k>.2'
-the two signs of the branch from the k-th BP.
+the two signs of the branch from the k-th BP, 's1' the isolated symmetric JJ branch.
 """
 
 from __future__ import annotations
@@ -286,7 +295,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     elif st["walls"] == "noslip" and len(bps) < min(modes, sum(h <= H_max for h in analytic)):
         run.notes.append(f"only {len(bps)} BPs found on uniform shear below H_max = {H_max:.6g}")
     if jj:
-        _jj_walls(run, base, bps, banded, base_opts, extra, H_lo, H_max)
+        _jj_walls(run, base, bps, banded, base_opts, extra, H_lo, H_max, modes)
 
     extra["criticality"] = crit
     extra["folds"] = pf.fold_table(run.done)
@@ -337,23 +346,27 @@ def _describe(branch: Branch, dep: np.ndarray | None = None) -> str:
 
 
 def _jj_walls(run: _Run, base: Branch, bps: list, banded: list[Branch], options: ContinuationOptions,
-              extra: dict[str, Any], H_lo: float, H_max: float) -> None:
+              extra: dict[str, Any], H_lo: float, H_max: float, modes: int) -> None:
     """JJ walls: the isolated symmetric branch (traced with the base branch's ``options``), departures
     from the base branch, and the notes."""
     pb, p, request = run.problem, run.params, run.request
     if not bps:
         run.notes.append(f"the JJ base branch has no BP for H in [{H_lo:.4g}, {H_max:.4g}]")
-    for b in bps:
-        if b.note.startswith("symmetric"):
-            run.notes.append(f"symmetric BP on the JJ base branch at H = {b.params['H']:.10g}")
+    for k, b in enumerate(bps, start=1):
+        ids = [nb.id for nb in banded if nb.parent == f"{b.name}@{base.id}"]
+        done = (f"switched: branches {', '.join(ids)}" if ids else
+                f"not switched (modes = {modes})" if k > modes else "switching failed (see the notes)")
+        run.notes.append(f"BP on the JJ base branch at H = {b.params['H']:.10g}, Phi = {b.order_parameter:.8g} "
+                         f"({b.note or 'BP'}): {done}")
     if not any(b.note.startswith("symmetric") for b in bps):
         phi, H = base.observables["phi"], base.parameter_values
         slope = np.abs(np.diff(phi) / np.diff(H))
         k = int(np.argmax(slope))
+        state = "dense walls" if phi[-1] > p["nu"] else "dense centre"
         run.notes.append(
-            f"no symmetric BP on the JJ base branch: JJ walls unfold the no-slip mode-2 pitchfork (no hidden symmetry "
-            f"keeps it); the base branch steepens near H = {0.5 * (H[k] + H[k + 1]):.4g} (dPhi/dH = {slope[k]:.3g}) "
-            f"into the dense-wall state (Phi = {phi[-1]:.6g} at H = {H[-1]:.6g})")
+            f"no symmetric BP on the JJ base branch: JJ walls break the hidden symmetry that keeps the no-slip mode-2 "
+            f"pitchfork, so it unfolds; the base branch is steepest near H = {0.5 * (H[k] + H[k + 1]):.4g} "
+            f"(|dPhi/dH| = {slope[k]:.3g}) and ends with {state} (Phi = {phi[-1]:.6g} at H = {H[-1]:.6g})")
     cached = run.cached("s1")
     if cached:
         iso, note = cached[0], "isolated symmetric branch s1 (resumed)"
