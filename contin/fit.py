@@ -134,9 +134,11 @@ class GraphFit:
         column-scaled design matrix, so a near-degenerate design is visible)
     unfolding : the canonical unfolding (contin.normalform.Unfolding) from the weight-2 and
         weight-4 coefficients, with ``cov`` propagated
-    systematic : per canonical coefficient, |value(order) - value(order - 1)|: the change when
-        the highest weight is dropped, a (conservative) estimate of the truncation error that
-        the residual-based covariance does not contain (the residuals are truncation, not noise)
+    systematic : per canonical coefficient, the larger of |value(order) - value(order -+ 1)|:
+        the change when the highest weight is dropped or the next one added, an estimate of the
+        truncation error that the residual-based covariance does not contain (the residuals are
+        truncation, not noise).  One neighbour alone is not enough: the sequence in the order
+        is not monotone, and two neighbouring orders can agree by accident.
     """
 
     coefficients: dict[tuple[int, int], float]
@@ -254,8 +256,12 @@ def fit_graph(
         return c, cov, res, cond, unf
 
     c, cov, res, cond, unf = canonical(order)
-    _, _, _, _, lower = canonical(order - 1)
-    systematic = {k: abs(getattr(unf, k) - getattr(lower, k)) for k in unf.NAMES}
+    neighbours = [canonical(order - 1)[4]]
+    try:
+        neighbours.append(canonical(order + 1)[4])
+    except ValueError:  # too few points or a singular design one order up: the lower one only
+        pass
+    systematic = {k: max(abs(getattr(unf, k) - getattr(o, k)) for o in neighbours) for k in unf.NAMES}
     return GraphFit(coefficients={k: float(v) for k, v in c.items()}, cov=cov, order=order,
                     critical_value=float(critical_value), n_points=int(L.size),
                     rms_residual=float(np.sqrt(np.mean(res**2))), condition=cond, unfolding=unf,
