@@ -558,6 +558,10 @@ def test_jj_walls_stability_agrees_with_the_audit():
     h = base.parameter_values
     bp = JJ_BP
     assert np.all(base.n_unstable[h < bp] == 0) and np.all(base.n_unstable[h > bp] == 1)
+    # the unfolded mode-2 pitchfork: the second eigenvalue comes close to 0 near H = 29 and recedes
+    second = base.eigenvalues[:, 1].real
+    k = int(np.argmax(np.where(h > bp, second, -np.inf)))
+    assert -6e-4 < second[k] < -2e-4 and 27.0 < h[k] < 31.0 and second[-1] < 3 * second[k]
     for k in ("n1.1", "n1.2"):
         assert np.all(br[k].n_unstable[1:] == 0)
     s1 = br["s1"]
