@@ -1,0 +1,159 @@
+"""Finite-difference grids of problems/discretization.py: exact weights, exact row sums and parity,
+truncation orders of D1, D2 and the quadrature on smooth functions (interior and wall rows
+separately), and the global order of a Neumann model BVP.
+
+Numbers: the classical weights (Fornberg 1988, table 1), O(h^p) for p = 2, 4, 6 within +-0.2.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction as Fr
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems.discretization import (
+    fornberg_weights,
+    make_grid,
+    uniform_cell_weights,
+    uniform_stencil,
+)
+
+EPS = np.finfo(float).eps
+
+
+def f(y):
+    return np.exp(np.sin(2 * y + 0.3))
+
+
+def f1(y):
+    return 2 * np.cos(2 * y + 0.3) * f(y)
+
+
+def f2(y):
+    return (4 * np.cos(2 * y + 0.3) ** 2 - 4 * np.sin(2 * y + 0.3)) * f(y)
+
+
+F_INTEGRAL = 1.4431550646209823  # int_{-1/2}^{1/2} exp(sin(2y + 0.3)) dy: Clenshaw-Curtis N = 48, 64, 96 and Gauss-Legendre 30, 60 agree
+
+
+def slope(Ns, errs):
+    return -np.polyfit(np.log(Ns), np.log(errs), 1)[0]
+
+
+def test_exact_classical_stencils():
+    assert uniform_stencil((-1, 0, 1), 2) == (1, -2, 1)
+    assert uniform_stencil((-2, -1, 0, 1, 2), 2) == (Fr(-1, 12), Fr(4, 3), Fr(-5, 2), Fr(4, 3), Fr(-1, 12))
+    assert uniform_stencil((-3, -2, -1, 0, 1, 2, 3), 1) == (
+        Fr(-1, 60), Fr(3, 20), Fr(-3, 4), 0, Fr(3, 4), Fr(-3, 20), Fr(1, 60))
+    assert uniform_stencil((0, 1, 2), 1) == (Fr(-3, 2), 2, Fr(-1, 2))
+    assert uniform_stencil((0, 1, 2, 3), 2) == (2, -5, 4, -1)
+    assert uniform_cell_weights((0, 1)) == (Fr(1, 2), Fr(1, 2))  # trapezoid
+    assert uniform_cell_weights((-1, 0, 1, 2)) == (Fr(-1, 24), Fr(13, 24), Fr(13, 24), Fr(-1, 24))
+    # the float recursion agrees with the exact one
+    c = fornberg_weights(0.0, np.arange(-3.0, 4.0), 2)[:, 2]
+    assert np.allclose(c, [float(v) for v in uniform_stencil(tuple(range(-3, 4)), 2)], rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4", "fd6"])
+@pytest.mark.parametrize("N", [16, 100, 256])
+def test_entries_rounded_once_rows_sum_to_zero_exact_parity(method, N):
+    g = make_grid(method, N)
+    flip = np.arange(N, -1, -1)
+    for deriv, d in ((1, g.d1.toarray()), (2, g.d2.toarray())):
+        i = 3  # a wall-affected row for fd6, interior otherwise: off-diagonals are the rounded exact weights
+        p = int(g.order)
+        idx = np.arange(0, p + deriv) if i < p // 2 else np.arange(i - p // 2, i + p // 2 + 1)
+        exact = uniform_stencil(tuple(int(j) - i for j in idx), deriv)
+        for j, c in zip(idx, exact):
+            if j != i:
+                assert d[i, j] == float(c * Fr(N) ** deriv)
+        # image of a constant: one rounding of the diagonal at most
+        rowsum = np.array([math.fsum(row) for row in d])
+        assert np.all(np.abs(rowsum) <= EPS * np.abs(np.diag(d)))
+        # exact parity under y -> -y
+        sign = -1.0 if deriv == 1 else 1.0
+        assert np.array_equal(d, sign * d[np.ix_(flip, flip)])
+    assert np.array_equal(g.y, -g.y[::-1]) and g.y[0] == -0.5 and g.y[-1] == 0.5
+    assert np.array_equal(g.weights, g.weights[::-1])
+    assert abs(math.fsum(g.weights) - 1.0) <= 2 * N * EPS
+
+
+def test_wall_row_sums_far_below_the_floating_point_recursion():
+    """The old construction (float Fornberg on linspace nodes) left ~30 eps N^2 in the row sum of the
+    one-sided fd6 D2 wall row (6.8e-10 at N = 256); now it is one rounding of the diagonal (1.5e-11)."""
+    N = 256
+    y = np.linspace(-0.5, 0.5, N + 1)
+    old = abs(math.fsum(fornberg_weights(y[0], y[:8], 2)[:, 2]))
+    new = abs(math.fsum(make_grid("fd6", N).d2.toarray()[0]))
+    assert old > 20 * new and new <= EPS * N**2 * 469 / 90  # |D_00| = (469/90) N^2
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4", "fd6"])
+def test_quadrature_is_exact_for_polynomials_below_the_order(method):
+    p = int(method[2:])
+    g = make_grid(method, 40)
+    for k in range(p):
+        exact = ((0.5) ** (k + 1) - (-0.5) ** (k + 1)) / (k + 1)
+        assert g.integrate(g.y**k) == pytest.approx(exact, abs=1e-15)
+
+
+# Grids chosen so that the errors lie well above the rounding of the matrix-vector product
+# (~eps N^2 |f| for D2) and the observed pairwise orders are within 0.1 of their limit.
+# fd6 beyond N ~ 100 reaches that rounding in D2 (pairwise 5.37 from 96 to 128).
+ORDER_GRIDS = {"fd2": (128, 256, 512, 1024), "fd4": (32, 64, 128, 256), "fd6": (48, 64, 96)}
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4", "fd6"])
+def test_truncation_orders_of_d1_d2_and_weights(method):
+    """Interior rows and the quadrature are O(h^p) on a smooth function; the one-sided wall rows are
+    at least O(h^p) (fd6 D2 wall rows show 7.5 on this f: the h^6 coefficient is small there)."""
+    p = int(method[2:])
+    Ns = ORDER_GRIDS[method]
+    k = p // 2 + 1  # first row with a centred stencil for both D1 and D2
+    err = {name: [] for name in ("d1 interior", "d1 wall", "d2 interior", "d2 wall", "quadrature")}
+    for N in Ns:
+        g = make_grid(method, N)
+        r1, r2 = g.d1 @ f(g.y) - f1(g.y), g.d2 @ f(g.y) - f2(g.y)
+        err["d1 interior"].append(np.abs(r1[k:-k]).max())
+        err["d1 wall"].append(np.abs(r1[[0, -1]]).max())
+        err["d2 interior"].append(np.abs(r2[k:-k]).max())
+        err["d2 wall"].append(np.abs(r2[: p // 2]).max())
+        err["quadrature"].append(abs(g.integrate(f(g.y)) - F_INTEGRAL))
+    for name, e in err.items():
+        if "wall" in name:
+            assert slope(Ns, e) > p - 0.2, (name, slope(Ns, e))
+        else:
+            assert abs(slope(Ns, e) - p) < 0.2, (name, slope(Ns, e))
+    # one-sided wall rows: same order, larger constant (the source of the odd powers h^(p+1))
+    assert err["d1 wall"][-1] > err["d1 interior"][-1]  # ratio 1.3, 4.9, 19 for fd2, fd4, fd6
+
+
+def neumann_bvp_error(method, N):
+    """-(k T')' + T = s on [-1/2, 1/2], T' given at both walls (D1 wall rows); max error and error of int T."""
+    g = make_grid(method, N)
+    y = g.y
+    k, kp = 1 + 0.5 * np.sin(3 * y + 1), 1.5 * np.cos(3 * y + 1)
+    T, Tp, Tpp = f(y) + np.cos(5 * y), f1(y) - 5 * np.sin(5 * y), f2(y) - 25 * np.cos(5 * y)
+    A = (-sp.diags(k) @ g.d2 - sp.diags(kp) @ g.d1 + sp.eye(N + 1)).tolil()
+    rhs = -(k * Tpp + kp * Tp) + T
+    A[0], A[N] = g.d1[0].toarray(), g.d1[N].toarray()
+    rhs[0], rhs[N] = Tp[0], Tp[N]
+    t = spla.spsolve(A.tocsc(), rhs)
+    return np.abs(t - T).max(), abs(g.integrate(t - T))
+
+
+BVP_GRIDS = {"fd2": (128, 256, 512), "fd4": (64, 128, 256), "fd6": (48, 64, 96, 128)}
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4", "fd6"])
+def test_global_order_of_a_neumann_model_bvp(method):
+    """Wall rows with one-sided D1 (flux conditions) keep the global order p of the interior."""
+    p = int(method[2:])
+    Ns = BVP_GRIDS[method]
+    errs = np.array([neumann_bvp_error(method, N) for N in Ns])
+    for col in errs.T:
+        assert abs(slope(Ns, col) - p) < 0.2, slope(Ns, col)
