@@ -11,19 +11,43 @@ from contin.cli import main
 
 
 def test_fit_compute_agrees_with_lyapunov_schmidt(tmp_path):
-    """b1 and alpha1 fitted to branches at G = 2e-8..1e-7 near H_1^c agree with the
-    Lyapunov-Schmidt coefficients within 5 %; the file is reusable without --compute."""
+    """``contin fit --compute --json`` at G = 0, 1e-7, 3e-7 near H_1^c: B(H), alpha(G), beta(G)
+    with errors; b1, alpha1 AND beta1 of the canonical unfolding agree with Lyapunov-Schmidt
+    within 5 % (measured < 0.5 %) and within the stated errors; alpha(0) = beta(0) = 0; the
+    file's one-parameter folds are predicted to 2e-3; no hysteresis point (alpha1 beta1 < 0).
+    The file is reusable without --compute."""
     path = tmp_path / "bp.h5"
-    r = CliRunner().invoke(main, ["fit", "--compute", str(path), "--json"])
+    r = CliRunner().invoke(main, ["fit", "--compute", str(path), "--G", "1e-7,3e-7", "--json"])
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     assert doc["critical_value"] == pytest.approx(13.0685293, abs=1e-6)
-    assert doc["relative_difference"]["b1"] < 0.05
-    assert doc["relative_difference"]["alpha1"] < 0.05
-    assert doc["G"] == [2e-8, 5e-8, 1e-7]
+    assert doc["G"] == [0.0, 1e-7, 3e-7]
+    for k in ("b1", "alpha1", "beta1"):
+        c = doc["coefficients"][k]
+        assert doc["relative_difference"][k] < 0.05 and doc["agree_5pct"][k]
+        assert c["relative_difference"] < 5e-3
+        assert 0 < c["fit_err"] and abs(c["fit"] - c["lyapunov_schmidt"]) <= 3 * (c["fit_err"] + c["lyapunov_schmidt_err"])
+    assert doc["coefficients"]["beta1"]["lyapunov_schmidt"] == pytest.approx(-1546.1, rel=1e-3)
+    assert doc["B"]["b1"] == pytest.approx(0.0088522, rel=1e-3) and doc["B"]["b1_err"] > 0
+    alpha = {a["G"]: a for a in doc["alpha"]}
+    beta = {b["G"]: b for b in doc["beta"]}
+    assert abs(alpha[0.0]["alpha"]) < 1e-8 * alpha[1e-7]["alpha"]
+    assert abs(beta[0.0]["beta"]) < 1e-6 * abs(beta[1e-7]["beta"])
+    assert alpha[1e-7]["alpha"] / 1e-7 == pytest.approx(50.62, rel=1e-3)
+    assert beta[1e-7]["beta"] / 1e-7 == pytest.approx(-1546, rel=0.02)
+    assert all(a["alpha_err"] > 0 for a in doc["alpha"]) and all(b["beta_err"] > 0 for b in doc["beta"])
+    folds = {f["G"]: f for f in doc["folds"]}
+    assert sorted(folds) == [1e-7, 3e-7]
+    # next-order error grows like G^(4/3): 3.5e-4 at 1e-7, 1.5e-3 at 3e-7 (leading order: 1.7e-2, 2.8e-2)
+    assert abs(folds[1e-7]["rel_error"]) < 5e-4 and abs(folds[3e-7]["rel_error"]) < 2e-3
+    for f in folds.values():
+        assert abs(f["predicted_leading"] / f["H_minus_Hc"] - 1) > 10 * abs(f["rel_error"])
+    assert doc["hysteresis"]["exists"] is False and doc["hysteresis"]["perturbative"] is False
+    assert doc["hysteresis"]["Fr"] == pytest.approx(40.6, rel=0.02)
+    assert len(doc["fit"]["unfolding"]["covariance"]["matrix"]) == 5
     again = CliRunner().invoke(main, ["fit", str(path), "--json"])
     assert again.exit_code == 0
-    assert json.loads(again.stdout)["fit"]["alpha1"] == pytest.approx(doc["fit"]["alpha1"], rel=1e-12)
+    assert json.loads(again.stdout)["coefficients"]["beta1"]["fit"] == pytest.approx(doc["coefficients"]["beta1"]["fit"], rel=1e-12)
 
 
 def test_fit_bad_input(tmp_path):
@@ -31,6 +55,8 @@ def test_fit_bad_input(tmp_path):
     assert r.exit_code == 1 and "Error" in r.output
     r = CliRunner().invoke(main, ["fit", "--compute", str(tmp_path / "x.h5"), "--G", "-1"])
     assert r.exit_code == 1 and "positive" in r.output
+    r = CliRunner().invoke(main, ["fit", "--compute", str(tmp_path / "x.h5"), "--window", "0"])
+    assert r.exit_code == 1 and "must be positive" in r.output
 
 
 def test_unfold_bad_setting():
