@@ -1,17 +1,28 @@
 """Fit the universal unfolding of the pitchfork to computed branches.
 
 Near a pitchfork at lambda_c, equilibria of every branch traced at small imperfection mu
-satisfy, to leading order (A13 slides; Golubitsky & Schaeffer 1985, ch. III),
+satisfy (A13 slides; Golubitsky & Schaeffer 1985, ch. III)
 
     delta^3 - B delta + alpha + beta delta^2 = 0,
     B = b1 (lambda - lambda_c),  alpha = alpha1 mu,  beta = beta1 mu,
 
-with delta = Phi - Phi_c the order-parameter deviation.  The relation is linear in
-(b1, b1 lambda_c, alpha1, beta1), so ordinary least squares over all branch points inside
-a window |delta| <= delta_max, |lambda - lambda_c| <= window gives the coefficients and,
-from the residual variance, their standard errors.  The same coefficients follow from
-:func:`contin.normalform.pitchfork_normal_form` as b1 = -a1/a3, alpha1 = a0/a3,
-beta1 = a2/a3; agreement of the two is a check on both.
+with delta the order-parameter deviation.  Two fits:
+
+:func:`fit_graph` (use this one) fits the solution set as the graph
+lambda - lambda_c = sum c[k, j] mu^j delta^(2k - 3j) (weights 2k with delta ~ eps,
+lambda ~ eps^2, mu ~ eps^3) and returns the canonical unfolding
+(:class:`contin.normalform.Unfolding`: B = b1 l + b2 l^2, alpha = alpha1 mu, beta = beta1 mu,
+plus q5 delta^5).  beta mu delta^2 is a weight-5 term, the same order as mu l, l delta^3,
+l^2 delta and delta^5; an implicit polynomial fit cannot separate them (the multipliers of
+contact equivalence move weight between them), while the graph is unique, so every
+coefficient is identifiable.  delta must be odd under the symmetry that maps mu to -mu,
+else even terms of LOWER weight appear.  :func:`fit_imperfections` gives alpha(mu), beta(mu)
+at each mu separately.  Compare with :func:`contin.normalform.pitchfork_unfolding` in the
+same coordinate.
+
+:func:`fit_unfolding` is the leading-order implicit fit (linear in b1, b1 lambda_c, alpha1,
+beta1): b1 and alpha1 to O(eps^2), but its beta1 is not identifiable (see above) and is
+not comparable with a Lyapunov-Schmidt value.
 """
 
 from __future__ import annotations
@@ -54,7 +65,8 @@ def fit_unfolding(
     window: float = np.inf,
     center: float | None = None,
 ) -> UnfoldingFit:
-    """Fit delta^3 - b1 (lam - lam_c) delta + alpha1 mu + beta1 mu delta^2 = 0.
+    """Fit delta^3 - b1 (lam - lam_c) delta + alpha1 mu + beta1 mu delta^2 = 0 (leading order;
+    beta1 is not identifiable from this form -- use :func:`fit_graph`).
 
     Parameters
     ----------
