@@ -23,6 +23,13 @@ with a3 = g_xxx/(6 kappa^3), a1 = g_lx/kappa, a0 = g_mu, a2 = g_xxmu/(2 kappa^2)
 the unfolding of the pitchfork x^3 - lambda x + alpha + beta x^2 (A13 slides; G&S ch. III).
 The branch bends as lambda - lambda_c ~ a delta^2 with a = -a3/a1: the pitchfork is
 supercritical when a > 0 and subcritical when a < 0, counting lambda increasing.
+
+The mu delta^2 coefficient a2 depends on the coordinate x and on the normalisation of g
+(contact equivalence): it is not a property of the solution set.  :func:`pitchfork_unfolding`
+computes the unfolding to next order (all weight-5 terms) in the coordinate of a given
+linear order parameter and returns its canonical form :class:`Unfolding`
+(delta^3 - B(lambda) delta + alpha(mu) + beta(mu) delta^2 + q5 delta^5 = 0), whose beta1 is
+unique and comparable with :func:`contin.fit.fit_graph`.
 """
 
 from __future__ import annotations
