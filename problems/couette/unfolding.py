@@ -124,14 +124,14 @@ def branches_near_bp(problem: CouetteProblem, base: Branch, bp: SpecialPoint, G:
                                max_steps=4000)
     opts = settings.h_options()
     if G == 0:
-        halves = switch(problem, base, bp, replace_detection(opts), directions=(+1, -1), branch_id_prefix="G0")
+        halves = switch(problem, base, bp, _no_bp_detection(opts), directions=(+1, -1), branch_id_prefix="G0")
         for k, b in enumerate(halves):
             b.id = f"G0.{k}"
         return halves
     if G < 0:
         problem = SignedGravity(problem)  # type: ignore[assignment]
     p0 = {**bp.params, "G": 0.0}
-    halves = switch(problem, base, bp, replace_detection(opts), directions=(+1, -1), branch_id_prefix="s")
+    halves = switch(problem, base, bp, _no_bp_detection(opts), directions=(+1, -1), branch_id_prefix="s")
     seeds: list[tuple[Array, dict[str, float]]] = []
     pl = {**p0, "H": Hc - window}
     seeds.append((problem.initial_guess(pl), pl))
@@ -152,7 +152,7 @@ def branches_near_bp(problem: CouetteProblem, base: Branch, bp: SpecialPoint, G:
     return out
 
 
-def replace_detection(opts: ContinuationOptions) -> ContinuationOptions:
+def _no_bp_detection(opts: ContinuationOptions) -> ContinuationOptions:
     """The gravity-free halves are traced with BP detection off (the window holds no other BP)."""
     from dataclasses import replace
 
