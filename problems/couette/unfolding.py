@@ -47,9 +47,8 @@ Array = np.ndarray
 
 def odd_order_parameter(problem: CouetteProblem) -> Array:
     """l with l . x = (nu(1/2) - nu(-1/2)) / 2 (nu block: nodes from y = -1/2 to y = 1/2)."""
-    n = problem.uniform_state(problem.params({"nu": 0.3, "e": 0.8})).size
-    idx = np.arange(n)[problem.i_nu]
-    ell = np.zeros(n)
+    idx = np.arange(problem.size)[problem.i_nu]
+    ell = np.zeros(problem.size)
     ell[idx[-1]] = 0.5
     ell[idx[0]] = -0.5
     return ell
