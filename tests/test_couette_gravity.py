@@ -158,55 +158,26 @@ def test_scene_rejects_bad_input():
         run(SceneRequest(params={"H_min": 10, "H_max": 5}))
 
 
-@pytest.mark.slow
-def test_isola_closed_even_folds_found_by_both_routes(pb):
-    """Fr = 400 (nu = 0.3, e = 0.8): the floating-plug states form an isola (closed, two
-    folds, H in about [14.4, 33.6]); seeded again from the fold curve through its folds it
-    is found again and not duplicated.  (At Fr = 1000 the floating-plug component of the
-    first pitchfork reaches the packing limit, Phi > 0.649, before its right fold at H ~ 59:
-    not resolved; the isola there is the third pitchfork's, tested below.)"""
-    p = pb.params({"nu": 0.3, "e": 0.8, "Fr": 400.0})
-    st = GravitySettings(H_range=(1.0, 50.0))
-    d = discover(pb, p, st, routes=("homotopy",))
-    isolas = d.of_kind("isola")
-    assert len(isolas) == 1
-    iso = isolas[0]
-    assert iso.closed and len(iso.fold_points) % 2 == 0 and len(iso.fold_points) == 2
-    Hf = sorted(s.params["H"] for s in iso.fold_points)
-    assert Hf[0] == pytest.approx(14.42, abs=0.05) and Hf[1] == pytest.approx(33.56, abs=0.05)
-    assert np.mean(iso.observables["nu_top"] > iso.observables["nu_bottom"]) > 0.5  # floating plug
-    curves = fold_curves(pb, [iso], max_steps=300)
-    seeds = fold_seeds(pb, curves, p["G"], st.H_range)
-    assert len(seeds) >= 2
-    for _, x, q in seeds:
-        assert on_branch(pb, x, q, iso)
-    again = discover(pb, p, st, routes=("fold-curve",), curves=curves)
-    assert len(again.of_kind("isola")) == 1 and lies_on(again.of_kind("isola")[0], iso)
-    # fold points of the one-parameter run lie on the two-parameter fold curve: its crossings
-    # of G = Fr^-2, polished on the fold system, are the isola's folds to the location tolerance
-    Hs = sorted(q["H"] for _, _, q in seeds)
-    for lp, h in zip(sorted(iso.fold_points, key=lambda s: s.params["H"]), Hs):
-        assert h == pytest.approx(lp.params["H"], abs=1e-6 * lp.params["H"])
-
-
 # ----------------------------------------------------------------------------- Fr = 1000 isola
 # The isola of the third pitchfork (H_3^c = 39.206) at Fr = 1000, nu = 0.3, e = 0.8: closed,
-# folds at H = 41.90019 (Phi = 0.3885) and 63.47750 (Phi = 0.5804) on cheb 48; cheb 64 gives
-# 41.90019 and 63.47749.  Its fold curve has its largest G at Fr = 783.973, H = 47.7535 (cheb 48
+# folds at H = 41.90019 (Phi = 0.3885) and 63.47749 (Phi = 0.5804) on cheb 64; cheb 48 gives
+# 41.90019 and 63.47750.  Its fold curve has its largest G at Fr = 783.973, H = 47.7535 (cheb 48
 # and 64 agree to 1e-7): the isola dies there.  (cheb 32 cannot resolve it: the guard stops it.)
 FR1000_FOLDS = (41.90019, 63.47750)
 FR_ISOLA_DEATH = 783.973
 
 
 @pytest.fixture(scope="module")
-def pb48():
-    return gravity_problem("cheb", 48)
+def pbf():
+    """cheb 64: at 48 the plug near the isola's right fold (min T = 0.011) is at the edge of
+    the continuation's resolution guard (estimated error 3.1e-5 > 3e-5)."""
+    return gravity_problem("cheb", 64)
 
 
 @pytest.fixture(scope="module")
-def g0_48(pb48):
-    p = pb48.params({"nu": 0.3, "e": 0.8})
-    return gravity_free_branches(pb48, p, GravitySettings(H_range=(1.0, 70.0), modes=3))
+def g0_f(pbf):
+    p = pbf.params({"nu": 0.3, "e": 0.8})
+    return gravity_free_branches(pbf, p, GravitySettings(H_range=(1.0, 70.0), modes=3))
 
 
 def _isola_checks(d):
@@ -220,39 +191,74 @@ def _isola_checks(d):
     return isolas
 
 
-def test_isola_at_Fr_1000_found_by_both_routes(pb48, g0_48):
+@pytest.mark.slow
+def test_isolas_at_Fr_400_closed_even_folds_found_by_both_routes(pbf, g0_f):
+    """Fr = 400 (nu = 0.3, e = 0.8, cheb 64): two isolas, the floating plugs of the first
+    pitchfork (folds H = 14.423, 33.555) and a small one from the second pitchfork's banded
+    branch (folds 27.373, 33.613; gravity unfolds that pitchfork only at second order), both
+    closed with two folds; the fold curves through their folds give seeds on them (fold points
+    of the one-parameter runs lie on the two-parameter curves) that trace them again, and with
+    both routes each is found once."""
+    base, kids = g0_f
+    p = pbf.params({"nu": 0.3, "e": 0.8, "Fr": 400.0})
+    st = GravitySettings(H_range=(1.0, 50.0), seed_H=(16.0, 30.0))
+    low = [b for b in kids if b.id.startswith(("g0.1.", "g0.2."))]
+    d = discover(pbf, p, st, g0_branches=low, routes=("homotopy",))
+    isolas = _isola_checks(d)
+    assert len(isolas) == 2
+    folds = sorted(sorted(s.params["H"] for s in iso.fold_points) for iso in isolas)
+    assert folds[0] == pytest.approx([14.423, 33.555], abs=2e-3)
+    assert folds[1] == pytest.approx([27.373, 33.613], abs=2e-3)
+    for iso in isolas:
+        assert np.mean(iso.observables["nu_top"] > iso.observables["nu_bottom"]) > 0.5  # dense top
+    curves = fold_curves(pbf, isolas, max_steps=150)
+    seeds = fold_seeds(pbf, curves, p["G"], st.H_range)
+    for iso in isolas:
+        on = sorted(q["H"] for _, x, q in seeds if on_branch(pbf, x, q, iso))
+        assert on == pytest.approx(sorted(s.params["H"] for s in iso.fold_points), abs=1e-6 * 50)
+    again = discover(pbf, p, st, routes=("fold-curve",), curves=curves)
+    found = _isola_checks(again)
+    assert len(found) == 2
+    assert all(any(lies_on(f, iso) and lies_on(iso, f) for f in found) for iso in isolas)
+    both = discover(pbf, p, st, g0_branches=low, curves=curves)
+    assert len(_isola_checks(both)) == 2
+    assert all(both.found_by[b.id] == ["homotopy", "fold-curve"] for b in both.of_kind("isola"))
+
+
+def test_isola_at_Fr_1000_found_by_both_routes(pbf, g0_f):
     """Fr = 1000 (nu = 0.3, e = 0.8), the third pitchfork: the dense-top banded state continued
     in G (route 1) lies on a closed isola with two folds at H = 41.900 and 63.478; the fold
     curve of that pitchfork, started at Fr = 2000 near the BP (route 2), crosses G = 1e-6 at
     both folds and its seeds trace the same isola; with both routes the isola is found once,
     by both.  The fold curve's G-maximum (death of the isola) is at Fr = 783.97, H = 47.75."""
-    base, kids = g0_48
-    p = pb48.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0})
+    base, kids = g0_f
+    p = pbf.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0})
     mode3 = [b for b in kids if b.id.startswith("g0.3.")]
     assert len(mode3) == 2
-    st = GravitySettings(H_range=(1.0, 70.0), seed_H=(44.0,))
-    curves = pitchfork_fold_curves(pb48, p, base, mode3, H_range=(30.0, 70.0), max_steps=120)
+    # H >= 35 keeps the (irrelevant) branch from the H_min state short
+    st = GravitySettings(H_range=(35.0, 70.0), seed_H=(44.0,))
+    curves = pitchfork_fold_curves(pbf, p, base, mode3, H_range=(30.0, 70.0), max_steps=120)
     assert [c.parent for c in curves] == ["BP at H=39.2056"]
 
-    by_homotopy = discover(pb48, p, st, g0_branches=mode3, routes=("homotopy",))
+    by_homotopy = discover(pbf, p, st, g0_branches=mode3, routes=("homotopy",))
     (iso,) = _isola_checks(by_homotopy)
     folds = sorted(s.params["H"] for s in iso.fold_points)
     assert folds == pytest.approx(FR1000_FOLDS, abs=2e-4)
     assert np.mean(iso.observables["nu_top"] > iso.observables["nu_bottom"]) > 0.9  # dense top
 
-    by_fold_curve = discover(pb48, p, st, curves=curves, routes=("fold-curve",))
+    by_fold_curve = discover(pbf, p, st, curves=curves, routes=("fold-curve",))
     (again,) = _isola_checks(by_fold_curve)
     assert by_fold_curve.routes[again.id] == "fold-curve"
     assert lies_on(again, iso) and lies_on(iso, again)
-    seeds = sorted(q["H"] for _, _, q in fold_seeds(pb48, curves, p["G"], st.H_range))
+    seeds = sorted(q["H"] for _, _, q in fold_seeds(pbf, curves, p["G"], st.H_range))
     assert seeds == pytest.approx(folds, abs=1e-6 * 64)  # fold points lie on the fold curve
 
-    both = discover(pb48, p, st, g0_branches=mode3, curves=curves)
+    both = discover(pbf, p, st, g0_branches=mode3, curves=curves)
     (once,) = _isola_checks(both)
     assert both.found_by[once.id] == ["homotopy", "fold-curve"]
     assert lies_on(once, iso)
 
-    deaths = [r for r in extrema(curves, problem=pb48) if r["event"] == "death"]
+    deaths = [r for r in extrema(curves, problem=pbf) if r["event"] == "death"]
     assert len(deaths) == 1 and deaths[0]["resolved"]
     assert deaths[0]["Fr"] == pytest.approx(FR_ISOLA_DEATH, rel=1e-5)
     assert deaths[0]["H"] == pytest.approx(47.7535, abs=1e-3)
@@ -261,7 +267,7 @@ def test_isola_at_Fr_1000_found_by_both_routes(pb48, g0_48):
 
 @pytest.mark.slow
 def test_scene_fr1000_reports_every_isola_closed_and_found_twice():
-    """``contin trace gravity -s nu=0.3 -s e=0.8 -s Fr=1000 --json`` (cheb 48, H <= 70, both
+    """``contin trace gravity -s nu=0.3 -s e=0.8 -s Fr=1000 --json`` (cheb 64, H <= 70, both
     routes): every isola is closed, has an even number of folds, is found by both routes and
     appears once; the third-pitchfork isola (folds 41.900, 63.478) is among them."""
     import json
@@ -273,7 +279,7 @@ def test_scene_fr1000_reports_every_isola_closed_and_found_twice():
     r = CliRunner().invoke(main, ["trace", "gravity", "-s", "nu=0.3", "-s", "e=0.8", "-s", "Fr=1000", "--json",
                                   "--no-stability", "-q"])
     doc = json.loads(r.stdout)
-    assert doc["discretization"] == {"method": "cheb", "intervals": 48}
+    assert doc["discretization"] == {"method": "cheb", "intervals": 64}
     extra = doc["extra"]
     isolas = [b for b in doc["branches"] if b["kind"] == "isola"]
     assert len(isolas) >= 1

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint
-from contin.continuation import newton, trace, trace_both
+from contin.continuation import join, newton, trace
 from contin.foldcurve import FoldProblem, trace_fold_curve
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
@@ -140,9 +140,20 @@ def homotopy_in_G(problem: CouetteProblem, state: Array, params: Mapping[str, fl
 def trace_in_H(problem: CouetteProblem, state: Array, params: Mapping[str, float], settings: GravitySettings,
                *, branch_id: str = "0", kind: str = "", parent: str = "",
                progress: Callable[[str], None] | None = None) -> Branch:
-    """Both directions in H at fixed G; a closed loop (isola) is returned once, closed."""
-    return trace_both(problem, state, dict(params), "H", settings.h_options(), symmetric=False,
-                      branch_id=branch_id, kind=kind, parent=parent, progress=progress)
+    """Both directions in H at fixed G; a closed loop (isola) is returned once, closed.
+
+    Like contin.continuation.trace_both, except that a loop closed by the *backward* half is
+    also returned as is (the forward half can miss its closing point, e.g. when a step near
+    the start is rejected, and would then run round the loop until max_steps).
+    """
+    kw = dict(symmetric=False, branch_id=branch_id, kind=kind, parent=parent, progress=progress)
+    forward = trace(problem, state, dict(params), "H", settings.h_options(), direction=+1, **kw)
+    if forward.closed or len(forward) == 0:
+        return forward
+    backward = trace(problem, state, dict(params), "H", settings.h_options(), direction=-1, **kw)
+    if backward.closed:
+        return backward
+    return join(backward, forward)
 
 
 # ----------------------------------------------------------------------------- bookkeeping
@@ -350,6 +361,9 @@ def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
             res = newton(fp, np.concatenate([st[: 2 * n], [p["H"]]]), p, NewtonOptions(max_iterations=20))
             if res.converged and resolved(problem, res.u[:n], {**p, "H": float(res.u[2 * n])}):
                 p = {**p, "H": float(res.u[2 * n])}
+                # a curve started at a fold of this G meets G twice there (both halves start at it)
+                if any(abs(q["H"] - p["H"]) <= 1e-7 * p["H"] and lbl.startswith(f"fold curve {c.id} ") for lbl, _, q in out):
+                    continue
                 out.append((f"fold curve {c.id} at H={p['H']:.6g}", res.u[:n], p))
     return out
 

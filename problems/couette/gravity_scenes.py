@@ -8,7 +8,7 @@ de-duplicated and labelled (primary, isola, floating-plug, bottom-plug), with th
 (k_x = 0) on every branch.  The notes and ``extra['found_by']`` say which routes found each
 branch.
 
-Defaults: Chebyshev N = 48 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
+Defaults: Chebyshev N = 64 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
 under-resolved already at H ~ 30-40 (the continuation stops them with MX 'under-resolved'),
 and at nu = 0.3, Fr = 1000 the isola of the third pitchfork spans H = 41.90 .. 63.48.
 """
@@ -28,7 +28,7 @@ GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 
                                     "walls": "noslip", "modes": 3}
 
 #: Default Chebyshev grid of the scene (see the module docstring).
-GRAVITY_GRID = 48
+GRAVITY_GRID = 64
 
 
 def _settings(request: SceneRequest) -> dict[str, Any]:

@@ -1,6 +1,9 @@
 """Issue-5 figures (gravity): Phi vs H at several Fr, isola profiles, growth rates.
 
-Usage: python results/gravity/make_figures.py [panels|profiles|growth|others] (default: all)
+Usage: python results/gravity/make_figures.py [panels|profiles|growth|others|nu0.5|nu0.16|nu0.15] (default: all)
+
+Each panel set also writes its numbers (branches, kinds, folds, routes, stops) to a JSON file
+next to the PNG.
 """
 
 from __future__ import annotations
@@ -18,25 +21,49 @@ from contin.plot import save_figure
 from problems.couette.gravity import GravitySettings, discover, gravity_free_branches, gravity_problem
 
 OUT = "results/gravity"
+#: Chebyshev grid of the figures: N = 32 under-resolves the dense plugs (nu -> 0.65) from H ~ 30
+GRID = 64
 STYLE = {"primary": "k", "isola": "tab:red", "floating-plug": "tab:blue", "bottom-plug": "tab:green"}
 
 
-def panels(nu: float, frs: list[float], name: str, H_max: float = 50.0) -> None:
-    pb = gravity_problem("cheb", 32)
+def _summary(b) -> dict:
+    """Numbers of one branch for the panel JSON files (what results/README.md quotes)."""
+    H = b.params["H"]
+    return {"id": b.id, "kind": b.kind, "closed": bool(b.closed), "status": b.status, "message": b.message,
+            "H": [float(H.min()), float(H.max())],
+            "phi": [float(b.observables["phi"].min()), float(b.observables["phi"].max())],
+            "folds": [{"H": float(lp.params["H"]), "phi": float(lp.order_parameter)} for lp in b.fold_points]}
+
+
+def panels(nu: float, frs: list[float], name: str, H_max: float = 70.0, N: int = GRID) -> None:
+    """Phi(H) at each Fr (both discovery routes); crosses mark MX stops (under-resolved plugs)."""
+    pb = gravity_problem("cheb", N)
     st = GravitySettings(H_range=(1.0, H_max))
     p0 = pb.params({"nu": nu, "e": 0.8})
     base, g0 = gravity_free_branches(pb, p0, st)
-    fig, axes = plt.subplots(2, (len(frs) + 1) // 2, figsize=(3.2 * ((len(frs) + 1) // 2), 6), sharex=True, sharey=True)
+    ncol = (len(frs) + 1) // 2
+    fig, axes = plt.subplots(2, ncol, figsize=(3.2 * ncol, 6), sharex=True, sharey=True)
+    doc: dict = {"nu": nu, "e": 0.8, "grid": N, "H_max": H_max, "panels": {}}
     for ax, fr in zip(axes.flat, frs):
         if np.isinf(fr):
+            rows = []
             for b in [base] + g0:
                 ax.plot(b.params["H"], b.observables["phi"], "k-", lw=1)
+                for bp in b.branch_points:
+                    ax.plot(bp.params["H"], bp.order_parameter, "ks", ms=3)
+                rows.append({**_summary(b), "kind": "G = 0",
+                             "branch_points": [float(bp.params["H"]) for bp in b.branch_points]})
+            doc["panels"]["inf"] = rows
         else:
-            d = discover(pb, pb.params({"nu": nu, "e": 0.8, "Fr": fr}), st, g0_branches=g0)
+            d = discover(pb, pb.params({"nu": nu, "e": 0.8, "Fr": fr}), st, g0_branches=g0, base=base)
             for b in d.branches:
                 ax.plot(b.params["H"], b.observables["phi"], "-", color=STYLE[b.kind], lw=1, label=b.kind)
                 for lp in b.fold_points:
                     ax.plot(lp.params["H"], lp.order_parameter, "o", color=STYLE[b.kind], ms=3)
+                for mx in b.points("MX"):
+                    ax.plot(mx.params["H"], mx.order_parameter, "x", color=STYLE[b.kind], ms=4)
+            doc["panels"][f"{fr:g}"] = [{**_summary(b), "found_by": d.found_by[b.id]} for b in d.branches]
+            doc["panels"][f"{fr:g}"].append({"duplicates": d.duplicates})
         ax.set_title(f"Fr = {fr:g}")
         ax.axhline(nu, color="0.8", lw=0.5)
     handles = {l: h for a in axes.flat for h, l in zip(*a.get_legend_handles_labels())}
@@ -45,9 +72,11 @@ def panels(nu: float, frs: list[float], name: str, H_max: float = 50.0) -> None:
         ax.set_xlabel("H")
     for ax in axes[:, 0]:
         ax.set_ylabel("Phi = nu(1/2)")
-    fig.suptitle(f"nu = {nu:g}, e = 0.8, no-slip walls, cheb N = 32")
+    fig.suptitle(f"nu = {nu:g}, e = 0.8, no-slip walls, cheb N = {N} (o fold, x under-resolved stop)")
     save_figure(fig, f"{OUT}/{name}.png")
     plt.close(fig)
+    with open(f"{OUT}/{name}.json", "w") as fh:
+        json.dump(doc, fh, indent=1)
 
 
 def profiles() -> None:
@@ -119,7 +148,9 @@ if __name__ == "__main__":
         profiles()
     if what in ("growth", "all"):
         growth()
-    if what in ("others", "all"):
+    if what in ("others", "nu0.5", "all"):
         panels(0.5, [np.inf, 1000, 500, 300], "phi_vs_H_nu0.5")
-        panels(0.16, [np.inf, 5000, 2500, 2350], "phi_vs_H_nu0.16", H_max=70.0)
-        panels(0.15, [np.inf, 10000, 5000, 4000], "phi_vs_H_nu0.15", H_max=70.0)
+    if what in ("others", "nu0.16", "all"):
+        panels(0.16, [np.inf, 5000, 2500, 2350], "phi_vs_H_nu0.16", H_max=80.0)
+    if what in ("others", "nu0.15", "all"):
+        panels(0.15, [np.inf, 10000, 5000, 4000], "phi_vs_H_nu0.15", H_max=80.0)
