@@ -82,7 +82,8 @@ def test_guard_off_and_loose_tolerance_reach_the_bound():
 def test_default_tolerance_is_3e_5():
     assert ContinuationOptions().resolution_tol == 3e-5
     br = trace(Toy(), np.zeros(2), {"lam": 0.0}, "lam", opts())
-    assert br.status == "MX" and br.parameter_values[-1] < 8 + math.log10(3e-5) < float(br.message.split("= ")[1].split(":")[0])
+    rejected = float(br.message.split("= ")[1].split(":")[0])
+    assert br.status == "MX" and br.parameter_values[-1] < 8 + math.log10(3e-5) < rejected  # err = tol at 3.477
 
 
 def test_under_resolved_landing_on_the_bound_is_not_stored():

@@ -22,19 +22,28 @@ spurious unstable modes, while tail / (nu_m - max nu) is 5e-5 there (3e-6 at H =
 right).  The same number follows the Fr = 50 bottom plug: 1e-5 at H = 21.3 (shear-stress defect
 6e-7), 6e-4 at H = 23.6 (defect 1e-4, pressure drop off by 5e-7).
 
+Known limit: a cold plug.  Viscosity, conductivity and dissipation go like T^(1/2), T^(1/2),
+T^(3/2), so where the plug is also cold an absolute error in T matters relative to min T.  On
+the nu = 0.16 banded branch (cheb 64) the shear-stress defect |S - S(1/2)| / S follows
+tail(T) / min T (1.1e-5 / 6e-4 at H = 87 / 97) more closely than this measure (5e-7 / 1.4e-5):
+the last state stored below the stop at H = 100 has a defect of 2.3e-4.  A tail(T) / min T term
+with the same tolerance would also end JJ-wall, gravity-isola (Fr = 1000) and coarse-grid
+branches that are right to the accuracy their tests check, so it is not part of the estimate.
+
 Finite-difference grids.  The nodal profiles are carried to the Chebyshev grid with the same N
 by local Lagrange interpolation on FD_WIDTH = 8 nodes (degree 7, whatever the scheme's order)
 and measured there.  The error of an FD solution is itself a smooth function, so a high-order
 interpolant of the nodal values keeps a small tail unless the *sampling* fails to resolve a
 structure (a boundary layer a few nodes wide, grid-scale wiggles); the scheme's O(h^order)
 truncation error is the user's accuracy trade, measured by ``contin accuracy``, not what this
-guard is for.  Uniform shear (constants and u = y) is reproduced exactly.
+guard is for (fd2, N = 32, nu = 0.3 banded at 1.4 H_1^c: 3e-9, although its error is O(1e-3)).
+Uniform shear (constants and u = y) is reproduced exactly.
 
 Advice.  The reason names the grid to try: for Chebyshev, from the geometric decay rate of the
 coefficient envelope over the upper half of the spectrum, the N at which the tail would fall
-to tol / 10 (at least 1.5 N, rounded up to a multiple of 16); for FD grids, the N at which an
-O(h^order) error falls below tol / 10.  It is an estimate at the rejected state only: a plug that
-keeps approaching nu_m needs ever finer grids.
+to tol / 10 (at least 1.5 N, rounded up to a multiple of 16); for FD grids, the N at which the
+degree-7 interpolant's O(h^8) tail falls below tol / 10 (at least 1.5 N).  It is an estimate at
+the rejected state only: a plug that keeps approaching nu_m needs ever finer grids.
 """
 
 from __future__ import annotations
