@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint
-from contin.continuation import join, newton, trace
+from contin.continuation import join, newton, trace, trace_both
 from contin.foldcurve import FoldProblem, trace_fold_curve
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
@@ -78,7 +78,7 @@ class GravitySettings:
     ds_max: float = 0.2
     max_angle: float = 0.1
     max_steps: int = 1500
-    seed_H: tuple[float, ...] = (16.0, 22.0, 30.0, 38.0, 44.0, 52.0, 60.0)
+    seed_H: tuple[float, ...] = (16.0, 22.0, 30.0, 38.0, 44.0, 52.0, 60.0, 70.0, 85.0)
     modes: int = 3
     Fr_start: float = 2000.0
     fold_steps: int = 300
@@ -119,7 +119,39 @@ def gravity_free_branches(problem: CouetteProblem, params: Mapping[str, float], 
     kids: list[Branch] = []
     for k, bp in enumerate(base.branch_points[: settings.modes], start=1):
         kids += banded_branches(problem, base, bp, p, opts, prefix=f"g0.{k}")
+    if not base.branch_points and settings.modes >= 1:
+        kids = low_density_banded(problem, p, settings, progress)
     return base, kids
+
+
+#: Density and gap of the continuation in nu that reaches the banded branch below the
+#: threshold density (as in the pitchfork scene, problems.couette.scenes).
+LOW_DENSITY_START = 0.2
+LOW_DENSITY_GAP = 60.0
+
+
+def low_density_banded(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings,
+                       progress: Callable[[str], None] | None = None) -> list[Branch]:
+    """Below the threshold density uniform shear has no BP ("bifurcation from infinity",
+    physics.md section 6 row 3): the banded branch (both signs, ids g0.1.1/g0.1.2) is reached by
+    continuation in nu at H = 60 from nu = 0.2 (problems.couette.pitchfork.density_continuation)
+    and traced in H; empty when the gap 60 is outside H_range or the continuation fails."""
+    from problems.couette.pitchfork import density_continuation, mirror_branch
+
+    lo, hi = settings.H_range
+    if not lo < LOW_DENSITY_GAP < hi:
+        return []
+    opts = settings.g0_options()
+    try:
+        x, _ = density_continuation(problem, params, LOW_DENSITY_START, params["nu"], LOW_DENSITY_GAP, opts,
+                                    progress=progress)
+    except ValueError as exc:
+        log.info("no banded branch at nu = %g: %s", params["nu"], exc)
+        return []
+    b1 = trace_both(problem, x, {**params, "H": LOW_DENSITY_GAP}, "H", opts, branch_id="g0.1.1",
+                    kind="banded n=1", parent=f"density continuation from nu={LOW_DENSITY_START:g}")
+    b2 = mirror_branch(problem, b1, params, "g0.1.2")
+    return [b1, b2]
 
 
 # ----------------------------------------------------------------------------- continuation
@@ -587,7 +619,9 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     For each symmetry-breaking BP: the dense-top banded state at H_c + 3 (G = 0) is continued
     in G to Fr_start^-2, traced in H down to its fold, and the fold is continued in (H, G)
     both ways (through G = 0 at the BP into the mirror half G < 0, the reflected curve).
-    Curve ids are 'fold<k>' (k-th symmetry-breaking BP), parents 'BP at H=...'.
+    Curve ids are 'fold<k>' (k-th symmetry-breaking BP), parents 'BP at H=...'.  Without a BP
+    (below the threshold density) the folds of the first gravity-free banded branch are
+    continued in (H, G) instead.
     """
     say = progress or (lambda m: None)
     bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
@@ -616,6 +650,11 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
         c.id = f"fold{k}"
         c.parent = f"BP at H={Hc:.6g}"
         curves.append(c)
+    if not bps and kids:
+        # below the threshold density: the folds of the gravity-free banded branch (no BP)
+        for c in fold_curves(problem, kids[:1], bounds={"H": H_range}, max_steps=max_steps):
+            c.parent = f"fold of {kids[0].id} at G=0 ({c.parent})"
+            curves.append(c)
     return curves
 
 
