@@ -84,9 +84,9 @@ class _Tracer:
         anti = self.anti.det(self.system.state_jacobian(x)) if self.anti is not None else None
         return _Point(x, t, TestValues(float(t[-1]), bp, anti))
 
-    def correct_at(self, x_pred: Array, direction: Array, chord: bool = True) -> Correction:
+    def correct_at(self, x_pred: Array, direction: Array) -> Correction:
         project = self.anti.symmetrize if self.anti is not None else None
-        return correct(self.system, x_pred, self.system.row(direction), self.options.newton, project, chord=chord)
+        return correct(self.system, x_pred, self.system.row(direction), self.options.newton, project)
 
     # --- detection and location ----------------------------------------------------------------
     def _test_functions(self) -> list[tuple[str, str, Callable[[TestValues], tuple[float, float] | float]]]:
@@ -128,7 +128,7 @@ class _Tracer:
             if det.locate:
 
                 def evaluate(s: float, g_of: Any = g_of) -> Sample[_Point] | None:
-                    corr = self.correct_at(a.x + s * a.t, a.t, chord=False)  # test functions to rounding
+                    corr = self.correct_at(a.x + s * a.t, a.t)
                     if corr.factorization is None and corr.residual_history[-1] <= self.options.newton.tol:
                         # A solution where the bordered matrix is exactly singular: the
                         # trial hit the singular point itself, where g = 0.

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -62,6 +63,10 @@ def signed_value(v: SignLog, reference: float) -> float:
     return v[0] * math.exp(min(v[1] - reference, 700.0))
 
 
+#: Antisymmetric.from_problem results per problem instance.
+_ANTI_CACHE: weakref.WeakKeyDictionary[Any, tuple[tuple[int, int], Antisymmetric | None]] = weakref.WeakKeyDictionary()
+
+
 class Antisymmetric:
     """Orthonormal basis Q (sparse n x m) of the -1 eigenspace of a linear involution S."""
 
@@ -75,7 +80,23 @@ class Antisymmetric:
 
     @classmethod
     def from_problem(cls, problem: Any, n: int, seed: int = 0) -> Antisymmetric | None:
-        """Build S and Q from ``symmetry_matrix()`` or by probing ``symmetry(u)``; None if unavailable."""
+        """Build S and Q from ``symmetry_matrix()`` or by probing ``symmetry(u)``; None if unavailable.
+
+        The result depends on the problem instance and n only (neither method takes parameters),
+        so it is cached per instance (weakly: the cache does not keep problems alive).
+        """
+        try:
+            cached = _ANTI_CACHE.get(problem)
+        except TypeError:  # unhashable or not weak-referenceable problem: no cache
+            return cls._build(problem, n, seed)
+        if cached is not None and cached[0] == (n, seed):
+            return cached[1]
+        anti = cls._build(problem, n, seed)
+        _ANTI_CACHE[problem] = ((n, seed), anti)
+        return anti
+
+    @classmethod
+    def _build(cls, problem: Any, n: int, seed: int) -> Antisymmetric | None:
         if has(problem, "symmetry_matrix"):
             s = as_csc(problem.symmetry_matrix())
         elif has(problem, "symmetry"):

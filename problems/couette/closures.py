@@ -87,31 +87,33 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     ic = 1.0 / chi
     ic_nu = -chi1 * ic * ic
 
-    f1 = nu + (4.0 * eta) * q
-    f1_nu = 1.0 + (4.0 * eta) * q_nu
-
     a2 = 5.0 * SQRT_PI / 96.0
-    b2 = a2 / (eta * (2.0 - eta))
-    c2 = a2 * 1.6 * (3.0 * eta - 1.0) / (2.0 - eta)
-    d2 = a2 * 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi)
-    f2 = b2 * ic + c2 * nu + d2 * q
-    f2_nu = b2 * ic_nu + (c2 + d2 * q_nu)
-
-    a3 = 8.0 / (3.0 * SQRT_PI) * eta
-    f3 = a3 * q
-    f3_nu = a3 * q_nu
-
     a4 = 25.0 * SQRT_PI / 16.0
     g4 = 41.0 - 33.0 * eta
-    b4 = a4 / (eta * g4)
-    c4 = a4 * 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g4
-    d4 = a4 * 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g4 + 4.0 / np.pi)
-    f4 = b4 * ic + c4 * nu + d4 * q
-    f4_nu = b4 * ic_nu + (c4 + d4 * q_nu)
-
-    a5 = 12.0 / SQRT_PI * (1.0 - e * e)
-    f5 = a5 * q
-    f5_nu = a5 * q_nu
+    # f2 and f4 have the form b / chi + c nu + d nu^2 chi; f1 - nu, f3 and f5 the form k q.
+    b24 = (a2 / (eta * (2.0 - eta)), a4 / (eta * g4))
+    c24 = (a2 * 1.6 * (3.0 * eta - 1.0) / (2.0 - eta), a4 * 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g4)
+    d24 = (a2 * 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi),
+           a4 * 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g4 + 4.0 / np.pi))
+    k135 = (4.0 * eta, 8.0 / (3.0 * SQRT_PI) * eta, 12.0 / SQRT_PI * (1.0 - e * e))
+    if np.ndim(e) == 0 and np.ndim(nu) == 1:
+        # Stacked rows: one numpy call per operation instead of one per function (the arrays
+        # are short in continuation, so the number of calls is the cost).
+        col = (slice(None), None)
+        b_, c_, d_, k_ = np.array(b24)[col], np.array(c24)[col], np.array(d24)[col], np.array(k135)[col]
+        f24 = b_ * ic + c_ * nu + d_ * q
+        f24_nu = b_ * ic_nu + (c_ + d_ * q_nu)
+        q135 = k_ * q
+        q135_nu = k_ * q_nu
+    else:
+        f24 = [b * ic + c * nu + d * q for b, c, d in zip(b24, c24, d24)]
+        f24_nu = [b * ic_nu + (c + d * q_nu) for b, c, d in zip(b24, c24, d24)]
+        q135 = [k * q for k in k135]
+        q135_nu = [k * q_nu for k in k135]
+    f1 = nu + q135[0]
+    f1_nu = 1.0 + q135_nu[0]
+    f2, f4, f2_nu, f4_nu = f24[0], f24[1], f24_nu[0], f24_nu[1]
+    f3, f5, f3_nu, f5_nu = q135[1], q135[2], q135_nu[1], q135_nu[2]
 
     if dufour:
         fh = (15.0 * SQRT_PI / 4.0) * (eta - 1.0) * (2.0 * eta - 1.0) * (1.0 + 2.4 * eta * nu * chi) \
