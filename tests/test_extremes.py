@@ -213,7 +213,7 @@ def test_strong_gravity_fr50_without_the_guard_runs_into_under_resolved_states()
     Newton's guard keeps every stored state admissible, but between H = 23 and the stop the stored
     states are under-resolved: shear-stress defect up to 0.12, pressure drop off H^3 G nubar by
     up to 3.6e-6.  This is what the resolution guard (next tests) prevents.  Up to H = 22.5 the
-    pressure drop holds to 1e-7 here (to 1e-10 with plain Newton: xfail below)."""
+    pressure drop holds to 1e-7 here (to 1e-10: next test)."""
     prob, p, br = _gravity_trace(64, 60.0, resolution_tol=None)
     assert br.status == "MX" and "no convergence" in br.message
     assert 29.0 < br.params["H"][-1] < 32.0
@@ -227,12 +227,8 @@ def test_strong_gravity_fr50_without_the_guard_runs_into_under_resolved_states()
     assert 0 < 0.65 - f["nu"].max() < 1e-6 and 0 < f["T"].min() < 1e-6
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "chord corrector (commit 39ceb15): the last chord iterate leaves a Newton error in nu that the "
-    "plug amplifies by 1/(nu_m - max nu): pressure drop off H^3 G nubar by 2.7e-8 at H = 21.84 "
-    "(cheb 64; 1.9e-12 with plain Newton, corrector.CHORD_START = 0).  Needs a tighter stop for chord "
-    "iterations near packing (contin/corrector.py, not this test's files)."))
 def test_strong_gravity_fr50_pressure_drop_exact_on_resolved_states():
+    """Plain Newton (the chord corrector of commit 39ceb15 left 2.7e-8 here and was removed)."""
     prob, p, br = _gravity_trace(64, 60.0, resolution_tol=None)
     rows = _fr50_checks(prob, p, br)
     resolved = [r for r, h in zip(rows, br.params["H"]) if h <= 22.5]
