@@ -185,7 +185,42 @@ def trace_in_H(problem: CouetteProblem, state: Array, params: Mapping[str, float
     backward = trace(problem, state, dict(params), "H", settings.h_options(), direction=-1, **kw)
     if backward.closed:
         return backward
-    return join(backward, forward)
+    return join(trim_self_overlap(backward), trim_self_overlap(forward))
+
+
+def trim_self_overlap(branch: Branch, tol: float = 2e-3, skip: int = 20, run: int = 5) -> Branch:
+    """The branch up to where it starts running along its own earlier part.
+
+    An open half-run that comes back onto points it has already traced has gone round a
+    loop after a jump between two nearby sheets (near the imperfect pitchforks, in particular
+    the mode-2 one that gravity unfolds only at second order, the sheets are O(G) apart and a
+    step can land on the neighbour); a closed loop would have been detected.  The branch is
+    cut before the first point from which ``run`` consecutive points lie within ``tol`` of
+    the polyline of the points more than ``skip`` steps earlier (scaled (H/10, Phi, nu_bottom,
+    T_mid) space, as :func:`lies_on`).
+    """
+    n = len(branch)
+    if branch.closed or n <= skip + run or branch.state_index is not None:
+        return branch
+    pts = _coordinates(branch)
+    near = np.zeros(n, bool)
+    for i0 in range(skip + 1, n, 200):
+        idx = np.arange(i0, min(i0 + 200, n))
+        seg_end = int(idx[-1]) - skip
+        d = _segment_distances(pts[idx], pts[: seg_end + 1])  # (points, segments)
+        seg = np.arange(d.shape[1])
+        d[seg[None, :] >= (idx[:, None] - skip)] = np.inf
+        near[idx] = np.min(d, axis=1) < tol
+    hits = np.convolve(near.astype(int), np.ones(run, int), "valid") == run
+    if not hits.any():
+        return branch
+    cut = int(np.argmax(hits))
+    if cut < 2:
+        return branch
+    out = slice_branch(branch, 0, cut - 1)
+    out.message = (f"{branch.message}; cut at H = {branch.params['H'][cut]:.6g}, where the run comes back "
+                   f"along its own earlier part (a jump between nearby sheets)")
+    return out
 
 
 # ----------------------------------------------------------------------------- bookkeeping
@@ -202,6 +237,11 @@ def _distance_to_polyline(points: Array, line: Array) -> Array:
     """Distance of every point to the polyline through ``line`` (rows are vertices)."""
     if len(line) == 1:
         return np.linalg.norm(points - line[0], axis=1)
+    return np.min(_segment_distances(points, line), axis=1)
+
+
+def _segment_distances(points: Array, line: Array) -> Array:
+    """(points, segments) distances of every point to every segment of the polyline ``line``."""
     a, b = line[:-1], line[1:]
     d = b - a
     dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
@@ -209,7 +249,7 @@ def _distance_to_polyline(points: Array, line: Array) -> Array:
     t = np.clip(np.einsum("pk,sk->ps", points, d) - np.einsum("sk,sk->s", a, d)[None, :], 0.0, None) / dd[None, :]
     t = np.minimum(t, 1.0)
     proj = a[None, :, :] + t[:, :, None] * d[None, :, :]
-    return np.min(np.linalg.norm(points[:, None, :] - proj, axis=2), axis=1)
+    return np.linalg.norm(points[:, None, :] - proj, axis=2)
 
 
 def lies_on(a: Branch, b: Branch, tol: float = 5e-3, fraction: float = 0.9) -> bool:
