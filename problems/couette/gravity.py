@@ -659,7 +659,9 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     For each symmetry-breaking BP: the dense-top banded state at H_c + 3 (G = 0) is continued
     in G to Fr_start^-2, traced in H down to its fold, and the fold is continued in (H, G)
     both ways (through G = 0 at the BP into the mirror half G < 0, the reflected curve).
-    Curve ids are 'fold<k>' (k-th symmetry-breaking BP), parents 'BP at H=...'.  Without a BP
+    Curve ids are 'fold<k>' (k-th symmetry-breaking BP), parents 'BP at H=...'.  When the
+    imperfect pitchfork has no fold within 2 of H_c (subcritical: the banded branch turns back
+    already at G = 0), the G = 0 fold of the banded branch is continued instead.  Without a BP
     (below the threshold density) the folds of the first gravity-free banded branch are
     continued in (H, G) instead.
     """
@@ -678,12 +680,17 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
         i = int(np.argmin(np.abs(top.params["H"] - (Hc + 3.0))))
         p = _params_at(top, i)
         x = homotopy_in_G(problem, top.state(i), p, G0)
-        if x is None:
-            continue
-        local = GravitySettings(H_range=(max(H_range[0], Hc - 2.0), min(H_range[1], Hc + 4.0)), max_steps=400)
-        b = trace_in_H(problem, x, {**p, "G": G0}, local, branch_id=f"seed{k}")
-        lps = [lp for lp in b.fold_points if lp.converged and abs(lp.params["H"] - Hc) < 2.0]
+        lps = []
+        if x is not None:
+            local = GravitySettings(H_range=(max(H_range[0], Hc - 2.0), min(H_range[1], Hc + 4.0)), max_steps=400)
+            b = trace_in_H(problem, x, {**p, "G": G0}, local, branch_id=f"seed{k}")
+            lps = [lp for lp in b.fold_points if lp.converged and abs(lp.params["H"] - Hc) < 2.0]
         if not lps:
+            # subcritical pitchfork: its fold is on the banded branch already at G = 0
+            for c in fold_curves(problem, [top], bounds={"H": H_range}, max_steps=max_steps):
+                c.id = f"fold{k}"
+                c.parent = f"fold of {top.id} at G=0 (BP at H={Hc:.6g})"
+                curves.append(c)
             continue
         say(f"gravity: fold curve from the pitchfork at H = {Hc:.6g}")
         c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps)[0]

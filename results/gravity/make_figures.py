@@ -49,8 +49,12 @@ def panels(nu: float, frs: list[float], name: str, H_max: float = 70.0, N: int =
             rows = []
             for b in [base] + g0:
                 ax.plot(b.params["H"], b.observables["phi"], "k-", lw=1)
-                for bp in b.branch_points:
-                    ax.plot(bp.params["H"], bp.order_parameter, "ks", ms=3)
+                for lp in b.fold_points:
+                    ax.plot(lp.params["H"], lp.order_parameter, "ko", ms=3)
+            # BPs of uniform shear only: the BPs found on the banded branches near packing are the
+            # grid's spurious branch (problems.couette.pitchfork docstring), listed in the JSON
+            for bp in base.branch_points:
+                ax.plot(bp.params["H"], bp.order_parameter, "ks", ms=3)
                 rows.append({**_summary(b), "kind": "G = 0",
                              "branch_points": [float(bp.params["H"]) for bp in b.branch_points]})
             doc["panels"]["inf"] = rows
@@ -80,17 +84,23 @@ def panels(nu: float, frs: list[float], name: str, H_max: float = 70.0, N: int =
 
 
 def profiles() -> None:
-    pb = gravity_problem("cheb", 32)
-    st = GravitySettings(H_range=(1.0, 50.0))
-    d = discover(pb, pb.params({"nu": 0.3, "e": 0.8, "Fr": 400.0}), st)
+    """Profiles at six points around the isola at Fr = 1000 (nu = 0.3; the third pitchfork's)."""
+    pb = gravity_problem("cheb", GRID)
+    st = GravitySettings(H_range=(35.0, 70.0), seed_H=(44.0,))
+    p0 = pb.params({"nu": 0.3, "e": 0.8})
+    base, g0 = gravity_free_branches(pb, p0, GravitySettings(H_range=(1.0, 70.0)))
+    mode3 = [b for b in g0 if b.id.startswith("g0.3.")]
+    d = discover(pb, pb.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0}), st, g0_branches=mode3, routes=("homotopy",))
     fig, axes = plt.subplots(1, 3, figsize=(10, 3.5))
-    for b in d.branches:
-        if b.kind not in ("isola", "floating-plug"):
-            continue
-        for i in np.linspace(0, len(b) - 1, 6).astype(int):
+    rows = []
+    for b in d.of_kind("isola"):
+        for i in np.linspace(0, len(b) - 1, 7).astype(int)[:-1]:
             x = b.state(i)
             pr = pb.profiles(x)
-            lab = f"{b.kind} H={b.params['H'][i]:.1f} Phi={b.observables['phi'][i]:.2f}"
+            lab = f"H={b.params['H'][i]:.1f} Phi={b.observables['phi'][i]:.2f}"
+            rows.append({"H": float(b.params["H"][i]), "phi": float(b.observables["phi"][i]),
+                         "nu_bottom": float(b.observables["nu_bottom"][i]), "T_min": float(np.min(pr["T"])),
+                         "T_bottom": float(pr["T"][0]), "T_top": float(pr["T"][-1])})
             for ax, k in zip(axes, ("nu", "u", "T")):
                 ax.plot(pr[k], pb.grid.y, label=lab if k == "nu" else None)
         break
@@ -98,9 +108,11 @@ def profiles() -> None:
         ax.set_xlabel(k)
         ax.set_ylabel("y")
     axes[0].legend(fontsize=6)
-    fig.suptitle("profiles on the floating-plug isola, nu = 0.3, e = 0.8, Fr = 400")
+    fig.suptitle(f"profiles on the isola at nu = 0.3, e = 0.8, Fr = 1000 (cheb {GRID})")
     save_figure(fig, f"{OUT}/isola_profiles.png")
     plt.close(fig)
+    with open(f"{OUT}/isola_profiles.json", "w") as fh:
+        json.dump(rows, fh, indent=1)
 
 
 def growth() -> None:
