@@ -148,20 +148,16 @@ def switch(
         start = None
         # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
         # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
-        # the test below passes.  A converged but too distant start measures that curvature,
-        # K = dist / step^2, and the next trial aims at dist = step / 4 (step = 1 / (4 K), at
-        # least halved, at most divided by 64); a failed correction halves the step.  At most
-        # MAX_START_HALVINGS trials.
+        # the test below passes: halve up to MAX_START_HALVINGS times.
         for _ in range(MAX_START_HALVINGS):
             x_pred = x0 + d * step * tau
             corr = correct(system, x_pred, system.row(tau), options.newton)
             # A good start lies near the predictor; a large correction means the predictor fell
             # back onto the known branch or diverged.
-            dist = system.norm(corr.x - x_pred) if corr.converged else math.inf
-            if dist < 0.5 * step:
+            if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
                 start = corr.x
                 break
-            step = min(0.5 * step, max(0.25 * step * step / dist, step / 64)) if math.isfinite(dist) else 0.5 * step
+            step *= 0.5
         if start is None:
             continue
         # The accepted first step measures the branch's scale near the BP: continue with it

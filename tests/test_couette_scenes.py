@@ -611,10 +611,8 @@ def test_jj_walls_stability_agrees_with_the_audit():
 
 # ----------------------------------------------------------------------------- core fix
 def test_switch_onto_strongly_bent_pitchfork(monkeypatch):
-    """The first step off a BP is shortened until accepted (fix: 8 halvings were too few when the
-    new branch bends with curvature ~1e4 in the step norm, e.g. gPCF at nu = 0.16); a converged
-    but distant trial now sets the next step from the measured curvature, so 3 trials suffice
-    where blind halving found nothing in 8."""
+    """The first step off a BP is halved until accepted (fix: 8 halvings were too few when the
+    new branch bends with curvature ~1e4 in the step norm, e.g. gPCF at nu = 0.16)."""
     import dataclasses
 
     import contin.switching as sw
@@ -629,9 +627,7 @@ def test_switch_onto_strongly_bent_pitchfork(monkeypatch):
     assert len(new) == 2
     for nb in new:
         assert len(nb) > 5 and np.max(np.abs(nb.order_parameter ** 2 - nb.parameter_values)) < 1e-10
-    monkeypatch.setattr(sw, "MAX_START_HALVINGS", 3)
-    assert [len(nb) for nb in switch(pb, br, bp, bent)] == [len(nb) for nb in new]
-    monkeypatch.setattr(sw, "MAX_START_HALVINGS", 2)  # one curvature-based shortening is not enough
+    monkeypatch.setattr(sw, "MAX_START_HALVINGS", 8)  # the old behaviour finds nothing
     assert switch(pb, br, bp, bent) == []
 
 
