@@ -176,8 +176,40 @@ def trace_in_H(problem: CouetteProblem, state: Array, params: Mapping[str, float
 
     Like contin.continuation.trace_both, except that a loop closed by the *backward* half is
     also returned as is (the forward half can miss its closing point, e.g. when a step near
-    the start is rejected, and would then run round the loop until max_steps).
+    the start is rejected, and would then run round the loop until max_steps), open halves are
+    cut where they come back along themselves (:func:`trim_self_overlap`), and a run showing a
+    jump between sheets (:func:`_jumped`) is retraced once with half the largest step.
     """
+    b = _trace_in_H_once(problem, state, params, settings, branch_id=branch_id, kind=kind, parent=parent,
+                         progress=progress)
+    if not b.closed and _jumped(b) and settings.ds_max > 0.06:
+        # smaller steps keep the run on its sheet at the O(G)-narrow mode-2 near-crossing
+        finer = replace(settings, ds=min(settings.ds, settings.ds_max / 2), ds_max=settings.ds_max / 2,
+                        max_steps=2 * settings.max_steps)
+        again = _trace_in_H_once(problem, state, params, finer, branch_id=branch_id, kind=kind, parent=parent,
+                                 progress=progress)
+        if again.closed or not _jumped(again):
+            again.message += f" (retraced with ds_max = {finer.ds_max:g} after a jump at ds_max = {settings.ds_max:g})"
+            return again
+    return b
+
+
+def _jumped(branch: Branch) -> bool:
+    """Signs of a jump between sheets: a half-run cut by :func:`trim_self_overlap`, or the same
+    fold met twice (both halves, or one half going round a loop it did not close)."""
+    if "own earlier part" in branch.message:
+        return True
+    f = np.array([(lp.params["H"], lp.order_parameter) for lp in branch.fold_points]).reshape(-1, 2)
+    for i in range(len(f)):
+        for j in range(i + 1, len(f)):
+            if abs(f[i, 0] - f[j, 0]) <= 1e-6 * abs(f[i, 0]) and abs(f[i, 1] - f[j, 1]) <= 1e-6:
+                return True
+    return False
+
+
+def _trace_in_H_once(problem: CouetteProblem, state: Array, params: Mapping[str, float], settings: GravitySettings,
+                     *, branch_id: str, kind: str, parent: str,
+                     progress: Callable[[str], None] | None) -> Branch:
     kw = dict(symmetric=False, branch_id=branch_id, kind=kind, parent=parent, progress=progress)
     forward = trace(problem, state, dict(params), "H", settings.h_options(), direction=+1, **kw)
     if forward.closed or len(forward) == 0:

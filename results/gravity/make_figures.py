@@ -51,12 +51,12 @@ def panels(nu: float, frs: list[float], name: str, H_max: float = 70.0, N: int =
                 ax.plot(b.params["H"], b.observables["phi"], "k-", lw=1)
                 for lp in b.fold_points:
                     ax.plot(lp.params["H"], lp.order_parameter, "ko", ms=3)
+                rows.append({**_summary(b), "kind": "G = 0",
+                             "branch_points": [float(bp.params["H"]) for bp in b.branch_points]})
             # BPs of uniform shear only: the BPs found on the banded branches near packing are the
             # grid's spurious branch (problems.couette.pitchfork docstring), listed in the JSON
             for bp in base.branch_points:
                 ax.plot(bp.params["H"], bp.order_parameter, "ks", ms=3)
-                rows.append({**_summary(b), "kind": "G = 0",
-                             "branch_points": [float(bp.params["H"]) for bp in b.branch_points]})
             doc["panels"]["inf"] = rows
         else:
             d = discover(pb, pb.params({"nu": nu, "e": 0.8, "Fr": fr}), st, g0_branches=g0, base=base)
