@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from contin.continuation import join
 from contin.fit import fit_unfolding
 from contin.scene import SceneError, SceneRequest
 from problems.couette.gravity import (
@@ -23,6 +24,7 @@ from problems.couette.gravity import (
     on_branch,
     pitchfork_fold_curves,
     trace_in_H,
+    trim_self_overlap,
     unfolding_branches,
 )
 from problems.couette.gravity_scenes import GRAVITY_SCENES
@@ -146,6 +148,25 @@ def test_dedup_and_lies_on(pb):
     kept, dropped = deduplicate([b, a])
     assert [k.id for k in kept] == ["a"] and dropped == [("b", "a")]
     assert on_branch(pb, a.state(i), q, a)
+
+
+def test_trim_self_overlap_cuts_a_branch_that_retraces_itself(pb):
+    """A run that comes back along its own earlier part (after a jump between nearby sheets)
+    is cut where the overlap starts: the primary branch at Fr = 1000 joined with itself (H from
+    12 down to 1 and back up) keeps its first pass plus the few points within ``skip`` steps of
+    the turn; a branch that does not retrace itself is returned unchanged."""
+    p = pb.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H": 1.0})
+    a = trace_in_H(pb, pb.initial_guess(p), p, GravitySettings(H_range=(1.0, 12.0)))
+    assert trim_self_overlap(a) is a
+    twice = join(a, a)
+    n = len(a)
+    assert len(twice) == 2 * n - 1
+    cut = trim_self_overlap(twice)
+    # the point k steps after the turn lies on the first pass k steps before it, which is
+    # compared once 2k > skip = 20: the cut is at k = 11
+    assert n + 5 <= len(cut) <= n + 11
+    assert "own earlier part" in cut.message
+    assert cut.params["H"][n - 1] == pytest.approx(1.0)
 
 
 def test_scene_rejects_bad_input():
