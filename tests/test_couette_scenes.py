@@ -556,24 +556,24 @@ def test_jj_walls_retrace_removes_the_spurious_symmetric_bp(monkeypatch):
     assert [b.note for b in br["0"].branch_points] == ["symmetry-breaking"]
     assert br["0"].branch_points[0].params["H"] == pytest.approx(JJ_BP, abs=1e-7)
     assert any(n.startswith("base branch re-traced with ds_max") for n in res.notes)
-    monkeypatch.setattr(pf, "BASE_RETRACES", 0)
-    pb = CouetteProblem("cheb", 48, walls="jj")
-    p = pb.params({"nu": 0.3, "e": 0.8})
-    # ds = 4: with plain Newton (3 iterations per step, slower step growth than the chord corrector
-    # this test was written with) a first step of 2.2 no longer reaches the jump; 4.0 does.
-    jumped = pf.trace_base(pb, p, 43.126 / 20, opts(43.126 / 20, 43.126, ds=4.0, ds_max=8.6))
-    assert any(b.note.startswith("symmetric") and not b.converged for b in jumped.branch_points)
+    monkeypatch.setattr(pf, "BASE_RETRACES", 0)  # the same scene run without the retrace has the spurious BP
+    old = get_scene("jj-walls").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "modes": 1}, grid=48, stability=False,
+                                                 overrides={"ds_max": 8.6}))
+    spurious = [b for b in old.branches[0].branch_points if b.note.startswith("symmetric")]
+    assert spurious and not any(b.converged for b in spurious)
 
 
 def test_jj_walls_energy_and_momentum_balances_converge():
     """On every stored jj state the integrated balances hold to the discretization error, which falls
-    with N (heat does leave through JJ walls: |flux| >= 1e-4 of the shear stress, not 0 = 0)."""
-    worst = {}
+    with N (heat does leave through JJ walls: |flux| >= 1e-4 of the shear stress, not 0 = 0).  The
+    fall is measured on the same states on both grids, the dense end points at H_max of every branch
+    (the maximum over all stored points would depend on where the step control puts them)."""
+    worst, ends = {}, {}
     for N in (48, 64):
         _, br = jj_run(N)
         pb = CouetteProblem("cheb", N, walls="jj")
         p = pb.params({"nu": 0.3, "e": 0.8})
-        e = s = n = 0.0
+        e = s = n = e_end = s_end = 0.0
         for b in br.values():
             for i in range(len(b)):
                 pi = {**p, "H": b.params["H"][i]}
@@ -583,9 +583,12 @@ def test_jj_walls_energy_and_momentum_balances_converge():
                 assert abs(flux) > 1e-4 * scale
                 mb = pb.momentum_balance(x, pi)
                 e, s, n = max(e, abs(source - flux) / scale), max(s, mb["shear_stress"]), max(n, mb["normal_stress"])
-        worst[N] = (e, s, n)
+                if b.params["H"][i] == pytest.approx(43.12614677, abs=1e-6):
+                    e_end, s_end = max(e_end, abs(source - flux) / scale), max(s_end, mb["shear_stress"])
+        worst[N], ends[N] = (e, s, n), (e_end, s_end)
     assert worst[64][0] < 1e-8 and worst[64][1] < 3e-6 and worst[64][2] < 1e-8
-    assert worst[64][0] < 0.05 * worst[48][0] and worst[64][1] < 0.05 * worst[48][1]
+    assert ends[48][1] > 1e-5  # the end states are the hard ones: 48 does not resolve them to 1e-5 ...
+    assert ends[64][0] < 0.05 * ends[48][0] and ends[64][1] < 0.05 * ends[48][1]  # ... 64 does, > 20x better (observed ~100x)
 
 
 def test_jj_walls_stability_agrees_with_the_audit():
