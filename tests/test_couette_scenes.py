@@ -442,7 +442,10 @@ def test_low_density_scene_finds_banded_branch_without_bp():
     uniform = res.branches[0]
     assert not uniform.branch_points
     banded = [b for b in res.branches if b.id == "n1.1"]
-    assert banded and np.max(np.abs(banded[0].observables["delta"])) > 0.1
+    # Which mirror image is n1.1 follows the sign of a null vector (rounding-dependent), so the
+    # amplitude is measured at both walls: max |nu_wall - nubar| is the same for both images.
+    obs = banded[0].observables if banded else {}
+    assert banded and max(np.max(np.abs(obs[k] - 0.15)) for k in ("nu_bottom", "nu_top")) > 0.1
     assert any("no BP at nu = 0.15" in n and "0.156139" in n for n in res.notes)
     assert banded[0].fold_points  # the branch comes back from large H: a fold in between
     assert res.extra["threshold_density"] == pytest.approx(0.156139, abs=1e-6)
