@@ -220,29 +220,34 @@ def _trace_in_H_once(problem: CouetteProblem, state: Array, params: Mapping[str,
     return join(trim_self_overlap(backward), trim_self_overlap(forward))
 
 
-def trim_self_overlap(branch: Branch, tol: float = 2e-3, skip: int = 20, run: int = 5) -> Branch:
+def trim_self_overlap(branch: Branch, tol: float = 2e-3, skip: int = 20, run: int = 5,
+                      excursion: float = 5.0) -> Branch:
     """The branch up to where it starts running along its own earlier part.
 
     An open half-run that comes back onto points it has already traced has gone round a
     loop after a jump between two nearby sheets (near the imperfect pitchforks, in particular
     the mode-2 one that gravity unfolds only at second order, the sheets are O(G) apart and a
     step can land on the neighbour); a closed loop would have been detected.  The branch is
-    cut before the first point from which ``run`` consecutive points lie within ``tol`` of
-    the polyline of the points more than ``skip`` steps earlier (scaled (H/10, Phi, nu_bottom,
-    T_mid) space, as :func:`lies_on`).
+    cut before the first of ``run`` consecutive points that lie within ``tol`` of a segment
+    more than ``skip`` steps earlier (scaled (H/10, Phi, nu_bottom, T_mid) space, as
+    :func:`lies_on`) such that the branch between that segment and the point spans more than
+    ``excursion`` in H.  The last condition spares folds: just past a fold the branch runs
+    close to its part before the fold, but only after an excursion of the fold's width in H.
     """
     n = len(branch)
     if branch.closed or n <= skip + run or branch.state_index is not None:
         return branch
     pts = _coordinates(branch)
+    H = branch.params["H"]
     near = np.zeros(n, bool)
     for i0 in range(skip + 1, n, 200):
         idx = np.arange(i0, min(i0 + 200, n))
-        seg_end = int(idx[-1]) - skip
-        d = _segment_distances(pts[idx], pts[: seg_end + 1])  # (points, segments)
-        seg = np.arange(d.shape[1])
-        d[seg[None, :] >= (idx[:, None] - skip)] = np.inf
-        near[idx] = np.min(d, axis=1) < tol
+        d = _segment_distances(pts[idx], pts[: int(idx[-1]) - skip + 1])  # (points, segments)
+        d[np.arange(d.shape[1])[None, :] >= (idx[:, None] - skip)] = np.inf
+        for r, c in zip(*np.nonzero(d < tol)):
+            i = int(idx[r])
+            if not near[i] and np.ptp(H[int(c): i + 1]) > excursion:
+                near[i] = True
     hits = np.convolve(near.astype(int), np.ones(run, int), "valid") == run
     if not hits.any():
         return branch
