@@ -3,6 +3,8 @@ normal forms (problems.couette.gravity; physics.md sections 2, 6; A13 gravity sl
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -315,3 +317,26 @@ def test_scene_fr1000_reports_every_isola_closed_and_found_twice():
         assert extra["found_by"][b["id"]] == ["homotopy", "fold-curve"]
         assert all(k != b["id"] for _, k in extra["duplicates"]) or len(isolas) == 1
     assert any(sorted(folds_of[b["id"]]) == pytest.approx(FR1000_FOLDS, abs=2e-4) for b in isolas)
+
+
+@pytest.mark.slow
+def test_nu016_isola_at_Fr_2500_dies_at_2426(pbf):
+    """nu = 0.16 (subcritical pitchfork, banded fold at H = 41.963 at G = 0): at Fr = 2500 the
+    floating plugs form an isola (folds H = 51.433, 61.865), found by both routes (route 2
+    continues the G = 0 fold of the banded branch in (H, G)); its fold curve has its largest G
+    at Fr = 2426.2, H = 55.89 (death, between the slides' 2500 and 2350 panels), and the
+    primary's hysteresis pair annihilates at Fr = 2824.1, H = 38.86."""
+    p0 = pbf.params({"nu": 0.16, "e": 0.8})
+    st = GravitySettings(H_range=(1.0, 80.0), modes=1)
+    base, kids = gravity_free_branches(pbf, p0, st)
+    assert [round(lp.params["H"], 3) for lp in kids[0].fold_points] == [41.963]
+    curves = pitchfork_fold_curves(pbf, p0, base, kids, H_range=st.H_range)
+    deaths = sorted((r["Fr"], r["H"]) for r in extrema(curves, problem=pbf) if r["event"] == "death")
+    assert len(deaths) == 2
+    assert deaths[0][0] == pytest.approx(2426.18, rel=1e-5) and deaths[0][1] == pytest.approx(55.893, abs=1e-2)
+    assert deaths[1][0] == pytest.approx(2824.10, rel=1e-5) and deaths[1][1] == pytest.approx(38.857, abs=1e-2)
+    p = pbf.params({"nu": 0.16, "e": 0.8, "Fr": 2500.0})
+    d = discover(pbf, p, replace(st, seed_H=(60.0, 70.0)), g0_branches=kids, base=base, curves=curves)
+    (iso,) = _isola_checks(d)
+    assert sorted(s.params["H"] for s in iso.fold_points) == pytest.approx([51.433, 61.865], abs=2e-3)
+    assert d.found_by[iso.id] == ["homotopy", "fold-curve"]
