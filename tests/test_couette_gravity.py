@@ -223,7 +223,7 @@ def test_isolas_at_Fr_400_closed_even_folds_found_by_both_routes(pbf, g0_f):
     closed with two folds; the fold curves through their folds give seeds on them (fold points
     of the one-parameter runs lie on the two-parameter curves) that trace them again, and with
     both routes each is found once."""
-    base, kids = g0_f
+    _, kids = g0_f
     p = pbf.params({"nu": 0.3, "e": 0.8, "Fr": 400.0})
     st = GravitySettings(H_range=(1.0, 50.0), seed_H=(16.0, 30.0))
     low = [b for b in kids if b.id.startswith(("g0.1.", "g0.2."))]

@@ -44,7 +44,12 @@ from contin.branch import Branch, SpecialPoint
 from contin.continuation import join, newton, trace, trace_both
 from contin.foldcurve import FoldProblem, trace_fold_curve
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
-from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
+from contin.options import (
+    ContinuationOptions,
+    DetectionOptions,
+    NewtonOptions,
+    StepOptions,
+)
 from problems.couette.model import CouetteProblem
 
 log = logging.getLogger("contin")
@@ -210,7 +215,8 @@ def _jumped(branch: Branch) -> bool:
 def _trace_in_H_once(problem: CouetteProblem, state: Array, params: Mapping[str, float], settings: GravitySettings,
                      *, branch_id: str, kind: str, parent: str,
                      progress: Callable[[str], None] | None) -> Branch:
-    kw = dict(symmetric=False, branch_id=branch_id, kind=kind, parent=parent, progress=progress)
+    kw: dict[str, Any] = {"symmetric": False, "branch_id": branch_id, "kind": kind, "parent": parent,
+                          "progress": progress}
     forward = trace(problem, state, dict(params), "H", settings.h_options(), direction=+1, **kw)
     if forward.closed or len(forward) == 0:
         return forward

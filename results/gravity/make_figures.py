@@ -18,7 +18,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from contin.plot import save_figure
-from problems.couette.gravity import GravitySettings, discover, gravity_free_branches, gravity_problem
+from problems.couette.gravity import (
+    GravitySettings,
+    discover,
+    gravity_free_branches,
+    gravity_problem,
+)
 
 OUT = "results/gravity"
 #: Chebyshev grid of the figures: N = 32 under-resolves the dense plugs (nu -> 0.65) from H ~ 30
@@ -88,7 +93,7 @@ def profiles() -> None:
     pb = gravity_problem("cheb", GRID)
     st = GravitySettings(H_range=(35.0, 70.0), seed_H=(44.0,))
     p0 = pb.params({"nu": 0.3, "e": 0.8})
-    base, g0 = gravity_free_branches(pb, p0, GravitySettings(H_range=(1.0, 70.0)))
+    _, g0 = gravity_free_branches(pb, p0, GravitySettings(H_range=(1.0, 70.0)))
     mode3 = [b for b in g0 if b.id.startswith("g0.3.")]
     d = discover(pb, pb.params({"nu": 0.3, "e": 0.8, "Fr": 1000.0}), st, g0_branches=mode3, routes=("homotopy",))
     fig, axes = plt.subplots(1, 3, figsize=(10, 3.5))
