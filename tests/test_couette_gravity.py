@@ -180,6 +180,8 @@ def test_scene_rejects_bad_input():
         run(SceneRequest(params={"X": 1}))
     with pytest.raises(SceneError, match="H_min < H_max"):
         run(SceneRequest(params={"H_min": 10, "H_max": 5}))
+    with pytest.raises(SceneError, match="modes must be a positive integer"):
+        run(SceneRequest(params={"modes": 1.5}))
 
 
 # ----------------------------------------------------------------------------- Fr = 1000 isola
