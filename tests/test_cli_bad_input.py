@@ -81,7 +81,7 @@ BAD_VALUES = [
     ("gravity", ["Fr=0"], "scene 'gravity' needs a finite Froude number Fr > 0, got 0"),
     ("gravity", ["Fr=-5"], "scene 'gravity' needs a finite Froude number Fr > 0, got -5"),
     ("gravity", ["Fr=inf"], "(Fr = inf is the pitchfork scene)"),
-    ("gravity", ["H_min=0"], "need 0 < H_min < H_max, got H_min=0, H_max=50"),
+    ("gravity", ["H_min=0"], "need 0 < H_min < H_max, got H_min=0, H_max=70"),
     ("gravity", ["H_max=-1"], "need 0 < H_min < H_max, got H_min=1, H_max=-1"),
     ("gravity", ["H=10"], "unknown parameter 'H' for scene 'gravity'; its parameters are nu, e, Fr, H_min, H_max"),
     ("gravity", ["zeta=1"], "unknown parameter 'zeta' for scene 'gravity'"),
