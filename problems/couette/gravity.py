@@ -13,15 +13,20 @@ Pieces:
 - :func:`gravity_problem` -- a CouetteProblem with the gravity term;
 - :func:`gravity_free_branches` -- uniform shear and both signs of the banded branches at the
   first ``modes`` pitchforks (G = 0), via :mod:`problems.couette.pitchfork`;
+- :func:`low_density_banded` -- below the threshold density (no BP) the banded branch from the
+  density continuation;
 - :func:`homotopy_in_G` -- a state continued in G at fixed H from G = 0 to the target G;
-- :func:`trace_in_H` -- a branch at fixed G traced both ways in H (closed loops are closed);
-- :func:`fold_seeds` -- fold points at the target G taken from two-parameter fold curves
-  (the second isola-discovery route);
+- :func:`trace_in_H` -- a branch at fixed G traced both ways in H (closed loops are closed, jumps
+  between nearby sheets retraced with smaller steps, :func:`trim_self_overlap`);
+- :func:`fold_seeds`, :func:`off_fold` -- fold points at the target G taken from two-parameter
+  fold curves (the second isola-discovery route), started next to the fold;
+- :func:`resolved` -- the resolution check of states from the (unguarded) fold curves;
 - :func:`lies_on`, :func:`deduplicate`, :func:`classify` -- one branch per solution set,
   labelled 'primary' / 'isola' / 'floating-plug' / 'bottom-plug';
 - :func:`discover` -- all branches at one G (both routes), de-duplicated and labelled;
-- :func:`fold_curves` -- fold curves in (H, G) (or (H, nu)) from the folds of a diagram with
-  the Fr at which each closed component is born and dies (XT extrema of G);
+- :func:`fold_curves`, :func:`pitchfork_fold_curves`, :func:`extrema` -- fold curves in (H, G)
+  (or (H, nu)) from the folds of a diagram or from the imperfect pitchforks, with the Fr at which
+  each closed component is born and dies (XT extrema of G);
 - :func:`branch_point_normal_forms` -- Lyapunov-Schmidt coefficients at every BP of the
   gravity-free problem, with the gravity imperfection d/dG;
 - :func:`unfolding_branches` -- short branches near a BP at several small G, for
