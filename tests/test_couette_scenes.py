@@ -437,8 +437,10 @@ def test_scene_audit_has_no_disagreement(nu, H_max):
 
 # ----------------------------------------------------------------------------- scene behaviour
 def test_low_density_scene_finds_banded_branch_without_bp():
+    # grid 64: at 40-48 the resolution guard (rightly) stops the nu = 0.2 banded branch before
+    # H = 60, where its plug is within 0.014 of packing (see the under-resolution test below)
     res = get_scene("pitchfork").run(SceneRequest(params={"nu": 0.15, "e": 0.8, "H_max": 100.0, "modes": 1},
-                                                  grid=40, stability=False))
+                                                  grid=64, stability=False))
     uniform = res.branches[0]
     assert not uniform.branch_points
     banded = [b for b in res.branches if b.id == "n1.1"]
@@ -449,6 +451,12 @@ def test_low_density_scene_finds_banded_branch_without_bp():
     assert any("no BP at nu = 0.15" in n and "0.156139" in n for n in res.notes)
     assert banded[0].fold_points  # the branch comes back from large H: a fold in between
     assert res.extra["threshold_density"] == pytest.approx(0.156139, abs=1e-6)
+
+
+def test_low_density_scene_under_resolved_says_why():
+    with pytest.raises(SceneError, match=r"did not reach H = 60 \(under-resolved at H = .*try --grid"):
+        get_scene("pitchfork").run(SceneRequest(params={"nu": 0.15, "e": 0.8, "H_max": 100.0, "modes": 1},
+                                                grid=40, stability=False))
 
 
 def test_mirror_branch_is_the_reflected_image():

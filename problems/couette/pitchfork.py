@@ -365,7 +365,8 @@ def density_continuation(problem: CouetteProblem, params: Mapping[str, float], n
     opts_b = dataclasses.replace(opts_H, bounds={"H": (H_lo, H_fixed)})
     band = switch(problem, uni, bps[0], opts_b, directions=(+1,), branch_id_prefix="aux.banded")
     if not band or abs(band[0].parameter_values[-1] - H_fixed) > 1e-9 * H_fixed:
-        raise ValueError(f"the banded branch at nu = {nu_from:g} did not reach H = {H_fixed:g}")
+        why = f" ({band[0].message})" if band else ""
+        raise ValueError(f"the banded branch at nu = {nu_from:g} did not reach H = {H_fixed:g}{why}")
     x = band[0].state(len(band[0]) - 1)
     lo, hi = sorted((nu_to, nu_from))
     opts_nu = dataclasses.replace(options, bounds={"nu": (lo, hi + 1e-9)})
