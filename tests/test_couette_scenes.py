@@ -662,6 +662,7 @@ def test_cli_trace_json_and_diagram(tmp_path):
     assert doc["scene"] == "pitchfork"
     hs = [row["detected"] for row in doc["extra"]["H_c"]]
     assert hs[0] == pytest.approx(13.0685293255, rel=1e-8) and hs[1] == pytest.approx(2 * 13.0685293255, rel=1e-8)
+    assert hs[2] is None  # H_3^c = 39.2 lies beyond H_max = 30: not matched to another BP
     assert {b["id"] for b in doc["branches"]} >= {"0", "n1.1", "n1.2", "n2.1", "n2.2"}
     r = subprocess.run([sys.executable, "-m", "contin", "diagram", str(h5), "-o", str(png)],
                        capture_output=True, text=True, env=env, timeout=120)

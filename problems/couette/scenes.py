@@ -232,6 +232,8 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         rows = []
         for n, hc in enumerate(analytic, start=1):
             near = min(detected, key=lambda h: abs(h - hc), default=math.nan) if math.isfinite(hc) else math.nan
+            if not abs(near - hc) <= 0.02 * hc:  # e.g. H_n^c beyond H_max: not detected, not the nearest other BP
+                near = math.nan
             rows.append({"n": n, "analytic": hc, "detected": near,
                          "rel_error": abs(near - hc) / hc if math.isfinite(near) else math.nan})
         extra["H_c"] = rows
