@@ -104,6 +104,19 @@ class FoldProblem:
             return self.problem.admissible(u, q)  # type: ignore[attr-defined]
         return None
 
+    def under_resolved(self, state: Array, p: Mapping[str, float], tol: float) -> str | None:
+        """The wrapped problem's resolution guard (``contin.problem``) on the base state u.
+
+        Only u is a state of the problem; the null vector phi is not checked.  The reason gets
+        the second parameter's value appended (the tracer's message names only the first).
+        None when the wrapped problem has no ``under_resolved`` hook.
+        """
+        if not has(self.problem, "under_resolved"):
+            return None
+        u, _, q = self.split(state, p)
+        reason = self.problem.under_resolved(u, q, tol)  # type: ignore[attr-defined]
+        return None if reason is None else f"{reason} (at {self.second} = {q[self.second]:.6g})"
+
 
 def fold_start(problem: object, point: SpecialPoint, second: str) -> tuple[FoldProblem, Array]:
     """The augmented problem and its start vector at a located fold ``point``."""

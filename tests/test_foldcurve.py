@@ -71,3 +71,69 @@ def test_fold_system_jacobian_matches_finite_differences():
     chk = check_jacobian(fold, state, p, parameters=("lam",))
     assert chk.relative_error < 1e-7
     assert chk.dp_errors["lam"] < 1e-7
+
+
+class GuardedPitchfork(ImperfectPitchfork):
+    """The imperfect pitchfork with a declared "discretization error" 1e-5 * 10^(4 (x - 1/2)),
+    which passes tol = 1e-5 exactly at x = 1/2 (contin's resolution guard, contin.problem)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls: list[tuple[int, float, float]] = []
+
+    @staticmethod
+    def error(x: float) -> float:
+        return 1e-5 * 10.0 ** (4.0 * (x - 0.5))
+
+    def under_resolved(self, u, p, tol):
+        self.calls.append((u.size, float(u[0]), p["alpha"]))
+        err = self.error(float(u[0]))
+        return None if err <= tol else f"toy tail {err:.3g} > {tol:.3g}"
+
+
+def _guarded_curve(tol):
+    prob = GuardedPitchfork()
+    p = {"lam": 2.0, "alpha": 0.1, "beta": BETA}
+    opts = ContinuationOptions(step=StepOptions(ds=-0.02, ds_max=0.05), bounds={"lam": (-1, 3)}, max_steps=400,
+                               resolution_tol=None)
+    (lp,) = trace(prob, np.array([1.4]), p, "lam", opts).fold_points
+    x_lp = lp.state[0]
+    opts2 = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.02), bounds={"lam": (-0.5, 3), "alpha": (-1, 1)},
+                                max_steps=500, resolution_tol=tol)
+    start = trace_fold_curve(prob, lp, "alpha", opts2, parameter="lam")
+    return prob, x_lp, start
+
+
+def test_fold_curve_is_guarded_on_its_base_state():
+    """FoldProblem forwards under_resolved on u (not on phi or p2): the fold curve ends with MX
+    before the first point with x > 1/2, which is not stored; the other direction is unaffected."""
+    prob, x_lp, fc = _guarded_curve(1e-5)
+    assert x_lp < 0.5  # the start fold is resolved
+    x = fc.states[:, 0]
+    assert fc.status == "MX" and x.max() <= 0.5 and x.min() < -0.5
+    assert 0.5 - x.max() < 0.05  # stopped within one step (ds_max = 0.02 in the theta-norm) of x = 1/2
+    assert all(prob.error(v) <= 1e-5 for v in x)
+    # the hook saw the base state only (size 1 of the augmented 3) and alpha from the state
+    assert {n for n, _, _ in prob.calls} == {1}
+    assert all(a == pytest.approx(2 * v**3 + BETA * v**2, abs=1e-8) for _, v, a in prob.calls)
+    forward = fc.message.split("forward: ", 1)[1]
+    head, reason = forward.split(": ", 1)
+    rejected_lam = float(head.rsplit("= ", 1)[1])
+    assert head.startswith("under-resolved at lam = ") and rejected_lam > fc.params["lam"][np.argmax(x)]
+    assert reason.startswith("toy tail ") and reason.endswith(")") and "(at alpha = " in reason
+    mx = [s for s in fc.special_points if s.type == "MX"]
+    assert len(mx) == 1 and mx[0].state[0] == x.max()
+
+
+def test_fold_curve_guard_off_reaches_the_bounds():
+    prob, _, fc = _guarded_curve(None)
+    assert fc.status == "EP" and fc.states[:, 0].max() > 0.5 and prob.calls == []
+
+
+def test_fold_problem_without_the_hook_forwards_nothing():
+    fold = FoldProblem(ImperfectPitchfork(), "alpha", np.array([1.0]))
+    assert fold.under_resolved(np.array([0.9, 1.0, 0.05]), {"lam": 0.5, "alpha": 0.0, "beta": BETA}, 1e-30) is None
+    guarded = FoldProblem(GuardedPitchfork(), "alpha", np.array([1.0]))
+    p = {"lam": 0.5, "alpha": 0.0, "beta": BETA}
+    assert guarded.under_resolved(np.array([0.4, 1.0, 0.05]), p, 1e-5) is None
+    assert guarded.under_resolved(np.array([0.9, 1.0, 0.05]), p, 1e-5) == "toy tail 0.000398 > 1e-05 (at alpha = 0.05)"
