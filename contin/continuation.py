@@ -452,6 +452,10 @@ def trace(
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
         tracer.append(new, step_len, corr.iterations)
+        reached = _stop_label(tracer.special, options.stop_at)
+        if reached is not None:
+            message = f"stopped after {reached} (stop_at)"
+            break
         if steps % 20 == 0:
             say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
         ds = next_step(ds, corr.iterations, sopt)
@@ -465,6 +469,14 @@ def trace(
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
     return tracer.build(parameter, status, message, closed, n, **meta)
+
+
+def _stop_label(special: list[SpecialPoint], stop_at: tuple[str, ...]) -> str | None:
+    """The first label of ``stop_at`` (e.g. 'LP1') whose count of that type is reached, else None."""
+    for label in stop_at:
+        if sum(sp.type == label[:2] for sp in special) >= int(label[2:]):
+            return label
+    return None
 
 
 def join(backward: Branch, forward: Branch) -> Branch:

@@ -100,6 +100,9 @@ class ContinuationOptions:
         3e-5 is calibrated on gPCF (``problems.couette.resolution``): above the 3e-7 of the
         densest results that are right (pitchfork scene at nu = 0.3 and 0.15, cheb 64) and
         below the 5e-5 where spurious unstable modes appear (nu = 0.5, H = 36.7, cheb 64).
+    stop_at : AUTO's STOP: labels like ``"LP1"`` or ``"BP2"`` (type and count along this
+        run); the run ends with EP right after the k-th point of that type is located,
+        e.g. when only the first fold of a branch is wanted and what lies beyond it is not.
     """
 
     newton: NewtonOptions = field(default_factory=NewtonOptions)
@@ -110,8 +113,14 @@ class ContinuationOptions:
     detect_closed: bool = True
     save_every: int = 1
     resolution_tol: float | None = 3e-5
+    stop_at: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "stop_at", tuple(self.stop_at))
+        for label in self.stop_at:
+            kind, count = label[:2], label[2:]
+            if kind not in ("LP", "BP") or not count.isdigit() or int(count) < 1:
+                raise ValueError(f"stop_at labels are LP<k> or BP<k> with k >= 1, got {label!r}")
         if self.max_steps < 1:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
         if self.resolution_tol is not None and not self.resolution_tol > 0:
@@ -122,4 +131,4 @@ class ContinuationOptions:
 
     def __hash__(self) -> int:  # bounds is a dict; hash its items so options stay usable as keys
         return hash((self.newton, self.step, self.detection, tuple(sorted(self.bounds.items())),
-                     self.max_steps, self.detect_closed, self.save_every, self.resolution_tol))
+                     self.max_steps, self.detect_closed, self.save_every, self.resolution_tol, self.stop_at))

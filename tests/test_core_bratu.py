@@ -1,5 +1,7 @@
 """Bratu u'' + lam e^u = 0: fold location (spectral and FD orders), bounds, joining, Jacobians."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -70,6 +72,20 @@ def test_bound_gives_ep_exactly_at_the_bound():
     assert np.max(np.abs(pb.residual(br.states[-1], {"lam": 2.5}))) < 1e-10
     ep = br.special_points[-1]
     assert ep.type == "EP" and ep.params["lam"] == 2.5 and ep.index == len(br) - 1
+
+
+def test_stop_at_first_fold():
+    pb = Bratu("cheb", 16)
+    full = trace(pb, pb.initial(), {"lam": 0.0}, "lam", OPTS)
+    stopped = trace(pb, pb.initial(), {"lam": 0.0}, "lam", dataclasses.replace(OPTS, stop_at=("LP1",)))
+    (lp,) = stopped.fold_points
+    assert stopped.status == "EP" and stopped.message == "stopped after LP1 (stop_at)"
+    assert len(stopped) == lp.index + 2 < len(full)  # ends on the point after the fold
+    assert lp.params["lam"] == pytest.approx(full.fold_points[0].params["lam"], abs=1e-12)
+    assert np.allclose(stopped.parameter_values, full.parameter_values[: len(stopped)], rtol=0, atol=1e-12)
+    for bad in (("LP0",), ("XX1",), ("LP",)):
+        with pytest.raises(ValueError, match="stop_at labels"):
+            ContinuationOptions(stop_at=bad)
 
 
 def test_trace_both_joins_halves_through_the_start():

@@ -271,8 +271,11 @@ def banded_fold(problem: CouetteProblem, nu: float, e: float, *, num: float = 0.
     uniform, bp = uniform_shear_bp(problem, nu, e, num=num, h_range=(0.8 * h_c, 1.2 * h_c), branch_id=prefix)
     if bp is None:
         raise ValueError(f"uniform shear at nu = {nu:g}, e = {e:g} shows no BP near H_1^c = {h_c:.6g}")
+    # stop at the fold: the branch beyond it climbs back towards dense plugs that the grid need
+    # not resolve, and nothing here uses it
     opts = ContinuationOptions(bounds={"H": (0.02 * h_c, 1.5 * h_c)}, max_steps=250,
-                               step=StepOptions(ds=1e-3, ds_max=0.04 * h_c), detect_closed=False)
+                               step=StepOptions(ds=1e-3, ds_max=0.04 * h_c), detect_closed=False,
+                               stop_at=("LP1",))
     halves = switch(problem, uniform, bp, opts, directions=(+1,), ds=1e-5, branch_id_prefix=f"{prefix}.n1")
     if not halves:
         raise ValueError(f"branch switching at the BP of uniform shear (nu = {nu:g}, H = {bp.params['H']:.6g}) failed")
