@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from contin.extended import ExtendedSystem
-from contin.linalg import Factorization, factorize_bordered_norm
-from contin.newton import _EPS, DIVERGENCE_FACTOR, backtrack, max_norm
+from contin.linalg import Factorization, factorize_bordered
+from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm, rounding_floor
 from contin.options import NewtonOptions
 from contin.problem import Array
 
@@ -72,10 +72,9 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
     rhs = np.empty(x.size)
     for it in range(1, options.max_iterations + 1):
         jac, fp = system.jacobian(x)
-        fact, jnorm = factorize_bordered_norm(jac, fp, row)
+        fact = factorize_bordered(jac, fp, row)
         if fact is None:
             return Correction(x, False, it, None, row, history, f"singular bordered Jacobian at iteration {it}")
-        tol = max(options.tol, _EPS * jnorm * max(1.0, max_norm(x)))  # newton.rounding_floor
         rhs[:-1] = f
         rhs[-1] = row @ (x - x_pred)
         dx = fact.solve(-rhs)
@@ -84,13 +83,16 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         x_new, lam, reason = backtrack(system.admissible, x, dx)
         if reason is not None:
             return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
-        x = x_new
+        x_old, x = x, x_new
         f = system.residual(x)
         r = max_norm(f)
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
-        if r <= tol and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x)):
+        # tolerance max(tol, rounding floor at the iterate J was taken at, newton.rounding_floor);
+        # the floor (a norm of J) is only needed when the residual is above options.tol
+        if ((r <= options.tol or r <= rounding_floor(jac, x_old))
+                and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x))):
             return Correction(x, True, it, fact, row, history, "converged")
     return Correction(x, False, options.max_iterations, fact, row, history,
                       f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from contin.linalg import DENSE_LIMIT
 from contin.problem import Array, has
 
 
@@ -65,11 +66,20 @@ class ExtendedSystem:
     def residual(self, x: Array) -> Array:
         return np.asarray(self.problem.residual(x[:-1], self.params_at(x[-1])), dtype=float)
 
-    def jacobian(self, x: Array) -> tuple[sp.spmatrix, Array]:
-        """(J = dF/du as the problem returns it (sparse, or dense for tiny problems), F_p = dF/dp) at x."""
+    def jacobian(self, x: Array) -> tuple[sp.spmatrix | Array, Array]:
+        """(J = dF/du, F_p = dF/dp) at x.
+
+        J is dense when it will be factorized densely (n + 1 <= ``contin.linalg.DENSE_LIMIT``)
+        and the problem has the optional ``dense_jacobian`` hook; otherwise as the problem's
+        ``jacobian`` returns it (sparse, or dense for tiny problems).
+        """
         q = self.params_at(x[-1])
-        jac = self.state_jacobian(x, q)
-        fp = np.asarray(self.problem.dresidual_dp(x[:-1], q, self.parameter), dtype=float).ravel()
+        u = x[:-1]
+        if x.size <= DENSE_LIMIT and has(self.problem, "dense_jacobian"):
+            jac = np.asarray(self.problem.dense_jacobian(u, q), dtype=float)
+        else:
+            jac = self.state_jacobian(x, q)
+        fp = np.asarray(self.problem.dresidual_dp(u, q, self.parameter), dtype=float).ravel()
         return jac, fp
 
     def state_jacobian(self, x: Array, q: Mapping[str, float] | None = None) -> sp.spmatrix | Array:

@@ -123,8 +123,16 @@ class DenseLU(Factorization):
 
     def _diag_parity(self) -> tuple[Array, int]:
         # Each entry with piv[i] != i is one transposition.
-        swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size)))
+        swaps = int(np.count_nonzero(self.piv != _arange(self.piv.size)))
         return self.lu.diagonal(), -1 if swaps % 2 else 1
+
+
+_ARANGE = np.arange(DENSE_LIMIT)
+
+
+def _arange(n: int) -> Array:
+    """0, ..., n-1 (a view of a cached range for the dense sizes)."""
+    return _ARANGE[:n] if n <= DENSE_LIMIT else np.arange(n)
 
 
 def factorize(a: object) -> Factorization | None:
@@ -144,7 +152,7 @@ def factorize(a: object) -> Factorization | None:
 def _dense_lu(a: Array) -> DenseLU | None:
     """getrf of ``a`` in place; None on an exactly zero pivot (info > 0)."""
     lu, piv, info = _getrf(a, overwrite_a=True)
-    if info != 0 or not np.all(lu.diagonal()):
+    if info != 0 or not lu.diagonal().all():
         return None
     return DenseLU(lu, piv)
 
@@ -172,18 +180,21 @@ def bordered_dense(jac: object, column: Array, row: Array) -> Array:
     """[[J, column], [row[:n], row[n]]] as a dense (Fortran-ordered, for getrf) array."""
     n = jac.shape[0]  # type: ignore[attr-defined]
     a = np.empty((n + 1, n + 1), order="F")
-    if sp.issparse(jac):
-        a[:n, :n] = jac.toarray()  # type: ignore[attr-defined]
-    else:
-        a[:n, :n] = jac
-    a[:n, n] = np.asarray(column, dtype=float).ravel()
-    a[n, :] = np.asarray(row, dtype=float).ravel()
+    a[:n, :n] = jac.toarray() if sp.issparse(jac) else jac  # type: ignore[attr-defined]
+    a[:n, n] = column
+    a[n, :] = row
     return a
 
 
 def factorize_bordered(jac: object, column: Array, row: Array) -> Factorization | None:
-    """:func:`factorize` of the bordered matrix of :func:`bordered`, built densely when small."""
-    return factorize_bordered_norm(jac, column, row)[0]
+    """:func:`factorize` of the bordered matrix of :func:`bordered`, built densely when small.
+
+    ``jac`` itself is not modified (the dense path factorizes a bordered copy).
+    """
+    n = jac.shape[0]  # type: ignore[attr-defined]
+    if n + 1 <= DENSE_LIMIT:
+        return _dense_lu(bordered_dense(jac, column, row))
+    return factorize(bordered(jac, column, row))
 
 
 def factorize_bordered_norm(jac: object, column: Array, row: Array) -> tuple[Factorization | None, float]:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.linalg import factorize, inf_norm
+from contin.linalg import DENSE_LIMIT, factorize, inf_norm
 from contin.options import NewtonOptions
 from contin.problem import Array, has
 
@@ -89,29 +89,34 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
     reason = admissible(u)
     if reason is not None:
         return NewtonResult(u, False, 0, [], f"initial guess is inadmissible: {reason}")
-    r = max_norm(np.asarray(problem.residual(u, p), dtype=float))
+    f = np.asarray(problem.residual(u, p), dtype=float)
+    r = max_norm(f)
     history = [r]
     if not math.isfinite(r):
         return NewtonResult(u, False, 0, history, "residual is not finite at the initial guess")
     if r <= options.tol:
         return NewtonResult(u, True, 0, history, "converged")
+    # Dense LU for small systems: take J densely if the problem can (see contin.problem).
+    dense = u.size <= DENSE_LIMIT and has(problem, "dense_jacobian")
     for it in range(1, options.max_iterations + 1):
-        jac = problem.jacobian(u, p)
-        tol = max(options.tol, rounding_floor(jac, u))
-        fact = factorize(jac)
+        jac = problem.dense_jacobian(u, p) if dense else problem.jacobian(u, p)
+        fact = factorize(jac)  # a copy: jac stays intact for the rounding floor below
         if fact is None:
             return NewtonResult(u, False, it, history, f"singular Jacobian at iteration {it}")
-        f = np.asarray(problem.residual(u, p), dtype=float)
         du = fact.solve(-f)
         u_new, lam, reason = backtrack(admissible, u, du)
         if reason is not None:
             return NewtonResult(u, False, it, history, f"Newton iterate inadmissible: {reason}")
-        u = u_new
-        r = max_norm(np.asarray(problem.residual(u, p), dtype=float))
+        u_old, u = u, u_new
+        f = np.asarray(problem.residual(u, p), dtype=float)
+        r = max_norm(f)
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return NewtonResult(u, False, it, history, f"Newton diverged (residual {r:.3g})")
-        if r <= tol and lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u)):
+        # tol = max(options.tol, rounding floor at the iterate J was taken at); the floor is
+        # only evaluated when the residual is above options.tol
+        if ((r <= options.tol or r <= rounding_floor(jac, u_old))
+                and lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u))):
             return NewtonResult(u, True, it, history, "converged")
     return NewtonResult(u, False, options.max_iterations, history,
                         f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

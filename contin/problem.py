@@ -42,6 +42,11 @@ class Problem(Protocol):
 
     Optional methods (looked up with ``getattr``; absent means "not available")
     --------------------------------------------------------------------------
+    dense_jacobian(u, p) -> (n, n) ndarray
+        The same J as ``jacobian``, dense.  contin factorizes small systems densely
+        (n + 1 <= ``contin.linalg.DENSE_LIMIT``) and then calls this instead of ``jacobian``
+        in its Newton loops, which skips building a sparse matrix only to copy it into a
+        dense one (at continuation sizes that construction costs more than the LU).
     mass_matrix(u, p) -> (n, n) sparse
         M in M du/dt = F(u, p); default eigenproblem is J x = omega M x.
     eigenproblem(u, p, **kwargs) -> (A, B)

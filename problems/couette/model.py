@@ -44,6 +44,7 @@ J. Fluid Mech. 523 (2005) 277; Lun, Savage, Jeffrey & Chepurniy, J. Fluid Mech. 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -154,14 +155,19 @@ class CouetteProblem:
         self._d2t = np.ascontiguousarray(self._d2.T.toarray()) if dense else sp.csr_matrix(self._d2.T)
         self._walls_idx = np.array([0, n - 1])
         self._sigma = np.array([-1.0, 1.0])  # outward normal at bottom, top
-        self._mask = np.ones(n)
-        self._mask[self._walls_idx] = 0.0
-        ops = {"I": sp.eye(n, format="csr"), "d1": self._d1, "d2": self._d2,
+        # Jacobian operators.  Interior rows ("...i": wall rows dropped) and wall rows ("...w":
+        # rows 0 and n-1 only, row factors of length 2, one per wall) are separate operators,
+        # so that no row factor has to be masked or scattered into a length-n vector.
+        eye = sp.eye(n, format="csr")
+        interior = sp.diags(np.r_[0.0, np.ones(n - 2), 0.0], format="csr")
+        at_walls = sp.diags(np.r_[1.0, np.zeros(n - 2), 1.0], format="csr")
+        ops = {"I": eye, "Ii": interior, "d1i": interior @ self._d1, "d2i": interior @ self._d2,
+               "Iw": at_walls, "d1w": at_walls @ self._d1, "d1w_sig": sp.diags(np.r_[-1.0, np.zeros(n - 2), 1.0]) @ self._d1,
                "ones_col": sp.csr_matrix(-np.ones((n, 1))), "weights": sp.csr_matrix(self.grid.weights[None, :])}
         if self.gravity:
             self._mass_M, self._mass_nu = _mass_rows(cell_integration_matrix(g))
             ops.update(mass_M=self._mass_M, mass_nu=-self._mass_nu)
-        self._ops = {name: sp.coo_matrix(op) for name, op in ops.items()}
+        self._ops = {name: _coo(op, wall=name in _WALL_OPS) for name, op in ops.items()}
         self._layouts: dict[tuple, _Layout] = {}
         self._cache: tuple | None = None  # (x, (e, num), _Fields) of the last real evaluation
         self._mid_weights: Array | None = None
@@ -230,12 +236,16 @@ class CouetteProblem:
         """
         key = (p["e"], p["num"])
         real = x.dtype == np.float64 and not isinstance(key[0], complex) and not isinstance(key[1], complex)
+        if not real:
+            return self._compute_fields(x, p)
+        # The bytes of x as the key: one cheap comparison (np.array_equal costs ~4 us, called
+        # ~3 times per Newton iteration); bitwise equality is what the cache needs anyway.
+        raw = x.tobytes()
         cached = self._cache
-        if real and cached is not None and cached[1] == key and np.array_equal(cached[0], x):
+        if cached is not None and cached[1] == key and cached[0] == raw:
             return cached[2]  # type: ignore[no-any-return]
         f = self._compute_fields(x, p)
-        if real:
-            self._cache = (x.copy(), key, f)
+        self._cache = (raw, key, f)
         return f
 
     def _compute_fields(self, x: NDArray, p: Mapping[str, Any]) -> _Fields:
@@ -326,76 +336,90 @@ class CouetteProblem:
         nu-derivatives of f1..f5 come from closures.coefficients (analytic); that of f_h (Dufour
         only) by a complex step.
         """
+        layout, rows, cols = self._jacobian_terms(x, p)
+        return layout.assemble(rows, cols)
+
+    def dense_jacobian(self, x: Array, p: Mapping[str, Any]) -> Array:
+        """The same dF/dx as :meth:`jacobian`, as a dense Fortran-ordered array.
+
+        The optional contin hook (``contin.problem``): contin factorizes small systems densely,
+        and scattering the entries straight into a dense array skips building a CSR matrix
+        only to copy it into one (scipy's CSR constructor alone costs ~15 us at N = 12).
+        """
+        layout, rows, cols = self._jacobian_terms(x, p)
+        return layout.assemble_dense(rows, cols)
+
+    def _jacobian_terms(self, x: Array, p: Mapping[str, Any]) -> tuple[_Layout, list, list]:
+        """The cached layout of J and the row and column factors of its terms at (x, p)."""
         self._check_gravity(p)
         x = np.asarray(x, dtype=float)
         f = self._fields(x, p)
         c, H, n = f.c, p["H"], self.n
         h2 = 1.0 / H**2
         w, sig = self._walls_idx, self._sigma
-        m = self._mask  # 1 in the interior, 0 in the wall rows
 
-        def at_walls(values: Array) -> Array:
-            out = np.zeros(n)
-            out[w] = values
-            return out
-
+        # (each factor is written exactly as the masked version before it, so J is bitwise the same)
         a_nu, a_T = c.f2_nu * f.sT, c.f2 / (2.0 * f.sT)
         k_nu, k_T = c.f4_nu * f.sT, c.f4 / (2.0 * f.sT)
         D_nu, D_T = c.f5_nu * f.T * f.sT, 1.5 * c.f5 * f.sT
+        up2 = f.up**2
+        tp_h2 = f.Tp * h2
 
-        # Terms (operator, row factor, column factor): entry = row[i] * op[i, j] * col[j].
+        # Terms (operator, row factor, column factor): entry = row[i] * op[i, j] * col[j].  The
+        # "...i" operators act on the interior rows, the "...w" ones on the two wall rows (their
+        # row factors hold the bottom and top values).
         # x-momentum, interior: da (u'' + u' D1) + (a D2 + a' D1) du, da = a_nu dnu + a_T dT
-        ju_u = [("d2", m * f.a, None), ("d1", m * f.ap, None)]
-        ju_nu = [("I", m * f.upp * a_nu, None), ("d1", m * f.up, a_nu)]
-        ju_T = [("I", m * f.upp * a_T, None), ("d1", m * f.up, a_T)]
+        ju_u = [("d2i", f.a, None), ("d1i", f.ap, None)]
+        ju_nu = [("Ii", f.upp * a_nu, None), ("d1i", f.up, a_nu)]
+        ju_T = [("Ii", f.upp * a_T, None), ("d1i", f.up, a_T)]
         # energy, interior: (dk (T'' + T' D1) + k D2 dT + k' D1 dT) / H^2 + da u'^2 + 2 a u' D1 du - dD
         jt_T = [
-            ("I", m * (f.Tpp * k_T * h2 + f.up**2 * a_T - D_T), None),
-            ("d1", m * f.Tp * h2, k_T),
-            ("d2", m * f.k * h2, None),
-            ("d1", m * f.kp * h2, None),
+            ("Ii", f.Tpp * k_T * h2 + up2 * a_T - D_T, None),
+            ("d1i", tp_h2, k_T),
+            ("d2i", f.k * h2, None),
+            ("d1i", f.kp * h2, None),
         ]
-        jt_nu = [("I", m * (f.Tpp * k_nu * h2 + f.up**2 * a_nu - D_nu), None), ("d1", m * f.Tp * h2, k_nu)]
-        jt_u = [("d1", m * 2.0 * f.a * f.up, None)]
+        jt_nu = [("Ii", f.Tpp * k_nu * h2 + up2 * a_nu - D_nu, None), ("d1i", tp_h2, k_nu)]
+        jt_u = [("d1i", 2.0 * f.a * f.up, None)]
         # wall heat flux k T' (+ k_h nu'): its T- and nu-derivatives at the walls
         flux_T_diag = k_T[w] * f.Tp[w]
         flux_nu_diag = k_nu[w] * f.Tp[w]
         if self.dufour:
             fh_nu = _dufour_nu_derivative(f.nu, p, self.chi)
             kh_T, kh_nu = 1.5 * c.fh * f.sT, fh_nu * f.T * f.sT
-            jt_T += [("I", m * f.nupp * kh_T * h2, None), ("d1", m * f.nup * h2, kh_T)]
+            jt_T += [("Ii", f.nupp * kh_T * h2, None), ("d1i", f.nup * h2, kh_T)]
             jt_nu += [
-                ("I", m * f.nupp * kh_nu * h2, None),
-                ("d1", m * f.nup * h2, kh_nu),
-                ("d2", m * f.kh * h2, None),
-                ("d1", m * f.khp * h2, None),
+                ("Ii", f.nupp * kh_nu * h2, None),
+                ("d1i", f.nup * h2, kh_nu),
+                ("d2i", f.kh * h2, None),
+                ("d1i", f.khp * h2, None),
             ]
             flux_T_diag = flux_T_diag + kh_T[w] * f.nup[w]
             flux_nu_diag = flux_nu_diag + kh_nu[w] * f.nup[w]
 
         # wall rows
         if self.walls == "noslip":
-            ju_u.append(("I", at_walls(np.ones(2)), None))
+            ju_u.append(("Iw", None, None))
             if self.dufour:
-                jt_T += [("d1", at_walls(sig * f.k[w]), None), ("I", at_walls(sig * flux_T_diag), None)]
-                jt_nu += [("d1", at_walls(sig * f.kh[w]), None), ("I", at_walls(sig * flux_nu_diag), None)]
+                jt_T += [("d1w", sig * f.k[w], None), ("Iw", sig * flux_T_diag, None)]
+                jt_nu += [("d1w", sig * f.kh[w], None), ("Iw", sig * flux_nu_diag, None)]
             else:
-                jt_T.append(("d1", at_walls(sig), None))
+                jt_T.append(("d1w_sig", None, None))
         else:
             sw, dw, sw_nu, sw_T, dw_nu, dw_T = self._wall_coefficients(f, p)
             slip = f.u[w] - 0.5 * sig
             upw = f.up[w]
-            ju_u += [("d1", at_walls(-sig * f.a[w]), None), ("I", at_walls(-H * sw), None)]
-            ju_nu.append(("I", at_walls(-sig * a_nu[w] * upw - H * sw_nu * slip), None))
-            ju_T.append(("I", at_walls(-sig * a_T[w] * upw - H * sw_T * slip), None))
+            ju_u += [("d1w", -sig * f.a[w], None), ("Iw", -H * sw, None)]
+            ju_nu.append(("Iw", -sig * a_nu[w] * upw - H * sw_nu * slip, None))
+            ju_T.append(("Iw", -sig * a_T[w] * upw - H * sw_T * slip, None))
             jt_T += [
-                ("d1", at_walls(sig * f.k[w] * h2), None),
-                ("I", at_walls(sig * flux_T_diag * h2 - H * sw_T * slip**2 + dw_T / H), None),
+                ("d1w", sig * f.k[w] * h2, None),
+                ("Iw", sig * flux_T_diag * h2 - H * sw_T * slip**2 + dw_T / H, None),
             ]
-            jt_nu.append(("I", at_walls(sig * flux_nu_diag * h2 - H * sw_nu * slip**2 + dw_nu / H), None))
+            jt_nu.append(("Iw", sig * flux_nu_diag * h2 - H * sw_nu * slip**2 + dw_nu / H, None))
             if self.dufour:
-                jt_nu.append(("d1", at_walls(sig * f.kh[w] * h2), None))
-            jt_u.append(("I", at_walls(-2.0 * H * sw * slip), None))
+                jt_nu.append(("d1w", sig * f.kh[w] * h2, None))
+            jt_u.append(("Iw", -2.0 * H * sw * slip, None))
 
         iu, iT, iP = self.i_u.start, self.i_T.start, self.i_P
         terms: list[tuple[int, int, str, Array | None, Array | None]] = [
@@ -417,7 +441,7 @@ class CouetteProblem:
         layout = self._layouts.get(key)
         if layout is None:
             layout = self._layouts[key] = _Layout(self.size, self._ops, key)
-        return layout.assemble([t[3] for t in terms], [t[4] for t in terms])
+        return layout, [t[3] for t in terms if t[3] is not None], [t[4] for t in terms if t[4] is not None]
 
     def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
         """dF/dp for the parameter ``name`` by the complex step (exact to rounding)."""
@@ -511,10 +535,14 @@ class CouetteProblem:
     def admissible(self, x: Array, p: Mapping[str, Any]) -> str | None:
         """None for a physical state, else the reason (non-finite, T <= 0, nu outside (0, limit))."""
         x = np.asarray(x)
-        if not np.all(np.isfinite(x)):
-            return "state has non-finite entries"
         nu, _, T, _, _ = self.unpack(x)
         limit = packing_limit(self.chi, p["num"])
+        # Fast path (called for every Newton iterate): four reductions decide a physical state;
+        # anything else (including a sum that overflows) gets the detailed checks below.
+        if nu.min() > 0 and nu.max() < limit and T.min() > 0 and math.isfinite(x.sum()):
+            return None
+        if not np.all(np.isfinite(x)):
+            return "state has non-finite entries"
         if np.min(T) <= 0:
             return f"temperature not positive (min T = {np.min(T):.3g})"
         if np.min(nu) <= 0:
@@ -686,12 +714,14 @@ class CouetteProblem:
 
 
 class _Layout:
-    """CSR structure of J = sum_k diag(row_k) Op_k diag(col_k) placed at block offsets (r0_k, c0_k).
+    """Structure of J = sum_k diag(row_k) Op_k diag(col_k) placed at block offsets (r0_k, c0_k).
 
     Built once per term list (operators are fixed per problem instance); each Jacobian is then
     one gather-multiply of all operator entries by their row and column factors and one
-    ``np.bincount`` scatter into the CSR data (overlapping terms are summed): no sparse
-    products, sums or per-block matrices in the Newton loop.  A factor given as None is 1.
+    ``np.bincount`` scatter (overlapping terms are summed) into the CSR data or into a dense
+    array: no sparse products, sums or per-block matrices in the Newton loop.  A factor given
+    as None is 1.  An operator's row factor has one entry per operator row, or one per wall
+    (length 2: bottom, top) for the wall-row operators (:data:`_WALL_OPS`).
     """
 
     def __init__(self, size: int, ops: Mapping[str, sp.coo_matrix], key: tuple) -> None:
@@ -700,34 +730,59 @@ class _Layout:
         r_off = c_off = 1  # slot 0 of the stacked factors holds the constant 1
         for r0, c0, name, row_none, col_none in key:
             op = ops[name]
+            wall = getattr(op, "wall", False)
+            local = (op.row > 0).astype(np.int64) if wall else op.row
             rows.append(op.row + r0)
             cols.append(op.col + c0)
             vals.append(op.data)
-            rsrc.append(np.zeros(op.nnz, dtype=np.int64) if row_none else op.row + r_off)
+            rsrc.append(np.zeros(op.nnz, dtype=np.int64) if row_none else local + r_off)
             csrc.append(np.zeros(op.nnz, dtype=np.int64) if col_none else op.col + c_off)
-            r_off += 0 if row_none else op.shape[0]
+            r_off += 0 if row_none else (2 if wall else op.shape[0])
             c_off += 0 if col_none else op.shape[1]
-        flat = np.concatenate(rows).astype(np.int64) * size + np.concatenate(cols)
+        r_all, c_all = np.concatenate(rows).astype(np.int64), np.concatenate(cols).astype(np.int64)
+        flat = r_all * size + c_all
         uniq, pos = np.unique(flat, return_inverse=True)
         urows, ucols = np.divmod(uniq, size)
         idx_t = np.int32 if uniq.size < 2**31 else np.int64
         self.indptr = np.concatenate([[0], np.cumsum(np.bincount(urows, minlength=size))]).astype(idx_t)
         self.indices = ucols.astype(idx_t)
         self.pos = pos.ravel()
+        self.flat_f = c_all * size + r_all  # position in a Fortran-ordered dense (size, size) array
         self.vals = np.concatenate(vals).astype(float)
         self.rsrc = np.concatenate(rsrc)
         self.csrc = np.concatenate(csrc)
         self.nnz = uniq.size
 
-    def assemble(self, rows: list[Array | None], cols: list[Array | None]) -> sp.csr_matrix:
-        one = _ONE
-        rstack = np.concatenate([one] + [r for r in rows if r is not None])
-        cstack = np.concatenate([one] + [c for c in cols if c is not None])
-        data = np.bincount(self.pos, weights=self.vals * rstack[self.rsrc] * cstack[self.csrc], minlength=self.nnz)
+    def _weights(self, rows: list[Array], cols: list[Array]) -> Array:
+        rstack = np.concatenate([_ONE, *rows])
+        cstack = np.concatenate([_ONE, *cols])
+        return self.vals * rstack[self.rsrc] * cstack[self.csrc]
+
+    def assemble(self, rows: list[Array], cols: list[Array]) -> sp.csr_matrix:
+        """CSR J from the non-None row and column factors, in term order."""
+        data = np.bincount(self.pos, weights=self._weights(rows, cols), minlength=self.nnz)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
+
+    def assemble_dense(self, rows: list[Array], cols: list[Array]) -> Array:
+        """Dense (Fortran-ordered) J from the same factors."""
+        size = self.size
+        return np.bincount(self.flat_f, weights=self._weights(rows, cols), minlength=size * size).reshape(
+            (size, size), order="F")
 
 
 _ONE = np.ones(1)
+
+
+#: Jacobian operators that act on the two wall rows only (row factors of length 2).
+_WALL_OPS = frozenset({"Iw", "d1w", "d1w_sig"})
+
+
+def _coo(op: sp.spmatrix, wall: bool) -> sp.coo_matrix:
+    """``op`` as COO without stored zeros, marked ``wall`` for :class:`_Layout`."""
+    coo = sp.coo_matrix(op)
+    coo.eliminate_zeros()
+    coo.wall = wall
+    return coo
 
 
 def _mass_rows(cells: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
