@@ -334,3 +334,119 @@ def cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
     cells[left - 1, left] += share[left] * delta[left]
     cells[right, right] += share[right] * delta[right]
     return sp.csr_matrix(cells)
+
+
+# ----------------------------------------------------------------------------- extended precision
+def to_longdouble(q: Fraction) -> np.longdouble:
+    """The rational q correctly rounded to ``np.longdouble`` (x86: 64-bit significand, eps 1.1e-19).
+
+    Integer arithmetic: the 64-bit significand m = round(|q| / 2^e) (half to even), then m 2^e.
+    """
+    if q == 0:
+        return np.longdouble(0)
+    a = abs(Fraction(q))
+    bits = np.finfo(np.longdouble).nmant + 1  # 64 on x86
+    e = a.numerator.bit_length() - a.denominator.bit_length() - bits
+    while a / Fraction(2) ** e >= 2**bits:
+        e += 1
+    while a / Fraction(2) ** e < 2 ** (bits - 1):
+        e -= 1
+    m = round(a / Fraction(2) ** e)  # Fraction.__round__: half to even
+    hi, lo = divmod(m, 2**32)  # m <= 2^64: two exact pieces
+    out = np.ldexp(np.longdouble(hi) * np.longdouble(2**32) + np.longdouble(lo), e)
+    return out if q > 0 else -out
+
+
+def _zero_sum_row(values: list[Fraction], diag: int) -> list[np.longdouble]:
+    """One matrix row in ``np.longdouble`` whose entries sum to exactly zero.
+
+    The off-diagonal values are rounded to multiples of 2^k, the unit in the last place of the
+    row's sum of |values|, so that their exact sum is representable, and the diagonal is exactly
+    minus it.  Why exactly zero: the interior FD rows are all the same stencil, so a row sum
+    left at one rounding of the diagonal (as in double) is the same small number delta in every
+    row, D c = delta for constants, a coherent source term in the equations; at fd6 N = 448 it
+    moved the fold H (nu = 0.16) by a few 1e-13, N-dependently, 10x the evaluation noise.
+    Rounding the small entries to 2^k instead costs ~1e-17 relative on them.
+    """
+    bits = np.finfo(np.longdouble).nmant + 1
+    total = sum(abs(c) for c in values)
+    k = math.ceil(math.log2(total)) - bits + 1  # |sum of off-diagonals| <= total < 2^(bits + k - 1)
+    unit = Fraction(2) ** k
+    off = [round(c / unit) * unit for c in values]
+    off[diag] = -sum(c for j, c in enumerate(off) if j != diag)
+    return [to_longdouble(c) for c in off]
+
+
+def _fd_matrix_longdouble(n: int, deriv: int, order: int) -> NDArray[np.longdouble]:
+    """:func:`_fd_matrix` in ``np.longdouble`` (dense) from the exact rationals, every row
+    summing to exactly zero (:func:`_zero_sum_row`)."""
+    scale = Fraction(n - 1) ** deriv
+    out = np.zeros((n, n), dtype=np.longdouble)
+    for i in range(n):
+        idx = _fd_stencil(i, n, deriv, order)
+        exact = [c * scale for c in uniform_stencil(tuple(int(j) - i for j in idx), deriv)]
+        out[i, idx] = _zero_sum_row(exact, int(np.flatnonzero(idx == i)[0]))
+    return out
+
+
+def _chebyshev_longdouble(n: int) -> tuple[NDArray[np.longdouble], NDArray[np.longdouble], NDArray[np.longdouble]]:
+    """:func:`chebyshev` in ``np.longdouble``: nodes x_j = sin(pi (n - 2j) / (2n)) (exactly odd),
+    with pi in extended precision, then the same Trefethen / Clenshaw-Curtis formulas."""
+    ld = np.longdouble
+    pi = 4 * np.arctan(ld(1))
+    j = np.arange(n + 1)
+    x = np.sin(pi * (n - 2 * j).astype(ld) / (2 * n))  # descending on [-1, 1]
+    c = np.where((j == 0) | (j == n), ld(2), ld(1)) * np.where(j % 2 == 0, ld(1), ld(-1))
+    dx = x[:, None] - x[None, :]
+    d = np.outer(c, 1 / c) / (dx + np.eye(n + 1, dtype=ld))
+    d -= np.diag(d.sum(axis=1))
+    theta = pi * j.astype(ld) / n
+    w = np.zeros(n + 1, dtype=ld)
+    v = np.ones(n - 1, dtype=ld)
+    inner = np.arange(1, n)
+    if n % 2 == 0:
+        w[0] = w[n] = 1 / ld(n**2 - 1)
+        for k in range(1, n // 2):
+            v -= 2 * np.cos(2 * k * theta[inner]) / ld(4 * k**2 - 1)
+        v -= np.cos(n * theta[inner]) / ld(n**2 - 1)
+    else:
+        w[0] = w[n] = 1 / ld(n**2)
+        for k in range(1, (n - 1) // 2 + 1):
+            v -= 2 * np.cos(2 * k * theta[inner]) / ld(4 * k**2 - 1)
+    w[inner] = 2 * v / n
+    d = 2 * d[::-1, ::-1]
+    d = (d - d[::-1, ::-1]) / 2
+    w = w[::-1] / 2
+    return x[::-1] / 2, d, (w + w[::-1]) / 2
+
+
+@lru_cache(maxsize=16)
+def extended_grid(method: str, intervals: int) -> Grid:
+    """The grid of :func:`make_grid` with nodes, derivative matrices and weights in ``np.longdouble``.
+
+    For measurements below the double-precision rounding floor (e.g. the fd6 convergence order
+    of the fold at nu = 0.16, tests/test_couette_scenes.py; problems/couette/extended_precision.py):
+    the FD entries are the same exact rationals rounded to 64 bits instead of 53, with every row
+    summing to exactly zero (:func:`_zero_sum_row`), the Chebyshev ones the same formulas
+    evaluated in extended precision.  ``d1``, ``d2`` are CSR matrices of
+    dtype longdouble (dense storage pattern for Chebyshev); ``interpolate`` still works in double.
+    Not used by the normal (double) code path.
+    """
+    make_grid(method, intervals)  # same validation
+    ld = np.longdouble
+    if method == "cheb":
+        y, d, w = _chebyshev_longdouble(intervals)
+        dd = d @ d
+        # Not passed through _zero_sum_row: quantizing the O(1) entries of a Chebyshev row to the
+        # unit of its O(N^2) ones made the fold H at nu = 0.16 scatter 2x more over N = 64..128.
+        return Grid(method, intervals, y, sp.csr_matrix(d), sp.csr_matrix((dd + dd[::-1, ::-1]) / 2), w, float("inf"))
+    order = int(method[2:])
+    n = intervals + 1
+    y = np.arange(-intervals, intervals + 1, 2).astype(ld) / ld(2 * intervals)  # one rounding, exactly odd
+    wq = [Fraction(0)] * n
+    for idx, cw in _fd_cells(n, order):
+        for j, c in zip(idx, cw):
+            wq[j] += c
+    d1 = sp.csr_matrix(_fd_matrix_longdouble(n, 1, order))
+    d2 = sp.csr_matrix(_fd_matrix_longdouble(n, 2, order))
+    return Grid(method, intervals, y, d1, d2, np.array([to_longdouble(c) for c in wq]), float(order))

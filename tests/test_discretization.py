@@ -16,8 +16,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.discretization import (
+    extended_grid,
     fornberg_weights,
     make_grid,
+    to_longdouble,
     uniform_cell_weights,
     uniform_stencil,
 )
@@ -157,3 +159,83 @@ def test_global_order_of_a_neumann_model_bvp(method):
     errs = np.array([neumann_bvp_error(method, N) for N in Ns])
     for col in errs.T:
         assert abs(slope(Ns, col) - p) < 0.2, slope(Ns, col)
+
+
+# ----------------------------------------------------------------------------- extended precision
+LD = np.longdouble
+LD_EPS = float(np.finfo(LD).eps)
+
+
+def exact(v) -> Fr:
+    return Fr(*v.as_integer_ratio())
+
+
+@pytest.mark.parametrize("q", [Fr(1, 3), Fr(-49, 18) * 448**2, Fr(2**64 - 1), Fr(2**65 + 3, 7), Fr(1, 10**30),
+                               Fr(-180778091922353605829, 1152921504606846976)])
+def test_to_longdouble_rounds_to_nearest(q):
+    v = to_longdouble(q)
+    assert v.dtype == LD
+    for w in (np.nextafter(v, LD("inf")), np.nextafter(v, LD("-inf"))):
+        assert abs(exact(v) - q) <= abs(exact(w) - q)
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4", "fd6"])
+@pytest.mark.parametrize("N", [16, 100, 256])
+def test_extended_grid_rows_sum_to_exactly_zero_and_match_the_double_grid(method, N):
+    """Extended-precision operators: the exact rationals to 2^-63 of the row's sum of |weights|,
+    row sums exactly zero (problems.discretization._zero_sum_row), exact parity, and the double
+    grid's entries within one double rounding."""
+    g, gd = extended_grid(method, N), make_grid(method, N)
+    assert g.y.dtype == g.weights.dtype == g.d1.dtype == g.d2.dtype == LD
+    flip = np.arange(N, -1, -1)
+    for deriv, d, dd in ((1, g.d1.toarray(), gd.d1.toarray()), (2, g.d2.toarray(), gd.d2.toarray())):
+        i = 3
+        p = int(g.order)
+        idx = np.arange(0, p + deriv) if i < p // 2 else np.arange(i - p // 2, i + p // 2 + 1)
+        weights = [c * Fr(N) ** deriv for c in uniform_stencil(tuple(int(j) - i for j in idx), deriv)]
+        total = sum(abs(c) for c in weights)
+        for j, c in zip(idx, weights):  # the diagonal carries the off-diagonals' quantization
+            assert abs(exact(d[i, j]) - c) <= (len(idx) if j == i else 1) * total * Fr(2) ** -63
+        assert all(sum(exact(v) for v in row) == 0 for row in d)
+        sign = -1 if deriv == 1 else 1
+        assert np.array_equal(d, sign * d[np.ix_(flip, flip)])
+        assert np.all(np.abs(d - dd) <= EPS * np.abs(dd).max(axis=1)[:, None])
+    assert all(exact(y) == Fr(2 * j - N, 2 * N) or abs(exact(y) - Fr(2 * j - N, 2 * N)) <= Fr(2) ** -64
+               for j, y in enumerate(g.y))
+    assert np.array_equal(g.y, -g.y[::-1]) and np.array_equal(g.weights, g.weights[::-1])
+    assert abs(float(g.weights.sum() - 1)) <= 2 * N * LD_EPS
+    assert np.all(np.abs(g.weights - gd.weights) <= EPS * gd.weights)
+
+
+def test_extended_chebyshev_grid_matches_the_double_one():
+    """Same formulas in longdouble (pi in extended precision): the double grid within its rounding."""
+    for N in (16, 64):
+        g, gd = extended_grid("cheb", N), make_grid("cheb", N)
+        d, flip = g.d1.toarray(), np.arange(N, -1, -1)
+        assert np.array_equal(d, -d[np.ix_(flip, flip)]) and np.array_equal(g.y, -g.y[::-1])
+        assert float(np.abs(d - gd.d1.toarray()).max()) < 1e3 * EPS * N**2
+        assert float(np.abs(g.y - gd.y).max()) < 4 * EPS and abs(float(g.weights.sum() - 1)) < 10 * LD_EPS
+        assert float(np.abs(g.d1 @ g.y - 1).max()) < 10 * LD_EPS * N**2  # double: ~EPS N^2
+
+
+def test_extended_fd6_d2_stays_at_order_6_beyond_the_double_rounding():
+    """Interior fd6 D2 on a smooth f: in double the error reaches the rounding (~eps N^2 |f|) beyond
+    N ~ 100 (pairwise 5.37 from 96 to 128); in longdouble 6.00, 6.00 over 96, 128, 192 (5.91 to 256)."""
+    def ff(y):
+        return np.exp(np.sin(2 * y + LD(3) / 10))
+
+    def ff2(y):
+        return (4 * np.cos(2 * y + LD(3) / 10) ** 2 - 4 * np.sin(2 * y + LD(3) / 10)) * ff(y)
+
+    Ns = (96, 128, 192)
+    errs = []
+    for N in Ns:
+        g = extended_grid("fd6", N)
+        errs.append(float(np.abs((g.d2 @ ff(g.y) - ff2(g.y))[4:-4]).max()))
+    pair = [math.log(errs[i] / errs[i + 1]) / math.log(Ns[i + 1] / Ns[i]) for i in range(2)]
+    assert all(abs(q - 6) < 0.05 for q in pair), pair
+    double = []
+    for N in Ns[:2]:
+        gd = make_grid("fd6", N)
+        double.append(float(np.abs((gd.d2 @ f(gd.y) - f2(gd.y))[4:-4]).max()))
+    assert math.log(double[0] / double[1]) / math.log(Ns[1] / Ns[0]) < 5.6  # rounding already shows
