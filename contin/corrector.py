@@ -90,9 +90,10 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
         # tolerance max(tol, rounding floor at the iterate J was taken at, newton.rounding_floor);
-        # the floor (a norm of J) is only needed when the residual is above options.tol
-        if ((r <= options.tol or r <= rounding_floor(jac, x_old))
-                and lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x))):
+        # the floor (a norm of J) is only evaluated when the update is small and the residual
+        # above options.tol
+        if (lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x))
+                and (r <= options.tol or r <= rounding_floor(jac, x_old))):
             return Correction(x, True, it, fact, row, history, "converged")
     return Correction(x, False, options.max_iterations, fact, row, history,
                       f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

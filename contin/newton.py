@@ -115,8 +115,8 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
             return NewtonResult(u, False, it, history, f"Newton diverged (residual {r:.3g})")
         # tol = max(options.tol, rounding floor at the iterate J was taken at); the floor is
         # only evaluated when the residual is above options.tol
-        if ((r <= options.tol or r <= rounding_floor(jac, u_old))
-                and lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u))):
+        if (lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u))
+                and (r <= options.tol or r <= rounding_floor(jac, u_old))):
             return NewtonResult(u, True, it, history, "converged")
     return NewtonResult(u, False, options.max_iterations, history,
                         f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")

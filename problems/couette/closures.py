@@ -25,7 +25,8 @@ them; derivatives with respect to nu are analytic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -53,9 +54,12 @@ def packing_limit(model: str, nu_max: float) -> float:
     return 1.0 if model == "cs" else nu_max
 
 
-@dataclass(frozen=True)
-class Coefficients:
-    """f1..f5, f_h and their nu-derivatives (suffix ``_nu``) at given (nu, e)."""
+class Coefficients(NamedTuple):
+    """f1..f5, f_h and their nu-derivatives (suffix ``_nu``) at given (nu, e).
+
+    A NamedTuple rather than a frozen dataclass: it is built at every residual evaluation,
+    and a 13-field frozen dataclass costs ~3 us to construct, a tuple ~1 us.
+    """
 
     f1: np.ndarray
     f2: np.ndarray
@@ -79,7 +83,6 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     steady problem with fh = 0 and is not provided.
     """
     chi, chi1 = radial_distribution(nu, model, nu_max)
-    eta = (1.0 + e) / 2.0
     # Shared pieces: q = nu^2 chi and its nu-derivative, 1/chi and its nu-derivative.
     g = nu * chi
     q = nu * g
@@ -87,25 +90,17 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     ic = 1.0 / chi
     ic_nu = -chi1 * ic * ic
 
-    a2 = 5.0 * SQRT_PI / 96.0
-    a4 = 25.0 * SQRT_PI / 16.0
-    g4 = 41.0 - 33.0 * eta
-    # f2 and f4 have the form b / chi + c nu + d nu^2 chi; f1 - nu, f3 and f5 the form k q.
-    b24 = (a2 / (eta * (2.0 - eta)), a4 / (eta * g4))
-    c24 = (a2 * 1.6 * (3.0 * eta - 1.0) / (2.0 - eta), a4 * 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g4)
-    d24 = (a2 * 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi),
-           a4 * 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g4 + 4.0 / np.pi))
-    k135 = (4.0 * eta, 8.0 / (3.0 * SQRT_PI) * eta, 12.0 / SQRT_PI * (1.0 - e * e))
     if np.ndim(e) == 0 and np.ndim(nu) == 1:
         # Stacked rows: one numpy call per operation instead of one per function (the arrays
-        # are short in continuation, so the number of calls is the cost).
-        col = (slice(None), None)
-        b_, c_, d_, k_ = np.array(b24)[col], np.array(c24)[col], np.array(d24)[col], np.array(k135)[col]
+        # are short in continuation, so the number of calls is the cost); the e-dependent
+        # constants as column arrays, cached per value of e (a float: e is not complex here).
+        b_, c_, d_, k_ = _stacked_constants(e) if type(e) in (float, np.float64) else _columns(_constants(e))
         f24 = b_ * ic + c_ * nu + d_ * q
         f24_nu = b_ * ic_nu + (c_ + d_ * q_nu)
         q135 = k_ * q
         q135_nu = k_ * q_nu
     else:
+        b24, c24, d24, k135 = _constants(e)
         f24 = [b * ic + c * nu + d * q for b, c, d in zip(b24, c24, d24)]
         f24_nu = [b * ic_nu + (c + d * q_nu) for b, c, d in zip(b24, c24, d24)]
         q135 = [k * q for k in k135]
@@ -116,11 +111,41 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     f3, f5, f3_nu, f5_nu = q135[1], q135[2], q135_nu[1], q135_nu[2]
 
     if dufour:
+        eta = (1.0 + e) / 2.0
+        g4 = 41.0 - 33.0 * eta
         fh = (15.0 * SQRT_PI / 4.0) * (eta - 1.0) * (2.0 * eta - 1.0) * (1.0 + 2.4 * eta * nu * chi) \
             * (2.0 * chi + nu * chi1) / (g4 * chi)
     else:
         fh = 0.0 * nu
     return Coefficients(f1, f2, f3, f4, f5, fh, f1_nu, f2_nu, f3_nu, f4_nu, f5_nu, chi, chi1)
+
+
+def _constants(e):
+    """(b24, c24, d24, k135): f2, f4 = b / chi + c nu + d nu^2 chi; f1 - nu, f3, f5 = k nu^2 chi."""
+    eta = (1.0 + e) / 2.0
+    a2 = 5.0 * SQRT_PI / 96.0
+    a4 = 25.0 * SQRT_PI / 16.0
+    g4 = 41.0 - 33.0 * eta
+    b24 = (a2 / (eta * (2.0 - eta)), a4 / (eta * g4))
+    c24 = (a2 * 1.6 * (3.0 * eta - 1.0) / (2.0 - eta), a4 * 2.4 * (1.0 + eta * (4.0 * eta - 3.0)) / g4)
+    d24 = (a2 * 2.56 * eta * ((3.0 * eta - 2.0) / (2.0 - eta) + 12.0 / np.pi),
+           a4 * 0.64 * eta * (9.0 * eta * (4.0 * eta - 3.0) / g4 + 4.0 / np.pi))
+    k135 = (4.0 * eta, 8.0 / (3.0 * SQRT_PI) * eta, 12.0 / SQRT_PI * (1.0 - e * e))
+    return b24, c24, d24, k135
+
+
+def _columns(constants):
+    col = (slice(None), None)
+    return tuple(np.array(c)[col] for c in constants)
+
+
+@lru_cache(maxsize=64)
+def _stacked_constants(e: float):
+    """:func:`_constants` as column arrays (cached: e is fixed along most runs).  Read-only."""
+    out = _columns(_constants(e))
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def uniform_shear(nu, e, model: str = "jj", nu_max: float = 0.65):

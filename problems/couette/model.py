@@ -46,8 +46,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -62,13 +61,15 @@ Array = NDArray[np.float64]
 WALLS = ("noslip", "jj")
 
 _SQRT3 = np.sqrt(3.0)
+#: Parameter value types for which the residual is real double (see CouetteProblem.residual).
+_REAL_TYPES = frozenset({float, int, np.float64})
 #: Grids up to this many nodes differentiate with dense operators (see CouetteProblem.__init__).
 DENSE_DERIVATIVES = 160
 
 
-@dataclass(frozen=True)
-class _Fields:
-    """Everything the residual and the Jacobian share at one state."""
+class _Fields(NamedTuple):
+    """Everything the residual and the Jacobian share at one state (a NamedTuple: built at every
+    residual evaluation, where a 20-field frozen dataclass costs ~5 us, a tuple ~1 us)."""
 
     nu: Any
     u: Any
@@ -155,6 +156,7 @@ class CouetteProblem:
         self._d2t = np.ascontiguousarray(self._d2.T.toarray()) if dense else sp.csr_matrix(self._d2.T)
         self._walls_idx = np.array([0, n - 1])
         self._sigma = np.array([-1.0, 1.0])  # outward normal at bottom, top
+        self._uw = 0.5 * self._sigma  # wall velocities
         # Jacobian operators.  Interior rows ("...i": wall rows dropped) and wall rows ("...w":
         # rows 0 and n-1 only, row factors of length 2, one per wall) are separate operators,
         # so that no row factor has to be masked or scattered into a length-n vector.
@@ -295,7 +297,11 @@ class CouetteProblem:
         self._check_gravity(p)
         f = self._fields(x, p)
         H = p["H"]
-        F = np.empty(self.size, dtype=np.result_type(x, *(p[q] for q in self.parameter_names)))
+        if x.dtype == np.float64 and all(type(v) in _REAL_TYPES for v in p.values()):
+            dtype = np.float64  # the common case, without np.result_type over every parameter
+        else:
+            dtype = np.result_type(x, *(p[q] for q in self.parameter_names))
+        F = np.empty(self.size, dtype=dtype)
         w, sig = self._walls_idx, self._sigma
 
         ry = f.c.f1 * f.T - f.P
@@ -305,11 +311,13 @@ class CouetteProblem:
 
         ru = f.a * f.upp + f.ap * f.up
         rT = (f.k * f.Tpp + f.kp * f.Tp) / H**2 + f.a * f.up**2 - f.D
-        flux = f.k[w] * f.Tp[w]  # -H^2 Q at the walls
         if self.dufour:
             rT = rT + (f.kh * f.nupp + f.khp * f.nup) / H**2
-            flux = flux + f.kh[w] * f.nup[w]
-        uw = 0.5 * sig
+        if self.dufour or self.walls != "noslip":
+            flux = f.k[w] * f.Tp[w]  # -H^2 Q at the walls
+            if self.dufour:
+                flux = flux + f.kh[w] * f.nup[w]
+        uw = self._uw
         if self.walls == "noslip":
             ru[w] = f.u[w] - uw
             rT[w] = sig * (flux if self.dufour else f.Tp[w])
@@ -422,26 +430,40 @@ class CouetteProblem:
             jt_u.append(("Iw", -2.0 * H * sw * slip, None))
 
         iu, iT, iP = self.i_u.start, self.i_T.start, self.i_P
-        terms: list[tuple[int, int, str, Array | None, Array | None]] = [
+        first: list[tuple[int, int, str, Array | None, Array | None]] = [
             (0, 0, "I", c.f1_nu * f.T, None),
             (0, iT, "I", c.f1, None),
             (0, iP, "ones_col", None, None),
             (iP, 0, "weights", None, None),
         ]
-        for r0, c0, block in ((iu, 0, ju_nu), (iu, iu, ju_u), (iu, iT, ju_T), (iT, 0, jt_nu), (iT, iu, jt_u),
-                              (iT, iT, jt_T)):
-            terms.extend((r0, c0, name, row, col) for name, row, col in block)
+        blocks = ((iu, 0, ju_nu), (iu, iu, ju_u), (iu, iT, ju_T), (iT, 0, jt_nu), (iT, iu, jt_u), (iT, iT, jt_T))
+        last: list[tuple[int, int, str, Array | None, Array | None]] = []
+        with_g = False
         if self.gravity:
             iM = self.i_M.start
             hg = H**3 * p["G"]
-            if hg != 0:
-                terms.append((0, iM, "I", np.full(n, hg), None))
-            terms += [(iM, 0, "mass_nu", None, None), (iM, iM, "mass_M", None, None)]
-        key = tuple((r0, c0, name, row is None, col is None) for r0, c0, name, row, col in terms)
-        layout = self._layouts.get(key)
+            with_g = hg != 0
+            if with_g:
+                last.append((0, iM, "I", np.full(n, hg), None))
+            last += [(iM, 0, "mass_nu", None, None), (iM, iM, "mass_M", None, None)]
+        # The factors in term order (plain loops: this runs at every Newton iteration).
+        rows, cols = [c.f1_nu * f.T, c.f1], []
+        for _, _, block in blocks:
+            for _, row, col in block:
+                if row is not None:
+                    rows.append(row)
+                if col is not None:
+                    cols.append(col)
+        for term in last:
+            if term[3] is not None:
+                rows.append(term[3])
+        # The term structure depends on the instance's switches and on whether H^3 G != 0 only.
+        layout = self._layouts.get(with_g)
         if layout is None:
-            layout = self._layouts[key] = _Layout(self.size, self._ops, key)
-        return layout, [t[3] for t in terms if t[3] is not None], [t[4] for t in terms if t[4] is not None]
+            terms = first + [(r0, c0, *t) for r0, c0, block in blocks for t in block] + last
+            key = tuple((r0, c0, name, row is None, col is None) for r0, c0, name, row, col in terms)
+            layout = self._layouts[with_g] = _Layout(self.size, self._ops, key)
+        return layout, rows, cols
 
     def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
         """dF/dp for the parameter ``name`` by the complex step (exact to rounding)."""
