@@ -311,6 +311,34 @@ def test_fold_newton_equals_traced_lp():
     assert abs(lp016_fold("cheb", 80) - lp016_fold("cheb", 96)) < 1e-9  # the reference is converged
 
 
+@functools.cache
+def lp016_fold_extended(method, N):
+    """H at the LP like :func:`lp016_fold`, solved with residuals in extended precision (np.longdouble;
+    problems/couette/extended_precision.py: longdouble grid, J phi by the complex step, Newton with a
+    double Jacobian as iterative refinement, H averaged over 8 refinement steps at the floor)."""
+    import scipy.sparse as sp
+
+    from contin.normalform import null_vectors
+    from problems.couette.extended_precision import fold_newton
+
+    source, lp = lp016_start()
+    pb = CouetteProblem(method, N)
+    p = {**pb.params({"nu": 0.16, "e": 0.8}), "H": lp.params["H"]}
+    x = pf.interpolate_state(source, pb, lp.state)
+    phi = null_vectors(sp.csc_matrix(pb.jacobian(x, p))).phi
+    return fold_newton(pb, np.concatenate([x, phi, [p["H"]]]), phi, p).H
+
+
+#: Chebyshev grids of the extended-precision reference: converged (cheb 48, 56 are 2.6e-11, 3e-13
+#: below), their values scatter by 3e-14 (std; the Chebyshev operators' rounding), so the mean of 9.
+LP_EXTENDED_REFERENCE_GRIDS = tuple(range(64, 129, 8))
+
+
+@functools.cache
+def lp016_reference_extended():
+    return np.mean(np.array([lp016_fold_extended("cheb", N) for N in LP_EXTENDED_REFERENCE_GRIDS]))
+
+
 # Measured with the fold Newton above (reference cheb 96; cheb 64 .. 160 agree within 9e-11), errors
 # H(N) - ref (exact FD weights):
 #   fd2 N = 96 .. 384: pairwise 2.01, 2.01, 2.00, 2.00.
@@ -319,28 +347,61 @@ def test_fold_newton_equals_traced_lp():
 #       beyond ~650 are not used.  Two-term fits (two_term_order): 4.13 (96..256), 4.04 (128..384),
 #       4.04 (192..512), 4.08 (128..640), 4.16 (256..640); b = +130 .. 220, misfit <= 4e-3.  The plain
 #       slope 4.3 .. 4.6 is the N^-5 term (b/N = 0.3 still at N = 640), not a wrong order.
-#   fd6 N = 32 .. 320: pairwise 8.16, 8.37, 7.75, 7.21, 6.82, 6.62, 6.55, 6.48, then the floor (scatter
-#       0.2 % at N ~ 190, 1.5 % at 256, 15 % at 320).  Neither model describes the clean range 96..224:
-#       two-term fit 6.19 .. 6.43 with misfit 1-2 % (10x the noise), three-term 6.5 .. 6.8.  The
-#       coarse-grid orders > 8 show an N^-8 term that dominates up to N ~ 100: the banded state at
-#       the fold has a density front (nu from 0.27 to 0.13, derivatives growing ~k/0.1), so the
-#       fd6 asymptotic range starts near N ~ 400, where the error (~2e-10) is below the floor.
-LP_FD6_OPEN = ("fd6 LP at nu = 0.16: pairwise 6.82 .. 6.48 (96..224) and still falling at the rounding floor; "
-               "the two-term fit does not describe the data (misfit 1-2 %)")
-
-
+#   fd6 in double: pairwise 8.16, 8.37, 7.75, 7.21, 6.82, 6.62, 6.55, 6.48 (N = 32 .. 224), then the
+#       rounding floor (scatter 0.2 % of the error at N ~ 190, 15 % at 320): still falling, and no
+#       window gave a usable fit (96..224: 6.19 .. 6.43, misfit 1-2 %, from the N^-8 term below 160).
+#   fd6 in extended precision (lp016_fold_extended, reference lp016_reference_extended), errors
+#       -7.9e-6 (96) .. -3.5e-11 (640) .. -1.1e-11 (768), all negative:
+#       pairwise 6.82, 6.62, 6.55, 6.51, 6.48, 6.45, 6.43 (N = 96 .. 320), 6.40, 6.37, 6.34, 6.31, 6.29,
+#       6.26, 6.26 (384 .. 768, steps of 64).  Two-term fits, windows moving up: 6.17 (160..320, 6 grids),
+#       6.13 (224..448), 6.10 (256..512), 6.06 (288..576, 320..640), 6.01 (384..704), 6.02 (448..768),
+#       b = +110 .. 230, misfit 1e-4 .. 7e-4 (128 .. 224: 6.06, misfit 2e-3, the N^-8 term).  So the
+#       order is 6 with a large N^-7 term (b/N = 0.3 at N = 640), like fd4's N^-5.  The test window
+#       320 .. 576 gives 6.05 .. 6.07, b = 170 .. 190, misfit 3e-5 .. 2e-4 (H at 576 moves by ~4e-14,
+#       6e-4 of its error, with the start state, i.e. between versions of the double code).
+#       Floors: extended-precision values agree with the double ones to 1e-15 (fd6 96), 4e-11 (fd6 128),
+#       5e-12 (cheb 96), while beyond N = 160 the double ones are off by 1-2e-10; at neighbouring N (440 .. 456) they scatter by 8e-15 (2e-5 of
+#       the error), at 632 .. 648 by 2e-14 (6e-4): one solve's H jitters by 3-6e-14 between refinement
+#       steps (hence the mean of 8).  The reference (9 Chebyshev grids) has std 3e-14.  Before the
+#       longdouble FD rows summed to exactly zero (problems.discretization._zero_sum_row), one
+#       rounding of the diagonal left the same row sum in every interior row, a coherent source
+#       term: the scatter at 440 .. 456 was 4.5e-13 (1.4e-3), and windows ending beyond 512 fitted
+#       5.7 .. 7.1.
 @pytest.mark.slow
-@pytest.mark.parametrize("method, order, Ns", [
-    ("fd2", 2, (96, 128, 192, 256, 384)),
-    ("fd4", 4, (128, 192, 256, 384, 512, 640)),
-    pytest.param("fd6", 6, (96, 128, 160, 192, 224),
-                 marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=LP_FD6_OPEN))])
-def test_fd_order_of_fold_at_nu_016(method, order, Ns):
-    ref = lp016_fold("cheb", 96)
-    errs = [lp016_fold(method, N) - ref for N in Ns]
+@pytest.mark.parametrize("method, order, Ns, precision", [
+    ("fd2", 2, (96, 128, 192, 256, 384), "double"),
+    ("fd4", 4, (128, 192, 256, 384, 512, 640), "double"),
+    ("fd6", 6, (320, 384, 448, 512, 576), "extended")])
+def test_fd_order_of_fold_at_nu_016(method, order, Ns, precision):
+    if precision == "double":
+        ref, fold = lp016_fold("cheb", 96), lp016_fold
+    else:  # the fd6 asymptotic range lies below the double rounding floor (comment above)
+        ref, fold = lp016_reference_extended(), lp016_fold_extended
+    errs = [float(fold(method, N) - ref) for N in Ns]
     observed, _b, misfit = two_term_order(Ns, errs, order)
     assert misfit < 0.01, misfit
     assert abs(observed - order) < 0.2, observed
+
+
+@pytest.mark.slow
+def test_extended_precision_fold_equals_double_fold():
+    """Where double is above its floor, the extended-precision fold is the same number."""
+    for method, N, tol in (("cheb", 96, 2e-11), ("fd6", 96, 2e-11), ("fd6", 128, 1e-10)):
+        assert abs(float(lp016_fold_extended(method, N)) - lp016_fold(method, N)) < tol, (method, N)
+    cheb = np.array([lp016_fold_extended("cheb", N) for N in LP_EXTENDED_REFERENCE_GRIDS])
+    assert float(np.ptp(cheb)) < 2e-13  # the reference is converged and its floor is ~1e-14
+
+
+@pytest.mark.slow
+def test_fd6_fold_extended_precision_floor():
+    """The noise left at N ~ 450 is 1e-4 of the error or less (measured 2e-5): errors at neighbouring N
+    lie on a smooth curve (quadratic in log-log), so the fd6 window up to 576 measures truncation."""
+    Ns = (440, 444, 448, 452, 456)
+    errs = np.array([float(lp016_fold_extended("fd6", N) - lp016_reference_extended()) for N in Ns])
+    assert np.all(errs < 0)
+    logs = np.log(-errs)
+    smooth = np.polyval(np.polyfit(np.log(Ns), logs, 2), np.log(Ns))
+    assert np.max(np.abs(logs - smooth)) < 1e-4
 
 
 @pytest.mark.slow

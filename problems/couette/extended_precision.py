@@ -54,8 +54,16 @@ def extended(pb: CouetteProblem) -> CouetteProblem:
     ext._d1t = np.ascontiguousarray(g.d1.T.toarray())
     ext._d2t = np.ascontiguousarray(g.d2.T.toarray())
     ext._cache = None
-    ext._layouts = {}  # not shared with the double problem (the copy must not assemble Jacobians)
+    for name in ("jacobian", "dense_jacobian", "dresidual_dp"):  # double-only: keep them off the copy
+        if hasattr(pb, name):
+            setattr(ext, name, _double_only(name))
     return ext
+
+
+def _double_only(name: str):
+    def refuse(*args, **kwargs):
+        raise TypeError(f"{name}() is not available on the extended-precision copy; call it on the double problem")
+    return refuse
 
 
 @dataclass(frozen=True)
@@ -90,8 +98,8 @@ def fold_newton(pb: CouetteProblem, state0: np.ndarray, c: np.ndarray, p: Mappin
                 second: str = "H", max_iterations: int = 20, average: int = 8) -> FoldResult:
     """Mixed-precision Newton on the fold system from ``state0`` = [u, phi, p2] (double or longdouble).
 
-    Newton steps (Jacobian refactored each step) until a correction is below 1e-13 relative,
-    then ``average`` refinement steps with that LU, which only move the iterate by the
+    Newton steps (Jacobian refactored each step, at least two) until a correction is below
+    1e-13 relative, then ``average`` refinement steps with that LU, which only move the iterate by the
     longdouble evaluation rounding (std ~3e-14 in H at fd6 N = 448): their mean H is returned.
     Raises ValueError if Newton does not get below 1e-13 within ``max_iterations``.
     """
@@ -107,7 +115,7 @@ def fold_newton(pb: CouetteProblem, state0: np.ndarray, c: np.ndarray, p: Mappin
         dU = lu.solve(np.asarray(fold_residual(ext, U, fold.c, p, second), float))
         U = U - dU.astype(LD)
         steps.append(float(np.max(np.abs(dU)) / max(1.0, float(np.max(np.abs(U))))))
-        if steps[-1] < 1e-13:
+        if steps[-1] < 1e-13 and len(steps) > 1:
             break
     else:
         raise ValueError(f"mixed-precision fold Newton did not converge on {pb!r}: corrections {steps}")
