@@ -17,7 +17,10 @@ more than ``max_angle``; at ds_min a failure ends the run with MX.  Parameter bo
 run with EP exactly at the bound, and a branch that returns to its start is closed
 (``contin.closure``).  A converged point the problem reports as under-resolved (optional
 ``under_resolved(u, p, tol)``, ``ContinuationOptions.resolution_tol``) ends the run with MX
-without being stored: a smaller step cannot help, the grid must be refined.
+without being stored: a smaller step cannot help, the grid must be refined.  A step across
+which a BP test function changes sign without a BP that its location confirms is checked by
+two half steps; if they end elsewhere, the step jumped onto a nearby branch and is retried
+with half the ds (``DetectionOptions.retry_unconfirmed_bp``; logged in ``Branch.audit``).
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero
 from contin.newton import NewtonResult, newton
-from contin.options import ContinuationOptions
+from contin.options import ContinuationOptions, StepOptions
 from contin.predictor import secant, tangent
 from contin.problem import Array, has
 from contin.stepsize import angle, next_step, reduced_step
@@ -49,6 +52,22 @@ log = logging.getLogger("contin")
 
 #: Rejected-step diagnostics kept in Branch.audit.
 MAX_AUDIT = 200
+
+#: Branch-jump protection (DetectionOptions.retry_unconfirmed_bp).  A located BP is confirmed
+#: when its test function, scaled to 1 at the larger end of the step, has fallen below
+#: BP_VANISH at the located point (a simple BP located to locate_tol leaves ~tol/ds, 1e-7 or
+#: less; a sign change from landing on another branch leaves O(1)), and the point lies within
+#: OFF_SEGMENT step lengths of the chord of the step (a regular arc within max_angle = 0.3 rad
+#: bulges by ~L * angle / 8 = 0.04 L).  An unconfirmed step is a jump when two half steps end
+#: more than SAME_POINT step lengths from where the whole step ended (the corrector converges
+#: to ~1e-8; separate branches are apart by far more than 1e-3 of a step that can reach both).
+BP_VANISH = 1e-3
+OFF_SEGMENT = 0.5
+SAME_POINT = 1e-3
+
+
+#: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
+Unconfirmed = tuple[SpecialPoint, str, str]
 
 
 @dataclass
@@ -102,9 +121,13 @@ class _Tracer:
                 out.append(("BP", "", lambda v: v.bp))
         return out
 
-    def detect(self, a: _Point, b: _Point, index: int) -> list[SpecialPoint]:
-        """Special points in the step from a to b (b is not yet appended; a is point ``index``)."""
+    def detect(self, a: _Point, b: _Point, index: int) -> tuple[list[SpecialPoint], list[Unconfirmed]]:
+        """Special points in the step from a to b (b is not yet appended; a is point ``index``),
+        and the BPs among them that their location does not confirm (point, reason, audit
+        line): a sign change of a BP test function without a BP, where the step may have
+        jumped onto another branch.  Empty unless ``detection.retry_unconfirmed_bp``."""
         found: list[tuple[float, SpecialPoint]] = []
+        unconfirmed: list[Unconfirmed] = []
         sys = self.system
         s_b = sys.dot(a.t, b.x - a.x)
         for kind, note, fn in self._test_functions():
@@ -146,6 +169,9 @@ class _Tracer:
             full_note = note
             if not converged:
                 full_note = (note + "; " if note else "") + "location did not converge"
+            why = None
+            if kind == "BP" and det.locate and det.retry_unconfirmed_bp:
+                why = "location did not converge" if not converged else self._unconfirmed(a, b, best, res.best.g)
             sp = SpecialPoint(
                 type=kind,
                 index=index,
@@ -161,7 +187,46 @@ class _Tracer:
             )
             log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
             found.append((s_best, sp))
-        return [sp for _, sp in sorted(found, key=lambda f: f[0])]
+            if why is not None:
+                line = f"{note + ' ' if note else ''}BP test function changed sign at {sys.parameter}={best.x[-1]:.10g} but {why}"
+                unconfirmed.append((sp, why, line))
+        return [sp for _, sp in sorted(found, key=lambda f: f[0])], unconfirmed
+
+    def jumped(self, a: _Point, b: _Point, direction: Array, ds: float) -> str | None:
+        """Why the step from a (predictor direction ``direction``, length ds) to b left a's
+        branch, or None if two half steps end where it ended (the second half is predicted
+        along the half point's own tangent and corrected on b's hyperplane)."""
+        sys = self.system
+        half = self.correct_at(a.x + 0.5 * ds * direction, direction)
+        if not half.converged or sys.admissible(half.x) is not None:
+            return f"the half step failed ({half.message or 'inadmissible'})"
+        m = self.finish_point(half, direction)
+        along = sys.dot(direction, m.t)
+        if along <= 0:
+            return "the tangent at the half step points backwards"
+        rest = ds * sys.dot(direction, direction) - sys.dot(direction, m.x - a.x)
+        second = self.correct_at(m.x + (rest / along) * m.t, direction)
+        if not second.converged:
+            return f"the second half step failed ({second.message})"
+        length = sys.norm(b.x - a.x)
+        apart = sys.norm(second.x - b.x)
+        if apart > SAME_POINT * length:
+            return f"two half steps end {apart / length:.2g} step lengths away from it"
+        return None
+
+    def _unconfirmed(self, a: _Point, b: _Point, best: _Point, g_best: float) -> str | None:
+        """Why a converged BP location between a and b is no BP (None if it is one)."""
+        if abs(g_best) > BP_VANISH:  # the scaled test function is 1 at the larger end
+            return f"the test function does not vanish there ({abs(g_best):.2g} of its end value)"
+        sys = self.system
+        seg = b.x - a.x
+        length = sys.norm(seg)
+        if length > 0:
+            w = min(max(sys.dot(best.x - a.x, seg) / length**2, 0.0), 1.0)
+            off = sys.norm(best.x - a.x - w * seg)
+            if off > OFF_SEGMENT * length:
+                return f"the located point lies {off / length:.2g} step lengths off the step"
+        return None
 
     def append(self, pt: _Point, ds: float, iterations: int) -> None:
         self.points.append(pt)
@@ -412,7 +477,7 @@ def trace(
 
         if closing:
             if landed(system, x0, new.x):
-                tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
+                tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1)[0])
                 status, message, closed = "EP", "closed loop: the branch returned to its start point", True
                 break
             closing = False
@@ -438,8 +503,15 @@ def trace(
                 status, message = "MX", coarse
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
-            new = tracer.finish_point(land, cur.t)
-            tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
+            stepped, new = new, tracer.finish_point(land, cur.t)
+            found, unconfirmed = tracer.detect(cur, new, len(tracer.points) - 1)
+            if unconfirmed:
+                retry, found = _jump_retry(tracer, steps, cur, stepped, direction_vec, ds, sopt, found, unconfirmed)
+                if retry:
+                    steps -= 1
+                    ds = reduced_step(ds, sopt)
+                    continue
+            tracer.special.extend(found)
             tracer.append(new, system.norm(new.x - cur.x), corr.iterations)
             message = f"reached bound {parameter}={bound:g}"
             break
@@ -448,7 +520,14 @@ def trace(
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
             status, message = "MX", coarse
             break
-        tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1))
+        found, unconfirmed = tracer.detect(cur, new, len(tracer.points) - 1)
+        if unconfirmed:
+            retry, found = _jump_retry(tracer, steps, cur, new, direction_vec, ds, sopt, found, unconfirmed)
+            if retry:
+                steps -= 1
+                ds = reduced_step(ds, sopt)
+                continue
+        tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
         tracer.append(new, step_len, corr.iterations)
@@ -469,6 +548,41 @@ def trace(
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
     return tracer.build(parameter, status, message, closed, n, **meta)
+
+
+def _jump_retry(tracer: _Tracer, step: int, cur: _Point, new: _Point, direction: Array, ds: float,
+                sopt: StepOptions, found: list[SpecialPoint], unconfirmed: list[Unconfirmed]) -> tuple[bool, list[SpecialPoint]]:
+    """Branch-jump protection for the step cur -> new, across which BP test functions changed
+    sign without a BP confirmed by the location (``unconfirmed``: point and reason).
+
+    Returns (True, found) if the step jumped onto another branch and is to be retried with a
+    smaller ds; (False, found) if it is kept: unchanged for a continuous step, with the
+    unconfirmed BPs marked ``converged=False`` ("not confirmed: ...") for a jump at ds_min.
+    Either way ``branch.audit`` says so.
+
+    A BP test function changes sign where [J F_p] loses rank, but also where a long step lands
+    on a separate branch nearby (the tangent orientation or the determinant's sign differ
+    there); the location then finds no zero.  The step is a jump when two half steps do not end
+    where it ended (:meth:`_Tracer.jumped`): a shorter step stays on the branch (the
+    predictor's error falls like ds^2).  A continuous step is kept as it is (a BP the locator
+    could not pin down, e.g. where the branch crosses another one at a shallow angle), and so
+    is a jump at ds_min, where a smaller step is not possible.
+    """
+    head = f"step {step}: {tracer.system.parameter}={cur.x[-1]:.10g} ds={ds:.3g}"
+    retry = False
+    if ds <= sopt.ds_min * (1 + 1e-12):
+        what = "kept at ds_min, BP unconfirmed"
+        relabel = {id(sp): why for sp, why, _ in unconfirmed if sp.converged}
+        found = [replace(sp, converged=False, note=(sp.note + "; " if sp.note else "") + f"not confirmed: {relabel[id(sp)]}")
+                 if id(sp) in relabel else sp for sp in found]
+    else:
+        jump = tracer.jumped(cur, new, direction, ds)
+        retry = jump is not None
+        what = f"rejected (jumped to another branch: {jump})" if retry else \
+            "kept, BP unconfirmed (two half steps end at the same point: no jump)"
+    if len(tracer.audit) < MAX_AUDIT:
+        tracer.audit.append(f"{head} {what}: " + "; ".join(line for _, _, line in unconfirmed))
+    return retry, found
 
 
 def _stop_label(special: list[SpecialPoint], stop_at: tuple[str, ...]) -> str | None:

@@ -73,6 +73,14 @@ class DetectionOptions:
     locate_tol : tolerance on the continuation parameter for located points
         (relative to max(1, |p|)).
     max_bisections : iterations of the locator before it gives up (converged=False).
+    retry_unconfirmed_bp : branch-jump protection (``contin.continuation``).  When a BP test
+        function changes sign across a step but the location does not confirm a BP (the
+        locator does not converge, the test function does not vanish at the located point, or
+        that point lies off the step), the step is checked by two half steps: if they end
+        elsewhere, the step jumped onto another branch and is retried with half the ds (down
+        to ds_min, where it is kept with the BP marked unconfirmed); if they end at the same
+        point the step is kept as it is.  Every such step is logged in ``Branch.audit``.
+        False: no check (every corrected step is kept).
     """
 
     detect_folds: bool = True
@@ -80,6 +88,7 @@ class DetectionOptions:
     locate: bool = True
     locate_tol: float = 1e-11
     max_bisections: int = 60
+    retry_unconfirmed_bp: bool = True
 
 
 @dataclass(frozen=True)
