@@ -623,14 +623,29 @@ def test_jj_walls_new_branches_leave_the_base_branch():
 
 def test_jj_walls_retrace_removes_the_spurious_symmetric_bp(monkeypatch):
     """The old step control (ds_max = 0.2 H_max = 8.6) jumps from the steep part of the base branch
-    onto s1 and reports a 'symmetric' BP whose location does not converge; the retrace removes it."""
+    onto s1 and reports a 'symmetric' BP whose location does not converge.  The core's branch-jump
+    protection rejects those steps (two half steps end elsewhere) and retries them shorter, so the
+    scene's retrace is not needed; without the core check the retrace removes it; without both
+    the spurious BP is there."""
+    import contin.continuation as cc
+
     res, br = jj_run(48, ds_max=8.6)
     assert [b.note for b in br["0"].branch_points] == ["symmetry-breaking"]
     assert br["0"].branch_points[0].params["H"] == pytest.approx(JJ_BP, abs=1e-7)
-    assert any(n.startswith("base branch re-traced with ds_max") for n in res.notes)
+    rejected = [a for a in br["0"].audit if "rejected (jumped to another branch" in a]
+    assert len(rejected) == 2 and all("symmetric BP test function changed sign at H=" in a for a in rejected)
+    assert not any(n.startswith("base branch re-traced with ds_max") for n in res.notes)
+
+    def run():
+        return get_scene("jj-walls").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "modes": 1}, grid=48,
+                                                      stability=False, overrides={"ds_max": 8.6}))
+
+    monkeypatch.setattr(cc._Tracer, "jumped", lambda self, *args: None)  # every step counts as continuous
+    fallback = run()
+    assert [b.note for b in fallback.branches[0].branch_points] == ["symmetry-breaking"]
+    assert any(n.startswith("base branch re-traced with ds_max") for n in fallback.notes)
     monkeypatch.setattr(pf, "BASE_RETRACES", 0)  # the same scene run without the retrace has the spurious BP
-    old = get_scene("jj-walls").run(SceneRequest(params={"nu": 0.3, "e": 0.8, "modes": 1}, grid=48, stability=False,
-                                                 overrides={"ds_max": 8.6}))
+    old = run()
     spurious = [b for b in old.branches[0].branch_points if b.note.startswith("symmetric")]
     assert spurious and not any(b.converged for b in spurious)
 
