@@ -383,6 +383,25 @@ def test_fd_order_of_fold_at_nu_016(method, order, Ns, precision):
     assert abs(observed - order) < 0.2, observed
 
 
+def test_extended_precision_residual_equals_double_residual():
+    """The longdouble copy runs the same residual: equal to the double one to its rounding, in
+    longdouble (and clongdouble for the complex step), and it refuses double-only methods."""
+    from problems.couette.extended_precision import extended
+
+    source, lp = lp016_start()
+    for method, N in (("fd6", 64), ("cheb", 32)):
+        pb = CouetteProblem(method, N)
+        p = {**pb.params({"nu": 0.16, "e": 0.8}), "H": lp.params["H"]}
+        x = pf.interpolate_state(source, pb, lp.state)
+        ext, xl = extended(pb), x.astype(np.longdouble)
+        f = ext.residual(xl, {**p, "H": np.longdouble(p["H"])})
+        assert f.dtype == np.longdouble
+        assert float(np.max(np.abs(f - pb.residual(x, p)))) < 1e-11, method
+        assert ext.residual(xl + 1j * np.longdouble(1e-30) * xl, p).dtype == np.clongdouble
+        with pytest.raises(TypeError):
+            ext.jacobian(x, p)
+
+
 @pytest.mark.slow
 def test_extended_precision_fold_equals_double_fold():
     """Where double is above its floor, the extended-precision fold is the same number."""

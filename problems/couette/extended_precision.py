@@ -18,9 +18,14 @@ tests/test_couette_scenes.py, ``test_fd_order_of_fold_at_nu_016``).  Here:
   and its LU in double, the residual in longdouble with J phi by the complex step
   Im F(u + i h phi) / h (Squire & Trapp, SIAM Rev. 40, 1998; no subtractive cancellation), and
   the iterate accumulated in longdouble.  The fixed point is the longdouble solution; the
-  double Jacobian only sets the contraction rate.
+  double Jacobian only sets the contraction rate.  At the floor the refinement steps move H by
+  the evaluation rounding (std 3-6e-14 at fd6 N = 450 .. 650), so H is their mean.
 
-The normal double code path is untouched (nothing here is imported by it).
+Measured floor (fold H at nu = 0.16): ~1e-14 absolute at fd6 N ~ 450, 2e-14 at 640, 3e-14 for
+Chebyshev N = 64 .. 128, against 1-2e-10 in double; it needs FD rows that sum to exactly zero
+(problems.discretization._zero_sum_row).  The copy relies on CouetteProblem's private operator
+attributes (grid, _d1, _d2, _d1t, _d2t, _cache); tests/test_couette_scenes.py checks it against
+the double residual.  The normal double code path is untouched (nothing here is imported by it).
 """
 
 from __future__ import annotations
