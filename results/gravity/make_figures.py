@@ -9,6 +9,7 @@ next to the PNG.
 
 from __future__ import annotations
 
+import itertools
 import json
 import sys
 
@@ -19,13 +20,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from contin.plot import save_figure
+from contin.stability import eigenvalues
 from problems.couette.gravity import (
     GravitySettings,
     discover,
     gravity_free_branches,
     gravity_problem,
 )
-from contin.stability import eigenvalues
 from problems.couette.linear import growth_rate_curve, linear_operator
 
 OUT = "results/gravity"
@@ -255,7 +256,7 @@ def growth() -> None:
         doc["w2"][side] = rows
     # sign change of the bottom plug's w2, linear in Fr between the bracketing samples
     rows = doc["w2"]["bottom"]
-    for a, b in zip(rows, rows[1:]):
+    for a, b in itertools.pairwise(rows):
         if a["w2"] > 0 >= b["w2"]:
             doc["w2_sign_change_Fr"] = a["Fr"] + (b["Fr"] - a["Fr"]) * a["w2"] / (a["w2"] - b["w2"])
     with open(f"{OUT}/growth_H25.json", "w") as fh:
