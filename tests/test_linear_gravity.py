@@ -16,7 +16,9 @@ model's behaviour and not an operator defect:
   w2 k_x^2 + O(k_x^3) with c = -dq/d nu_bar the kinematic-wave speed of the steady mass flux
   q = int nu u dy (computed from steady solutions only), and w2 > 0 (the instability);
 - spanwise mass modes (k_x = 0, k_z > 0) decay diffusively;
-- stronger gravity (Fr < 166 at H = 25) makes the bottom plug stable for all k_x, k_z.
+- stronger gravity (Fr < 166 at H = 25) makes the bottom plug stable for all k_x, k_z;
+- the same numbers from the command line: ``contin trace gravity ... -s H_max=25`` then
+  ``contin stability FILE --branch ID --point EPn`` on the states at H = 25.
 """
 
 from __future__ import annotations
@@ -318,3 +320,74 @@ def test_bottom_plug_is_stable_for_all_k_at_low_Fr(plugs):
     assert pb.unpack(x)[0][0] < 0.65  # still a bottom plug below packing
     growth = [omega(pb, x, q, kx, kz).real for kz in (0.0, 0.1, 1.0) for kx in np.logspace(-4, 0.5, 12)]
     assert max(growth) < 0.0
+
+
+# --------------------------------------------------------------------------- command line (issue 5)
+def _cli(*args):
+    import json
+
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    r = CliRunner().invoke(main, [str(a) for a in args])
+    assert r.exit_code == 0, r.output
+    return json.loads(r.stdout) if "--json" in args else r
+
+
+def _ends_at_H(path, H):
+    """{(branch id, label): phi} of the EP points of the stored branches at gap H."""
+    from contin import io
+
+    branches, _ = io.load(str(path))
+    return {(b.id, sp.name): float(sp.order_parameter) for b in branches for sp in b.special_points
+            if sp.name.startswith("EP") and sp.params["H"] == pytest.approx(H, abs=1e-9)}
+
+
+def test_cli_stability_of_both_plugs_at_H25(tmp_path):
+    """``contin trace gravity -s nu=0.3 -s e=0.8 -s Fr=1000 -s H_max=25 -s modes=1`` ends the
+    primary (bottom plug, Phi = 0.126) and both sheets of the floating-plug branch (Phi = 0.615 and
+    the middle sheet 0.308) at H = 25; ``contin stability FILE --branch ID --point EPn --json``
+    gives the curves of results/gravity/growth_H25.png (cheb 32 here; cheb 48 / 64 agree to 4
+    digits): both plugs stable at k_x = 0, unstable long waves with Re omega / k_x^2 = 20.13 /
+    27.78 and c = +0.5289 / -0.5384 at k_x = 1e-4, +1.05e-4 / +1.13e-4 at k_x = 0.01, stable at
+    0.1 and 1; the middle sheet is unstable already at k_x = 0 (+6.48e-4)."""
+    h5 = tmp_path / "g25.h5"
+    _cli("trace", "gravity", "-s", "nu=0.3", "-s", "e=0.8", "-s", "Fr=1000", "-s", "H_max=25", "-s", "modes=1",
+         "--grid", 32, "--no-stability", "-q", "-o", h5)
+    ends = _ends_at_H(h5, 25.0)
+    assert len(ends) == 3 and {b for b, _ in ends} == {"0", "1"}
+    by_phi = sorted(ends, key=ends.get)  # bottom plug, middle sheet, floating plug
+    assert [ends[k] for k in by_phi] == pytest.approx([0.1255, 0.3077, 0.6146], abs=2e-4)
+    assert by_phi[0][0] == "0" and by_phi[1][0] == by_phi[2][0] == "1"
+    doc = {}
+    for name, (bid, label) in zip(("bottom", "middle", "floating"), by_phi):
+        doc[name] = _cli("stability", h5, "--branch", bid, "--point", label, "--kx", "0,1e-4,0.01,0.1,1", "--json")
+        assert doc[name]["params"]["H"] == 25.0 and doc[name]["params"]["G"] == pytest.approx(1e-6, rel=1e-12)
+    for name, w2, c, g01 in (("bottom", 20.13, 0.5289, 1.051e-4), ("floating", 27.78, -0.5384, 1.132e-4)):
+        g, s = doc[name]["growth_rate"], doc[name]["phase_speed"]
+        assert -2e-3 < g[0] < -1.5e-3
+        assert g[1] / 1e-8 == pytest.approx(w2, abs=0.02)
+        assert s[1] == pytest.approx(c, abs=2e-4)
+        assert g[2] == pytest.approx(g01, rel=2e-3)
+        assert g[3] < -1e-3 and g[4] < -1e-2
+        assert doc[name]["n_unstable"] == [0, 1, 1, 0, 0]
+    assert doc["middle"]["growth_rate"][0] == pytest.approx(6.48e-4, rel=1e-3)
+    assert doc["middle"]["n_unstable"][0] == 1
+
+
+def test_cli_bottom_plug_stable_for_all_kx_at_Fr120(tmp_path):
+    """At Fr = 120 (< Fr* = 254.12: no floating plug exists) the run (first pitchfork's seeds)
+    finds only the primary branch, which at H = 25 is the bottom plug (the surviving attractor,
+    Phi = 0.0817, nu(-1/2) = 0.6493; cheb 48 resolves it): ``contin stability`` finds it stable for
+    every k_x, with the long-wave coefficient w2 = -0.730 (test_bottom_plug_is_stable_for_all_k_at_low_Fr)."""
+    h5 = tmp_path / "g120.h5"
+    _cli("trace", "gravity", "-s", "nu=0.3", "-s", "e=0.8", "-s", "Fr=120", "-s", "H_max=25", "-s", "modes=1",
+         "--grid", 48, "--no-stability", "-q", "-o", h5)
+    ends = _ends_at_H(h5, 25.0)
+    assert list(ends) == [("0", "EP2")] and ends["0", "EP2"] == pytest.approx(0.08174, abs=1e-4)
+    doc = _cli("stability", h5, "--branch", "0", "--point", "EP2", "--kx", "0:3:13", "--json")
+    kx_small = _cli("stability", h5, "--branch", "0", "--point", "EP2", "--kx", "1e-4,1e-3,1e-2", "--json")
+    growth = doc["growth_rate"] + kx_small["growth_rate"]
+    assert max(growth) < 0.0 and not any(doc["n_unstable"] + kx_small["n_unstable"])
+    assert kx_small["growth_rate"][0] / 1e-8 == pytest.approx(-0.730, abs=0.005)
