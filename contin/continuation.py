@@ -40,7 +40,7 @@ from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero
 from contin.newton import NewtonResult, newton
-from contin.options import ContinuationOptions, StepOptions
+from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
 from contin.predictor import secant, tangent
 from contin.problem import Array, has
 from contin.stepsize import angle, next_step, reduced_step
@@ -357,6 +357,8 @@ def trace(
     parameter : str
         The continuation parameter.
     options : ContinuationOptions
+        Its resolution_tol is replaced inside a ``contin.options.resolution_override`` block
+        (the command line's ``--resolution-tol``).
     direction : +1 or -1
         Initial direction: sign(options.step.ds) * direction is the sign of dp/ds at the
         start, or, with ``tangent`` given, the start tangent is ``direction * tangent``.
@@ -408,7 +410,8 @@ def trace(
     anti = _symmetry(problem, start.u, symmetric)
     tracer.anti = anti
     x0 = system.pack(anti.symmetrize(start.u) if anti is not None else start.u, p0)
-    coarse = _under_resolved(problem, system, x0, options.resolution_tol)
+    resolution_tol = effective_resolution_tol(options)
+    coarse = _under_resolved(problem, system, x0, resolution_tol)
     if coarse is not None:
         msg = f"start point {coarse}"
         tracer.special.append(tracer.end_point("MX", msg, x=x0))
@@ -498,7 +501,7 @@ def trace(
             if not land.converged or system.admissible(land.x) is not None:
                 message = f"reached bound {parameter}={bound:g} (landing on it failed: {land.message}; stopped before it)"
                 break
-            coarse = _under_resolved(problem, system, land.x, options.resolution_tol)
+            coarse = _under_resolved(problem, system, land.x, resolution_tol)
             if coarse is not None:
                 status, message = "MX", coarse
                 break
@@ -516,7 +519,7 @@ def trace(
             message = f"reached bound {parameter}={bound:g}"
             break
 
-        coarse = _under_resolved(problem, system, new.x, options.resolution_tol)
+        coarse = _under_resolved(problem, system, new.x, resolution_tol)
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
             status, message = "MX", coarse
             break

@@ -7,6 +7,9 @@ Change a setting with :func:`dataclasses.replace`; every constructor validates a
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 
@@ -141,3 +144,41 @@ class ContinuationOptions:
     def __hash__(self) -> int:  # bounds is a dict; hash its items so options stay usable as keys
         return hash((self.newton, self.step, self.detection, tuple(sorted(self.bounds.items())),
                      self.max_steps, self.detect_closed, self.save_every, self.resolution_tol, self.stop_at))
+
+
+#: (tol,) while a :func:`resolution_override` block is active, else None.
+_RESOLUTION_OVERRIDE: ContextVar[tuple[float | None] | None] = ContextVar("resolution_override", default=None)
+
+
+def check_resolution_tol(tol: float | None) -> float | None:
+    """``tol`` as a float (None stays None); ValueError unless it is a finite number > 0."""
+    if tol is None:
+        return None
+    value = float(tol)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"resolution_tol must be a finite number > 0 (or None to switch the guard off), got {tol}")
+    return value
+
+
+@contextmanager
+def resolution_override(tol: float | None) -> Iterator[None]:
+    """Within the block every trace uses ``tol`` as its resolution_tol (None: guard off),
+    whatever its :class:`ContinuationOptions` say.
+
+    For the command line's ``--resolution-tol``: scenes build their options internally (one
+    per branch, fold curve or homotopy), so a run setting that must reach all of them is set
+    for the run, not threaded through every scene.  Scoped (a context variable), so it ends
+    with the block and does not leak into other threads' runs.
+    """
+    token = _RESOLUTION_OVERRIDE.set((check_resolution_tol(tol),))
+    try:
+        yield
+    finally:
+        _RESOLUTION_OVERRIDE.reset(token)
+
+
+def effective_resolution_tol(options: ContinuationOptions) -> float | None:
+    """The resolution_tol a trace uses: a :func:`resolution_override` if one is active, else
+    ``options.resolution_tol``."""
+    override = _RESOLUTION_OVERRIDE.get()
+    return options.resolution_tol if override is None else override[0]

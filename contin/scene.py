@@ -56,8 +56,11 @@ class SceneRequest:
         so an interrupted run loses at most the branch in progress).
     progress : called with a short human-readable status line (never prints itself).
     overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``,
-        ``--max-steps`` -> keys 'ds', 'ds_max', 'max_steps'); scenes apply them with
-        :meth:`options_for` so that their own defaults (bounds...) survive.
+        ``--max-steps``, ``--resolution-tol`` -> keys 'ds', 'ds_max', 'max_steps',
+        'resolution_tol' (None: guard off)); scenes apply them with :meth:`options_for` so that
+        their own defaults (bounds...) survive.  (The command line also sets resolution_tol for
+        every trace of the run, ``contin.options.resolution_override``: scenes build options of
+        their own too.)
     """
 
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -87,6 +90,8 @@ class SceneRequest:
         kw: dict[str, Any] = {"step": step}
         if "max_steps" in ov:
             kw["max_steps"] = int(ov["max_steps"])
+        if "resolution_tol" in ov:
+            kw["resolution_tol"] = ov["resolution_tol"]
         resolved = dataclasses.replace(base, **kw)
         self._resolved.append(resolved)
         return resolved

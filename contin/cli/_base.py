@@ -104,6 +104,32 @@ def parse_value(text: str) -> Any:
     return v
 
 
+def parse_resolution_tol(text: str | None) -> float | None:
+    """``--resolution-tol`` value: a finite number > 0, or 'off' (the guard switched off, None).
+
+    A bad value is one ``Error:`` line (exit 1), like any other invalid value.
+    """
+    t = (text or "").strip()
+    if t.lower() == "off":
+        return None
+    try:
+        v = float(t)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        fail(f"--resolution-tol must be a number > 0 (largest estimated relative discretization error "
+             f"of a stored state) or 'off', got {text!r}")
+    return v
+
+
+def resolution_tol_option(f: Any) -> Any:
+    """The ``--resolution-tol FLOAT|off`` option (None when not given: the run's own settings)."""
+    return click.option(
+        "--resolution-tol", "resolution_tol", default=None, metavar="FLOAT|off",
+        help="Resolution guard: largest estimated relative discretization error of a stored state "
+             "(ContinuationOptions.resolution_tol, default 3e-5); 'off' switches the guard off.")(f)
+
+
 def parse_settings(items: Sequence[str]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for item in items:

@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from typing import Any
 
 import click
 
-from contin.cli._base import echo_err, echo_json, fmt, main, parse_settings, table
+from contin.cli._base import (
+    echo_err,
+    echo_json,
+    fmt,
+    main,
+    parse_resolution_tol,
+    parse_settings,
+    resolution_tol_option,
+    table,
+)
+from contin.options import resolution_override
 
 DEFAULT_METHODS = "cheb,fd2,fd4,fd6"
 DEFAULT_GRIDS = "16,24,32,48,64,96,128"
@@ -34,19 +45,25 @@ def _split(text: str, kind: type, option: str) -> list[Any]:
               help="Directory for the CSV, JSON and plots (e.g. results/accuracy).")
 @click.option("--no-memory", is_flag=True, help="Skip the separate tracemalloc run (halves the time).")
 @click.option("--no-plots", is_flag=True, help="Write the table only.")
+@resolution_tol_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no table on stderr.")
 def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids: str, as_json: bool,
-                     outdir: str | None, no_memory: bool, no_plots: bool, quiet: bool) -> None:
+                     outdir: str | None, no_memory: bool, no_plots: bool, resolution_tol: str | None,
+                     quiet: bool) -> None:
     """Re-trace SCENE's key points (BPs, LPs) at every METHOD x GRID.
 
     Reports each value, its relative error against the finest Chebyshev grid (or a
     Richardson estimate), the observed order, wall and CPU time, Newton iterations and peak
-    memory, and which discretization is cheapest for each accuracy budget.
+    memory, and which discretization is cheapest for each accuracy budget.  Coarse grids may
+    be stopped by the resolution guard; --resolution-tol off keeps their answers as they are.
     """
     import contin.scene as scene_mod
     from contin.accuracy import recommend, run_accuracy, write_outputs
 
     params = parse_settings(settings)
+    guard: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+    if resolution_tol is not None:  # every trace of every run
+        guard = resolution_override(parse_resolution_tol(resolution_tol))
     method_list = _split(methods, str, "'--methods'")
     unknown = [m for m in method_list if m not in KNOWN_METHODS]
     if unknown:
@@ -64,8 +81,9 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
 
         Path(outdir).mkdir(parents=True, exist_ok=True)  # fail before computing
     show = not quiet and sys.stderr.isatty()
-    report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory,
-                          progress=(lambda m: echo_err(f"running {m}")) if show else None)
+    with guard:
+        report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory,
+                              progress=(lambda m: echo_err(f"running {m}")) if show else None)
     if not report.reference:
         raise ValueError(f"no key points: every run of scene {scene!r} failed or found no BP/LP "
                          f"({'; '.join(sorted({r.failed for r in report.runs if r.failed})) or 'no special points'})")

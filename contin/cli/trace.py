@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 from typing import Any
@@ -16,9 +17,12 @@ from contin.cli._base import (
     fail,
     fmt,
     main,
+    parse_resolution_tol,
     parse_settings,
+    resolution_tol_option,
     special_points_table,
 )
+from contin.options import resolution_override
 
 
 class _Progress:
@@ -120,13 +124,14 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("--max-steps", type=click.IntRange(min=1), default=None, help="Maximum continuation steps per branch.")
 @click.option("--ds", type=click.FloatRange(min=0, min_open=True), default=None, help="Initial arclength step.")
 @click.option("--ds-max", type=click.FloatRange(min=0, min_open=True), default=None, help="Largest arclength step.")
+@resolution_tol_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no summary table.")
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resume: str | None, quiet: bool) -> None:
+                  resolution_tol: str | None, resume: str | None, quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
@@ -138,13 +143,20 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     params = parse_settings(settings)
     kx_values = _parse_kx(kx)
+    guard: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+    if resolution_tol is not None:  # every trace of the run, also those a scene sets up itself
+        rtol = parse_resolution_tol(resolution_tol)
+        guard = resolution_override(rtol)
     sc = scene_mod.get_scene(scene)
     if sc.defaults:
         unknown = [n for n in params if n not in sc.defaults]
         if unknown:
             raise scene_mod.SceneError(
                 f"unknown parameter {unknown[0]!r} for scene {scene!r}; its parameters are {', '.join(sc.defaults)}")
-    overrides = {k: v for k, v in (("ds", ds), ("ds_max", ds_max), ("max_steps", max_steps)) if v is not None}
+    step_overrides = {k: v for k, v in (("ds", ds), ("ds_max", ds_max), ("max_steps", max_steps)) if v is not None}
+    overrides = dict(step_overrides)
+    if resolution_tol is not None:
+        overrides["resolution_tol"] = rtol
 
     completed: dict[str, Any] = {}
     if resume is not None:
@@ -177,7 +189,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         params=params, method=method, grid=grid, stability=not no_stability, kx=kx_values,
         completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides)
     try:
-        result = sc.run(request)
+        with guard:
+            result = sc.run(request)
     except BaseException:
         progress.done()
         if writer is not None and writer.publishes:  # the published file stays (complete=False)
@@ -187,7 +200,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     if request.stability:
         _stability_after_run(sc, request, result, progress, quiet)
 
-    if overrides and not request.resolved_options:
+    if step_overrides and not request.resolved_options:
         echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps; they were ignored")
     options: Any = request.resolved_options[0] if request.resolved_options else (
         {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})

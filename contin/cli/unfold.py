@@ -8,11 +8,22 @@ exists.  The problem package is imported inside the command (contin itself knows
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import click
 
-from contin.cli._base import echo_err, echo_json, fmt, main, parse_settings, table
+from contin.cli._base import (
+    echo_err,
+    echo_json,
+    fmt,
+    main,
+    parse_resolution_tol,
+    parse_settings,
+    resolution_tol_option,
+    table,
+)
+from contin.options import ContinuationOptions, resolution_override
 
 _KNOWN = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50.0, "Fr_start": 2000.0}
 
@@ -25,10 +36,19 @@ _KNOWN = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50.0, "Fr_start": 2000.0}
 @click.option("--max-steps", type=click.IntRange(min=10), default=300, help="Steps per fold-curve direction.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="Figure (PNG/PDF) of the fold curves.")
+@resolution_tol_option
 def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps: int, as_json: bool,
-                   output: str | None) -> None:
-    """Fold curves in the (H, Fr) plane: birth/death of isolas and the floating-plug limit Fr*."""
+                   output: str | None, resolution_tol: str | None) -> None:
+    """Fold curves in the (H, Fr) plane: birth/death of isolas and the floating-plug limit Fr*.
+
+    --resolution-tol applies to every trace of the run, the fold curves included (their base
+    states are guarded like branch states); the check that leaves unresolved extrema out of
+    the births/deaths list keeps its own tolerance (problems.couette.gravity.RESOLUTION_TOL).
+    """
     from problems.couette.gravity import gravity_problem, phase_diagram
+
+    given = resolution_tol is not None
+    rtol = parse_resolution_tol(resolution_tol) if given else ContinuationOptions().resolution_tol
 
     values = dict(_KNOWN)
     for name, v in parse_settings(settings).items():
@@ -39,13 +59,18 @@ def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps:
         values[name] = v
     pb = gravity_problem(method, grid)
     params = pb.params({"nu": values["nu"], "e": values["e"]})
-    d = phase_diagram(pb, params, H_range=(values["H_min"], values["H_max"]), Fr_start=values["Fr_start"],
-                      max_steps=max_steps)
+    with resolution_override(rtol) if given else contextlib.nullcontext():
+        d = phase_diagram(pb, params, H_range=(values["H_min"], values["H_max"]), Fr_start=values["Fr_start"],
+                          max_steps=max_steps)
+    for c in d.curves:  # e.g. a curve the resolution guard stopped (where the plug nears packing)
+        if c.status == "MX":
+            echo_err(f"warning: fold curve {c.id} ended with MX: {c.message}")
     if output:
         _figure(d, output, values)
     doc = {
         "parameters": values,
         "discretization": {"method": method, "intervals": grid},
+        "resolution_tol": rtol,
         "critical_gaps": d.critical_gaps,
         "fr_min_floating_plug": d.fr_min_floating_plug,
         "births": [r for r in d.extrema if r["event"] == "birth"],
