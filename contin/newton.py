@@ -41,8 +41,12 @@ class NewtonResult:
 
 
 def max_norm(a: Array) -> float:
-    # max(-min, max) avoids the temporary of abs(a); NaN propagates through both.
-    return float(max(-a.min(), a.max())) if a.size else 0.0
+    # The ufunc's reduce directly: ndarray.max goes through a Python wrapper that costs more
+    # than the reduction of a continuation-sized vector.  NaN propagates.
+    return float(_MAX(np.abs(a))) if a.size else 0.0
+
+
+_MAX = np.maximum.reduce
 
 
 def rounding_floor(jac: Any, x: Array) -> float:
@@ -60,7 +64,7 @@ def backtrack(admissible: Any, x: Array, dx: Array) -> tuple[Array, float, str |
     lam = 1.0
     reason = None
     for _ in range(MAX_BACKTRACKS):
-        x_new = x + lam * dx
+        x_new = x + dx if lam == 1.0 else x + lam * dx  # 1.0 * dx == dx exactly
         reason = admissible(x_new)
         if reason is None:
             return x_new, lam, None

@@ -69,21 +69,39 @@ def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_break
 
 def second_derivative(system: ExtendedSystem, x0: Array, v: Array, w: Array) -> Array:
     """G_xx[v, w] ~ (G_x(x0 + h w) v - G_x(x0 - h w) v) / (2h)."""
-    h = FD_STEP * max(1.0, float(np.max(np.abs(x0)))) / max(float(np.max(np.abs(w))), 1e-300)
+    return _SecondDerivatives(system, x0)(v, w)
 
-    def gx(x: Array) -> Array:
-        jac, fp = system.jacobian(x)
-        return np.asarray(jac @ v[:-1]) + fp * v[-1]
 
-    return (gx(x0 + h * w) - gx(x0 - h * w)) / (2 * h)
+class _SecondDerivatives:
+    """:func:`second_derivative` at one x0 for several (v, w), each pair of Jacobians
+    G_x(x0 +- h w) evaluated once per direction w (the ABE needs four products but only two
+    directions)."""
+
+    def __init__(self, system: ExtendedSystem, x0: Array) -> None:
+        self.system = system
+        self.x0 = x0
+        self.scale = FD_STEP * max(1.0, float(np.max(np.abs(x0))))
+        self.jacobians: list[tuple[Array, float, tuple]] = []
+
+    def __call__(self, v: Array, w: Array) -> Array:
+        for w_, h, pair in self.jacobians:
+            if w_ is w:
+                break
+        else:
+            h = self.scale / max(float(np.max(np.abs(w))), 1e-300)
+            pair = (self.system.jacobian(self.x0 + h * w), self.system.jacobian(self.x0 - h * w))
+            self.jacobians.append((w, h, pair))
+        (jp, fpp), (jm, fpm) = pair
+        return ((np.asarray(jp @ v[:-1]) + fpp * v[-1]) - (np.asarray(jm @ v[:-1]) + fpm * v[-1])) / (2 * h)
 
 
 def bifurcation_coefficients(system: ExtendedSystem, x0: Array, t1: Array, phi: Array, psi: Array) -> tuple[float, float, float]:
     """(a, b, c) of the algebraic bifurcation equation (module docstring)."""
     n = x0.size - 1
-    a = float(psi @ second_derivative(system, x0, t1, t1)[:n])
-    b = 0.5 * float(psi @ (second_derivative(system, x0, t1, phi) + second_derivative(system, x0, phi, t1))[:n])
-    c = float(psi @ second_derivative(system, x0, phi, phi)[:n])
+    gxx = _SecondDerivatives(system, x0)
+    a = float(psi @ gxx(t1, t1)[:n])
+    b = 0.5 * float(psi @ (gxx(t1, phi) + gxx(phi, t1))[:n])
+    c = float(psi @ gxx(phi, phi)[:n])
     return a, b, c
 
 

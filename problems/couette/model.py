@@ -61,6 +61,8 @@ Array = NDArray[np.float64]
 WALLS = ("noslip", "jj")
 
 _SQRT3 = np.sqrt(3.0)
+# ufunc reductions called directly (ndarray.min & co. add a Python wrapper; see admissible)
+_MIN, _MAX, _SUM = np.minimum.reduce, np.maximum.reduce, np.add.reduce
 #: Parameter value types for which the residual is real double (see CouetteProblem.residual).
 _REAL_TYPES = frozenset({float, int, np.float64})
 #: Grids up to this many nodes differentiate with dense operators (see CouetteProblem.__init__).
@@ -389,9 +391,11 @@ class CouetteProblem:
         ]
         jt_nu = [("Ii", f.Tpp * k_nu * h2 + up2 * a_nu - D_nu, None), ("d1i", tp_h2, k_nu)]
         jt_u = [("d1i", 2.0 * f.a * f.up, None)]
-        # wall heat flux k T' (+ k_h nu'): its T- and nu-derivatives at the walls
-        flux_T_diag = k_T[w] * f.Tp[w]
-        flux_nu_diag = k_nu[w] * f.Tp[w]
+        # wall heat flux k T' (+ k_h nu'): its T- and nu-derivatives at the walls (not needed by
+        # no-slip walls without the Dufour flux, whose wall row is sigma T')
+        if self.dufour or self.walls != "noslip":
+            flux_T_diag = k_T[w] * f.Tp[w]
+            flux_nu_diag = k_nu[w] * f.Tp[w]
         if self.dufour:
             fh_nu = _dufour_nu_derivative(f.nu, p, self.chi)
             kh_T, kh_nu = 1.5 * c.fh * f.sT, fh_nu * f.T * f.sT
@@ -488,14 +492,15 @@ class CouetteProblem:
         w, sig = self._walls_idx, self._sigma
         out = np.zeros(self.size)
         cond = f.k * f.Tpp + f.kp * f.Tp
-        flux = f.k[w] * f.Tp[w]
         if self.dufour:
             cond = cond + f.kh * f.nupp + f.khp * f.nup
-            flux = flux + f.kh[w] * f.nup[w]
         dT = (-2.0 / H**3) * cond
         if self.walls == "noslip":
             dT[w] = 0.0
         else:
+            flux = f.k[w] * f.Tp[w]
+            if self.dufour:
+                flux = flux + f.kh[w] * f.nup[w]
             sw, dw = self._wall_coefficients(f, p)[:2]
             slip = f.u[w] - 0.5 * sig
             out[self.i_u.start + w] = -sw * slip
@@ -561,7 +566,7 @@ class CouetteProblem:
         limit = packing_limit(self.chi, p["num"])
         # Fast path (called for every Newton iterate): four reductions decide a physical state;
         # anything else (including a sum that overflows) gets the detailed checks below.
-        if nu.min() > 0 and nu.max() < limit and T.min() > 0 and math.isfinite(x.sum()):
+        if _MIN(nu) > 0 and _MAX(nu) < limit and _MIN(T) > 0 and math.isfinite(_SUM(x)):
             return None
         if not np.all(np.isfinite(x)):
             return "state has non-finite entries"
