@@ -52,6 +52,9 @@ class ExtendedSystem:
         self.params = validate_params(problem, params, parameter)
         self.theta = float(theta)
         self.n = int(n)
+        # Optional hooks looked up once (they are called at every Newton iteration).
+        self._admissible = problem.admissible if has(problem, "admissible") else None
+        self._dense_jacobian = problem.dense_jacobian if has(problem, "dense_jacobian") else None
 
     # --- packing ------------------------------------------------------------------------
     def pack(self, u: Array, p: float) -> Array:
@@ -75,8 +78,8 @@ class ExtendedSystem:
         """
         q = self.params_at(x[-1])
         u = x[:-1]
-        if x.size <= DENSE_LIMIT and has(self.problem, "dense_jacobian"):
-            jac = np.asarray(self.problem.dense_jacobian(u, q), dtype=float)
+        if x.size <= DENSE_LIMIT and self._dense_jacobian is not None:
+            jac = np.asarray(self._dense_jacobian(u, q), dtype=float)
         else:
             jac = self.state_jacobian(x, q)
         fp = np.asarray(self.problem.dresidual_dp(u, q, self.parameter), dtype=float).ravel()
@@ -89,8 +92,8 @@ class ExtendedSystem:
 
     def admissible(self, x: Array) -> str | None:
         """None, or the problem's reason why x is outside its physical domain."""
-        if has(self.problem, "admissible"):
-            return self.problem.admissible(x[:-1], self.params_at(x[-1]))  # type: ignore[no-any-return]
+        if self._admissible is not None:
+            return self._admissible(x[:-1], self.params_at(x[-1]))  # type: ignore[no-any-return]
         return None
 
     def record(self, x: Array) -> dict[str, float]:

@@ -34,6 +34,9 @@ from scipy.sparse.csgraph import connected_components
 from contin.problem import Array
 
 _getrf, _getrs = lapack.dgetrf, lapack.dgetrs
+# ufunc reductions called directly (ndarray.all & co. add a Python wrapper: at continuation
+# sizes the wrapper costs more than the reduction)
+_ALL, _SUM = np.logical_and.reduce, np.add.reduce
 
 
 def as_csc(a: object) -> sp.csc_matrix:
@@ -80,8 +83,11 @@ class Factorization:
         if self._det is None:
             diag, parity = self._diag_parity()
             sign = float(np.prod(np.sign(diag))) * parity
-            with np.errstate(divide="ignore"):
-                logabs = float(np.sum(np.log(np.abs(diag))))
+            if _ALL(diag):  # no zero pivot (the dense LU guarantees it): no log(0) warning to silence
+                logabs = float(_SUM(np.log(np.abs(diag))))
+            else:
+                with np.errstate(divide="ignore"):
+                    logabs = float(_SUM(np.log(np.abs(diag))))
             self._det = (sign, logabs)
         return self._det
 
@@ -152,7 +158,7 @@ def factorize(a: object) -> Factorization | None:
 def _dense_lu(a: Array) -> DenseLU | None:
     """getrf of ``a`` in place; None on an exactly zero pivot (info > 0)."""
     lu, piv, info = _getrf(a, overwrite_a=True)
-    if info != 0 or not lu.diagonal().all():
+    if info != 0 or not _ALL(lu.diagonal()):
         return None
     return DenseLU(lu, piv)
 
