@@ -198,3 +198,18 @@ def test_runner_comparison_picks_cheapest_config_meeting_each_target():
     assert np.isnan(rows[2]["speedup"])
     text = table("t", rows, [("target", "target", ".0e"), ("speedup", "x", ".2f")])
     assert text.splitlines()[2].split() == ["1e-04", "3.33"]
+
+
+def test_runner_comparison_pairs_tol_and_initial_mesh():
+    from benchmarks.run import comparison_rows
+
+    # pinning accuracy and natural-continuation cost both depend on the initial mesh: each pair
+    # is matched on (tol, initial nodes), and the cheapest pair meeting the target wins
+    gap = [{"tol": 1e-4, "init_nodes": 21, "rel_error": 2e-6}, {"tol": 1e-4, "init_nodes": 101, "rel_error": 3e-7}]
+    nat = [{"tol": 1e-4, "init_nodes": 21, "status": "reached", "s_per_point": 0.004, "cpu_per_point": 0.004, "cpu": 0.06},
+           {"tol": 1e-4, "init_nodes": 101, "status": "reached", "s_per_point": 0.005, "cpu_per_point": 0.005, "cpu": 0.075}]
+    cont = [{"method": "cheb", "N": 12, "rel_error": 1e-10, "banded_points": 29, "banded_phi_end": 0.57,
+             "banded_cpu_per_point": 0.0005, "banded_s_per_point": 0.0005, "banded_cpu": 0.0145}]
+    rows = comparison_rows(gap, nat, cont, targets=(1e-4, 1e-6))
+    assert [r["baseline"] for r in rows] == ["tol=1e-04, 21 nodes", "tol=1e-04, 101 nodes"]
+    assert rows[0]["speedup"] == pytest.approx(8.0) and rows[1]["speedup"] == pytest.approx(10.0)
