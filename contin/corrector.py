@@ -44,14 +44,16 @@ class Correction:
 
 
 def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,
-            project: Callable[[Array], Array] | None = None) -> Correction:
+            project: Callable[[Array], Array] | None = None,
+            give_up: Callable[[Array, Array], str | None] | None = None) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0 (see :func:`_correct`)."""
     with np.errstate(all="ignore"):
-        return _correct(system, x_pred, row, options, project)
+        return _correct(system, x_pred, row, options, project, give_up)
 
 
 def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,
-             project: Callable[[Array], Array] | None = None) -> Correction:
+             project: Callable[[Array], Array] | None = None,
+             give_up: Callable[[Array, Array], str | None] | None = None) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0.
 
     At least one iteration is always done so that a factorization at the solution exists (an
@@ -62,6 +64,10 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
     exact arithmetic the update already lies there; projecting removes the rounding noise
     that a nearly singular mode outside the subspace (a symmetry-breaking BP nearby, where
     the bordered matrix is singular) would otherwise amplify into the iterate.
+
+    ``give_up`` (optional) is called with (x, dx) after each unconverged update; a reason it
+    returns ends the correction as not converged with that message (a caller that will reject
+    the point anyway, e.g. for lying too far from the predictor, need not converge it).
     """
     x = np.array(x_pred, dtype=float)
     f = system.residual(x)
@@ -95,5 +101,9 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         if (lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x))
                 and (r <= options.tol or r <= rounding_floor(jac, x_old))):
             return Correction(x, True, it, fact, row, history, "converged")
+        if give_up is not None:
+            why = give_up(x, lam * dx)
+            if why is not None:
+                return Correction(x, False, it, fact, row, history, why)
     return Correction(x, False, options.max_iterations, fact, row, history,
                       f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")
