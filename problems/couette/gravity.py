@@ -613,7 +613,9 @@ def extrema(curves: Sequence[Branch], second: str = "G", *, problem: CouetteProb
         g = c.params[second]
         for s in c.points("XT"):
             val = s.params[second]
-            if not val > 0:
+            # G <= 1e-12 (Fr >= 1e6) is the G = 0 pitchfork itself up to rounding: a fold curve
+            # passes through it by the symmetry G -> -G (seen as a false "death" at G ~ 1e-22)
+            if not val > (1e-12 if second == "G" else 0.0):
                 continue
             i = min(max(s.index, 1), len(g) - 2)
             around = g[max(i - 3, 0): i + 4]
