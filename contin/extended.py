@@ -69,16 +69,16 @@ class ExtendedSystem:
     def residual(self, x: Array) -> Array:
         return np.asarray(self.problem.residual(x[:-1], self.params_at(x[-1])), dtype=float)
 
-    def jacobian(self, x: Array) -> tuple[sp.spmatrix | Array, Array]:
+    def jacobian(self, x: Array, dense: bool = True) -> tuple[sp.spmatrix | Array, Array]:
         """(J = dF/du, F_p = dF/dp) at x.
 
         J is dense when it will be factorized densely (n + 1 <= ``contin.linalg.DENSE_LIMIT``)
-        and the problem has the optional ``dense_jacobian`` hook; otherwise as the problem's
-        ``jacobian`` returns it (sparse, or dense for tiny problems).
+        and the problem has the optional ``dense_jacobian`` hook (``dense=False`` declines it);
+        otherwise as the problem's ``jacobian`` returns it (sparse, or dense for tiny problems).
         """
         q = self.params_at(x[-1])
         u = x[:-1]
-        if x.size <= DENSE_LIMIT and self._dense_jacobian is not None:
+        if dense and x.size <= DENSE_LIMIT and self._dense_jacobian is not None:
             jac = np.asarray(self._dense_jacobian(u, q), dtype=float)
         else:
             jac = self.state_jacobian(x, q)

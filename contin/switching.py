@@ -89,7 +89,11 @@ class _SecondDerivatives:
                 break
         else:
             h = self.scale / max(float(np.max(np.abs(w))), 1e-300)
-            pair = (self.system.jacobian(self.x0 + h * w), self.system.jacobian(self.x0 - h * w))
+            # The problem's own (sparse) J: a dense product would round the coefficients that
+            # vanish in exact arithmetic (c at a pitchfork, ~1e-12) differently, and with them
+            # the new tangent at the 1e-10 level; they are computed as they always were.
+            pair = (self.system.jacobian(self.x0 + h * w, dense=False),
+                    self.system.jacobian(self.x0 - h * w, dense=False))
             self.jacobians.append((w, h, pair))
         (jp, fpp), (jm, fpm) = pair
         return ((np.asarray(jp @ v[:-1]) + fpp * v[-1]) - (np.asarray(jm @ v[:-1]) + fpm * v[-1])) / (2 * h)
