@@ -33,6 +33,6 @@ python results/sweeps/plot_criticality.py
 
 # ---- gravity (issue 5)
 mkdir -p results/gravity
-contin unfold --grid 64 -s H_max=70 --json -o results/gravity/phase_diagram_nu0.3.png > results/gravity/unfold_nu0.3.json
+contin unfold --grid 96 -s H_max=70 --json -o results/gravity/phase_diagram_nu0.3.png > results/gravity/unfold_nu0.3.json
 contin fit --compute results/gravity/bp_unfolding.h5
 python results/gravity/make_figures.py all
