@@ -410,8 +410,9 @@ RESOLUTION_TOL = 3e-5
 
 def resolved(problem: CouetteProblem, x: Array, p: Mapping[str, float], tol: float = RESOLUTION_TOL) -> bool:
     """True when the grid resolves the state (CouetteProblem.under_resolved: Chebyshev tail
-    against the distance to packing).  Fold curves are traced on the augmented fold system,
-    which has no resolution guard, so their points near packing are checked with this."""
+    against the distance to packing).  Fold-curve traces are guarded by the core now
+    (FoldProblem forwards the hook, with the run's resolution_tol); this check stays for
+    stored points such as extrema located with the guard off, at the default tolerance."""
     check = getattr(problem, "under_resolved", None)
     return check is None or check(np.asarray(x)[: problem.size], p, tol) is None
 
