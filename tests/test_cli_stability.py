@@ -93,6 +93,17 @@ def test_growth_rate_at_kx0_is_the_4x4_mode_past_and_before_H1c(tmp_path):
         assert doc["params"]["H"] == H and doc["point"] == point
 
 
+def test_at_parameter_value_is_a_newton_corrected_state(tmp_path):
+    f = shear_file(tmp_path / "s.h5", [10.0, 20.0, 25.0])
+    doc = stability_json(f, "--branch", "0", "--at", "H=22", "--kx", "0")
+    assert doc["params"]["H"] == 22.0 and doc["point"] == "H=22"
+    assert doc["growth_rate"][0] == pytest.approx(uniform_shear_modes(NU, E, 22.0, 1)[0].real, abs=1e-8)
+    # at a stored point's own value it is that point
+    at = stability_json(f, "--branch", "0", "--at", "H=25", "--kx", "0,0.5")
+    stored = stability_json(f, "--branch", "0", "--point", "2", "--kx", "0,0.5")
+    np.testing.assert_allclose(at["growth_rate"], stored["growth_rate"], rtol=0, atol=1e-10)
+
+
 def test_printed_4x4_system_differs_but_has_the_same_neutral_point(tmp_path):
     f = shear_file(tmp_path / "s.h5", [25.0])
     g = stability_json(f, "--point", "0", "--kx", "0")["growth_rate"][0]
@@ -252,6 +263,12 @@ def test_parse_kx_spec():
     (["--branch", "0", "--point", "0", "--kx", "0:1:0"], "COUNT"),
     (["--branch", "0", "--point", "0", "--eigenfunction"], "needs -o"),
     (["--point", "0"], "choose one with --branch"),
+    (["--branch", "0"], "exactly one of --point"),
+    (["--branch", "0", "--point", "0", "--at", "H=12"], "exactly one of --point"),
+    (["--branch", "0", "--at", "H"], "--at needs NAME=VALUE"),
+    (["--branch", "0", "--at", "H=abc"], "--at needs NAME=VALUE"),
+    (["--branch", "0", "--at", "H=40"], "does not reach H = 40"),
+    (["--branch", "0", "--at", "Fr=12"], "no parameter 'Fr'"),
 ])
 def test_errors_are_one_line_exit_1(tmp_path, args, expect):
     f = shear_file(tmp_path / "s.h5", [10.0, 25.0], banded=True)

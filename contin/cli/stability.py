@@ -94,6 +94,53 @@ def resolve_point(branch: Any, point: str, fixed: dict[str, float], file: str) -
     return np.asarray(sp.state, dtype=float), {**fixed, **row, **_numeric(dict(sp.params))}, sp.name
 
 
+def parse_at(text: str) -> tuple[str, float]:
+    """``NAME=VALUE`` of ``--at`` (e.g. 'H=25')."""
+    name, sep, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not sep or not name.strip() or not math.isfinite(number):
+        fail(f"--at needs NAME=VALUE with a finite number, e.g. --at H=25; got {text!r}")
+    return name.strip(), number
+
+
+def state_at(problem: Any, branch: Any, name: str, value: float, fixed: dict[str, float],
+             file: str) -> tuple[Any, dict[str, float], str]:
+    """The solution on ``branch`` where parameter ``name`` equals ``value``: the first stored
+    step that brackets it, linearly interpolated and corrected by Newton at ``name = value``
+    (a stored state, not a plot interpolation, is what the eigenproblem needs)."""
+    import numpy as np
+
+    from contin.newton import newton
+
+    if name not in branch.params:
+        fail(f"branch {branch.id} of {file} has no parameter {name!r} (it has {', '.join(branch.params)})")
+    v = np.asarray(branch.params[name], dtype=float) - value
+    crossings = [i for i in range(len(v) - 1) if v[i] == 0 or v[i] * v[i + 1] < 0] + \
+        ([len(v) - 1] if len(v) and v[-1] == 0 else [])
+    if not crossings:
+        fail(f"branch {branch.id} of {file} does not reach {name} = {value:g} "
+             f"(it spans {name} = {branch.params[name].min():.6g} .. {branch.params[name].max():.6g})")
+    i = crossings[0]
+    j = min(i + 1, len(v) - 1)
+    try:
+        xi, xj = branch.state(i), branch.state(j)
+    except KeyError:
+        fail(f"the states around {name} = {value:g} on branch {branch.id} were not saved in {file} (save_every > 1)")
+    w = 0.0 if v[i] == v[j] else v[i] / (v[i] - v[j])
+    row = {k: float(vals[i]) for k, vals in branch.params.items()}
+    params = {**fixed, **row, name: value}
+    res = newton(problem, (1 - w) * np.asarray(xi, float) + w * np.asarray(xj, float), params)
+    if not res.converged:
+        fail(f"Newton at {name} = {value:g} on branch {branch.id} did not converge: {res.message}")
+    if len(crossings) > 1:
+        echo_err(f"note: branch {branch.id} crosses {name} = {value:g} {len(crossings)} times "
+                 f"(after points {', '.join(map(str, crossings))}); using the first")
+    return res.u, params, f"{name}={value:g}"
+
+
 def _eigenfunction(problem: Any, state: Any, vec: Any, y: Any) -> tuple[Any, dict[str, Any]]:
     """Named eigenfunction profiles: the problem's ``eigenvector_profiles`` or equal blocks on y."""
     import numpy as np
@@ -112,8 +159,11 @@ def _eigenfunction(problem: Any, state: Any, vec: Any, y: Any) -> tuple[Any, dic
 @click.argument("file", type=click.Path(exists=True, dir_okay=False))
 @click.option("--branch", "branch_id", default=None, metavar="ID",
               help="Branch id [default: the only branch of FILE].")
-@click.option("--point", required=True, metavar="INDEX|LABEL",
+@click.option("--point", default=None, metavar="INDEX|LABEL",
               help="Point index along the branch (negative counts from the end) or special-point label (LP1, BP2).")
+@click.option("--at", "at", default=None, metavar="NAME=VALUE",
+              help="Instead of --point: the state where a parameter has this value (e.g. H=25), corrected by Newton; "
+                   "the first crossing along the branch.")
 @click.option("--kx", "kx_spec", default="0:3:61", metavar="SPEC",
               help="Streamwise wavenumbers: START:STOP:COUNT, a comma list, or one value.")
 @click.option("--kz", type=float, default=0.0, help="Spanwise wavenumber.")
@@ -122,8 +172,8 @@ def _eigenfunction(problem: Any, state: Any, vec: Any, y: Any) -> tuple[Any, dic
               help="Figure of growth rate and phase speed against kx (.png, .pdf, .svg).")
 @click.option("--eigenfunction", is_flag=True,
               help="Also plot the least-stable eigenfunction at the first kx (to FIG_eigenfunction.EXT; needs -o).")
-def stability_command(file: str, branch_id: str | None, point: str, kx_spec: str, kz: float, as_json: bool,
-                      output: str | None, eigenfunction: bool) -> None:
+def stability_command(file: str, branch_id: str | None, point: str | None, at: str | None, kx_spec: str, kz: float,
+                      as_json: bool, output: str | None, eigenfunction: bool) -> None:
     """Growth rate max Re omega and phase speed of the least-stable mode against kx, for one state of FILE.
 
     Perturbations exp(i kx x + i kz z + omega t); c = Im omega / sqrt(kx^2 + kz^2) (null at k = 0).
@@ -134,6 +184,9 @@ def stability_command(file: str, branch_id: str | None, point: str, kx_spec: str
     from contin.scene import get_scene
     from contin.stability import count_unstable, eigenpairs, operator_pair
 
+    if (point is None) == (at is None):
+        fail("give exactly one of --point INDEX|LABEL and --at NAME=VALUE")
+    at_spec = parse_at(at) if at is not None else None
     kx_values = parse_kx_spec(kx_spec)
     if not math.isfinite(kz):
         fail(f"--kz must be a finite number, got {kz}")
@@ -160,7 +213,8 @@ def stability_command(file: str, branch_id: str | None, point: str, kx_spec: str
         branch = branches[ids.index(branch_id)]
 
     fixed = _numeric(dict(meta.get("parameters", {})))
-    state, params, where = resolve_point(branch, point, fixed, file)
+    if point is not None:
+        state, params, where = resolve_point(branch, point, fixed, file)
 
     scene_name = meta.get("scene") or ""
     if not scene_name:
@@ -172,6 +226,8 @@ def stability_command(file: str, branch_id: str | None, point: str, kx_spec: str
     if scene.problem_factory is None:
         fail(f"cannot rebuild the problem of {file}: scene {scene_name!r} has no problem_factory")
     problem = scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
+    if at_spec is not None:
+        state, params, where = state_at(problem, branch, *at_spec, fixed, file)
     size = getattr(problem, "size", None)
     if isinstance(size, int) and size != state.size:
         fail(f"the state has {state.size} entries but the problem rebuilt from {file} has {size} unknowns "
