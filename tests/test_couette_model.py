@@ -151,6 +151,19 @@ def test_jacobian_and_parameter_derivatives_against_finite_differences(method, w
     assert np.max(np.max(np.abs(jac - cs), axis=1) / row_scale) < 1e-12
 
 
+@pytest.mark.parametrize("method,walls,gravity", CASES)
+@pytest.mark.parametrize("dufour", [False, True])
+def test_dense_jacobian_is_the_sparse_one_bitwise(method, walls, gravity, dufour):
+    # contin factorizes small systems from dense_jacobian (contin.problem): it must be the
+    # same matrix, entry for entry, or branch switching would round differently
+    problem = CouetteProblem(method, 16 if method == "cheb" else 24, walls=walls, gravity=gravity, dufour=dufour)
+    p = problem.params({"H": 15.0, "nu": 0.35, "e": 0.7, "G": 3e-4 if gravity else 0.0})
+    x = perturbed(problem, p)
+    dense = problem.dense_jacobian(x, p)
+    assert dense.flags.f_contiguous and dense.shape == (problem.size, problem.size)
+    assert np.array_equal(dense, problem.jacobian(x, p).toarray())
+
+
 def test_parameter_derivative_of_inactive_parameters_is_zero():
     problem = CouetteProblem("cheb", 12)
     p = problem.params({})
