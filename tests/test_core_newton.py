@@ -111,3 +111,25 @@ def test_bad_input_raises_value_error():
         trace(pb, np.zeros(3), {"lam": 0.0}, "lam")
     with pytest.raises(ValueError, match="unknown parameter"):
         trace(AllenCahn("cheb", 8), np.zeros(9), {"lam": 0.0, "mu": 1.0}, "lam")
+
+
+def test_corrector_give_up_hook_ends_an_unconverged_correction():
+    from contin.corrector import correct
+    from contin.extended import ExtendedSystem
+
+    pb = Bratu("cheb", 16)
+    system = ExtendedSystem(pb, {"lam": 1.0}, "lam")
+    x0 = np.concatenate([pb.initial(), [1.0]])
+    e_p = np.zeros(x0.size)
+    e_p[-1] = 1.0
+    full = correct(system, x0, e_p, NewtonOptions())
+    assert full.converged and full.iterations >= 3
+    seen = []
+
+    def give_up(x, dx):
+        seen.append(float(np.max(np.abs(dx))))
+        return "enough" if len(seen) == 2 else None
+
+    stopped = correct(system, x0, e_p, NewtonOptions(), give_up=give_up)
+    assert not stopped.converged and stopped.message == "enough" and stopped.iterations == 2
+    assert stopped.factorization is not None and len(stopped.residual_history) == 3
