@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 SQRT_PI = np.sqrt(np.pi)
+_FLOATS = (float, np.float64)  # scalar types of e whose constants are cached (see coefficients)
 CHI_MODELS = ("jj", "cs", "ls")
 
 
@@ -90,11 +91,12 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     ic = 1.0 / chi
     ic_nu = -chi1 * ic * ic
 
-    if np.ndim(e) == 0 and np.ndim(nu) == 1:
+    cached = type(e) in _FLOATS
+    if (cached or np.ndim(e) == 0) and getattr(nu, "ndim", 0) == 1:  # nu: an array or a scalar
         # Stacked rows: one numpy call per operation instead of one per function (the arrays
         # are short in continuation, so the number of calls is the cost); the e-dependent
         # constants as column arrays, cached per value of e (a float: e is not complex here).
-        b_, c_, d_, k_ = _stacked_constants(e) if type(e) in (float, np.float64) else _columns(_constants(e))
+        b_, c_, d_, k_ = _stacked_constants(e) if cached else _columns(_constants(e))
         f24 = b_ * ic + c_ * nu + d_ * q
         f24_nu = b_ * ic_nu + (c_ + d_ * q_nu)
         q135 = k_ * q

@@ -263,7 +263,8 @@ class CouetteProblem:
         # whose rounding would otherwise leave ~1e-10 in the residual of uniform shear.
         # Rows: [u - y, T - T0, (nu - nu0,)] get D1 and D2, then [a - a0, k - k0, (kh - kh0)] D1.
         nd = 3 if self.dufour else 2
-        v = np.empty((2 * nd, self.n), dtype=np.result_type(x, c.f2))
+        dtype = np.float64 if x.dtype == np.float64 and c.f2.dtype == np.float64 else np.result_type(x, c.f2)
+        v = np.empty((2 * nd, self.n), dtype=dtype)
         v[0] = u - self.grid.y
         v[1] = T - T[0]
         v[nd] = a - a[0]
@@ -369,8 +370,9 @@ class CouetteProblem:
         w, sig = self._walls_idx, self._sigma
 
         # (each factor is written exactly as the masked version before it, so J is bitwise the same)
-        a_nu, a_T = c.f2_nu * f.sT, c.f2 / (2.0 * f.sT)
-        k_nu, k_T = c.f4_nu * f.sT, c.f4 / (2.0 * f.sT)
+        two_sT = 2.0 * f.sT
+        a_nu, a_T = c.f2_nu * f.sT, c.f2 / two_sT
+        k_nu, k_T = c.f4_nu * f.sT, c.f4 / two_sT
         D_nu, D_T = c.f5_nu * f.T * f.sT, 1.5 * c.f5 * f.sT
         up2 = f.up**2
         tp_h2 = f.Tp * h2
