@@ -237,3 +237,15 @@ def test_criticality_cli_json_prints_both_routes(tmp_path):
     assert x["nu_th"] < x["nu_fold"] < x["nu_tc_normal_form"] and x["H_LP"] < x["H1c_fold"]
     fold = [b for b in doc["branches"] if b["id"] == "fold"]
     assert len(fold) == 1 and fold[0]["status"] == "EP"
+
+
+def test_on_parabola_prefix_cuts_where_the_tracer_leaves_for_the_bp_curve():
+    # fold curve nu = nu_tc - 2.8 delta^2 approached with shrinking |delta| (one crawl pair), then
+    # steps along the BP curve: delta at noise level, nu still growing
+    nu_tc, c2 = 0.1766371, -2.8
+    d = np.array([3e-2, 1.5e-2, 7e-3, 2.6e-3, 1.4e-3, 1.4e-3 * (1 + 1e-4), 3.5e-4])
+    nu = nu_tc + c2 * d**2
+    assert cr.on_parabola_prefix(d, nu) == d.size  # all on the parabola
+    d_bp = np.array([5.3e-5, 2.5e-5, -1.6e-5, 4.6e-6])
+    nu_bp = nu[-1] + np.cumsum([3.2e-6, 2.0e-6, 1.1e-6, 0.9e-6])
+    assert cr.on_parabola_prefix(np.concatenate([d, d_bp]), np.concatenate([nu, nu_bp])) == d.size

@@ -312,6 +312,32 @@ class FoldCurveEnd:
     notes: list[str] = field(default_factory=list)
 
 
+def on_parabola_prefix(delta: np.ndarray, nu: np.ndarray, *, window: float = 0.01, factor: float = 3.0) -> int:
+    """How many leading fold-curve points lie on the fold curve proper near its end.
+
+    Near the tricritical point the fold curve is the parabola nu = nu_tc + c2 delta^2, so
+    consecutive points have (nu_j - nu_{j-1}) / (delta_j^2 - delta_{j-1}^2) ~ c2.  The BP
+    curve (uniform shear at H_1^c(nu), where the fold system is also solved, delta = 0 up to
+    noise) crosses it at the tricritical point; a tracer that steps onto it keeps moving in nu
+    with delta at noise level, and that ratio jumps.  Returns the index of the first point
+    (|delta| < window) whose ratio is off the median of the earlier ones by more than
+    ``factor``, else len(delta).  Crawling steps (delta^2 changed by < 1 %) are not tested.
+    """
+    d2 = np.asarray(delta, float) ** 2
+    ratios: list[float] = []
+    for j in range(1, d2.size):
+        dd = d2[j] - d2[j - 1]
+        if abs(delta[j]) > window or abs(dd) <= 1e-2 * d2[j - 1]:
+            continue
+        r = (nu[j] - nu[j - 1]) / dd
+        if len(ratios) >= 2:
+            q = r / float(np.median(ratios))
+            if not 1 / factor <= q <= factor:
+                return j
+        ratios.append(r)
+    return int(d2.size)
+
+
 def _clusters(delta: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Merge the points where the tracer crawled (|delta| equal to 1 %) into their mean.
 
@@ -376,12 +402,16 @@ def tricritical_by_fold_curve(problem: CouetteProblem, fold: BandedFold, e: floa
     h_c = fold.H_c
     opts = options or ContinuationOptions(
         bounds={"H": (0.02 * h_c, 2.0 * h_c)}, max_steps=max_steps, detect_closed=False,
-        step=StepOptions(ds=-0.002 * h_c, ds_max=0.03 * h_c, ds_min=1e-9),
+        # ds_max 0.01 H_c: with 0.03 the step that reaches |delta| ~ 3e-4 can land on the BP
+        # curve (uniform states at H_1^c(nu), which also solve the fold system) and run along
+        # it, depending on rounding (it did with one BLAS thread and not with two)
+        step=StepOptions(ds=-0.002 * h_c, ds_max=0.01 * h_c, ds_min=1e-9),
         newton=NewtonOptions(max_iterations=12))
     curve = trace_fold_curve(problem, fold.lp, "nu", opts, parameter="H", both=False, branch_id="fold")
-    delta = curve.observables["delta"]
-    nu = curve.params["nu"]
-    H = curve.params["H"]
+    keep = on_parabola_prefix(curve.observables["delta"], curve.params["nu"])
+    delta = curve.observables["delta"][:keep]
+    nu = curve.params["nu"][:keep]
+    H = curve.params["H"][:keep]
     i = int(np.argmin(np.abs(delta)))
     if not abs(delta[i]) < delta_fit / 4:
         raise ValueError(f"the fold curve did not reach the BP curve: smallest |delta| = {abs(delta[i]):.3g} at "
@@ -396,6 +426,9 @@ def tricritical_by_fold_curve(problem: CouetteProblem, fold: BandedFold, e: floa
     gap = H[i] - critical_gap(nu[i], e, chi=problem.chi, num=num)
     notes = [f"fold curve: {len(curve)} points, closest approach to the BP curve |delta| = {abs(delta[i]):.2e} at "
              f"nu = {nu[i]:.9f}, H = {H[i]:.6f} (H - H_1^c = {gap:.2e}); {message}"]
+    if keep < len(curve):
+        notes.append(f"fold curve: the last {len(curve) - keep} points left the parabola nu = nu_tc + c2 delta^2 "
+                     f"(the tracer crossed onto the BP curve at nu = {curve.params['nu'][keep]:.9f}); not used in the fit")
     return FoldCurveEnd(branch=curve, nu_tc=nu_tc, H_tc=critical_gap(nu_tc, e, chi=problem.chi, num=num),
                         nu_end=float(nu[i]), H_end=float(H[i]), delta_end=float(delta[i]), gap_end=float(gap),
                         nu_tc_error=float(abs(nu_tc4 - nu_tc)), fit_points=count, c2=c2, delta_fit=window,
