@@ -63,8 +63,24 @@ def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_break
             raise ValueError("cannot factorize the bordered Jacobian at the branch point")
         phi = inverse_iteration(fact)
         psi = inverse_iteration(fact, trans="T")[:n]
-    phi = phi - system.dot(phi, t1) * t1
-    return system.unit(phi), psi / np.linalg.norm(psi)
+    phi = system.unit(phi - system.dot(phi, t1) * t1)
+    return _oriented(system, x0, phi), psi / np.linalg.norm(psi)
+
+
+def _oriented(system: ExtendedSystem, x0: Array, phi: Array) -> Array:
+    """phi with a reproducible sign: the order parameter grows along +phi (else the largest
+    component is positive).  A null vector's sign is arbitrary -- it follows rounding in the LU
+    -- and it decides which half of a pitchfork ``directions=(+1,)`` follows."""
+    h = 1e-6 / max(1.0, float(np.max(np.abs(phi))))
+    try:
+        slope = (system.order_parameter(x0 + h * phi) - system.order_parameter(x0 - h * phi)) / (2 * h)
+    except (TypeError, ValueError, AttributeError):
+        slope = math.nan
+    scale = max(1.0, abs(system.order_parameter(x0))) if math.isfinite(slope) else 1.0
+    if math.isfinite(slope) and abs(slope) > 1e-6 * scale:
+        return phi if slope > 0 else -phi
+    k = int(np.argmax(np.abs(phi)))
+    return phi if phi[k] > 0 else -phi
 
 
 def second_derivative(system: ExtendedSystem, x0: Array, v: Array, w: Array) -> Array:

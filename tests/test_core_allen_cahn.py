@@ -82,3 +82,25 @@ def test_without_symmetry_the_full_determinant_finds_the_same_bps():
         plus, minus = switch(pb, br, bp, OPTS)
         assert plus.parameter_values[-1] == 10.0 and minus.parameter_values[-1] == 10.0
         assert plus.order_parameter[-1] == pytest.approx(-minus.order_parameter[-1], abs=1e-6)
+
+
+def test_first_direction_of_a_switch_raises_the_order_parameter(diagram):
+    """directions=(+1,) is reproducible: the null vector is oriented so that the order parameter
+    grows along it (its sign out of the LU is arbitrary)."""
+    pb, trivial, _ = diagram
+    for bp in trivial.branch_points:
+        (first,) = switch(pb, trivial, bp, OPTS, directions=(+1,))
+        (second,) = switch(pb, trivial, bp, OPTS, directions=(-1,))
+        assert first.order_parameter[1] > bp.order_parameter > second.order_parameter[1]
+
+
+def test_null_vector_orientation_is_sign_independent():
+    from contin.extended import ExtendedSystem
+    from contin.switching import _oriented
+
+    pb = AllenCahn("cheb", 16)
+    system = ExtendedSystem(pb, {"lam": 1.0}, "lam")
+    x0 = system.pack(pb.initial(), 1.0)
+    phi = system.unit(system.pack(np.sin(np.linspace(0, np.pi, x0.size - 1)) - 0.2, 0.0))
+    assert np.array_equal(_oriented(system, x0, phi), _oriented(system, x0, -phi))
+    assert system.order_parameter(x0 + 1e-3 * _oriented(system, x0, phi)) > system.order_parameter(x0)
