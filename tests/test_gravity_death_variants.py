@@ -1,5 +1,5 @@
 """Why our third-pitchfork isola dies at Fr = 783.97 and the slides' (A13) at ~922: closure
-variants of the death Fr (notes/isola_death.md; nu = 0.3, e = 0.8, no-slip walls).
+variants of the death Fr (results/gravity/isola_death/isola_death.md; nu = 0.3, e = 0.8, no-slip walls).
 
 Two facts the notes rely on:
 

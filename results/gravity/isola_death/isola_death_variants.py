@@ -1,12 +1,12 @@
 """Death Fr of the third-pitchfork isola and Fr* (floating-plug limit) for model variants.
 
-Helper script for notes/isola_death.md (issue 5).  For one variant (grid, chi, nu_m, Dufour,
+Helper script for results/gravity/isola_death/isola_death.md (issue 5).  For one variant (grid, chi, nu_m, Dufour,
 nu_bar, e) it runs problems.couette.gravity.phase_diagram -- the machinery of
 ``contin unfold`` -- on a CouetteProblem built with those switches and prints one JSON line:
 the critical gaps, Fr* (largest G on the first pitchfork's fold curve) and every G-extremum
 (birth/death) of the fold curves, resolved or not.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python notes/isola_death_variants.py --grid 64 --chi jj --num 0.65
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python results/gravity/isola_death/isola_death_variants.py --grid 64 --chi jj --num 0.65
 
 Closure experiments (not options of the model; the script wraps closures.coefficients as seen by
 problems.couette.model): ``--a1 --a2 --a4 --a5`` multiply f1, f2, f4, f5 (and their
@@ -14,7 +14,7 @@ nu-derivatives) by constants; ``--transport elastic`` evaluates f2, f4 at e = 1 
 Chapman-Enskog transport coefficients, dissipation f5 unchanged); ``--f5 js83`` uses the older
 Jenkins-Savage dissipation f5 = (24/sqrt(pi)) (1 - e) nu^2 chi.
 
-Exact scaling (derived in notes/isola_death.md): with f_i -> a_i f_i the steady no-slip/zero-flux
+Exact scaling (derived in results/gravity/isola_death/isola_death.md): with f_i -> a_i f_i the steady no-slip/zero-flux
 problem at (H, G) is the original one at (H / h, G / g) with T scaled by a2/a5,
 h = sqrt(a4/a5), g = a1 a2 sqrt(a5) / a4^(3/2): every critical Fr scales by g^(-1/2).
 """

@@ -1,12 +1,12 @@
 """Every fold-pair event (G-extremum of a fold curve) of the diagrams at given Fr.
 
-Helper script for notes/isola_death.md: which isola could die at the slides' Fr = 922?  At each
+Helper script for results/gravity/isola_death/isola_death.md: which isola could die at the slides' Fr = 922?  At each
 Fr the branches are found with problems.couette.gravity.discover (route 1, banded branches of the
 first two pitchforks), then the fold curve through every fold of every closed branch is traced
 in (H, G) (problems.couette.gravity.fold_curves) and its G-extrema (births/deaths of fold pairs:
 isolas dying, loops splitting or merging) are printed as one JSON line.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python notes/isola_death_events.py --Fr 922 --grid 64
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python results/gravity/isola_death/isola_death_events.py --Fr 922 --grid 64
 """
 
 from __future__ import annotations
