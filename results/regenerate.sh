@@ -12,8 +12,9 @@ contin diagram results/pitchfork.h5 -o results/pitchfork.png
 contin profiles results/pitchfork.h5 --at H=25 --names nu,u,T -o results/profiles_H25.png
 contin profiles results/pitchfork.h5 --at H=30 --names nu,u,T -o results/profiles_H30.png
 # nu:H_max:grid -- at nu = 0.5 the n = 1 plug is within 4e-7 of packing by H = 40 and needs
-# cheb 96 (cheb 64 is stopped by the resolution guard at H = 36.7)
-for spec in 0.5:40:96 0.16:100:64 0.15:100:64; do
+# cheb 96 (cheb 64 is stopped by the resolution guard at H = 36.7); at nu = 0.16 the n = 1 plug
+# at H = 100 is 0.02 below packing and cheb 64 does not resolve it either
+for spec in 0.5:40:96 0.16:100:96 0.15:100:64; do
     IFS=: read -r nu hmax grid <<< "$spec"
     contin trace pitchfork -s "nu=$nu" -s e=0.8 -s "H_max=$hmax" --grid "$grid" -q -o "results/pitchfork_nu$nu.h5"
     contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"
