@@ -263,9 +263,12 @@ def banded_fold(problem: CouetteProblem, nu: float, e: float, *, num: float = 0.
     """Locate the fold of the subcritical n = 1 banded branch at density ``nu``.
 
     Trace uniform shear across H_1^c, switch at the BP (one half of the pitchfork: the two
-    halves are mirror images) and trace the banded branch down in H until its fold.  The first
-    step off the BP is tiny (1e-5) because a strongly subcritical branch (a ~ -8e4 at
-    nu = 0.16) leaves the BP almost parallel to the H axis of the arclength norm.
+    halves are mirror images) and trace the banded branch down in H until its fold (stop_at
+    LP1).  The first step off the BP is small (1e-4) because a strongly subcritical branch
+    (a ~ -8e4 at nu = 0.16) leaves the BP almost parallel to the H axis of the arclength norm;
+    not smaller: at 1e-5 the first points differ from the BP in H by ~1e-7, the BP's own
+    location tolerance at H_c ~ 156 (e = 0.95), and their rounding made a spurious LP there.
+    An LP within 1e-6 H_c of the BP is rejected as such noise.
     """
     h_c = critical_gap(nu, e, chi=problem.chi, num=num)
     uniform, bp = uniform_shear_bp(problem, nu, e, num=num, h_range=(0.8 * h_c, 1.2 * h_c), branch_id=prefix)
@@ -276,11 +279,14 @@ def banded_fold(problem: CouetteProblem, nu: float, e: float, *, num: float = 0.
     opts = ContinuationOptions(bounds={"H": (0.02 * h_c, 1.5 * h_c)}, max_steps=250,
                                step=StepOptions(ds=1e-3, ds_max=0.04 * h_c), detect_closed=False,
                                stop_at=("LP1",))
-    halves = switch(problem, uniform, bp, opts, directions=(+1,), ds=1e-5, branch_id_prefix=f"{prefix}.n1")
+    halves = switch(problem, uniform, bp, opts, directions=(+1,), ds=1e-4, branch_id_prefix=f"{prefix}.n1")
     if not halves:
         raise ValueError(f"branch switching at the BP of uniform shear (nu = {nu:g}, H = {bp.params['H']:.6g}) failed")
     banded = halves[0]
-    folds = [lp for lp in banded.fold_points if lp.params["H"] < bp.params["H"]]
+    folds = [lp for lp in banded.fold_points if lp.params["H"] < bp.params["H"] * (1 - 1e-6)]
+    if not folds and banded.fold_points:
+        raise ValueError(f"the n = 1 banded branch at nu = {nu:g}, e = {e:g} turned within 1e-6 H_c of its BP "
+                         "(an LP at the BP's location tolerance, not a fold)")
     if not folds:
         raise ValueError(f"the n = 1 banded branch at nu = {nu:g}, e = {e:g} has no fold below H_1^c "
                          "(the pitchfork is not subcritical there)")
