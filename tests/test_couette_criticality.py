@@ -249,3 +249,13 @@ def test_on_parabola_prefix_cuts_where_the_tracer_leaves_for_the_bp_curve():
     d_bp = np.array([5.3e-5, 2.5e-5, -1.6e-5, 4.6e-6])
     nu_bp = nu[-1] + np.cumsum([3.2e-6, 2.0e-6, 1.1e-6, 0.9e-6])
     assert cr.on_parabola_prefix(np.concatenate([d, d_bp]), np.concatenate([nu, nu_bp])) == d.size
+
+
+@pytest.mark.parametrize("e, H_LP", [(0.95, 105.5605732), pytest.param(0.99, 253.4786855, marks=pytest.mark.slow)])
+def test_nearly_elastic_fold_and_both_tricritical_routes(e, H_LP):
+    """e -> 1 (H_c ~ 156, 375): the fold of the banded branch at the 'auto' density is the real
+    one, not an LP at the BP's location tolerance, and the two nu_tc routes agree."""
+    x = CRITICALITY_SCENES["criticality"].run(SceneRequest(params={"e": e}, stability=False)).extra
+    assert x["H_LP"] == pytest.approx(H_LP, rel=1e-8)
+    assert x["H_LP"] < 0.7 * x["H1c_fold"]
+    assert abs(x["nu_tc_fold_curve"] - x["nu_tc_normal_form"]) < 1e-8
