@@ -19,6 +19,7 @@ product) and what to record::
     grid = 48
     max_steps = 400
     stability = false
+    resolution_tol = "off"                 # or a number > 0 (default: the core's 3e-5)
 
 Design (style notes B4): one task = one scene run at one grid point.  Tasks are pure, picklable,
 top-level calls (:func:`run_task`: scene name + full parameters + options in, compact result
@@ -50,7 +51,13 @@ import time
 import tomllib
 import traceback
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import (
+    CancelledError,
+    Executor,
+    Future,
+    ProcessPoolExecutor,
+    as_completed,
+)
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,6 +65,7 @@ from typing import Any
 from contin.atomic import publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
+from contin.options import resolution_override
 from contin.scene import Scene, SceneError, SceneRequest, get_scene
 
 __all__ = [
@@ -91,6 +99,7 @@ OPTION_TYPES: dict[str, tuple[type, ...]] = {
     "ds_max": (int, float),
     "stability": (bool,),
     "kx": (list,),
+    "resolution_tol": (int, float, str),  # a tolerance > 0, or "off" (the CLI's --resolution-tol)
 }
 _SECTIONS = {"sweep": {"scene", "record", "description"}, "fixed": None, "grid": None, "options": set(OPTION_TYPES)}
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -258,6 +267,10 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
                              f"got {value!r}")
     if "kx" in options and not all(isinstance(k, (int, float)) and not isinstance(k, bool) for k in options["kx"]):
         raise SweepError(f"option 'kx'{where} must be a list of numbers")
+    if "resolution_tol" in options:
+        value = options["resolution_tol"]
+        if value != "off" and (isinstance(value, str) or not (math.isfinite(value) and value > 0)):
+            raise SweepError(f"option 'resolution_tol'{where} must be a number > 0 or \"off\", got {value!r}")
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
@@ -323,6 +336,12 @@ def task_key(scene: str, params: Mapping[str, Any], options: Mapping[str, Any], 
 
 # --------------------------------------------------------------------------- one task
 
+def _resolution_tol(options: Mapping[str, Any]) -> float | None:
+    """The ``resolution_tol`` option as a trace setting ("off": None, the guard off)."""
+    value = options["resolution_tol"]
+    return None if value == "off" else float(value)
+
+
 def _request(params: Mapping[str, Any], options: Mapping[str, Any]) -> SceneRequest:
     overrides = {k: options[k] for k in ("max_steps", "ds", "ds_max") if k in options}
     return SceneRequest(
@@ -381,7 +400,8 @@ def run_task(scene_name: str, params: Mapping[str, Any], options: Mapping[str, A
     try:
         with _quiet_scene_loading():
             scene = get_scene(scene_name)
-        result = scene.run(_request(params, options))
+        with resolution_override(_resolution_tol(options)) if "resolution_tol" in options else contextlib.nullcontext():
+            result = scene.run(_request(params, options))
     except (SceneError, ValueError) as exc:
         base.update(status="error", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     except Exception as exc:  # noqa: BLE001 -- a crashing task is a result, never the end of a sweep
@@ -747,7 +767,7 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
             a["scene"] = s.spec.scene
             a["sweep"] = json_dumps(s.spec.to_dict())
             a["counts"] = json.dumps(s.counts())
-            a["created_utc"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+            a["created_utc"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
             g = f.create_group("tasks")
             for name in ("key", "status", "reason", "file"):
                 g.create_dataset(name, data=np.array([getattr(r, name) for r in recs], dtype=object), dtype=text)

@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint
+from contin.options import ContinuationOptions, effective_resolution_tol
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 
 DEFAULTS = {"a": 0.0, "b": 1.0, "delay": 0.0, "fail": "none"}
@@ -48,7 +49,9 @@ def run(req: SceneRequest) -> SceneResult:
     if p["fail"] == "mx":
         pitch.status, pitch.message = "MX", "step size underflow"
     return SceneResult(branches=[fold, pitch], parameters=dict(p),
-                       extra={"fold_lam": a, "a_plus_b": a + b, "label": f"a={a:g}"})
+                       extra={"fold_lam": a, "a_plus_b": a + b, "label": f"a={a:g}",
+                              # what a trace in this run would use (the sweep's resolution_tol option)
+                              "resolution_tol": effective_resolution_tol(ContinuationOptions())})
 
 
 SCENES = {"normalform": Scene("normalform", "fold and pitchfork normal forms (sweep tests)", DEFAULTS, run,

@@ -112,6 +112,8 @@ def test_grid_is_the_cartesian_product_with_stable_keys(tmp_path):
     ({"sweep": {"scene": "s", "record": ["folds"]}, "grid": {"a": [1]}}, "cannot record 'folds'"),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"grid": 0}}, "'grid' must be >= 1"),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"stability": 1}}, "'stability' must be of type bool"),
+    ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"resolution_tol": "of"}}, "must be a number > 0 or \"off\""),
+    ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"resolution_tol": -1e-5}}, "must be a number > 0 or \"off\""),
 ])
 def test_bad_sweep_documents_give_one_sentence(doc, message):
     with pytest.raises(SweepError) as info:
@@ -136,6 +138,13 @@ def test_bad_files_scenes_and_parameters(tmp_path, scenes):
 
 # --------------------------------------------------------------------------- tasks
 
+@pytest.mark.parametrize("value, used", [("off", None), (1e-3, 1e-3), (2, 2.0)])
+def test_resolution_tol_option_reaches_the_traces_of_a_task(value, used, scenes):
+    doc = run_task("normalform", {"a": 0.25}, {"resolution_tol": value})
+    assert doc["status"] == "ok" and doc["extra"]["resolution_tol"] == used
+    assert run_task("normalform", {"a": 0.25}, {})["extra"]["resolution_tol"] == 3e-5  # and ends with the task
+
+
 def test_run_task_returns_exact_special_points_and_writes_a_contin_file(tmp_path, scenes):
     from contin import io
 
@@ -145,7 +154,7 @@ def test_run_task_returns_exact_special_points_and_writes_a_contin_file(tmp_path
     assert doc["status"] == "ok" and doc["reason"] == "" and doc["key"] == key
     assert [(sp["type"], sp["label"], sp["branch"], sp["params"]["lam"], sp["phi"], sp["converged"])
             for sp in doc["special_points"]] == [("LP", "LP1", "0", 0.25, 0.0, True), ("BP", "BP2", "1", -1.5, 0.0, True)]
-    assert doc["extra"] == {"fold_lam": 0.25, "a_plus_b": -1.25, "label": "a=0.25"}
+    assert doc["extra"] == {"fold_lam": 0.25, "a_plus_b": -1.25, "label": "a=0.25", "resolution_tol": 3e-5}
     json.dumps(doc, allow_nan=False)  # compact and strict JSON
     assert read_task_file(tmp_path / f"{key}.h5") == doc
     branches, meta = io.load(tmp_path / f"{key}.h5")
