@@ -514,3 +514,18 @@ def test_analytic_dF_dH_equals_complex_step(kw):
     x[pb.i_u] += 0.01 * np.cos(np.pi * y)
     ref = complex_step_dp(pb, x, p, "H")
     assert np.max(np.abs(pb.dresidual_dp(x, p, "H") - ref)) < 1e-12 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("chi", ["jj", "cs", "ls"])
+def test_real_coefficients_equal_the_general_ones_bitwise(chi):
+    """closures.real_coefficients (the residual's stacked fast path) = closures.coefficients, bitwise."""
+    from problems.couette.closures import coefficients, real_coefficients
+
+    nu = np.concatenate([np.linspace(0.01, 0.6, 37), np.random.default_rng(1).uniform(0.0, 0.64, 200)])
+    for e in (0.5, 0.8, 0.99):
+        fast, ref = real_coefficients(nu, e, chi, 0.65), coefficients(nu, e, chi, 0.65)
+        for name in ref._fields:
+            a, b = np.asarray(getattr(fast, name)), np.asarray(getattr(ref, name))
+            assert a.shape == b.shape == nu.shape, name
+            np.testing.assert_array_equal(a, b, err_msg=name)
+    assert not np.any(real_coefficients(nu, 0.8, chi, 0.65).fh)

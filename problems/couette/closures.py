@@ -122,6 +122,46 @@ def coefficients(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = 
     return Coefficients(f1, f2, f3, f4, f5, fh, f1_nu, f2_nu, f3_nu, f4_nu, f5_nu, chi, chi1)
 
 
+def real_coefficients(nu: np.ndarray, e: float, model: str = "jj", nu_max: float = 0.65) -> Coefficients:
+    """:func:`coefficients` for a real 1-D float64 ``nu``, a float ``e`` and no Dufour flux (fh = 0).
+
+    The hot path of the gPCF residual (one call per Newton iterate).  Every f_i is
+    (c0 b0 + c1 b1) + c2 b2 in the basis (1/chi, nu, nu^2 chi), and every f_i_nu is
+    (c0 b0 + c1 b1) + c2 b2 in ((nu^2 chi)', 1, (1/chi)') -- the association and order of the
+    operations of :func:`coefficients` (adding the exact 0 of a missing term changes nothing), so
+    the result is bitwise the same (tested) -- with all twelve rows (fh = 0 the last) from one
+    broadcast product and two sums: 4 numpy calls instead of 15 on continuation-sized arrays.
+    """
+    chi, chi1 = radial_distribution(nu, model, nu_max)
+    basis = np.empty((3, 2, 1, nu.size))  # (term, values/derivatives, 1, node)
+    b = basis[:, :, 0]
+    b[1, 0] = nu
+    b[1, 1] = 1.0
+    g = nu * chi
+    np.multiply(nu, g, out=b[2, 0])  # q = nu^2 chi
+    np.add(2.0 * g, nu * nu * chi1, out=b[0, 1])  # q_nu
+    ic = np.divide(1.0, chi, out=b[0, 0])
+    np.multiply(-chi1 * ic, ic, out=b[2, 1])  # (1/chi)_nu
+    terms = _basis_matrix(e) * basis
+    rows = terms[0] + terms[1]
+    rows += terms[2]
+    (f1, f2, f3, f4, f5, fh), (f1_nu, f2_nu, f3_nu, f4_nu, f5_nu, _) = rows
+    return Coefficients(f1, f2, f3, f4, f5, fh, f1_nu, f2_nu, f3_nu, f4_nu, f5_nu, chi, chi1)
+
+
+@lru_cache(maxsize=64)
+def _basis_matrix(e: float) -> np.ndarray:
+    """(term, values/derivatives, row f1..f5 fh, 1) coefficients of :func:`real_coefficients`.  Read-only."""
+    (b2, b4), (c2, c4), (d2, d4), (k1, k3, k5) = _constants(e)
+    m = np.zeros((3, 2, 6, 1))
+    # f1 = nu + k1 q; f2, f4 = (b / chi + c nu) + d q; f3, f5 = k q
+    m[:, 0, :5, 0] = np.array([[0.0, 1.0, k1], [b2, c2, d2], [0.0, 0.0, k3], [b4, c4, d4], [0.0, 0.0, k5]]).T
+    # f1_nu = 1 + k1 q_nu; f2_nu, f4_nu = b (1/chi)_nu + (c + d q_nu); f3_nu, f5_nu = k q_nu
+    m[:, 1, :5, 0] = np.array([[k1, 1.0, 0.0], [d2, c2, b2], [k3, 0.0, 0.0], [d4, c4, b4], [k5, 0.0, 0.0]]).T
+    m.flags.writeable = False
+    return m
+
+
 def _constants(e):
     """(b24, c24, d24, k135): f2, f4 = b / chi + c nu + d nu^2 chi; f1 - nu, f3, f5 = k nu^2 chi."""
     eta = (1.0 + e) / 2.0

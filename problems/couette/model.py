@@ -53,7 +53,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from contin.problem import complex_step_dp
-from problems.couette.closures import CHI_MODELS, coefficients, packing_limit
+from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients
 from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
 from problems.discretization import cell_integration_matrix, make_grid
 
@@ -65,6 +65,8 @@ _SQRT3 = np.sqrt(3.0)
 _MIN, _MAX, _SUM = np.minimum.reduce, np.maximum.reduce, np.add.reduce
 #: Parameter value types for which the residual is real double (see CouetteProblem.residual).
 _REAL_TYPES = frozenset({float, int, np.float64})
+#: Types of e for which closures.real_coefficients applies (it caches its matrix per e).
+_FLOAT_TYPES = frozenset({float, np.float64})
 #: Grids up to this many nodes differentiate with dense operators (see CouetteProblem.__init__).
 DENSE_DERIVATIVES = 160
 
@@ -254,7 +256,11 @@ class CouetteProblem:
 
     def _compute_fields(self, x: NDArray, p: Mapping[str, Any]) -> _Fields:
         nu, u, T, P, M = self.unpack(x)
-        c = coefficients(nu, p["e"], self.chi, p["num"], self.dufour)
+        e, num = p["e"], p["num"]
+        if not self.dufour and x.dtype == np.float64 and type(e) in _FLOAT_TYPES and type(num) in _REAL_TYPES:
+            c = real_coefficients(nu, e, self.chi, num)  # one stacked product (the Newton hot path)
+        else:
+            c = coefficients(nu, e, self.chi, num, self.dufour)
         sT = np.sqrt(T)
         a = c.f2 * sT
         k = c.f4 * sT
