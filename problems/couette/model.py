@@ -95,6 +95,8 @@ class _Fields(NamedTuple):
     nup: Any
     nupp: Any
     khp: Any
+    cond: Any  # k T'' + k' T' (energy rows of the residual and of dF/dH)
+    up2: Any  # u'^2 (energy rows of the residual and of the Jacobian)
 
 
 class CouetteProblem:
@@ -285,9 +287,10 @@ class CouetteProblem:
             nup, nupp, khp = d1v[2], d2v[2], d1v[5]
         else:
             kh = nup = nupp = khp = None
+        up, Tp, Tpp, kp = d1v[0] + 1.0, d1v[1], d2v[1], d1v[nd + 1]
         return _Fields(
             nu, u, T, P, M, c, sT, a, k, c.f5 * T * sT,
-            d1v[0] + 1.0, d2v[0], d1v[1], d2v[1], d1v[nd], d1v[nd + 1], kh, nup, nupp, khp,
+            up, d2v[0], Tp, Tpp, d1v[nd], kp, kh, nup, nupp, khp, k * Tpp + kp * Tp, up**2,
         )
 
     def _wall_coefficients(self, f: _Fields, p: Mapping[str, Any]):
@@ -319,7 +322,7 @@ class CouetteProblem:
         F[self.i_nu] = ry
 
         ru = f.a * f.upp + f.ap * f.up
-        rT = (f.k * f.Tpp + f.kp * f.Tp) / H**2 + f.a * f.up**2 - f.D
+        rT = f.cond / H**2 + f.a * f.up2 - f.D
         if self.dufour:
             rT = rT + (f.kh * f.nupp + f.khp * f.nup) / H**2
         if self.dufour or self.walls != "noslip":
@@ -380,7 +383,7 @@ class CouetteProblem:
         a_nu, a_T = c.f2_nu * f.sT, c.f2 / two_sT
         k_nu, k_T = c.f4_nu * f.sT, c.f4 / two_sT
         D_nu, D_T = c.f5_nu * f.T * f.sT, 1.5 * c.f5 * f.sT
-        up2 = f.up**2
+        up2 = f.up2
         tp_h2 = f.Tp * h2
 
         # Terms (operator, row factor, column factor): entry = row[i] * op[i, j] * col[j].  The
@@ -499,7 +502,7 @@ class CouetteProblem:
         H = p["H"]
         w, sig = self._walls_idx, self._sigma
         out = np.zeros(self.size)
-        cond = f.k * f.Tpp + f.kp * f.Tp
+        cond = f.cond
         if self.dufour:
             cond = cond + f.kh * f.nupp + f.khp * f.nup
         dT = (-2.0 / H**3) * cond
