@@ -129,7 +129,7 @@ class _Tracer:
         found: list[tuple[float, SpecialPoint]] = []
         unconfirmed: list[Unconfirmed] = []
         sys = self.system
-        s_b = sys.dot(a.t, b.x - a.x)
+        s_b = math.nan  # <a.t, b.x - a.x>, computed at the first sign change
         for kind, note, fn in self._test_functions():
             va, vb = fn(a.tests), fn(b.tests)
             if isinstance(va, tuple):
@@ -146,6 +146,8 @@ class _Tracer:
                 def g_of(v: TestValues, fn: Any = fn) -> float:
                     return float(fn(v))
 
+            if math.isnan(s_b):
+                s_b = sys.dot(a.t, b.x - a.x)
             sa, sb = Sample(0.0, g_of(a.tests), a), Sample(s_b, g_of(b.tests), b)
             det = self.options.detection
             if det.locate:
@@ -459,7 +461,9 @@ def trace(
         new: _Point | None = None
         if reason is None:
             new = tracer.finish_point(corr, direction_vec)
-            reason = system.admissible(new.x)
+            # The corrector checked every iterate, the returned one included; only a
+            # symmetrized point (a new vector) needs the check.
+            reason = None if new.x is corr.x else system.admissible(new.x)
             if reason is None:
                 turn = angle(system, cur.t, new.t)
                 if turn > sopt.max_angle and ds > sopt.ds_min * (1 + 1e-12):
