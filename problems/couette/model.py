@@ -309,7 +309,7 @@ class CouetteProblem:
         self._check_gravity(p)
         f = self._fields(x, p)
         H = p["H"]
-        if x.dtype == np.float64 and all(type(v) in _REAL_TYPES for v in p.values()):
+        if x.dtype == np.float64 and _REAL_TYPES.issuperset(map(type, p.values())):
             dtype = np.float64  # the common case, without np.result_type over every parameter
         else:
             dtype = np.result_type(x, *(p[q] for q in self.parameter_names))
