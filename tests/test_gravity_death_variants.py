@@ -76,7 +76,14 @@ def test_f4_factor_scales_every_critical_Fr_exactly(monkeypatch):
         c = original(nu, e, chi, nu_max, dufour)
         return _with(c, f4=F4_FACTOR * c.f4, f4_nu=F4_FACTOR * c.f4_nu)
 
+    original_real = closures.real_coefficients
+
+    def scaled_real(nu, e, chi="jj", nu_max=0.65):  # the residual's fast path for real states
+        c = original_real(nu, e, chi, nu_max)
+        return _with(c, f4=F4_FACTOR * c.f4, f4_nu=F4_FACTOR * c.f4_nu)
+
     monkeypatch.setattr(model, "coefficients", scaled)
+    monkeypatch.setattr(model, "real_coefficients", scaled_real)
     fr_star, deaths = _deaths(CouetteProblem("cheb", 48, gravity=True))
     s, h = F4_FACTOR**0.75, F4_FACTOR**0.5
     assert fr_star == pytest.approx(FR_STAR * s, rel=1e-6)

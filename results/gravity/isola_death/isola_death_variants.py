@@ -55,6 +55,8 @@ def patch_closures(a1: float = 1.0, a2: float = 1.0, a4: float = 1.0, a5: float 
                        f4=a4 * c.f4, f4_nu=a4 * c.f4_nu, f5=a5 * c.f5, f5_nu=a5 * c.f5_nu)
 
     model.coefficients = wrapped
+    # the residual's fast path for real states (no Dufour term) must see the same closures
+    model.real_coefficients = lambda nu, e, chi="jj", nu_max=0.65: wrapped(nu, e, chi, nu_max, False)
 
 
 def run(grid: int, chi: str, num: float, dufour: bool, nu: float, e: float, H_max: float, Fr_start: float,
