@@ -511,13 +511,11 @@ def trace(
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
             stepped, new = new, tracer.finish_point(land, cur.t)
-            found, unconfirmed = tracer.detect(cur, new, len(tracer.points) - 1)
-            if unconfirmed:
-                retry, found = _jump_retry(tracer, steps, cur, stepped, direction_vec, ds, sopt, found, unconfirmed)
-                if retry:
-                    steps -= 1
-                    ds = reduced_step(ds, sopt)
-                    continue
+            found = _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
+            if found is None:  # the step jumped onto another branch
+                steps -= 1
+                ds = reduced_step(ds, sopt)
+                continue
             tracer.special.extend(found)
             tracer.append(new, system.norm(new.x - cur.x), corr.iterations)
             message = f"reached bound {parameter}={bound:g}"
@@ -527,13 +525,11 @@ def trace(
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
             status, message = "MX", coarse
             break
-        found, unconfirmed = tracer.detect(cur, new, len(tracer.points) - 1)
-        if unconfirmed:
-            retry, found = _jump_retry(tracer, steps, cur, new, direction_vec, ds, sopt, found, unconfirmed)
-            if retry:
-                steps -= 1
-                ds = reduced_step(ds, sopt)
-                continue
+        found = _detect_checked(tracer, steps, cur, new, new, direction_vec, ds, sopt)
+        if found is None:  # the step jumped onto another branch
+            steps -= 1
+            ds = reduced_step(ds, sopt)
+            continue
         tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
@@ -555,6 +551,18 @@ def trace(
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
     return tracer.build(parameter, status, message, closed, n, **meta)
+
+
+def _detect_checked(tracer: _Tracer, step: int, cur: _Point, new: _Point, stepped: _Point, direction: Array,
+                    ds: float, sopt: StepOptions) -> list[SpecialPoint] | None:
+    """Special points of the step cur -> new (new: the corrected step ``stepped``, or the point
+    landed on a bound from it), or None if the step jumped onto another branch and is to be
+    retried with a smaller ds (:func:`_jump_retry`, on unconfirmed BPs only)."""
+    found, unconfirmed = tracer.detect(cur, new, len(tracer.points) - 1)
+    if not unconfirmed:
+        return found
+    retry, found = _jump_retry(tracer, step, cur, stepped, direction, ds, sopt, found, unconfirmed)
+    return None if retry else found
 
 
 def _jump_retry(tracer: _Tracer, step: int, cur: _Point, new: _Point, direction: Array, ds: float,
