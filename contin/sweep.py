@@ -65,7 +65,7 @@ from typing import Any
 from contin.atomic import publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
-from contin.options import resolution_override
+from contin.options import check_resolution_tol, resolution_override
 from contin.scene import Scene, SceneError, SceneRequest, get_scene
 
 __all__ = [
@@ -268,9 +268,11 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
     if "kx" in options and not all(isinstance(k, (int, float)) and not isinstance(k, bool) for k in options["kx"]):
         raise SweepError(f"option 'kx'{where} must be a list of numbers")
     if "resolution_tol" in options:
-        value = options["resolution_tol"]
-        if value != "off" and (isinstance(value, str) or not (math.isfinite(value) and value > 0)):
-            raise SweepError(f"option 'resolution_tol'{where} must be a number > 0 or \"off\", got {value!r}")
+        try:
+            _resolution_tol(options)
+        except ValueError:
+            raise SweepError(f"option 'resolution_tol'{where} must be a number > 0 or \"off\", "
+                             f"got {options['resolution_tol']!r}") from None
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
@@ -339,7 +341,7 @@ def task_key(scene: str, params: Mapping[str, Any], options: Mapping[str, Any], 
 def _resolution_tol(options: Mapping[str, Any]) -> float | None:
     """The ``resolution_tol`` option as a trace setting ("off": None, the guard off)."""
     value = options["resolution_tol"]
-    return None if value == "off" else float(value)
+    return None if value == "off" else check_resolution_tol(value)
 
 
 def _request(params: Mapping[str, Any], options: Mapping[str, Any]) -> SceneRequest:

@@ -7,6 +7,7 @@ with ``--debug``); 2 usage error (click); 3 the run finished but a branch ended 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -120,6 +121,21 @@ def parse_resolution_tol(text: str | None) -> float | None:
         fail(f"--resolution-tol must be a number > 0 (largest estimated relative discretization error "
              f"of a stored state) or 'off', got {text!r}")
     return v
+
+
+def resolution_guard(text: str | None) -> tuple[contextlib.AbstractContextManager[None], float | None]:
+    """(a block that applies ``--resolution-tol`` to every trace of the run, the tolerance used).
+
+    Scenes build continuation options of their own (fold curves, homotopies), so the option is
+    a run-wide :func:`contin.options.resolution_override`.  Without the option: no override and
+    the core's default tolerance.
+    """
+    from contin.options import ContinuationOptions, resolution_override
+
+    if text is None:
+        return contextlib.nullcontext(), ContinuationOptions().resolution_tol
+    tol = parse_resolution_tol(text)
+    return resolution_override(tol), tol
 
 
 def resolution_tol_option(f: Any) -> Any:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import sys
 from typing import Any
 
@@ -13,12 +12,11 @@ from contin.cli._base import (
     echo_json,
     fmt,
     main,
-    parse_resolution_tol,
     parse_settings,
+    resolution_guard,
     resolution_tol_option,
     table,
 )
-from contin.options import resolution_override
 
 DEFAULT_METHODS = "cheb,fd2,fd4,fd6"
 DEFAULT_GRIDS = "16,24,32,48,64,96,128"
@@ -61,9 +59,7 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
     from contin.accuracy import recommend, run_accuracy, write_outputs
 
     params = parse_settings(settings)
-    guard: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
-    if resolution_tol is not None:  # every trace of every run
-        guard = resolution_override(parse_resolution_tol(resolution_tol))
+    guard, _ = resolution_guard(resolution_tol)  # every trace of every run
     method_list = _split(methods, str, "'--methods'")
     unknown = [m for m in method_list if m not in KNOWN_METHODS]
     if unknown:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import sys
 import time
 from typing import Any
@@ -17,12 +16,11 @@ from contin.cli._base import (
     fail,
     fmt,
     main,
-    parse_resolution_tol,
     parse_settings,
+    resolution_guard,
     resolution_tol_option,
     special_points_table,
 )
-from contin.options import resolution_override
 
 
 class _Progress:
@@ -143,10 +141,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     params = parse_settings(settings)
     kx_values = _parse_kx(kx)
-    guard: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
-    if resolution_tol is not None:  # every trace of the run, also those a scene sets up itself
-        rtol = parse_resolution_tol(resolution_tol)
-        guard = resolution_override(rtol)
+    guard, rtol = resolution_guard(resolution_tol)  # every trace of the run, also those a scene sets up itself
     sc = scene_mod.get_scene(scene)
     if sc.defaults:
         unknown = [n for n in params if n not in sc.defaults]

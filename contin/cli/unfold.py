@@ -8,7 +8,6 @@ exists.  The problem package is imported inside the command (contin itself knows
 
 from __future__ import annotations
 
-import contextlib
 import math
 
 import click
@@ -18,12 +17,11 @@ from contin.cli._base import (
     echo_json,
     fmt,
     main,
-    parse_resolution_tol,
     parse_settings,
+    resolution_guard,
     resolution_tol_option,
     table,
 )
-from contin.options import ContinuationOptions, resolution_override
 
 _KNOWN = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50.0, "Fr_start": 2000.0}
 
@@ -47,8 +45,7 @@ def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps:
     """
     from problems.couette.gravity import gravity_problem, phase_diagram
 
-    given = resolution_tol is not None
-    rtol = parse_resolution_tol(resolution_tol) if given else ContinuationOptions().resolution_tol
+    guard, rtol = resolution_guard(resolution_tol)
 
     values = dict(_KNOWN)
     for name, v in parse_settings(settings).items():
@@ -59,7 +56,7 @@ def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps:
         values[name] = v
     pb = gravity_problem(method, grid)
     params = pb.params({"nu": values["nu"], "e": values["e"]})
-    with resolution_override(rtol) if given else contextlib.nullcontext():
+    with guard:
         d = phase_diagram(pb, params, H_range=(values["H_min"], values["H_max"]), Fr_start=values["Fr_start"],
                           max_steps=max_steps)
     for c in d.curves:  # e.g. a curve the resolution guard stopped (where the plug nears packing)
