@@ -25,6 +25,7 @@ and log|det A| = sum log|U_ii| (the magnitude would over/underflow for large n).
 from __future__ import annotations
 
 import math
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -201,16 +202,6 @@ def factorize_bordered(jac: object, column: Array, row: Array) -> Factorization 
     if n + 1 <= DENSE_LIMIT:
         return _dense_lu(bordered_dense(jac, column, row))
     return factorize(bordered(jac, column, row))
-
-
-def factorize_bordered_norm(jac: object, column: Array, row: Array) -> tuple[Factorization | None, float]:
-    """(:func:`factorize_bordered`, ||J||_inf): the norm from the dense copy when there is one."""
-    n = jac.shape[0]  # type: ignore[attr-defined]
-    if n + 1 <= DENSE_LIMIT:
-        a = bordered_dense(jac, column, row)
-        norm = float(np.abs(a[:n, :n]).sum(axis=1).max()) if n else 0.0
-        return _dense_lu(a), norm
-    return factorize(bordered(jac, column, row)), inf_norm(jac)
 
 
 def inf_norm(a: object) -> float:

@@ -72,12 +72,9 @@ def _oriented(system: ExtendedSystem, x0: Array, phi: Array) -> Array:
     component is positive).  A null vector's sign is arbitrary -- it follows rounding in the LU
     -- and it decides which half of a pitchfork ``directions=(+1,)`` follows."""
     h = 1e-6 / max(1.0, float(np.max(np.abs(phi))))
-    try:
-        slope = (system.order_parameter(x0 + h * phi) - system.order_parameter(x0 - h * phi)) / (2 * h)
-    except (TypeError, ValueError, AttributeError):
-        slope = math.nan
-    scale = max(1.0, abs(system.order_parameter(x0))) if math.isfinite(slope) else 1.0
-    if math.isfinite(slope) and abs(slope) > 1e-6 * scale:
+    # NaN without an order parameter (ExtendedSystem.order_parameter)
+    slope = (system.order_parameter(x0 + h * phi) - system.order_parameter(x0 - h * phi)) / (2 * h)
+    if abs(slope) > 1e-6 * max(1.0, abs(system.order_parameter(x0))):  # False for NaN
         return phi if slope > 0 else -phi
     k = int(np.argmax(np.abs(phi)))
     return phi if phi[k] > 0 else -phi

@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import weakref
@@ -127,12 +128,12 @@ class Antisymmetric:
         """Q^T J Q: dense for a dense J or a small one (n <= :data:`DENSE_REDUCTION_LIMIT`),
         else sparse.
 
-        The dense form gathers rows and columns (:meth:`_pairs`, a signed-permutation S: each
+        The dense form gathers rows and columns (:attr:`_pairs`, a signed-permutation S: each
         column of Q has one or two entries) instead of two sparse products, which cost ~0.2 ms
         at continuation sizes (called at every point of an S-invariant branch).  Every entry is
         the same one- or two-term sum as in the sparse product (Q^T J) Q, so bitwise the same.
         """
-        pairs = self._pairs()
+        pairs = self._pairs
         n = jac.shape[0]
         if pairs is None or (sp.issparse(jac) and n > DENSE_REDUCTION_LIMIT):
             return as_csc(self.q.T @ as_csc(jac) @ self.q)
@@ -141,12 +142,10 @@ class Antisymmetric:
         qtj = v1[:, None] * a[i1] + v2[:, None] * a[i2]  # (Q^T J)_jk = v1_j J_i1(j),k + v2_j J_i2(j),k
         return qtj[:, i1] * v1 + qtj[:, i2] * v2
 
+    @functools.cached_property
     def _pairs(self) -> tuple[Array, Array, Array, Array] | None:
         """(i1, v1, i2, v2): the one or two entries of each column of Q (v2 = 0 for one), or None
         if some column has more (a general basis)."""
-        cached = getattr(self, "_pairs_cache", False)
-        if cached is not False:
-            return cached  # type: ignore[no-any-return]
         q = sp.csc_matrix(self.q)
         q.sort_indices()
         counts = np.diff(q.indptr)
@@ -157,7 +156,6 @@ class Antisymmetric:
             v2 = np.where(counts == 2, q.data[second], 0.0)
             out = (q.indices[first].astype(np.int64), q.data[first].astype(float),
                    q.indices[second].astype(np.int64), v2.astype(float))
-        self._pairs_cache = out
         return out
 
     def det(self, jac: sp.spmatrix) -> SignLog:

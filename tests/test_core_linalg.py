@@ -121,7 +121,7 @@ def test_antisymmetric_reduction_dense_gather_equals_sparse_product_bitwise(n):
     signs[[0, n - 1]] = -1.0  # S S = identity: s_i s_perm(i) = 1
     s = sp.csc_matrix((signs, (perm, np.arange(n))), shape=(n, n))
     anti = Antisymmetric(s, _antisymmetric_basis(s))
-    assert anti._pairs() is not None
+    assert anti._pairs is not None
     jac = rng.standard_normal((n, n))
     ref = as_csc(anti.q.T @ as_csc(jac) @ anti.q).toarray()
     for j in (jac, sp.csr_matrix(jac)):
