@@ -220,6 +220,25 @@ class Branch:
         )
 
 
+def first_crossing(values: np.ndarray, value: float) -> tuple[int, int, float, int] | None:
+    """Where ``values`` (a column along a branch) first reaches ``value``.
+
+    Returns (i, j, w, count): ``value`` lies at (1 - w) values[i] + w values[j] with j = i + 1
+    (j = i when only the last point equals it), and ``count`` is the number of crossings along
+    the whole column (more than one past a fold); None if the column never reaches ``value``.
+    """
+    d = np.asarray(values, dtype=float) - value
+    hits = np.flatnonzero((d[:-1] == 0) | (d[:-1] * d[1:] < 0))
+    if d.size and d[-1] == 0 and not hits.size:
+        hits = np.array([d.size - 1])
+    if not hits.size:
+        return None
+    i = int(hits[0])
+    j = min(i + 1, d.size - 1)
+    w = 0.0 if d[i] == 0 or i == j else float(d[i] / (d[i] - d[j]))
+    return i, j, w, int(hits.size)
+
+
 def relabel(branches: list[Branch]) -> None:
     """Number the special points of a run 1, 2, 3, ... in branch order (AUTO-style labels).
 

@@ -82,7 +82,7 @@ import numpy as np
 
 from contin.atomic import publish
 
-from contin.branch import Branch, SpecialPoint
+from contin.branch import Branch, SpecialPoint, first_crossing
 from contin.jsonout import dumps as _json_dumps
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
@@ -746,15 +746,9 @@ def profiles_at(
         prof = meta.get("profiles", {}).get(b.id)
         if found is None and prof is not None and name in b.params:
             idx = np.asarray(prof["index"])
-            p = np.asarray(b.params[name], dtype=float)[idx]
-            d = p - value
-            hits = np.flatnonzero((d[:-1] == 0) | (d[:-1] * d[1:] < 0))
-            if d.size and d[-1] == 0 and not hits.size:
-                hits = np.array([d.size - 1])
-            if hits.size:
-                i = int(hits[0])
-                j = min(i + 1, d.size - 1)
-                w = 0.0 if d[i] == 0 or i == j else d[i] / (d[i] - d[j])
+            crossing = first_crossing(np.asarray(b.params[name], dtype=float)[idx], value)
+            if crossing is not None:
+                i, j, w, _ = crossing
                 how = f"at stored point {idx[i]}" if w == 0.0 else f"interpolated between points {idx[i]} and {idx[j]}"
                 found = (b, how,
                          {k: (1 - w) * v[i] + w * v[j] for k, v in prof.items() if k != "index"})

@@ -113,31 +113,28 @@ def state_at(problem: Any, branch: Any, name: str, value: float, fixed: dict[str
     (a stored state, not a plot interpolation, is what the eigenproblem needs)."""
     import numpy as np
 
+    from contin.branch import first_crossing
     from contin.newton import newton
 
     if name not in branch.params:
         fail(f"branch {branch.id} of {file} has no parameter {name!r} (it has {', '.join(branch.params)})")
-    v = np.asarray(branch.params[name], dtype=float) - value
-    crossings = [i for i in range(len(v) - 1) if v[i] == 0 or v[i] * v[i + 1] < 0] + \
-        ([len(v) - 1] if len(v) and v[-1] == 0 else [])
-    if not crossings:
+    crossing = first_crossing(branch.params[name], value)
+    if crossing is None:
         fail(f"branch {branch.id} of {file} does not reach {name} = {value:g} "
              f"(it spans {name} = {branch.params[name].min():.6g} .. {branch.params[name].max():.6g})")
-    i = crossings[0]
-    j = min(i + 1, len(v) - 1)
+    i, j, w, count = crossing
     try:
         xi, xj = branch.state(i), branch.state(j)
     except KeyError:
         fail(f"the states around {name} = {value:g} on branch {branch.id} were not saved in {file} (save_every > 1)")
-    w = 0.0 if v[i] == v[j] else v[i] / (v[i] - v[j])
     row = {k: float(vals[i]) for k, vals in branch.params.items()}
     params = {**fixed, **row, name: value}
     res = newton(problem, (1 - w) * np.asarray(xi, float) + w * np.asarray(xj, float), params)
     if not res.converged:
         fail(f"Newton at {name} = {value:g} on branch {branch.id} did not converge: {res.message}")
-    if len(crossings) > 1:
-        echo_err(f"note: branch {branch.id} crosses {name} = {value:g} {len(crossings)} times "
-                 f"(after points {', '.join(map(str, crossings))}); using the first")
+    if count > 1:
+        echo_err(f"note: branch {branch.id} crosses {name} = {value:g} {count} times; "
+                 f"using the first (after point {i})")
     return res.u, params, f"{name}={value:g}"
 
 
