@@ -169,39 +169,48 @@ def interpolatory_weights(y: NDArray[np.float64], order: int) -> NDArray[np.floa
     return np.array([float(c) for c in w])
 
 
-def chebyshev(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def chebyshev(n: int, dtype: type = np.float64) -> tuple[NDArray, NDArray, NDArray]:
     """Nodes (ascending on [-1/2, 1/2]), differentiation matrix and Clenshaw-Curtis weights.
 
-    Trefethen (2000), programs ``cheb`` and ``clencurt``, mapped by y = x / 2.
+    Trefethen (2000), programs ``cheb`` and ``clencurt``, mapped by y = x / 2.  ``dtype``
+    ``np.longdouble`` evaluates the same formulas in extended precision (:func:`extended_grid`),
+    with pi in extended precision and the nodes as x_j = sin(pi (n - 2j) / (2n)), which is
+    exactly odd; double keeps x_j = cos(pi j / n).
     """
     j = np.arange(n + 1)
-    x = np.cos(np.pi * j / n)  # descending on [-1, 1]
-    c = np.where((j == 0) | (j == n), 2.0, 1.0) * (-1.0) ** j
+    if dtype == np.float64:
+        pi = np.pi
+        x = np.cos(np.pi * j / n)  # descending on [-1, 1]
+    else:
+        pi = 4 * np.arctan(dtype(1))
+        x = np.sin(pi * (n - 2 * j).astype(dtype) / (2 * n))
+    one, two = dtype(1), dtype(2)
+    c = np.where((j == 0) | (j == n), two, one) * np.where(j % 2 == 0, one, -one)
     dx = x[:, None] - x[None, :]
-    d = np.outer(c, 1.0 / c) / (dx + np.eye(n + 1))
+    d = np.outer(c, 1 / c) / (dx + np.eye(n + 1, dtype=dtype))
     d -= np.diag(d.sum(axis=1))
     # Clenshaw-Curtis
-    theta = np.pi * j / n
-    w = np.zeros(n + 1)
-    v = np.ones(n - 1)
+    theta = pi * j.astype(dtype) / n
+    w = np.zeros(n + 1, dtype=dtype)
+    v = np.ones(n - 1, dtype=dtype)
     inner = np.arange(1, n)
     if n % 2 == 0:
-        w[0] = w[n] = 1.0 / (n**2 - 1)
+        w[0] = w[n] = 1 / dtype(n**2 - 1)
         for k in range(1, n // 2):
-            v -= 2 * np.cos(2 * k * theta[inner]) / (4 * k**2 - 1)
-        v -= np.cos(n * theta[inner]) / (n**2 - 1)
+            v -= 2 * np.cos(2 * k * theta[inner]) / dtype(4 * k**2 - 1)
+        v -= np.cos(n * theta[inner]) / dtype(n**2 - 1)
     else:
-        w[0] = w[n] = 1.0 / n**2
+        w[0] = w[n] = 1 / dtype(n**2)
         for k in range(1, (n - 1) // 2 + 1):
-            v -= 2 * np.cos(2 * k * theta[inner]) / (4 * k**2 - 1)
+            v -= 2 * np.cos(2 * k * theta[inner]) / dtype(4 * k**2 - 1)
     w[inner] = 2 * v / n
     # reverse to ascending order and map to [-1/2, 1/2]
     rev = slice(None, None, -1)
     d = 2 * d[rev, rev]
     # Impose the exact parity D[i, j] = -D[N-i, N-j] that rounding breaks.
-    d = 0.5 * (d - d[::-1, ::-1])
+    d = (d - d[::-1, ::-1]) / 2
     w = w[rev] / 2
-    return x[rev] / 2, d, 0.5 * (w + w[::-1])
+    return x[rev] / 2, d, (w + w[::-1]) / 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -389,37 +398,6 @@ def _fd_matrix_longdouble(n: int, deriv: int, order: int) -> NDArray[np.longdoub
     return out
 
 
-def _chebyshev_longdouble(n: int) -> tuple[NDArray[np.longdouble], NDArray[np.longdouble], NDArray[np.longdouble]]:
-    """:func:`chebyshev` in ``np.longdouble``: nodes x_j = sin(pi (n - 2j) / (2n)) (exactly odd),
-    with pi in extended precision, then the same Trefethen / Clenshaw-Curtis formulas."""
-    ld = np.longdouble
-    pi = 4 * np.arctan(ld(1))
-    j = np.arange(n + 1)
-    x = np.sin(pi * (n - 2 * j).astype(ld) / (2 * n))  # descending on [-1, 1]
-    c = np.where((j == 0) | (j == n), ld(2), ld(1)) * np.where(j % 2 == 0, ld(1), ld(-1))
-    dx = x[:, None] - x[None, :]
-    d = np.outer(c, 1 / c) / (dx + np.eye(n + 1, dtype=ld))
-    d -= np.diag(d.sum(axis=1))
-    theta = pi * j.astype(ld) / n
-    w = np.zeros(n + 1, dtype=ld)
-    v = np.ones(n - 1, dtype=ld)
-    inner = np.arange(1, n)
-    if n % 2 == 0:
-        w[0] = w[n] = 1 / ld(n**2 - 1)
-        for k in range(1, n // 2):
-            v -= 2 * np.cos(2 * k * theta[inner]) / ld(4 * k**2 - 1)
-        v -= np.cos(n * theta[inner]) / ld(n**2 - 1)
-    else:
-        w[0] = w[n] = 1 / ld(n**2)
-        for k in range(1, (n - 1) // 2 + 1):
-            v -= 2 * np.cos(2 * k * theta[inner]) / ld(4 * k**2 - 1)
-    w[inner] = 2 * v / n
-    d = 2 * d[::-1, ::-1]
-    d = (d - d[::-1, ::-1]) / 2
-    w = w[::-1] / 2
-    return x[::-1] / 2, d, (w + w[::-1]) / 2
-
-
 @lru_cache(maxsize=16)
 def extended_grid(method: str, intervals: int) -> Grid:
     """The grid of :func:`make_grid` with nodes, derivative matrices and weights in ``np.longdouble``.
@@ -435,7 +413,7 @@ def extended_grid(method: str, intervals: int) -> Grid:
     make_grid(method, intervals)  # same validation
     ld = np.longdouble
     if method == "cheb":
-        y, d, w = _chebyshev_longdouble(intervals)
+        y, d, w = chebyshev(intervals, np.longdouble)
         dd = d @ d
         # Not passed through _zero_sum_row: quantizing the O(1) entries of a Chebyshev row to the
         # unit of its O(N^2) ones made the fold H at nu = 0.16 scatter 2x more over N = 64..128.
