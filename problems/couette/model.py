@@ -293,6 +293,12 @@ class CouetteProblem:
             up, d2v[0], Tp, Tpp, d1v[nd], kp, kh, nup, nupp, khp, k * Tpp + kp * Tp, up**2,
         )
 
+    def _wall_flux(self, f: _Fields) -> Any:
+        """k T' (+ k_h nu' with the Dufour flux) at the bottom and top wall: -H^2 Q there."""
+        w = self._walls_idx
+        flux = f.k[w] * f.Tp[w]
+        return flux + f.kh[w] * f.nup[w] if self.dufour else flux
+
     def _wall_coefficients(self, f: _Fields, p: Mapping[str, Any]):
         """s_w, d_w of the Johnson-Jackson conditions at both walls (and their nu-, T-derivatives)."""
         w = self._walls_idx
@@ -326,9 +332,7 @@ class CouetteProblem:
         if self.dufour:
             rT = rT + (f.kh * f.nupp + f.khp * f.nup) / H**2
         if self.dufour or self.walls != "noslip":
-            flux = f.k[w] * f.Tp[w]  # -H^2 Q at the walls
-            if self.dufour:
-                flux = flux + f.kh[w] * f.nup[w]
+            flux = self._wall_flux(f)
         uw = self._uw
         if self.walls == "noslip":
             ru[w] = f.u[w] - uw
@@ -509,9 +513,7 @@ class CouetteProblem:
         if self.walls == "noslip":
             dT[w] = 0.0
         else:
-            flux = f.k[w] * f.Tp[w]
-            if self.dufour:
-                flux = flux + f.kh[w] * f.nup[w]
+            flux = self._wall_flux(f)
             sw, dw = self._wall_coefficients(f, p)[:2]
             slip = f.u[w] - 0.5 * sig
             out[self.i_u.start + w] = -sw * slip
