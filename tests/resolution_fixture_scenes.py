@@ -20,7 +20,14 @@ DIRECTION = np.array([1.0, 2.0])
 
 
 class Toy:
+    """F(u, lam) = u - lam DIRECTION with the declared error 10^(lam - 8), or, with ``jump_at``,
+    0 below and 1 from there on; ``calls`` records every (lam, tol) the guard asked about."""
+
     parameter_names = ("lam",)
+
+    def __init__(self, jump_at: float | None = None) -> None:
+        self.calls: list[tuple[float, float]] = []
+        self.jump_at = jump_at
 
     def residual(self, u, p):
         return u - p["lam"] * DIRECTION
@@ -31,8 +38,14 @@ class Toy:
     def dresidual_dp(self, u, p, name):
         return -DIRECTION
 
+    def error(self, lam: float) -> float:
+        if self.jump_at is not None:
+            return 1.0 if lam >= self.jump_at else 0.0
+        return 10.0 ** (lam - 8.0)
+
     def under_resolved(self, u, p, tol):
-        err = 10.0 ** (p["lam"] - 8.0)
+        self.calls.append((float(p["lam"]), tol))
+        err = self.error(p["lam"])
         return None if err <= tol else f"toy tail {err:.3g} > {tol:.3g}"
 
 

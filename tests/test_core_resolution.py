@@ -11,39 +11,13 @@ import math
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
+from resolution_fixture_scenes import (  # tests/: the toy the CLI tests use too
+    DIRECTION,
+    Toy,
+)
 
 from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
-
-DIRECTION = np.array([1.0, 2.0])
-
-
-class Toy:
-    parameter_names = ("lam",)
-
-    def __init__(self, jump_at: float | None = None) -> None:
-        self.calls: list[tuple[float, float]] = []
-        self.jump_at = jump_at
-
-    def residual(self, u, p):
-        return u - p["lam"] * DIRECTION
-
-    def jacobian(self, u, p):
-        return sp.identity(2, format="csc")
-
-    def dresidual_dp(self, u, p, name):
-        return -DIRECTION
-
-    def error(self, lam: float) -> float:
-        if self.jump_at is not None:
-            return 1.0 if lam >= self.jump_at else 0.0
-        return 10.0 ** (lam - 8.0)
-
-    def under_resolved(self, u, p, tol):
-        self.calls.append((float(p["lam"]), tol))
-        err = self.error(p["lam"])
-        return None if err <= tol else f"toy tail {err:.3g} > {tol:.3g}"
 
 
 def opts(hi=6.0, **kw):
