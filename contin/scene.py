@@ -37,6 +37,11 @@ from contin.branch import Branch
 from contin.options import ContinuationOptions
 
 
+#: Values of SceneRequest.engine (the CLI's --engine): 'auto' lets the problem pick its fastest
+#: available implementation, 'numpy' and 'numba' ask for one (an error where it cannot run).
+ENGINES = ("auto", "numpy", "numba")
+
+
 class SceneError(ValueError):
     """Bad input for a scene (unknown parameter, value out of range...): one clear sentence."""
 
@@ -55,6 +60,9 @@ class SceneRequest:
     on_branch : called with each finished branch (the CLI appends it to the HDF5 file at once,
         so an interrupted run loses at most the branch in progress).
     progress : called with a short human-readable status line (never prints itself).
+    engine : implementation of the problem's residual and Jacobian where a problem has several
+        (ENGINES: 'auto', 'numpy', 'numba'); None = the problem's default.  Scenes whose
+        problems have one implementation ignore it.
     overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``,
         ``--max-steps``, ``--resolution-tol`` -> keys 'ds', 'ds_max', 'max_steps',
         'resolution_tol' (None: guard off)); scenes apply them with :meth:`options_for` so that
@@ -73,6 +81,7 @@ class SceneRequest:
     on_branch: Callable[[Branch], None] | None = None
     progress: Callable[[str], None] | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
+    engine: str | None = None
     # Options resolved by options_for (the CLI stores them and warns if overrides were ignored).
     _resolved: list[ContinuationOptions] = field(default_factory=list, repr=False, compare=False)
 

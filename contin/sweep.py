@@ -66,7 +66,7 @@ from contin.atomic import publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
 from contin.options import check_resolution_tol, resolution_override
-from contin.scene import Scene, SceneError, SceneRequest, get_scene
+from contin.scene import ENGINES, Scene, SceneError, SceneRequest, get_scene
 
 __all__ = [
     "SweepError",
@@ -100,6 +100,7 @@ OPTION_TYPES: dict[str, tuple[type, ...]] = {
     "stability": (bool,),
     "kx": (list,),
     "resolution_tol": (int, float, str),  # a tolerance > 0, or "off" (the CLI's --resolution-tol)
+    "engine": (str,),  # SceneRequest.engine: auto (default), numpy or numba
 }
 _SECTIONS = {"sweep": {"scene", "record", "description"}, "fixed": None, "grid": None, "options": set(OPTION_TYPES)}
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -273,6 +274,8 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
         except ValueError:
             raise SweepError(f"option 'resolution_tol'{where} must be a number > 0 or \"off\", "
                              f"got {options['resolution_tol']!r}") from None
+    if "engine" in options and options["engine"] not in ENGINES:
+        raise SweepError(f"option 'engine'{where} must be one of {', '.join(ENGINES)}, got {options['engine']!r}")
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
@@ -353,6 +356,7 @@ def _request(params: Mapping[str, Any], options: Mapping[str, Any]) -> SceneRequ
         stability=bool(options.get("stability", True)),
         kx=tuple(float(k) for k in options.get("kx", ())),
         overrides=overrides,
+        engine=options.get("engine", "auto"),
     )
 
 

@@ -403,7 +403,8 @@ def test_profiles_observables_admissible():
     bad[2] = np.nan
     assert "non-finite" in problem.admissible(bad, p)
     assert isinstance(problem, Problem)
-    assert problem.options == {"method": "cheb", "N": 10, "walls": "noslip", "chi": "jj", "gravity": True, "dufour": False}
+    assert problem.options == {"method": "cheb", "N": 10, "walls": "noslip", "chi": "jj", "gravity": True, "dufour": False,
+                               "engine": "numpy"}
 
 
 def test_cell_integration_matrix():

@@ -138,6 +138,16 @@ def resolution_guard(text: str | None) -> tuple[contextlib.AbstractContextManage
     return resolution_override(tol), tol
 
 
+def engine_option(f: Any) -> Any:
+    """The ``--engine auto|numpy|numba`` option (SceneRequest.engine)."""
+    from contin.scene import ENGINES
+
+    return click.option(
+        "--engine", type=click.Choice(ENGINES), default="auto", show_default=True,
+        help="Residual/Jacobian implementation where a problem has several: numba (compiled; "
+             "the 'fast' extra), numpy, or auto (numba where installed and applicable).")(f)
+
+
 def resolution_tol_option(f: Any) -> Any:
     """The ``--resolution-tol FLOAT|off`` option (None when not given: the run's own settings)."""
     return click.option(

@@ -10,6 +10,7 @@ import click
 from contin.cli._base import (
     echo_err,
     echo_json,
+    engine_option,
     fmt,
     main,
     parse_settings,
@@ -44,10 +45,11 @@ def _split(text: str, kind: type, option: str) -> list[Any]:
 @click.option("--no-memory", is_flag=True, help="Skip the separate tracemalloc run (halves the time).")
 @click.option("--no-plots", is_flag=True, help="Write the table only.")
 @resolution_tol_option
+@engine_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no table on stderr.")
 def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids: str, as_json: bool,
                      outdir: str | None, no_memory: bool, no_plots: bool, resolution_tol: str | None,
-                     quiet: bool) -> None:
+                     engine: str, quiet: bool) -> None:
     """Re-trace SCENE's key points (BPs, LPs) at every METHOD x GRID.
 
     Reports each value, its relative error against the finest Chebyshev grid (or a
@@ -78,7 +80,7 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
         Path(outdir).mkdir(parents=True, exist_ok=True)  # fail before computing
     show = not quiet and sys.stderr.isatty()
     with guard:
-        report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory,
+        report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
                               progress=(lambda m: echo_err(f"running {m}")) if show else None)
     if not report.reference:
         raise ValueError(f"no key points: every run of scene {scene!r} failed or found no BP/LP "

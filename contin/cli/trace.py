@@ -12,6 +12,7 @@ from contin.cli._base import (
     EXIT_INCOMPLETE,
     echo_err,
     echo_json,
+    engine_option,
     error_line,
     fail,
     fmt,
@@ -123,13 +124,14 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("--ds", type=click.FloatRange(min=0, min_open=True), default=None, help="Initial arclength step.")
 @click.option("--ds-max", type=click.FloatRange(min=0, min_open=True), default=None, help="Largest arclength step.")
 @resolution_tol_option
+@engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no summary table.")
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resolution_tol: str | None, resume: str | None, quiet: bool) -> None:
+                  resolution_tol: str | None, engine: str, resume: str | None, quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
@@ -182,7 +184,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     request = scene_mod.SceneRequest(
         params=params, method=method, grid=grid, stability=not no_stability, kx=kx_values,
-        completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides)
+        completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
     try:
         with guard:
             result = sc.run(request)

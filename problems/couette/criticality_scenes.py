@@ -69,7 +69,8 @@ def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) ->
 
 def _problem(request: SceneRequest, chi: str) -> CouetteProblem:
     try:
-        return CouetteProblem(request.method or "cheb", request.grid or DEFAULT_GRID, chi=chi)
+        return CouetteProblem(request.method or "cheb", request.grid or DEFAULT_GRID, chi=chi,
+                              engine=request.engine or "numpy")
     except ValueError as exc:
         raise SceneError(str(exc)) from None
 
@@ -81,7 +82,7 @@ def _result(pb: CouetteProblem, branches: list[Branch], parameters: dict[str, An
     return SceneResult(
         branches=branches,
         parameters=parameters,
-        discretization={"method": pb.method, "intervals": pb.N},
+        discretization={"method": pb.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
         # fold-curve states are [u, phi, nu]: their first block is the Couette state
         profiles=lambda state: pb.profiles(np.asarray(state)[:n]),

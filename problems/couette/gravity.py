@@ -64,9 +64,10 @@ Array = np.ndarray
 KINDS = ("primary", "isola", "floating-plug", "bottom-plug")
 
 
-def gravity_problem(method: str = "cheb", N: int = 32, walls: str = "noslip", chi: str = "jj") -> CouetteProblem:
+def gravity_problem(method: str = "cheb", N: int = 32, walls: str = "noslip", chi: str = "jj",
+                    engine: str = "numpy") -> CouetteProblem:
     """CouetteProblem with the gravity term H^3 G M (needed for G != 0)."""
-    return CouetteProblem(method, N, walls=walls, chi=chi, gravity=True)
+    return CouetteProblem(method, N, walls=walls, chi=chi, gravity=True, engine=engine)
 
 
 @dataclass(frozen=True)

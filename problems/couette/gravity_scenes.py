@@ -23,6 +23,7 @@ from typing import Any
 from contin.branch import relabel
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 from problems.couette.gravity import GravitySettings, discover, gravity_problem
+from problems.couette.model import rebuilt_engine
 
 GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 70.0,
                                     "walls": "noslip", "modes": 3}
@@ -55,13 +56,14 @@ def _settings(request: SceneRequest) -> dict[str, Any]:
 
 def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> Any:
     return gravity_problem(discretization.get("method", "cheb"), int(discretization.get("intervals", GRAVITY_GRID)),
-                           str(parameters.get("walls", "noslip")))
+                           str(parameters.get("walls", "noslip")), engine=rebuilt_engine(discretization.get("engine")))
 
 
 def run_gravity(request: SceneRequest) -> SceneResult:
     s = _settings(request)
     try:
-        pb = gravity_problem(request.method or "cheb", request.grid or GRAVITY_GRID, s["walls"])
+        pb = gravity_problem(request.method or "cheb", request.grid or GRAVITY_GRID, s["walls"],
+                             engine=request.engine or "numpy")
         params = pb.params({"nu": s["nu"], "e": s["e"], "Fr": s["Fr"], "H": s["H_min"]})
     except ValueError as exc:
         raise SceneError(str(exc)) from None
@@ -87,7 +89,7 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     return SceneResult(
         branches=branches,
         parameters={**s, "G": params["G"]},
-        discretization={"method": pb.grid.method, "intervals": pb.N},
+        discretization={"method": pb.grid.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
         profiles=pb.profiles,
         notes=notes,

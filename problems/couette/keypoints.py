@@ -71,7 +71,7 @@ def run(request: SceneRequest) -> SceneResult:
             raise SceneError(f"unknown parameter {k!r} for scene 'gpcf-keypoints'; its parameters are {', '.join(DEFAULTS)}")
         values[k] = float(v)
     try:
-        problem = CouetteProblem(request.method or "cheb", request.grid or 32)
+        problem = CouetteProblem(request.method or "cheb", request.grid or 32, engine=request.engine or "numpy")
     except ValueError as exc:
         raise SceneError(str(exc)) from None
     base, bp = first_bp(problem, values["nu_super"], values["e"])
@@ -86,7 +86,7 @@ def run(request: SceneRequest) -> SceneResult:
     done = [base, *branches]
     relabel(done)
     return SceneResult(branches=done, parameters=values,
-                       discretization={"method": problem.method, "intervals": problem.N},
+                       discretization={"method": problem.method, "intervals": problem.N, "engine": problem.engine},
                        extra={"key_points": keys, "Hc1_exact": exact_hc1(values["nu_super"], values["e"])})
 
 

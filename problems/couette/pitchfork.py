@@ -73,7 +73,7 @@ from contin.continuation import newton, switch, trace, trace_both
 from contin.options import ContinuationOptions, NewtonOptions
 from contin.stability import audit, count_unstable, eigenvalues
 from problems.couette.closures import coefficients, critical_gap_factor, packing_limit
-from problems.couette.model import CouetteProblem
+from problems.couette.model import CouetteProblem, rebuilt_engine
 
 log = logging.getLogger("contin")
 
@@ -421,7 +421,7 @@ def confirm_branch_points(problem: CouetteProblem, branch: Branch, params: Mappi
     if not bps:
         return []
     fine = CouetteProblem(problem.method, int(round(factor * problem.N)), walls=problem.walls, chi=problem.chi,
-                          dufour=problem.dufour)
+                          dufour=problem.dufour, engine=rebuilt_engine(problem.engine))
     messages = []
     new_points = []
     for sp_ in branch.special_points:

@@ -47,7 +47,7 @@ from contin.options import ContinuationOptions, DetectionOptions, StepOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 from problems.couette import pitchfork as pf
 from problems.couette.closures import CHI_MODELS
-from problems.couette.model import WALLS, CouetteProblem
+from problems.couette.model import WALLS, CouetteProblem, rebuilt_engine
 from problems.couette.params import build_params
 
 PITCHFORK_DEFAULTS: dict[str, Any] = {
@@ -113,12 +113,14 @@ def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) ->
 def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> CouetteProblem:
     """Rebuild the gravity-free problem of a stored run (``contin stability`` uses it)."""
     return CouetteProblem(str(discretization.get("method", "cheb")), int(discretization.get("intervals", 64)),
-                          walls=str(parameters.get("walls", "noslip")), chi=str(parameters.get("chi", "jj")))
+                          walls=str(parameters.get("walls", "noslip")), chi=str(parameters.get("chi", "jj")),
+                          engine=rebuilt_engine(discretization.get("engine")))
 
 
 def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64) -> CouetteProblem:
     try:
-        return CouetteProblem(request.method or "cheb", request.grid or default_grid, walls=walls, chi=chi)
+        return CouetteProblem(request.method or "cheb", request.grid or default_grid, walls=walls, chi=chi,
+                              engine=request.engine or "numpy")
     except ValueError as exc:
         raise SceneError(str(exc)) from None
 
@@ -317,7 +319,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         parameters={**{k: p[k] for k in ("nu", "e", "num")}, **({"phi_w": p["phi_w"], "ew": p["ew"]} if st["walls"] == "jj" else {}),
                     "H": H_fixed if low_density else H_start, "H_max": H_max, "modes": modes,
                     "walls": st["walls"], "chi": st["chi"]},
-        discretization={"method": pb.method, "intervals": pb.N},
+        discretization={"method": pb.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
         profiles=lambda state: {k: v for k, v in pb.profiles(np.asarray(state)).items() if k in ("nu", "u", "T")},
         notes=run.notes,
