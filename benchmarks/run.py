@@ -67,16 +67,28 @@ class Config:
     h_end: float
     contin: bool
     nodes: tuple[int, ...] = (101,)  # initial solve_bvp meshes (equispaced nodes) of the baseline rows
+    engines: tuple[str, ...] = ("numpy",)  # CouetteProblem engines of the contin rows
 
     @classmethod
-    def make(cls, quick: bool, contin: bool) -> Config:
+    def make(cls, quick: bool, contin: bool, engines: tuple[str, ...] | None = None) -> Config:
+        if engines is None:
+            engines = available_engines()
         if quick:
             return cls((1e-4, 1e-6, 1e-8), 1, 2000, {"cheb": (10, 12, 16, 24, 48), "fd2": (64,), "fd4": (64,), "fd6": (64,)},
-                       16.0, contin, (21, 101))
+                       16.0, contin, (21, 101), engines)
         return cls((1e-4, 1e-5, 1e-6, 1e-7, 1e-8), 3, 5000,
                    {"cheb": (8, 10, 12, 16, 24, 32, 48, 64, 96), "fd2": (32, 64, 128, 256), "fd4": (32, 64, 128, 256),
                     "fd6": (32, 64, 128, 256)},
-                   H_END, contin, (11, 21, 51, 101))
+                   H_END, contin, (11, 21, 51, 101), engines)
+
+
+def available_engines() -> tuple[str, ...]:
+    """numpy, and numba where it is installed (problems.couette.compiled)."""
+    try:
+        from problems.couette.compiled import available
+    except ImportError:
+        return ("numpy",)
+    return ("numpy", "numba") if available() else ("numpy",)
 
 
 Row = dict[str, Any]
@@ -171,11 +183,19 @@ def contin_available() -> str | None:
     return None
 
 
-def _couette(method: str, n: int, h: float):
+def _couette(method: str, n: int, h: float, engine: str = "numpy"):
+    """The benchmark problem, or None where ``engine`` does not cover it (too large for numba)."""
     from problems.couette.model import CouetteProblem
     from problems.couette.params import build_params
 
-    prob = CouetteProblem(method, n)
+    try:
+        prob = CouetteProblem(method, n, engine=engine)
+    except ValueError:
+        return None, None
+    if engine != "numpy":  # compile (or load) the kernels outside the timings
+        p = build_params({"nu": NUBAR, "e": E, "H": h})
+        x = prob.uniform_state(p)
+        prob.residual(x, p), prob.dense_jacobian(x, p), prob.dresidual_dp(x, p, "H")
     return prob, build_params({"nu": NUBAR, "e": E, "H": h})
 
 
@@ -198,16 +218,17 @@ def contin_newton_rows(cfg: Config) -> list[Row]:
     from contin.options import NewtonOptions
 
     rows = []
-    for method, ns in cfg.methods.items():
-        for n in ns:
-            prob, p = _couette(method, n, 16.0)
-            u0 = prob.uniform_state(p)
-            y = prob.grid.y
-            u0[prob.i_nu] -= 0.05 * np.cos(np.pi * (y + 0.5))
-            sec, res = best_of(cfg.repeats, lambda: newton(prob, u0, p, NewtonOptions(tol=1e-10, max_iterations=20)))
-            rows.append({"method": method, "N": n, "unknowns": prob.size, "iterations": res.iterations,
-                         "converged": res.converged, "s_per_iteration": sec / max(res.iterations, 1),
-                         "cpu_per_iteration": LAST_CPU[0] / max(res.iterations, 1)})
+    for engine, method, n in _contin_cases(cfg):
+        prob, p = _couette(method, n, 16.0, engine)
+        if prob is None:
+            continue
+        u0 = prob.uniform_state(p)
+        y = prob.grid.y
+        u0[prob.i_nu] -= 0.05 * np.cos(np.pi * (y + 0.5))
+        sec, res = best_of(cfg.repeats, lambda: newton(prob, u0, p, NewtonOptions(tol=1e-10, max_iterations=20)))
+        rows.append({"engine": engine, "method": method, "N": n, "unknowns": prob.size, "iterations": res.iterations,
+                     "converged": res.converged, "s_per_iteration": sec / max(res.iterations, 1),
+                     "cpu_per_iteration": LAST_CPU[0] / max(res.iterations, 1)})
     return rows
 
 
@@ -218,38 +239,44 @@ def contin_trace_rows(cfg: Config) -> list[Row]:
     hc = GPCF(NUBAR, E).critical_gap()
     opts = _trace_options(cfg.h_end)
     rows = []
-    for method, ns in cfg.methods.items():
-        for n in ns:
-            prob, p = _couette(method, n, 10.0)
-            t, c = time.perf_counter(), time.process_time()
-            br = trace(prob, prob.uniform_state(p), p, "H", opts)
-            t_uniform, c_uniform = time.perf_counter() - t, time.process_time() - c
-            bps = [b for b in br.special_points if b.type == "BP"]
-            row = {"method": method, "N": n, "uniform_steps": len(br), "uniform_s_per_step": t_uniform / max(len(br), 1),
-                   "uniform_cpu_per_step": c_uniform / max(len(br), 1),
-                   "Hc": math.nan, "rel_error": math.nan, "bp_converged": False, "banded_points": 0,
-                   "banded_s_per_point": math.nan, "banded_phi_end": math.nan, "banded_status": "no BP"}
-            if bps:
-                bp = min(bps, key=lambda b: abs(b.params["H"] - hc))
-                row.update(Hc=bp.params["H"], rel_error=abs(bp.params["H"] - hc) / hc, bp_converged=bp.converged)
-                # Best of cfg.repeats, as for the baseline rows (best_of).
-                try:
-                    t_banded, new = best_of(cfg.repeats, lambda: switch(prob, br, bp, opts, directions=(+1,)))
-                    c_banded = LAST_CPU[0]
-                except ValueError as exc:
-                    new, row["banded_status"], t_banded, c_banded = [], f"switch failed: {exc}", math.nan, math.nan
-                if new:
-                    b = new[0]
-                    walls = sorted((float(b.observables["nu_bottom"][-1]), float(b.observables["nu_top"][-1])))
-                    row.update(banded_points=len(b), banded_s_per_point=t_banded / max(len(b), 1),
-                               banded_cpu_per_point=c_banded / max(len(b), 1), banded_cpu=c_banded,
-                               banded_walls_end=walls, banded_H_end=float(b.parameter_values[-1]),
-                               banded_s_per_newton=t_banded / max(int(np.sum(b.newton_iterations)), 1),
-                               banded_phi_end=float(b.observables["phi"][-1]), banded_status=b.status,
-                               banded_newton=int(np.sum(b.newton_iterations)))
-            rows.append(row)
+    for engine, method, n in _contin_cases(cfg):
+        prob, p = _couette(method, n, 10.0, engine)
+        if prob is None:
+            continue
+        t, c = time.perf_counter(), time.process_time()
+        br = trace(prob, prob.uniform_state(p), p, "H", opts)
+        t_uniform, c_uniform = time.perf_counter() - t, time.process_time() - c
+        bps = [b for b in br.special_points if b.type == "BP"]
+        row = {"engine": engine, "method": method, "N": n, "uniform_steps": len(br), "uniform_s_per_step": t_uniform / max(len(br), 1),
+               "uniform_cpu_per_step": c_uniform / max(len(br), 1),
+               "Hc": math.nan, "rel_error": math.nan, "bp_converged": False, "banded_points": 0,
+               "banded_s_per_point": math.nan, "banded_phi_end": math.nan, "banded_status": "no BP"}
+        if bps:
+            bp = min(bps, key=lambda b: abs(b.params["H"] - hc))
+            row.update(Hc=bp.params["H"], rel_error=abs(bp.params["H"] - hc) / hc, bp_converged=bp.converged)
+            # Best of cfg.repeats, as for the baseline rows (best_of).
+            try:
+                t_banded, new = best_of(cfg.repeats, lambda: switch(prob, br, bp, opts, directions=(+1,)))
+                c_banded = LAST_CPU[0]
+            except ValueError as exc:
+                new, row["banded_status"], t_banded, c_banded = [], f"switch failed: {exc}", math.nan, math.nan
+            if new:
+                b = new[0]
+                walls = sorted((float(b.observables["nu_bottom"][-1]), float(b.observables["nu_top"][-1])))
+                row.update(banded_points=len(b), banded_s_per_point=t_banded / max(len(b), 1),
+                           banded_cpu_per_point=c_banded / max(len(b), 1), banded_cpu=c_banded,
+                           banded_walls_end=walls, banded_H_end=float(b.parameter_values[-1]),
+                           banded_s_per_newton=t_banded / max(int(np.sum(b.newton_iterations)), 1),
+                           banded_phi_end=float(b.observables["phi"][-1]), banded_status=b.status,
+                           banded_newton=int(np.sum(b.newton_iterations)))
+        rows.append(row)
     _wall_density_errors(rows)
     return rows
+
+
+def _contin_cases(cfg: Config) -> list[tuple[str, str, int]]:
+    """(engine, method, N) of every contin row."""
+    return [(engine, method, n) for engine in cfg.engines for method, ns in cfg.methods.items() for n in ns]
 
 
 def _wall_density_errors(rows: list[Row]) -> None:
@@ -271,18 +298,32 @@ def _wall_density_errors(rows: list[Row]) -> None:
     ref["walls_reference"] = True
 
 
-def pitchfork_scene_row(cfg: Config) -> Row | None:
-    """Wall time of the whole ``pitchfork`` scene (Chebyshev N = 64, k_x = 0 stability)."""
+def pitchfork_scene_rows(cfg: Config) -> list[Row]:
+    """Wall time of the whole ``pitchfork`` scene (Chebyshev N = 64, k_x = 0 stability), per engine.
+
+    The first (untimed) run of each engine loads its compiled kernels; the timings are of
+    the runs after it, as a user sees every run but the first after an install.
+    """
     from contin.scene import SceneRequest, get_scene
 
     try:
         scene = get_scene("pitchfork")
     except ValueError as exc:
-        return {"status": f"not available: {exc}"}
-    sec, res = best_of(cfg.repeats, lambda: scene.run(SceneRequest()))
+        return [{"status": f"not available: {exc}"}]
+    rows = []
+    for engine in cfg.engines:
+        scene.run(SceneRequest(stability=False, engine=engine))
+        rows.append({"engine": engine, **_pitchfork_scene_row(cfg, scene, engine)})
+    return rows
+
+
+def _pitchfork_scene_row(cfg: Config, scene: Any, engine: str) -> Row:
+    from contin.scene import SceneRequest
+
+    sec, res = best_of(cfg.repeats, lambda: scene.run(SceneRequest(engine=engine)))
     cpu = LAST_CPU[0]
     t, c = time.perf_counter(), time.process_time()
-    scene.run(SceneRequest(stability=False))
+    scene.run(SceneRequest(stability=False, engine=engine))
     wall_ns, cpu_ns = time.perf_counter() - t, time.process_time() - c
     return {"status": "ok", "seconds": sec, "cpu": cpu, "seconds_no_stability": wall_ns, "cpu_no_stability": cpu_ns,
             "branches": len(res.branches),
@@ -312,6 +353,8 @@ def comparison_rows(base_gap: list[Row], base_nat: list[Row], contin_rows: list[
                     targets: Sequence[float] = (1e-4, 1e-6, 1e-8, 1e-10)) -> list[Row]:
     """Cheapest CPU seconds per converged banded point reaching each H_1^c accuracy target.
 
+    One row per target and contin engine (numpy, numba: the rows' ``engine``).
+
     Baseline: the solve_bvp tol and initial mesh whose pinning estimate meets the target, timed
     on natural continuation with the same tol and initial mesh (the cheapest such pair).  contin: the (method, N) whose located BP meets it, timed on the
     switched banded branch; a switch that fell back onto uniform shear (both wall densities at
@@ -329,14 +372,15 @@ def comparison_rows(base_gap: list[Row], base_nat: list[Row], contin_rows: list[
     base = [(nat[key(g)].get("cpu_per_point", nat[key(g)]["s_per_point"]), label(g), g["rel_error"],
              nat[key(g)].get("cpu", math.nan)) for g in base_gap if key(g) in nat]
     cont = [(r.get("banded_cpu_per_point", r["banded_s_per_point"]), f"{r['method']} N={r['N']}", r["rel_error"],
-             r.get("banded_cpu", math.nan)) for r in contin_rows
+             r.get("banded_cpu", math.nan), r.get("engine", "numpy")) for r in contin_rows
             if r["banded_points"] > 1
             and max(abs(w - NUBAR) for w in r.get("banded_walls_end", [r["banded_phi_end"]])) > 0.1]
+    engines = list(dict.fromkeys(c[4] for c in cont)) or ["numpy"]
     rows = []
-    for target in targets:
+    for target, engine in ((t, e) for t in targets for e in engines):
         b = min((c for c in base if c[2] <= target), default=None)
-        c = min((c for c in cont if c[2] <= target), default=None)
-        rows.append({"target": target,
+        c = min((c for c in cont if c[2] <= target and c[4] == engine), default=None)
+        rows.append({"target": target, "engine": engine,
                      "baseline": b[1] if b else "-", "baseline_s": b[0] if b else math.nan,
                      "contin": c[1] if c else "-", "contin_s": c[0] if c else math.nan,
                      "speedup": (b[0] / c[0]) if (b and c) else math.nan,
@@ -363,8 +407,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer tolerances, grids and repeats")
     ap.add_argument("--no-contin", action="store_true", help="baseline figures only")
     ap.add_argument("--json", metavar="FILE", help="also write all figures as JSON")
+    ap.add_argument("--engines", default=None, metavar="LIST",
+                    help="contin engines to time, e.g. numpy,numba (default: numpy, and numba where installed)")
     args = ap.parse_args(argv)
-    cfg = Config.make(args.quick, not args.no_contin)
+    engines = tuple(e for e in args.engines.split(",") if e) if args.engines else None
+    cfg = Config.make(args.quick, not args.no_contin, engines)
     from contin.blas import limit_blas_threads
 
     limit_blas_threads()  # as the CLI does: one BLAS thread unless CONTIN_BLAS_THREADS says otherwise
@@ -401,13 +448,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             with np.errstate(all="ignore"):
                 out["contin_newton"] = newton_rows = contin_newton_rows(cfg)
                 print(table("[contin] Newton iteration (residual + sparse Jacobian + LU + solve) at H = 16",
-                            newton_rows, [("method", "method", "s"), ("N", "N", "d"), ("unknowns", "unknowns", "d"),
+                            newton_rows, [("engine", "engine", "s"), ("method", "method", "s"), ("N", "N", "d"),
+                                          ("unknowns", "unknowns", "d"),
                                           ("iterations", "iters", "d"), ("converged", "conv", ""),
                                           ("s_per_iteration", "s/iter", ".2e"),
                                           ("cpu_per_iteration", "cpu s/iter", ".2e")]))
                 out["contin_trace"] = trace_rows = contin_trace_rows(cfg)
                 print(table(f"[contin] trace H: uniform branch 10 -> {cfg.h_end} (BP), switch to banded branch",
-                            trace_rows, [("method", "method", "s"), ("N", "N", "d"),
+                            trace_rows, [("engine", "engine", "s"), ("method", "method", "s"), ("N", "N", "d"),
                                          ("uniform_s_per_step", "s/step uniform", ".4f"),
                                          ("uniform_cpu_per_step", "cpu s/step", ".4f"),
                                          ("Hc", "H_1^c (BP)", ".10f"), ("rel_error", "rel.err", ".1e"),
@@ -420,15 +468,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                                          ("banded_walls_error", "walls err", ".1e"), ("banded_status", "status", "s")]))
                 print("  walls err: max error of (nu_bottom, nu_top) at H_end against the finest Chebyshev grid; "
                       "resolution guard off\n")
-                out["pitchfork_scene"] = scene = pitchfork_scene_row(cfg)
-                if scene and scene.get("status") == "ok":
-                    print(table("[contin] pitchfork scene (whole)", [scene],
-                                [("seconds", "wall s", ".2f"), ("cpu", "cpu s", ".2f"),
+                out["pitchfork_scene"] = scenes = pitchfork_scene_rows(cfg)
+                if scenes[0].get("status") == "ok":
+                    print(table("[contin] pitchfork scene (whole)", scenes,
+                                [("engine", "engine", "s"), ("seconds", "wall s", ".2f"), ("cpu", "cpu s", ".2f"),
                                  ("seconds_no_stability", "wall s (no stab.)", ".2f"),
                                  ("cpu_no_stability", "cpu s (no stab.)", ".2f"), ("branches", "branches", "d"),
                                  ("points", "points", "d"), ("special_points", "special", "d")]))
                 else:
-                    print(f"[contin] pitchfork scene: {scene['status'] if scene else 'n/a'}\n")
+                    print(f"[contin] pitchfork scene: {scenes[0]['status']}\n")
                 out["contin_fold"] = cfold = contin_fold_row()
                 print(table("[contin] nubar = 0.16: banded branch from H_1^c = 63.50 downwards (theta = 1e-4)",
                             [cfold], [("method", "grid", "s"), ("H_LP", "H_LP", ".6f"), ("phi_LP", "phi_LP", ".4f"),
@@ -439,6 +487,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(table("[side by side] CPU seconds per converged banded point (and per branch) at equal "
                             "accuracy in H_1^c",
                             comp, [("target", "rel.err <=", ".0e"), ("baseline", "baseline", "s"),
+                                   ("engine", "contin engine", "s"),
                                    ("baseline_s", "s/point", ".5f"), ("contin", "contin", "s"),
                                    ("contin_s", "s/point", ".5f"), ("speedup", "baseline/contin", ".1f"),
                                    ("baseline_branch_s", "s/branch base", ".4f"),

@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from contin.cli import main
+from problems.couette import compiled
 
 
 def test_fit_compute_agrees_with_lyapunov_schmidt(tmp_path):
@@ -75,3 +76,5 @@ def test_unfold_floating_plug_limit(tmp_path):
     assert doc["fr_min_floating_plug"] == pytest.approx(254.1, abs=1.0)
     assert fig.exists()
     assert doc["critical_gaps"][0] == pytest.approx(13.0685, abs=1e-3)
+    # the CLI's default engine (auto): the compiled one where numba is installed (the test extra)
+    assert doc["discretization"]["engine"] == ("numba" if compiled.available() else "numpy")

@@ -21,6 +21,7 @@ from contin.cli import main
 from contin.continuation import switch, trace
 from contin.linalg import DENSE_LIMIT
 from contin.options import ContinuationOptions, StepOptions
+from contin.sweep import run_task
 from problems.couette import compiled
 from problems.couette.closures import critical_gap_factor
 from problems.couette.model import CouetteProblem
@@ -34,7 +35,7 @@ CONFIGS = [(method, n, walls, chi, gravity)
 
 
 def _pair(method, n, walls="noslip", chi="jj", gravity=False):
-    kw = dict(walls=walls, chi=chi, gravity=gravity)
+    kw = {"walls": walls, "chi": chi, "gravity": gravity}
     return CouetteProblem(method, n, **kw), CouetteProblem(method, n, engine="numba", **kw)
 
 
@@ -157,3 +158,15 @@ def test_cli_engine_option_and_provenance(tmp_path, monkeypatch):
     assert np.allclose([f[2] for f in found["numba"]], [f[2] for f in found["numpy"]], rtol=1e-11, atol=0)
     r = _run("trace", "pitchfork", "--engine", "fortran")
     assert r.exit_code == 2 and "'fortran' is not one of 'auto', 'numpy', 'numba'" in r.output
+
+
+def test_sweep_engine_option_reaches_the_scene(tmp_path, monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+    found = {}
+    for engine in ("numpy", "numba"):
+        out = tmp_path / f"{engine}.h5"
+        doc = run_task("pitchfork", {"H_max": 16.0}, {"engine": engine, "grid": 16, "stability": False}, str(out))
+        assert doc["status"] == "ok"
+        assert io.load(out)[1]["discretization"]["engine"] == engine
+        found[engine] = [sp["params"]["H"] for sp in doc["special_points"] if sp["type"] == "BP"]
+    assert len(found["numba"]) == 1 and found["numba"] == pytest.approx(found["numpy"], rel=1e-11, abs=0)

@@ -15,6 +15,7 @@ import click
 from contin.cli._base import (
     echo_err,
     echo_json,
+    engine_option,
     fmt,
     main,
     parse_settings,
@@ -35,8 +36,9 @@ _KNOWN = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50.0, "Fr_start": 2000.0}
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="Figure (PNG/PDF) of the fold curves.")
 @resolution_tol_option
+@engine_option
 def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps: int, as_json: bool,
-                   output: str | None, resolution_tol: str | None) -> None:
+                   output: str | None, resolution_tol: str | None, engine: str) -> None:
     """Fold curves in the (H, Fr) plane: birth/death of isolas and the floating-plug limit Fr*.
 
     --resolution-tol applies to every trace of the run, the fold curves included (their base
@@ -54,7 +56,7 @@ def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps:
         if not isinstance(v, float) or not math.isfinite(v):
             raise ValueError(f"setting {name} must be a finite number, got {v!r}")
         values[name] = v
-    pb = gravity_problem(method, grid)
+    pb = gravity_problem(method, grid, engine=engine)
     params = pb.params({"nu": values["nu"], "e": values["e"]})
     with guard:
         d = phase_diagram(pb, params, H_range=(values["H_min"], values["H_max"]), Fr_start=values["Fr_start"],
@@ -66,7 +68,7 @@ def unfold_command(settings: tuple[str, ...], method: str, grid: int, max_steps:
         _figure(d, output, values)
     doc = {
         "parameters": values,
-        "discretization": {"method": method, "intervals": grid},
+        "discretization": {"method": method, "intervals": grid, "engine": pb.engine},
         "resolution_tol": rtol,
         "critical_gaps": d.critical_gaps,
         "fr_min_floating_plug": d.fr_min_floating_plug,

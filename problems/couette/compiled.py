@@ -25,6 +25,7 @@ import math
 from functools import lru_cache
 
 import numpy as np
+import scipy.sparse as sp
 
 from contin.linalg import DENSE_LIMIT
 from problems.couette.closures import _constants
@@ -63,9 +64,10 @@ def _kernels() -> tuple:
     return jit(_fields), jit(_residual), jit(_jacobian), jit(_residual_dh)
 
 
-def _fields(x, n, y, d1, d2, consts, chi_code, nu_max):
+def _fields(x, n, y, ptr, cols, w1s, w2s, consts, chi_code, nu_max):
     """All per-node quantities of the residual and the Jacobian at x (rows: the constants above).
 
+    D1 and D2 come as one CSR pattern (ptr, cols) holding both: w1s, w2s their entries there.
     consts = (b2, b4, c2, c4, d2, d4, k1, k3, k5) of closures._constants(e):
     f2, f4 = b / chi + c nu + d nu^2 chi;  f1 = nu + k1 nu^2 chi;  f3, f5 = k nu^2 chi.
     """
@@ -122,9 +124,8 @@ def _fields(x, n, y, d1, d2, consts, chi_code, nu_max):
         s_k = 0.0
         s_upp = 0.0
         s_tpp = 0.0
-        for j in range(n):
-            w1 = d1[i, j]
-            w2 = d2[i, j]
+        for q in range(ptr[i], ptr[i + 1]):
+            j, w1, w2 = cols[q], w1s[q], w2s[q]
             s_up += w1 * v[0, j]
             s_t += w1 * v[1, j]
             s_a += w1 * v[2, j]
@@ -185,7 +186,7 @@ def _residual(f, x, n, size, H, nubar, hg, weights, jj, wall, mass_m, mass_nu, g
     return out
 
 
-def _jacobian(f, x, n, size, H, hg, weights, d1, d2, jj, wall, mass_m, mass_nu, gravity):
+def _jacobian(f, x, n, size, H, hg, weights, ptr, cols, w1s, w2s, jj, wall, mass_m, mass_nu, gravity):
     """Dense, Fortran-ordered dF/dx from the fields (model.CouetteProblem._jacobian_terms).
 
     Interior rows: x-momentum da (u'' + u' D1) + (a D2 + a' D1) du; energy
@@ -217,9 +218,8 @@ def _jacobian(f, x, n, size, H, hg, weights, d1, d2, jj, wall, mass_m, mass_nu, 
         a, ap, up, upp = f[A, i], f[AP, i], f[UP, i], f[UPP, i]
         tp_h2, k_h2, kp_h2 = f[TP, i] * h2, f[K, i] * h2, f[KP, i] * h2
         two_a_up = 2.0 * a * up
-        for j in range(n):
-            w1 = d1[i, j]
-            w2 = d2[i, j]
+        for q in range(ptr[i], ptr[i + 1]):
+            j, w1, w2 = cols[q], w1s[q], w2s[q]
             jac[iu + i, iu + j] = a * w2 + ap * w1
             jac[iu + i, j] = up * w1 * a_nu[j]
             jac[iu + i, it + j] = up * w1 * a_t[j]
@@ -238,8 +238,8 @@ def _jacobian(f, x, n, size, H, hg, weights, d1, d2, jj, wall, mass_m, mass_nu, 
         sig = -1.0 if side == 0 else 1.0
         if not jj:
             jac[iu + i, iu + i] = 1.0
-            for j in range(n):
-                jac[it + i, it + j] = sig * d1[i, j]
+            for q in range(ptr[i], ptr[i + 1]):
+                jac[it + i, it + cols[q]] = sig * w1s[q]
         else:
             T = x[2 * n + i]
             st = f[ST, i]
@@ -253,8 +253,8 @@ def _jacobian(f, x, n, size, H, hg, weights, d1, d2, jj, wall, mass_m, mass_nu, 
             dw_t = 1.5 * wall[1] * g * st
             slip = x[n + i] - 0.5 * sig
             upw, tpw = f[UP, i], f[TP, i]
-            for j in range(n):
-                w1 = d1[i, j]
+            for q in range(ptr[i], ptr[i + 1]):
+                j, w1 = cols[q], w1s[q]
                 jac[iu + i, iu + j] = -sig * f[A, i] * w1
                 jac[it + i, it + j] = sig * f[K, i] * h2 * w1
             jac[iu + i, iu + i] += -H * sw
@@ -309,8 +309,17 @@ class CompiledKernels:
         g = problem.grid
         self.n, self.size = problem.n, problem.size
         self.y = np.ascontiguousarray(g.y, dtype=float)
-        self.d1 = np.ascontiguousarray(g.d1.toarray() if hasattr(g.d1, "toarray") else g.d1, dtype=float)
-        self.d2 = np.ascontiguousarray(g.d2.toarray() if hasattr(g.d2, "toarray") else g.d2, dtype=float)
+        # D1 and D2 on the union of their sparsity patterns (all columns for Chebyshev, a band
+        # for finite differences): the kernels' cost follows the stencils, not n^2.
+        d1, d2 = sp.csr_matrix(g.d1), sp.csr_matrix(g.d2)
+        pattern = sp.csr_matrix((np.ones(d1.nnz + d2.nnz), (np.r_[d1.tocoo().row, d2.tocoo().row],
+                                                            np.r_[d1.tocoo().col, d2.tocoo().col])), shape=d1.shape)
+        pattern.sum_duplicates()
+        pattern.sort_indices()
+        rows = np.repeat(np.arange(self.n), np.diff(pattern.indptr))
+        self.ptr, self.cols = pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64)
+        self.w1s = np.asarray(d1[rows, self.cols], dtype=float).ravel()
+        self.w2s = np.asarray(d2[rows, self.cols], dtype=float).ravel()
         self.weights = np.ascontiguousarray(g.weights, dtype=float)
         self.chi_code = CHI_CODES[problem.chi]
         self.jj = problem.walls == "jj"
@@ -329,7 +338,8 @@ class CompiledKernels:
         cached = self._cache
         if cached is not None and cached[0] == raw and cached[1] == e and cached[2] == num:
             return cached[3]
-        f = self._fields(x, self.n, self.y, self.d1, self.d2, _closure_constants(e), self.chi_code, num)
+        f = self._fields(x, self.n, self.y, self.ptr, self.cols, self.w1s, self.w2s, _closure_constants(e),
+                         self.chi_code, num)
         self._cache = (raw, e, num, f)
         return f
 
@@ -344,13 +354,13 @@ class CompiledKernels:
         f = self.fields(x, p)
         H = float(p["H"])
         return self._residual(f, x, self.n, self.size, H, float(p["nu"]), H**3 * float(p["G"]), self.weights,
-                                   self.jj, self.wall(p), self.mass_m, self.mass_nu, self.gravity)
+                              self.jj, self.wall(p), self.mass_m, self.mass_nu, self.gravity)
 
     def jacobian(self, x, p):
         f = self.fields(x, p)
         H = float(p["H"])
-        return self._jacobian(f, x, self.n, self.size, H, H**3 * float(p["G"]), self.weights, self.d1, self.d2,
-                                   self.jj, self.wall(p), self.mass_m, self.mass_nu, self.gravity)
+        return self._jacobian(f, x, self.n, self.size, H, H**3 * float(p["G"]), self.weights, self.ptr, self.cols,
+                              self.w1s, self.w2s, self.jj, self.wall(p), self.mass_m, self.mass_nu, self.gravity)
 
     def residual_dh(self, x, p):
         f = self.fields(x, p)
