@@ -58,6 +58,7 @@ class Run:
     peak_memory_mb: float
     values: dict[str, float]
     failed: str = ""  # the reason when the run raised (then values is empty)
+    engine: str = ""  # the problem's engine as the scene reports it (SceneResult.discretization)
 
 
 @dataclass
@@ -140,7 +141,8 @@ def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int, *, 
             tracemalloc.stop()
     iters = sum(int(b.newton_iterations.sum()) for b in result.branches if len(b))
     points = sum(len(b) for b in result.branches)
-    return Run(method, grid, wall, cpu, iters, points, peak, key_points(result))
+    return Run(method, grid, wall, cpu, iters, points, peak, key_points(result),
+               engine=str(result.discretization.get("engine", "")))
 
 
 def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str], grids: Sequence[int], *,

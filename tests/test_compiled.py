@@ -170,3 +170,16 @@ def test_sweep_engine_option_reaches_the_scene(tmp_path, monkeypatch):
         assert io.load(out)[1]["discretization"]["engine"] == engine
         found[engine] = [sp["params"]["H"] for sp in doc["special_points"] if sp["type"] == "BP"]
     assert len(found["numba"]) == 1 and found["numba"] == pytest.approx(found["numpy"], rel=1e-11, abs=0)
+
+
+@pytest.mark.parametrize("n", [16, 48])
+def test_accuracy_runs_record_the_engine_and_meet_the_hc_target(n):
+    """Issue 6's target, H_1^c within 1e-10 relative at Chebyshev N <= 48, with the compiled engine."""
+    from contin.accuracy import relative_error, run_accuracy
+    from problems.couette.keypoints import SCENES, exact_hc1
+
+    report = run_accuracy(SCENES["gpcf-keypoints"], {}, ["cheb"], [n], memory=False, engine="numba")
+    (run,) = report.runs
+    assert run.engine == "numba" and not run.failed
+    assert relative_error(run.values["Hc1"], exact_hc1(0.3, 0.8)) < 1e-10
+    assert report.to_json()["runs"][0]["engine"] == "numba"

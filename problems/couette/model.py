@@ -54,12 +54,7 @@ from numpy.typing import NDArray
 
 from contin.problem import complex_step_dp
 from problems.couette import compiled
-from problems.couette.closures import (
-    CHI_MODELS,
-    coefficients,
-    packing_limit,
-    real_coefficients,
-)
+from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients
 from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
 from problems.discretization import cell_integration_matrix, make_grid
 
