@@ -183,3 +183,29 @@ def test_accuracy_runs_record_the_engine_and_meet_the_hc_target(n):
     assert run.engine == "numba" and not run.failed
     assert relative_error(run.values["Hc1"], exact_hc1(0.3, 0.8)) < 1e-10
     assert report.to_json()["runs"][0]["engine"] == "numba"
+
+
+@pytest.mark.parametrize("where, value", [("nu", 0.65), ("nu", 0.0), ("T", -1.0)])
+def test_unphysical_states_give_non_finite_values_not_exceptions(where, value):
+    """As in the numpy engine (whose callers check finiteness and admissibility): division by
+    zero and roots of negatives give inf/nan (numba's error_model='numpy'), no ZeroDivisionError."""
+    ref, fast = _pair("cheb", 12)
+    p = ref.params({})
+    x = ref.initial_guess(p)
+    x[(ref.i_nu if where == "nu" else ref.i_T).start + 3] = value
+    with np.errstate(all="ignore"):  # the numpy engine warns where numba is silent
+        for problem in (ref, fast):
+            assert not np.all(np.isfinite(problem.dense_jacobian(x, p)))
+            assert problem.admissible(x, p) is not None
+        assert np.array_equal(np.isfinite(ref.residual(x, p)), np.isfinite(fast.residual(x, p)))
+
+
+def test_cli_engine_numba_without_numba_is_one_error_line(monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+    monkeypatch.setattr(compiled, "available", lambda: False)
+    r = _run("trace", "pitchfork", "--grid", 16, "--engine", "numba", "-q")
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.exit_code == 1 and r.stdout == ""
+    assert lines == ["Error: engine='numba' needs numba: pip install 'contin[fast]' (or use engine='numpy')"]
+    r = _run("trace", "pitchfork", "--grid", 16, "-s", "H_max=14", "--no-stability", "-q", "--json")  # auto: numpy
+    assert r.exit_code == 0 and '"engine": "numpy"' in r.stdout

@@ -32,7 +32,7 @@ from problems.couette.closures import _constants
 
 #: chi models by kernel code (closures.radial_distribution)
 CHI_CODES = {"jj": 0, "cs": 1, "ls": 2}
-#: field rows of :func:`fields` (index constants shared by the kernels)
+#: field rows of :func:`_fields` (index constants shared by the kernels)
 (F1, F2, F4, F5, F1N, F2N, F4N, F5N, ST, A, K, D, UP, UPP, TP, TPP, AP, KP, COND, UP2, CHI, CHIN) = range(22)
 N_FIELDS = 22
 
@@ -49,9 +49,17 @@ def supports(problem) -> str | None:
     return None
 
 
+@lru_cache(maxsize=1)
 def available() -> bool:
-    """True when numba is installed (the ``fast`` extra)."""
-    return importlib.util.find_spec("numba") is not None
+    """True when numba (the ``fast`` extra) is installed and imports (a numba built for another
+    numpy fails at import: then the numpy engine serves, as without numba)."""
+    if importlib.util.find_spec("numba") is None:
+        return False
+    try:
+        import numba  # noqa: F401
+    except Exception:  # noqa: BLE001 -- any import failure means "not available", never a crash
+        return False
+    return True
 
 
 @lru_cache(maxsize=1)
@@ -60,7 +68,9 @@ def _kernels() -> tuple:
     so that the numpy engine never pays numba's import; compiled code is cached on disk)."""
     import numba
 
-    jit = numba.njit(cache=True, nogil=True)
+    # error_model="numpy": x / 0 gives inf or nan as in the numpy engine (whose callers check
+    # finiteness), not a ZeroDivisionError
+    jit = numba.njit(cache=True, nogil=True, error_model="numpy")
     return jit(_fields), jit(_residual), jit(_jacobian), jit(_residual_dh)
 
 
