@@ -305,7 +305,10 @@ def test_scene_fr1000_reports_every_isola_closed_and_found_twice():
     r = CliRunner().invoke(main, ["trace", "gravity", "-s", "nu=0.3", "-s", "e=0.8", "-s", "Fr=1000", "--json",
                                   "--no-stability", "-q"])
     doc = json.loads(r.stdout)
-    assert doc["discretization"] == {"method": "cheb", "intervals": 64}
+    from problems.couette import compiled
+
+    engine = "numba" if compiled.available() else "numpy"  # the CLI's default, auto
+    assert doc["discretization"] == {"method": "cheb", "intervals": 64, "engine": engine}
     extra = doc["extra"]
     isolas = [b for b in doc["branches"] if b["kind"] == "isola"]
     assert len(isolas) >= 1
