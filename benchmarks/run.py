@@ -1,4 +1,4 @@
-"""Benchmark runner: ``python -m benchmarks.run [--quick] [--no-contin] [--json FILE]``.
+"""Benchmark runner: ``python -m benchmarks.run [--quick] [--no-contin] [--engines LIST] [--json FILE]``.
 
 Prints tables of figures (these are measurements, not tests; tests/test_baseline.py checks
 the numbers):
@@ -13,13 +13,14 @@ the numbers):
      seconds per converged point, failed solves, mesh nodes;
    - nubar = 0.16 (subcritical): does natural continuation in H (downwards from the upper
      branch) get through the fold?  The fold is located independently by a pinning scan.
-2. contin (hooks; skipped with a note if the modules are missing):
+2. contin (hooks; skipped with a note if the modules are missing), for each engine of
+   ``--engines`` (default: numpy, and numba where installed; problems.couette.compiled):
    - :func:`contin_newton_rows`: seconds per Newton iteration against N for cheb/fd2/fd4/fd6;
    - :func:`contin_trace_rows`: seconds per continuation step (uniform branch through the
      BP, then the switched banded branch) and the H_1^c error of the located BP against N;
-   - :func:`pitchfork_scene_row`: the whole ``pitchfork`` scene;
+   - :func:`pitchfork_scene_rows`: the whole ``pitchfork`` scene;
    - :func:`comparison_rows`: seconds per converged point at equal accuracy in H_1^c,
-     baseline against contin, side by side.
+     baseline against contin (each engine), side by side.
 
 Times are wall-clock (time.perf_counter), best of ``repeats``, with the CPU time
 (time.process_time) of that call alongside ("cpu" columns: the fairer figure on a shared
