@@ -25,7 +25,7 @@ import numpy as np
 
 from contin.extended import ExtendedSystem
 from contin.linalg import Factorization, factorize_bordered
-from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm, rounding_floor
+from contin.newton import DIVERGENCE_FACTOR, backtrack, converged, max_norm
 from contin.options import NewtonOptions
 from contin.problem import Array
 
@@ -95,11 +95,7 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
-        # tolerance max(tol, rounding floor at the iterate J was taken at, newton.rounding_floor);
-        # the floor (a norm of J) is only evaluated when the update is small and the residual
-        # above options.tol
-        if (lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x))
-                and (r <= options.tol or r <= rounding_floor(jac, x_old))):
+        if converged(options, r, lam, dx, x, jac, x_old):
             return Correction(x, True, it, fact, row, history, "converged")
         if give_up is not None:
             why = give_up(x, lam * dx)

@@ -59,6 +59,15 @@ def rounding_floor(jac: Any, x: Array) -> float:
     return _EPS * inf_norm(jac) * max(1.0, max_norm(x))
 
 
+def converged(options: NewtonOptions, r: float, lam: float, dx: Array, x: Array, jac: Any, x_jac: Array) -> bool:
+    """The convergence test of :func:`newton` and :func:`contin.corrector.correct`: the taken
+    update lam * dx is below options.step_tol * max(1, ||x||_inf) and the residual r at x below
+    max(options.tol, :func:`rounding_floor` at the iterate ``x_jac`` J was taken at).  The floor
+    (a norm of J) is evaluated only when the update is small and r is above options.tol."""
+    return (lam * max_norm(dx) <= options.step_tol * max(1.0, max_norm(x))
+            and (r <= options.tol or r <= rounding_floor(jac, x_jac)))
+
+
 def backtrack(admissible: Any, x: Array, dx: Array) -> tuple[Array, float, str | None]:
     """x + lam dx with lam = 1, 1/2, 1/4, ... until admissible; returns (x_new, lam, reason)."""
     lam = 1.0
@@ -117,10 +126,7 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
         history.append(r)
         if not math.isfinite(r) or r > DIVERGENCE_FACTOR * max(history[0], 1.0):
             return NewtonResult(u, False, it, history, f"Newton diverged (residual {r:.3g})")
-        # tol = max(options.tol, rounding floor at the iterate J was taken at); the floor is
-        # only evaluated when the residual is above options.tol
-        if (lam * max_norm(du) <= options.step_tol * max(1.0, max_norm(u))
-                and (r <= options.tol or r <= rounding_floor(jac, u_old))):
+        if converged(options, r, lam, du, u, jac, u_old):
             return NewtonResult(u, True, it, history, "converged")
     return NewtonResult(u, False, options.max_iterations, history,
                         f"no convergence in {options.max_iterations} iterations (residual {history[-1]:.3g})")
