@@ -110,17 +110,16 @@ def parse_resolution_tol(text: str | None) -> float | None:
 
     A bad value is one ``Error:`` line (exit 1), like any other invalid value.
     """
+    from contin.options import check_resolution_tol
+
     t = (text or "").strip()
     if t.lower() == "off":
         return None
     try:
-        v = float(t)
+        return check_resolution_tol(float(t))
     except ValueError:
-        v = math.nan
-    if not (math.isfinite(v) and v > 0):
         fail(f"--resolution-tol must be a number > 0 (largest estimated relative discretization error "
              f"of a stored state) or 'off', got {text!r}")
-    return v
 
 
 def resolution_guard(text: str | None) -> tuple[contextlib.AbstractContextManager[None], float | None]:
