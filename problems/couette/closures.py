@@ -190,6 +190,14 @@ def _stacked_constants(e: float):
     return out
 
 
+def wall_prefactors(phi_w, ew, nu_max):
+    """(c_s, c_d) of the Johnson-Jackson wall terms (physics.md section 3b), s_w = c_s nu chi sqrt(T)
+    and d_w = c_d nu chi T^{3/2}: c_s = phi_w pi / (2 sqrt(3) nu_m), c_d = sqrt(3) pi (1 - e_w^2) / (4 nu_m).
+    Accepts complex values (complex-step derivatives)."""
+    sqrt3 = np.sqrt(3.0)
+    return phi_w * np.pi / (2.0 * sqrt3 * nu_max), sqrt3 * np.pi * (1.0 - ew**2) / (4.0 * nu_max)
+
+
 def uniform_shear(nu, e, model: str = "jj", nu_max: float = 0.65):
     """Uniform shear state (physics.md section 4): T0 = f2/f5, S0 = f2 sqrt(T0), p0 = f1 T0.
 

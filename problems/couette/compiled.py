@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contin.linalg import DENSE_LIMIT
-from problems.couette.closures import _constants
+from problems.couette.closures import _constants, wall_prefactors
 
 #: chi models by kernel code (closures.radial_distribution)
 CHI_CODES = {"jj": 0, "cs": 1, "ls": 2}
@@ -356,9 +356,7 @@ class CompiledKernels:
     def wall(self, p):
         if not self.jj:
             return _NO_WALL
-        num = p["num"]
-        return np.array([p["phi_w"] * np.pi / (2.0 * math.sqrt(3.0) * num),
-                         math.sqrt(3.0) * np.pi * (1.0 - p["ew"] ** 2) / (4.0 * num)])
+        return np.array(wall_prefactors(p["phi_w"], p["ew"], p["num"]))
 
     def residual(self, x, p):
         f = self.fields(x, p)

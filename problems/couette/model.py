@@ -54,7 +54,7 @@ from numpy.typing import NDArray
 
 from contin.problem import complex_step_dp
 from problems.couette import compiled
-from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients
+from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients, wall_prefactors
 from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
 from problems.discretization import cell_integration_matrix, make_grid
 
@@ -65,7 +65,6 @@ WALLS = ("noslip", "jj")
 #: installed and covers the problem (compiled.supports), numpy elsewhere.
 ENGINES = ("numpy", "numba")
 
-_SQRT3 = np.sqrt(3.0)
 # ufunc reductions called directly (ndarray.min & co. add a Python wrapper; see admissible)
 _MIN, _MAX, _SUM = np.minimum.reduce, np.maximum.reduce, np.add.reduce
 #: Parameter value types for which the residual is real double (see CouetteProblem.residual).
@@ -327,8 +326,7 @@ class CouetteProblem:
         nu, T, sT = f.nu[w], f.T[w], f.sT[w]
         chi, chi_nu = f.c.chi[w], f.c.chi_nu[w]
         g, g_nu = nu * chi, chi + nu * chi_nu
-        cs = p["phi_w"] * np.pi / (2.0 * _SQRT3 * p["num"])
-        cd = _SQRT3 * np.pi * (1.0 - p["ew"] ** 2) / (4.0 * p["num"])
+        cs, cd = wall_prefactors(p["phi_w"], p["ew"], p["num"])
         sw, dw = cs * g * sT, cd * g * T * sT
         return sw, dw, cs * g_nu * sT, sw / (2.0 * T), cd * g_nu * T * sT, 1.5 * cd * g * sT
 
@@ -589,8 +587,7 @@ class CouetteProblem:
         c = coefficients(np.float64(p["nu"]), p["e"], self.chi, p["num"])
         g = p["nu"] * c.chi
         H = p["H"]
-        cs = p["phi_w"] * np.pi / (2.0 * _SQRT3 * p["num"]) * g
-        cd = _SQRT3 * np.pi * (1.0 - p["ew"] ** 2) / (4.0 * p["num"]) * g
+        cs, cd = (c * g for c in wall_prefactors(p["phi_w"], p["ew"], p["num"]))
         gamma = H * cs / (2.0 * c.f2 + H * cs)
         slip = 0.5 * (1.0 - gamma)
         t0 = (c.f2 * gamma**2 + 2.0 * H * cs * slip**2) / (c.f5 + 2.0 * cd / H)
