@@ -120,22 +120,24 @@ def key_points(result: SceneResult) -> dict[str, float]:
     return out
 
 
+def _request(params: Mapping[str, Any], method: str, grid: int, overrides: Mapping[str, Any] | None,
+             engine: str | None) -> SceneRequest:
+    """The request of one accuracy run (stability off: only the key points are measured)."""
+    return SceneRequest(params=dict(params), method=method, grid=grid, stability=False,
+                        overrides=dict(overrides or {}), engine=engine)
+
+
 def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int, *, memory: bool = True,
             overrides: Mapping[str, Any] | None = None, engine: str | None = None) -> Run:
     """Run ``scene`` once at (method, grid) and time it (plus a tracemalloc run if ``memory``)."""
-
-    def request() -> SceneRequest:
-        return SceneRequest(params=dict(params), method=method, grid=grid, stability=False,
-                            overrides=dict(overrides or {}), engine=engine)
-
     t0, c0 = time.perf_counter(), time.process_time()
-    result = scene.run(request())
+    result = scene.run(_request(params, method, grid, overrides, engine))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     peak = math.nan
     if memory:
         tracemalloc.start()
         try:
-            scene.run(request())
+            scene.run(_request(params, method, grid, overrides, engine))
             peak = tracemalloc.get_traced_memory()[1] / 2**20
         finally:
             tracemalloc.stop()
@@ -158,8 +160,7 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
     if not methods or not grids:
         raise ValueError("need at least one method and one grid")
     with contextlib.suppress(ValueError):
-        scene.run(SceneRequest(params=dict(params), method=methods[0], grid=min(int(g) for g in grids),
-                               stability=False, overrides=dict(overrides or {}), engine=engine))
+        scene.run(_request(params, methods[0], min(int(g) for g in grids), overrides, engine))
     runs: list[Run] = []
     for method in methods:
         for n in sorted(set(int(g) for g in grids)):
