@@ -356,7 +356,7 @@ class CompiledKernels:
     def wall(self, p):
         if not self.jj:
             return _NO_WALL
-        return np.array(wall_prefactors(p["phi_w"], p["ew"], p["num"]))
+        return _wall_array(float(p["phi_w"]), float(p["ew"]), float(p["num"]))
 
     def residual(self, x, p):
         f = self.fields(x, p)
@@ -376,6 +376,16 @@ class CompiledKernels:
 
 
 _NO_WALL = np.zeros(2)
+_NO_WALL.flags.writeable = False  # read-only like _wall_array: one numba specialization for both
+
+
+@lru_cache(maxsize=64)
+def _wall_array(phi_w: float, ew: float, num: float) -> np.ndarray:
+    """closures.wall_prefactors as a kernel argument (cached: called three times per Newton
+    iteration with the same values).  Read-only."""
+    out = np.array(wall_prefactors(phi_w, ew, num))
+    out.flags.writeable = False
+    return out
 
 
 @lru_cache(maxsize=64)
