@@ -9,6 +9,11 @@
   default point in ell (``pair<k>.ell``, ell/W observable), mu_w (``pair<k>.mu_w``, mu_w/mu
   observable) and W (``pair<k>.W``).  The reflection invariants (phi even, u - 1/2 odd) are
   recorded on every point (observables asym_phi, asym_u) and their maxima reported.
+``nonlocal-cylinder`` (cylindrical Couette flow, :mod:`cylinder`): inner wall moving, outer fixed,
+  the report's Eqs. 3.3-3.5 and boundary conditions, its fitted K = 0.63 and mu_w/mu = 0.99;
+  phi(r), u(r) continued in the radius ratio r_o/r_i at fixed gap W (``derived.ratio``), and the
+  same with the report's printed Laplacian and slip sign (``report.ratio``, ``report_eqs=1``
+  runs only that one) for comparison.
 Branch ids are deterministic (``--resume`` reuses finished branches).
 """
 
@@ -26,6 +31,8 @@ from contin.options import ContinuationOptions, StepOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 
 from .closures import CriticalState, PlaneShearAnalytic
+from .cylinder import DEFAULTS as CYL_DEFAULTS
+from .cylinder import CylindricalCouette
 from .plane import DEFAULTS as PLANE_DEFAULTS
 from .plane import PlaneShear
 
@@ -191,6 +198,55 @@ def _analytic_errors(pb: PlaneShear, branch: Branch, base: Mapping[str, float]) 
     return eu, ed
 
 
+CYL_SCENE_DEFAULTS: dict[str, Any] = {**CYL_DEFAULTS, "mu_w": CYL_DEFAULTS["mu_w"], **CS_DEFAULTS,
+                                      "ratio_min": 1.1, "ratio_max": 6.0, "report_eqs": 0.0}
+
+
+def run_cylinder(request: SceneRequest) -> SceneResult:
+    s = numbers(request, CYL_SCENE_DEFAULTS, "nonlocal-cylinder")
+    cs = critical_state(s)
+    if s["report_eqs"] not in (0.0, 1.0):
+        raise SceneError(f"report_eqs must be 0 (derived operator) or 1 (the report's printed one), got {s['report_eqs']:g}")
+    ops = ["report"] if s["report_eqs"] == 1.0 else ["derived", "report"]
+    p = {k: s[k] for k in CYL_DEFAULTS}
+    _checked(CylindricalCouette(cs=cs), p)
+    if not (1.0 < s["ratio_min"] <= s["ratio"] <= s["ratio_max"]):
+        raise SceneError(f"need 1 < ratio_min <= ratio <= ratio_max, got {s['ratio_min']:g}, {s['ratio']:g}, {s['ratio_max']:g}")
+    em = _Emitter(request)
+    notes: list[str] = []
+    extra: dict[str, Any] = {}
+    problems: dict[str, CylindricalCouette] = {}
+    for op in ops:
+        try:
+            pb = CylindricalCouette(request.method or "cheb", request.grid or 48, cs, operator=op)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+        _checked(pb, p)
+        problems[op] = pb
+        bid = f"{op}.ratio"
+        br = em.run(bid, lambda pb=pb, bid=bid: _trace(pb, p, "ratio", s["ratio_min"], s["ratio_max"], 0.02, request, bid))
+        if br.status != "EP":
+            notes.append(f"{bid}: ended {br.status}: {br.message}")
+        x = _solve(pb, p)
+        obs = pb.observables(x, p)
+        extra[op] = obs
+        changes = int(np.max(br.observables["gamma_sign_changes"]))
+        notes.append(f"{op} equations at r_o/r_i = {p['ratio']:g}, W = {p['W']:g}: P = {obs['P']:.6g}, u(r_i) = {obs['u_inner']:.6g}, "
+                     f"u(mid-gap) = {obs['u_mid']:.6g}, phi_mid = {obs['phi_mid']:.6g}"
+                     + (f"; the shear rate changes sign on part of the branch ({changes} sign changes): outside the "
+                        "model's flowing branch there" if changes else ""))
+    first = problems[ops[0]]
+    return SceneResult(
+        branches=em.done,
+        parameters=s,
+        discretization={"method": first.grid.method, "intervals": first.grid.intervals},
+        y=first.grid.y + 0.5,
+        profiles=lambda state: {"phi": np.asarray(state)[:first.n].copy(), "u": np.asarray(state)[first.n:2 * first.n].copy()},
+        notes=notes,
+        extra=extra,
+    )
+
+
 SCENES = {
     "nonlocal-shear": Scene(
         name="nonlocal-shear",
@@ -199,5 +255,13 @@ SCENES = {
         run=run_shear,
         x="ell",
         y="delta",
+    ),
+    "nonlocal-cylinder": Scene(
+        name="nonlocal-cylinder",
+        summary="Dsouza-Nott non-local model, cylindrical Couette flow (inner wall moving): phi(r), u(r) continued in r_o/r_i",
+        defaults=CYL_SCENE_DEFAULTS,
+        run=run_cylinder,
+        x="ratio",
+        y="phi",
     ),
 }
