@@ -43,7 +43,7 @@ PARAMETERS = ("W", "ell", "K", "mu_w", "mu", "phi_bar", "phi_w", "U", "dmu", "I0
 #: mu(I) scene at I -> 0 is this model), ell = 3 d_p (with which the report's printed sign puts
 #: the wall at rest at 0.93 u_w, the figure the issue quotes), phi_w = 0.56 (dilated walls).
 DEFAULTS = {"W": 40.0, "ell": 3.0, "K": 1.65, "mu_w": 0.33, "mu": 0.3618, "phi_bar": 0.585, "phi_w": 0.56,
-            "U": 0.0, "dmu": 0.3367, "I0": 0.1005, "A_phi": 0.2}
+            "U": 0.0, "dmu": 0.3367, "I0": 0.1005, "A_phi": 1.0}
 
 
 class PlaneShear:
@@ -178,8 +178,10 @@ class PlaneShear:
         phi, g, P = self.split(x)
         if not P > 0:
             return f"normal stress P = {P:.3g} <= 0"
-        if not self.cs.inside(phi):
-            return f"phi leaves (phi_min, phi_max): range [{phi.min():.4g}, {phi.max():.4g}]"
+        # phi(I) branch: Pi is not used, phi only has to stay a volume fraction below phi0 = phi_max
+        lo = self.cs.phi_min if self.phi_model == "nonlocal" else 0.0
+        if not (np.all(phi > lo) and np.all(phi < self.cs.phi_max)):
+            return f"phi leaves ({lo:g}, phi_max): range [{phi.min():.4g}, {phi.max():.4g}]"
         if not np.all(g > 0):
             return ("the shear rate changes sign (a rigid zone, outside the flowing branch the model describes, "
                     "or a wall layer of ~exp(-zeta W/2) the grid does not resolve)")
