@@ -132,8 +132,8 @@ def run_pitchfork(request: SceneRequest) -> SceneResult:
                                  for b, h in zip(base.branch_points, hcs)))
         banded = _h_options(request, 0.3 * hcs[0], hi, ds=0.01, ds_max=0.05 * hcs[0],
                             max_steps=int(s["banded_steps"]), locate_tol=1e-9)
-        for bp in base.branch_points[:modes]:
-            prefix = f"{bid}.{bp.name}"
+        for j, bp in enumerate(base.branch_points[:modes], start=1):
+            prefix = f"{bid}.n{j}"
             ids = [f"{prefix}.1", f"{prefix}.2"]
             if all(i in request.completed for i in ids):
                 kids = [request.completed[i] for i in ids]
@@ -316,13 +316,13 @@ def run_savage(request: SceneRequest) -> SceneResult:
                      f"{', '.join(f'{b.params[chr(72)]:.8g}' for b in base.branch_points) or 'none'}")
         if base.branch_points:
             bp = base.branch_points[0]
-            ids = [f"band.{bp.name}.1", f"band.{bp.name}.2"]
+            ids = ["band.n1.1", "band.n1.2"]
             if all(i in request.completed for i in ids):
                 kids = [request.completed[i] for i in ids]
             else:
                 kids = switch(pb, base, bp, _h_options(request, 0.3 * hcs[0], 2.5 * hcs[0], ds=0.01,
                                                        ds_max=0.05 * hcs[0], max_steps=60, locate_tol=1e-9),
-                              branch_id_prefix=f"band.{bp.name}")
+                              branch_id_prefix="band.n1")
             for kid in kids:
                 _emit(request, done, kid)
     else:
