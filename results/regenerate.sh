@@ -37,3 +37,10 @@ mkdir -p results/gravity
 contin unfold --grid 96 -s H_max=70 --json -o results/gravity/phase_diagram_nu0.3.png > results/gravity/unfold_nu0.3.json
 contin fit --compute results/gravity/bp_unfolding.h5
 python results/gravity/make_figures.py all
+
+# ---- nonlocal (issue 18; ~30 s): Dsouza-Nott non-local model, plane shear, cylinder, mu(I)
+mkdir -p results/nonlocal
+contin trace nonlocal-shear --no-stability --json -q -o results/nonlocal/shear.h5 > results/nonlocal/shear.json
+contin trace nonlocal-cylinder --no-stability --json -q -o results/nonlocal/cylinder.h5 > results/nonlocal/cylinder.json
+contin trace nonlocal-muI --no-stability --json -q -o results/nonlocal/muI.h5 > results/nonlocal/muI.json
+python results/nonlocal/make_figures.py

@@ -163,6 +163,17 @@ def test_coupled_problem_against_solve_bvp(K, mu_w):
     assert obs["delta"] < an.wall_layer
 
 
+def test_resolution_guard_flags_thin_layers_only():
+    p = params(K=0.95, mu_w=0.1, ell=1.0)
+    coarse, fine = PlaneShear("cheb", 32), PlaneShear("cheb", 96)
+    reason = coarse.under_resolved(solve(coarse, p), p, 3e-5)
+    assert reason is not None and "need a finer --grid than 32" in reason
+    assert fine.under_resolved(solve(fine, p), p, 3e-5) is None
+    # the shipped defaults are resolved on the scene's grid far below the guard
+    pb = PlaneShear("cheb", 48)
+    assert pb.under_resolved(solve(pb, params()), params(), 1e-10) is None
+
+
 def test_mu_I_at_zero_speed_is_the_quasi_static_model():
     pb = PlaneShear("cheb", 32)
     x0 = solve(pb, params())
