@@ -38,6 +38,13 @@ contin unfold --grid 96 -s H_max=70 --json -o results/gravity/phase_diagram_nu0.
 contin fit --compute results/gravity/bp_unfolding.h5
 python results/gravity/make_figures.py all
 
+# ---- nonlocal (issue 18; ~30 s): Dsouza-Nott non-local model, plane shear, cylinder, mu(I)
+mkdir -p results/nonlocal
+contin trace nonlocal-shear --no-stability --json -q -o results/nonlocal/shear.h5 > results/nonlocal/shear.json
+contin trace nonlocal-cylinder --no-stability --json -q -o results/nonlocal/cylinder.h5 > results/nonlocal/cylinder.json
+contin trace nonlocal-muI --no-stability --json -q -o results/nonlocal/muI.h5 > results/nonlocal/muI.json
+python results/nonlocal/make_figures.py
+
 # ---- disks (issue 17; docs/disks.md): 2-D Jenkins-Richman disks and Savage's dense closure (~10 min)
 mkdir -p results/disks
 contin trace disks-pitchfork -q --json -o results/disks/pitchfork.h5 > results/disks/pitchfork.json || [ $? -eq 3 ]  # exit 3: plugs reach phi_inf (MX)
