@@ -314,3 +314,31 @@ def test_cli_scenes_list_and_bad_input(tmp_path):
     for args, what in ((["-s", "nu=0.95"], "phi_inf"), (["-s", "e=1.5"], "outside (0, 1]"), (["-s", "corr=xx"], "pair correlation")):
         r = CliRunner().invoke(main, ["trace", "disks-pitchfork", *args, "-q", "-o", str(tmp_path / "x.h5")])
         assert r.exit_code == 1 and what in r.output and "Traceback" not in r.output
+    for args, what in ((["-s", "nu_band=0.79"], "no contact part"), (["-s", "phi_c=0.95", "-s", "nu_band=0.96"], "phi_inf")):
+        r = CliRunner().invoke(main, ["trace", "savage-rheology", *args, "-q", "-o", str(tmp_path / "y.h5")])
+        assert r.exit_code == 1 and what in r.output and "Traceback" not in r.output and r.output.count("\n") == 1
+
+
+def test_gravity_continuation_keeps_hydrostatic_balance():
+    """Continuation in G = Fr^-2 from uniform shear: d p/dy = -H^3 G nu (differentiated y-momentum),
+    constant shear stress and the mass constraint, to the grid's accuracy; the reflection maps G -> -G."""
+    pb = DiskCouetteProblem("cheb", 32, closure=DiskClosure("cs"), gravity=True)
+    p = pb.params({"nu": 0.4, "e": 0.8, "H": 10.0, "G": 0.0})
+    opts = ContinuationOptions(bounds={"G": (0.0, 2e-3)}, max_steps=40, step=StepOptions(ds=1e-2, ds_max=0.2))
+    br = trace(pb, pb.uniform_state(p), p, "G", opts, symmetric=False)
+    assert br.parameter_values[-1] == pytest.approx(2e-3)
+    x = br.states[-1]
+    q = {**p, "G": 2e-3}
+    nu, u, T, P, M = pb.unpack(x)
+    pr = pb.closure.transport(nu, T, q).p
+    grad = pb.grid.d1 @ pr + q["H"] ** 3 * q["G"] * nu
+    assert np.max(np.abs(grad)) < 1e-8 * np.max(pr)
+    S = pb.shear_stress(x, q)
+    assert np.ptp(S) < 1e-9 * abs(S[0])
+    assert pb.grid.weights @ nu == pytest.approx(0.4, abs=1e-14)
+    assert nu[0] > nu[-1] + 0.01  # denser at the bottom
+    # F(S x, -G) = S F(x, G)
+    z = x + 1e-2 * np.sin(np.arange(x.size))  # a generic state, F(z) = O(1)
+    lhs, rhs = pb.residual(pb.symmetry(z), {**q, "G": -q["G"]}), pb.symmetry(pb.residual(z, q))
+    assert np.max(np.abs(rhs)) > 1e-3
+    np.testing.assert_allclose(lhs, rhs, rtol=0, atol=1e-12 * np.max(np.abs(rhs)) * pb.n**2)

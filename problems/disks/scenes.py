@@ -245,6 +245,9 @@ def run_savage(request: SceneRequest) -> SceneResult:
     s = _settings(request, SAVAGE_DEFAULTS, "savage-rheology")
     if s["corr"] not in G_MODELS:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
+    if not s["phi_c"] < s["nu_band"]:
+        raise SceneError(f"parameter nu_band = {s['nu_band']:g} <= phi_c = {s['phi_c']:g}: the dense (contact) closure "
+                         "has no contact part there; the banding question is asked above phi_c")
     closure = DiskClosure(G=s["corr"], contact=True, normalization="esi")
     pb = _problem(request, closure, grid=32)
     p = _params(pb, {**s, "nu": s["nu_band"], "a0": s["a0_band"]})
