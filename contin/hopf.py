@@ -61,8 +61,8 @@ FD_STEP_C = 1e-4
 def hopf_test(problem: Any, detection: DetectionOptions, n: int) -> HopfTest | None:
     """The HB point test for a problem with n unknowns, or None when detection is off."""
     on = detection.detect_hopf
-    if on is None:
-        on = n <= HOPF_AUTO_MAX and not has(problem, "eigenproblem")
+    if on is None:  # augmented systems (fold / Hopf curves: ``point_tests``) are not dynamics
+        on = n <= HOPF_AUTO_MAX and not has(problem, "eigenproblem") and not has(problem, "point_tests")
     if not on:
         return None
     return HopfTest(problem, detection.hopf_dense_max, detection.hopf_eigs)

@@ -88,7 +88,8 @@ class DetectionOptions:
         J x = omega M x crossing the imaginary axis.  Needs eigenvalues at every point, so the
         default None means "on for n <= :data:`HOPF_AUTO_MAX` unknowns and problems without
         their own ``eigenproblem``" (whose stability is a family in kx, kz: locate their Hopf
-        points with ``contin.stability.locate_hopf``); True / False force it.
+        points with ``contin.stability.locate_hopf``) and that are no augmented systems (fold
+        and Hopf curves, which have ``point_tests``); True / False force it.
     hopf_eigs : eigenvalues nearest 0 computed per point when n > ``hopf_dense_max`` (shift-
         invert ARPACK); all of them (dense QZ) below.
     """

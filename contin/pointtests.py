@@ -7,8 +7,10 @@ sign), and completes the located special point (``finish``: e.g. omega and l1 of
 The tracer (``contin.continuation``) locates each zero like a fold, by re-correcting at
 intermediate arclengths (``contin.locate``), so a point test inherits the fold's accuracy.
 
-Implemented: Hopf points (``contin.hopf``, label HB) and user zeros / events
-(``contin.events``, label UZ).  :func:`point_tests` builds the list for one trace.
+Implemented: Hopf points (``contin.hopf``, label HB), user zeros / events (``contin.events``,
+label UZ), and Bogdanov-Takens points of fold and Hopf curves (``contin.hopfcurve``, label BT),
+which those augmented problems supply through an optional ``point_tests()`` method.
+:func:`point_tests` builds the list for one trace.
 """
 
 from __future__ import annotations
@@ -47,4 +49,6 @@ def point_tests(problem: Any, system: Any, options: Any, n: int) -> list[PointTe
     if hb is not None:
         out.append(hb)
     out.extend(user_tests(problem, system.parameter, options))
+    if callable(getattr(problem, "point_tests", None)):  # augmented systems bring their own (BT)
+        out.extend(problem.point_tests())
     return out

@@ -72,10 +72,10 @@ class CO:
         z = 1 - x - y - s
         q1, q2, q3, q4, q5, q6, k = (p[n] for n in self.parameter_names)
         dz = -4 * q1 * z
-        return sp.csc_matrix(np.array([
+        return np.array([  # dense: contin accepts a dense J for tiny problems (and it is faster)
             [dz - 4 * q5 * x - q3 * y, dz - q3 * x, dz],
             [-q2 - q3 * y, -q2 - q6 - q3 * x, -q2],
-            [-q4, -q4, -q4 - k * q4]]))
+            [-q4, -q4, -q4 - k * q4]])
 
     def dresidual_dp(self, u, p, name):
         return complex_step_dp(self, u, p, name)
@@ -118,3 +118,25 @@ class Brusselator1D:
 
     def trivial(self, p):
         return np.concatenate([np.full(self.n, p["alpha"]), np.full(self.n, p["beta"] / p["alpha"])])
+
+
+class BTNormalForm:
+    """Bogdanov-Takens normal form x' = y, y' = b1 + b2 x + x^2 - x y (Kuznetsov, eq. 8.49, s = -1).
+
+    Equilibria y = 0, x^2 + b2 x + b1 = 0; J = [[0, 1], [b2 + 2x, -x]].  Folds: b1 = b2^2 / 4;
+    Hopf points: x = 0, i.e. b1 = 0 with b2 < 0 and omega^2 = -b2; both curves end at the BT
+    point (b1, b2) = (0, 0), where the Hopf curve continues as neutral saddles (b2 > 0).
+    """
+
+    parameter_names = ("b1", "b2")
+
+    def residual(self, u, p):
+        x, y = u
+        return np.array([y, p["b1"] + p["b2"] * x + x * x - x * y])
+
+    def jacobian(self, u, p):
+        x, y = u
+        return np.array([[0.0, 1.0], [p["b2"] + 2 * x - y, -x]])
+
+    def dresidual_dp(self, u, p, name):
+        return np.array([0.0, 1.0]) if name == "b1" else np.array([0.0, u[0]])
