@@ -141,7 +141,7 @@ def co_hopf_reference(guess_u, guess_q2):
     def system(z):
         u, q2 = z[:3], z[3]
         p = {**par, "q2": q2}
-        j = model.jacobian(u, p).toarray()
+        j = np.asarray(model.jacobian(u, p))
         a1 = -np.trace(j)
         a2 = sum(np.linalg.det(j[np.ix_(ix, ix)]) for ix in ([0, 1], [0, 2], [1, 2]))
         a3 = -np.linalg.det(j)
@@ -150,7 +150,7 @@ def co_hopf_reference(guess_u, guess_q2):
     z, _, ok, msg = fsolve(system, np.concatenate([guess_u, [guess_q2]]), xtol=1e-14, full_output=True)
     assert ok == 1, msg
     p = {**par, "q2": z[3]}
-    j = model.jacobian(z[:3], p).toarray()
+    j = np.asarray(model.jacobian(z[:3], p))
     a2 = sum(np.linalg.det(j[np.ix_(ix, ix)]) for ix in ([0, 1], [0, 2], [1, 2]))
     return z[3], z[:3], math.sqrt(a2)
 
