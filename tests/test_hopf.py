@@ -199,3 +199,11 @@ def test_brusselator_1d_three_hopf_points(n):
     hb = br.points("HB")
     assert [sp.params["l"] for sp in hb] == pytest.approx(ref, rel=1e-10)
     assert all(sp.converged for sp in hb)
+
+
+def test_demo_models_have_exact_derivatives():
+    from contin.problem import check_jacobian
+
+    model = CO()
+    chk = check_jacobian(model, np.array([0.05, 0.3, 0.45]), {**CO.PARAMS, "q2": 1.05}, parameters=model.parameter_names)
+    assert chk.relative_error < 1e-7 and max(chk.dp_errors.values()) < 1e-7
