@@ -139,7 +139,7 @@ def resolution_guard(text: str | None) -> tuple[contextlib.AbstractContextManage
 
 def engine_option(f: Any) -> Any:
     """The ``--engine auto|numpy|numba`` option (SceneRequest.engine)."""
-    from contin.scene import ENGINES
+    from contin.engines import ENGINES  # not contin.scene: it imports numpy
 
     return click.option(
         "--engine", type=click.Choice(ENGINES), default="auto", show_default=True,
