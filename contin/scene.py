@@ -62,7 +62,7 @@ class SceneRequest:
     engine : implementation of the problem's residual and Jacobian where a problem has several
         (ENGINES: 'auto', 'numpy', 'numba'); None = the problem's default.  Scenes whose
         problems have one implementation ignore it.
-    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``,
+    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``, ``--uz``, ``--stop-at``,
         ``--max-steps``, ``--resolution-tol`` -> keys 'ds', 'ds_max', 'max_steps',
         'resolution_tol' (None: guard off)); scenes apply them with :meth:`options_for` so that
         their own defaults (bounds...) survive.  (The command line also sets resolution_tol for
@@ -100,6 +100,10 @@ class SceneRequest:
             kw["max_steps"] = int(ov["max_steps"])
         if "resolution_tol" in ov:
             kw["resolution_tol"] = ov["resolution_tol"]
+        if "user_zeros" in ov:  # --uz NAME=V1,V2 (AUTO's UZR), added to the scene's own
+            kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}
+        if "stop_at" in ov:  # --stop-at UZ1 (AUTO's UZSTOP) replaces the scene's
+            kw["stop_at"] = tuple(ov["stop_at"])
         resolved = dataclasses.replace(base, **kw)
         self._resolved.append(resolved)
         return resolved

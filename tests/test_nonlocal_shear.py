@@ -163,6 +163,17 @@ def test_coupled_problem_against_solve_bvp(K, mu_w):
     assert obs["delta"] < an.wall_layer
 
 
+def test_resolution_guard_flags_thin_layers_only():
+    p = params(K=0.95, mu_w=0.1, ell=1.0)
+    coarse, fine = PlaneShear("cheb", 32), PlaneShear("cheb", 96)
+    reason = coarse.under_resolved(solve(coarse, p), p, 3e-5)
+    assert reason is not None and "need a finer --grid than 32" in reason
+    assert fine.under_resolved(solve(fine, p), p, 3e-5) is None
+    # the shipped defaults are resolved on the scene's grid far below the guard
+    pb = PlaneShear("cheb", 48)
+    assert pb.under_resolved(solve(pb, params()), params(), 1e-10) is None
+
+
 def test_mu_I_at_zero_speed_is_the_quasi_static_model():
     pb = PlaneShear("cheb", 32)
     x0 = solve(pb, params())
@@ -199,9 +210,23 @@ def test_bad_input_is_one_error_line(settings, expect, tmp_path):
     assert res.stdout == ""
 
 
+def test_bad_input_in_a_subprocess(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("CONTIN_SCENES", "CONTIN_DEBUG")}
+    res = subprocess.run([sys.executable, "-m", "contin", "trace", "nonlocal-shear", "-s", "phi_bar=0.64", "-o",
+                          str(tmp_path / "x.h5")], capture_output=True, text=True, env=env, timeout=120)
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode == 1 and len(lines) == 1 and lines[0].startswith("Error: "), res.stderr
+    assert "phi_bar = 0.64 must lie strictly between" in lines[0] and "Traceback" not in res.stderr
+    assert res.stdout == ""
+
+
 def test_scene_runs_small(tmp_path):
     out = tmp_path / "s.h5"
-    res = run("trace", "nonlocal-shear", "--grid", "32", "-s", "ell_min=2", "-s", "ell_max=4", "-s", "W_max=48", "--no-stability",
+    res = run("trace", "nonlocal-shear", "--grid", "32", "-s", "ell_min=2", "-s", "ell_max=4", "-s", "W_min=32", "-s", "W_max=48", "--no-stability",
               "-q", "--json", "-o", str(out))
     assert res.exit_code == 0, res.stderr
     doc = json.loads(res.stdout)
@@ -212,3 +237,17 @@ def test_scene_runs_small(tmp_path):
     assert {b["id"] for b in doc["branches"]} == {"uniform.ell", "pair1.ell", "pair1.mu_w", "pair1.W",
                                                  "pair2.ell", "pair2.mu_w", "pair2.W"}
     assert all(b["status"] == "EP" for b in doc["branches"])
+
+
+@pytest.mark.slow
+def test_default_scene_reaches_every_bound(tmp_path):
+    res = run("trace", "nonlocal-shear", "--no-stability", "-q", "--json", "-o", str(tmp_path / "d.h5"))
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert all(b["status"] == "EP" for b in doc["branches"])
+    for k, (K, mu_w) in enumerate(PAIRS, start=1):
+        ex = doc["extra"][f"pair{k}"]
+        an = PlaneShearAnalytic(40.0, K, 3.0, mu_w, 0.3618)
+        assert ex["uniform_delta"] == pytest.approx(an.wall_layer, rel=1e-14)
+        assert ex["delta"] < an.wall_layer  # dilated walls sharpen the layer
+        assert ex["max_asymmetry"] < 1e-12
