@@ -60,22 +60,32 @@ def hand_written(problem: Any, depth: int, opts: ContinuationOptions) -> list[Br
     return out
 
 
+def _distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Distance of every point to the polyline ``line`` (8 points at a time: bounded memory)."""
+    if len(line) == 1:
+        return np.linalg.norm(points - line[0], axis=1)
+    a, d = line[:-1], np.diff(line, axis=0)
+    dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
+    out = []
+    for c in range(0, len(points), 8):
+        p = points[c: c + 8]
+        t = np.clip(np.einsum("psk,sk->ps", p[:, None, :] - a[None], d) / dd, 0.0, 1.0)
+        out.append(np.min(np.linalg.norm(p[:, None, :] - a[None] - t[..., None] * d[None], axis=2), axis=1))
+    return np.concatenate(out)
+
+
 def duplicates(branches: list[Branch], tol: float = 1e-3, fraction: float = 0.9) -> int:
-    """Branches of which >= fraction of the points lie within tol (RMS of the state difference,
-    plus |dlam|) of a point of another branch kept before (longest first)."""
+    """Branches of which >= fraction of the points lie within tol of the polyline of another
+    branch kept before (longest first), in (u / sqrt(n), lam) on the full states."""
+
+    def pts(b: Branch) -> np.ndarray:
+        return np.column_stack([b.states / np.sqrt(b.states.shape[1]), b.params["lam"]])
+
     order = sorted(branches, key=lambda b: -float(np.sum(b.ds)))
     kept: list[Branch] = []
     dup = 0
     for b in order:
-        same = False
-        for k in kept:
-            sq = (np.sum(b.states**2, 1)[:, None] + np.sum(k.states**2, 1)[None, :] - 2 * b.states @ k.states.T)
-            d = np.sqrt(np.maximum(sq, 0.0) / b.states.shape[1])
-            d += np.abs(b.params["lam"][:, None] - k.params["lam"][None, :])
-            if np.mean(d.min(axis=1) <= tol) >= fraction:
-                same = True
-                break
-        if same:
+        if any(np.mean(_distance(pts(b), pts(k)) <= tol) >= fraction for k in kept):
             dup += 1
         else:
             kept.append(b)

@@ -28,17 +28,28 @@ ISOLA_OPTS = ContinuationOptions(bounds={"lam": (-3.0, 3.0)}, max_steps=500, ste
 
 
 def duplicated_pairs(branches: list[Branch], tol: float = 1e-3, fraction: float = 0.9) -> list[tuple[str, str]]:
-    """Pairs (a, b) such that >= fraction of a's points lie within tol of a point of b: RMS of the
-    full state difference plus |dlam| (independent of the diagram's projected coordinates)."""
+    """Pairs (a, b) such that >= fraction of a's points lie within tol of b's polyline in
+    (u / sqrt(n), lam) (the full states: independent of the diagram's projected coordinates)."""
+
+    def pts(b: Branch) -> np.ndarray:
+        return np.column_stack([b.states / np.sqrt(b.states.shape[1]), b.params["lam"]])
+
+    def dist(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+        if len(line) == 1:
+            return np.linalg.norm(points - line[0], axis=1)
+        a, d = line[:-1], np.diff(line, axis=0)
+        dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
+        out = []
+        for c in range(0, len(points), 8):
+            p = points[c: c + 8]
+            t = np.clip(np.einsum("psk,sk->ps", p[:, None, :] - a[None], d) / dd, 0.0, 1.0)
+            out.append(np.min(np.linalg.norm(p[:, None, :] - a[None] - t[..., None] * d[None], axis=2), axis=1))
+        return np.concatenate(out)
+
     out = []
     for a in branches:
         for b in branches:
-            if a is b:
-                continue
-            sq = np.sum(a.states**2, 1)[:, None] + np.sum(b.states**2, 1)[None, :] - 2 * a.states @ b.states.T
-            d = np.sqrt(np.maximum(sq, 0.0) / a.states.shape[1])
-            d += np.abs(a.params["lam"][:, None] - b.params["lam"][None, :])
-            if np.mean(d.min(axis=1) <= tol) >= fraction:
+            if a is not b and np.mean(dist(pts(a), pts(b)) <= tol) >= fraction:
                 out.append((a.id, b.id))
     return out
 
