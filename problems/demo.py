@@ -251,6 +251,35 @@ class Isola(_Scalar):
         return np.array([d[name]])
 
 
+class DetachedIsola(_Scalar):
+    """F(x) = x ((x - 2)^2 + lam^2 - mu): the line x = 0 and the circle of radius sqrt(mu) about
+    (lam, x) = (0, 2).
+
+    For 0 < mu < 4 the two sets are disjoint and F's gradient vanishes on neither (on x = 0,
+    F_x = 4 + lam^2 - mu > 0; on the circle F_x = 2x (x - 2), F_lam = 2 lam x, not both zero),
+    so the circle is an isola with folds at lam = +-sqrt(mu), x = 2, unreachable from x = 0 by
+    continuation or switching.  For mu > 4 the circle crosses x = 0 transversally at
+    lam = +-sqrt(mu - 4) (two simple BPs of the line; at mu = 4 it touches it), so a homotopy in
+    mu from a state of the circle switched there reaches the isola -- the route by which
+    isolas of imperfect bifurcations are found (Golubitsky & Schaeffer, Singularities and
+    Groups in Bifurcation Theory I, 1985, ch. III: the isola centre x^2 + lam^2 - mu).
+    """
+
+    parameter_names = ("lam", "mu")
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        x = u[0]
+        return np.array([x * ((x - 2) ** 2 + p["lam"] ** 2 - p["mu"])])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        x = u[0]
+        return self._j((x - 2) ** 2 + p["lam"] ** 2 - p["mu"] + 2 * x * (x - 2))
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        x = u[0]
+        return np.array([{"lam": 2 * p["lam"] * x, "mu": -x}[name]])
+
+
 class Lorenz:
     """x' = sigma (y - x), y' = rho x - y - x z, z' = x y - beta z (parameters sigma, rho, beta)."""
 
