@@ -168,7 +168,9 @@ class _Tracer:
                     if not corr.converged or sys.admissible(corr.x) is not None:
                         return None
                     pt = self.finish_point(corr, a.t)
-                    return Sample(s, g_of(pt.tests), pt)
+                    g = g_of(pt.tests)
+                    # a test function that cannot be evaluated there (NaN) counts as a failed trial
+                    return Sample(s, g, pt) if math.isfinite(g) else None
 
                 tol = det.locate_tol * max(1.0, abs(b.x[-1]))
                 res = locate_zero(evaluate, sa, sb, tol=tol, max_iterations=det.max_bisections)

@@ -36,6 +36,7 @@ Reported numbers
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, replace
 from typing import Any
@@ -50,6 +51,7 @@ from contin.pointtests import Crossing
 from contin.problem import Array, has
 
 CArray = np.ndarray
+log = logging.getLogger("contin")
 
 #: Relative imaginary part below which an eigenvalue counts as real.
 REAL_TOL = 1e-10
@@ -128,7 +130,9 @@ class HopfTest:
         a, b = pencil(self.problem, x[:-1], system.params_at(x[-1]))
         try:
             return complex_eigenvalues(a, b, self.dense_max, self.k)
-        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError, ValueError):
+        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError, ValueError) as exc:
+            # no eigenvalues here: no Hopf point can be bracketed by this point (logged, not hidden)
+            log.warning("Hopf test: eigenvalues failed at %s=%g: %s", system.parameter, x[-1], exc)
             return np.zeros(0, dtype=complex)
 
     def crossings(self, va: CArray, vb: CArray) -> list[Crossing]:
