@@ -30,6 +30,7 @@ sparsity pattern; it is cached per pattern, so a Newton loop pays it once.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -170,53 +171,54 @@ class BandedBorderedLU:
     """Block-elimination LU of a banded-plus-border matrix (module docstring).  Same interface
     as the factorizations of ``contin.linalg`` (solve, size, det_sign_log)."""
 
-    def __init__(self, a: sp.csc_matrix, s: BandedStructure, lu: Array, ipiv: Array,
-                 c: Array, r: Array, binv_c: Array, schur: tuple[Array, Array] | None) -> None:
-        self.a, self.s, self.lu, self.ipiv = a, s, lu, ipiv
-        self.c, self.r, self.binv_c, self.schur = c, r, binv_c, schur
+    def __init__(self, matvec: Callable[[Array, str], Array], s: BandedStructure, row_order: Array, col_order: Array,
+                 lu: Array, ipiv: Array, r: Array, binv_c: Array, schur: tuple[Array, Array] | None) -> None:
+        self.matvec = matvec  # x, trans -> A x or A^T x (for refinement and the self-check)
+        self.s, self.row_order, self.col_order = s, row_order, col_order
+        self.lu, self.ipiv, self.r, self.binv_c, self.schur = lu, ipiv, r, binv_c, schur
+        self.refine = True
         self._det: tuple[float, float] | None = None
 
     @property
     def size(self) -> int:
-        return self.s.n
+        return int(self.row_order.size)
 
     def _band_solve(self, rhs: Array, trans: int) -> Array:
         x, info = _gbtrs(self.lu, self.s.kl, self.s.ku, rhs, self.ipiv, trans=trans)
         return np.asarray(x)
 
     def _solve_once(self, rhs: Array, trans: str) -> Array:
-        s = self.s
-        m, k = s.m, s.k
+        m = self.s.m
+        k = self.size - m
         b = np.asarray(rhs, dtype=float)
         one = b.ndim == 1
         b2 = b[:, None] if one else b
         out = np.empty_like(b2)
         if trans == "N":
-            bp = b2[s.row_order]
+            bp = b2[self.row_order]
             y = self._band_solve(np.asfortranarray(bp[:m]), 0)
             if k:
-                x2, _ = _getrs(self.schur[0], self.schur[1], bp[m:] - self.r @ y, trans=0)
-                y = y - self.binv_c @ x2
-                xp = np.vstack([y, x2])
+                x2, _ = _getrs(self.schur[0], self.schur[1], bp[m:] - self.r @ y, trans=0)  # type: ignore[index]
+                out[self.col_order] = np.vstack([y - self.binv_c @ x2, x2])
             else:
-                xp = y
-            out[s.col_order] = xp
+                out[self.col_order] = y
         else:
-            bp = b2[s.col_order]
+            bp = b2[self.col_order]
             if k:
-                z2, _ = _getrs(self.schur[0], self.schur[1], bp[m:] - self.binv_c.T @ bp[:m], trans=1)
+                z2, _ = _getrs(self.schur[0], self.schur[1], bp[m:] - self.binv_c.T @ bp[:m], trans=1)  # type: ignore[index]
                 z1 = self._band_solve(np.asfortranarray(bp[:m] - self.r.T @ z2), 1)
-                zp = np.vstack([z1, z2])
+                out[self.row_order] = np.vstack([z1, z2])
             else:
-                zp = self._band_solve(np.asfortranarray(bp[:m]), 1)
-            out[s.row_order] = zp
+                out[self.row_order] = self._band_solve(np.asfortranarray(bp[:m]), 1)
         return out[:, 0] if one else out
 
     def solve(self, rhs: Array, trans: str = "N") -> Array:
-        """Solve A x = rhs (``trans='T'``: A^T x = rhs), with one step of iterative refinement."""
+        """Solve A x = rhs (``trans='T'``: A^T x = rhs), with one step of iterative refinement
+        where the self-check found block elimination alone not backward stable."""
         x = self._solve_once(rhs, trans)
-        op = self.a if trans == "N" else self.a.T
-        return x + self._solve_once(np.asarray(rhs, dtype=float) - op @ x, trans)
+        if not self.refine:
+            return x
+        return x + self._solve_once(np.asarray(rhs, dtype=float) - self.matvec(x, trans), trans)
 
     def det_sign_log(self) -> tuple[float, float]:
         """(sign det A, log |det A|): det B from the band LU's diagonal and row interchanges,
@@ -230,17 +232,21 @@ class BandedBorderedLU:
                 logabs = float(np.sum(np.log(np.abs(diag))))
             if self.schur is not None:
                 sd = self.schur[0].diagonal()
-                sign *= float(np.prod(np.sign(sd))) * (-1 if np.count_nonzero(self.schur[1] != np.arange(s.k)) % 2 else 1)
+                swaps = int(np.count_nonzero(self.schur[1] != np.arange(sd.size)))
+                sign *= float(np.prod(np.sign(sd))) * (-1 if swaps % 2 else 1)
                 with np.errstate(divide="ignore"):
                     logabs += float(np.sum(np.log(np.abs(sd))))
             self._det = (sign, logabs)
         return self._det
 
 
-def factorize_banded(a: object, structure: BandedStructure | None = None) -> BandedBorderedLU | None:
-    """Banded-plus-border LU of the square sparse matrix ``a``; None when ``a`` has no such
-    structure, B or S is exactly singular, or the checked solve misses :data:`CHECK_TOL`
-    (the caller then uses a general sparse LU)."""
+def factorize_banded(a: object, structure: BandedStructure | None = None,
+                     border: tuple[Array, Array] | None = None) -> BandedBorderedLU | None:
+    """Banded-plus-border LU of the square sparse matrix ``a`` or, with ``border = (column,
+    row)``, of the bordered matrix [[a, column], [row[:n], row[n]]] (the continuation border
+    joins the dense border of ``a``; its pattern need not be analysed again).  None when ``a``
+    has no such structure, B or S is exactly singular, or the checked solve misses
+    :data:`CHECK_TOL` even with refinement (the caller then uses a general sparse LU)."""
     a = canonical_csc(a)
     s = structure if structure is not None else structure_of(a)
     if s is None:
@@ -252,36 +258,56 @@ def factorize_banded(a: object, structure: BandedStructure | None = None) -> Ban
     lu, ipiv, info = _gbtrf(ab, s.kl, s.ku, overwrite_ab=1)
     if info != 0:
         return None
-    k = s.k
-    if k:
-        c = np.zeros(s.m * k)
-        c[s.c_dst] = data[s.c_src]
-        c = c.reshape((s.m, k), order="F")
-        r = np.zeros(k * s.m)
-        r[s.r_dst] = data[s.r_src]
-        r = r.reshape((k, s.m), order="F")
-        d = np.zeros(k * k)
-        d[s.d_dst] = data[s.d_src]
-        d = d.reshape((k, k), order="F")
-        binv_c, _ = _gbtrs(lu, s.kl, s.ku, c, ipiv)
+    m, k = s.m, s.k
+    c = np.zeros(m * k)
+    c[s.c_dst] = data[s.c_src]
+    c = c.reshape((m, k), order="F")
+    r = np.zeros(k * m)
+    r[s.r_dst] = data[s.r_src]
+    r = r.reshape((k, m), order="F")
+    d = np.zeros(k * k)
+    d[s.d_dst] = data[s.d_src]
+    d = d.reshape((k, k), order="F")
+    row_order, col_order = s.row_order, s.col_order
+    if border is None:
+        def matvec(x: Array, trans: str) -> Array:
+            return a @ x if trans == "N" else a.T @ x  # type: ignore[no-any-return]
+
+        norm_rows = np.bincount(a.indices, weights=np.abs(data), minlength=s.n)
+    else:
+        column = np.asarray(border[0], dtype=float)
+        row = np.asarray(border[1], dtype=float)
+        n = s.n
+        c = np.column_stack([c, column[row_order[:m]]])
+        r = np.vstack([r, row[col_order[:m]]])
+        d = np.block([[d, column[row_order[m:]][:, None]], [row[col_order[m:]][None, :], row[n:]]])
+        row_order = np.append(row_order, n)  # the border is a fixed point: parity unchanged
+        col_order = np.append(col_order, n)
+
+        def matvec(x: Array, trans: str) -> Array:
+            if trans == "N":
+                return np.append(a @ x[:n] + column * x[n], row @ x)
+            return np.append(a.T @ x[:n] + row[:n] * x[n], column @ x[:n] + row[n] * x[n])
+
+        norm_rows = np.append(np.bincount(a.indices, weights=np.abs(data), minlength=n) + np.abs(column),
+                              np.abs(row).sum())
+    schur: tuple[Array, Array] | None = None
+    binv_c = np.zeros((m, 0))
+    if c.shape[1]:
+        binv_c, _ = _gbtrs(lu, s.kl, s.ku, np.asfortranarray(c), ipiv)
         slu, spiv, sinfo = _getrf(np.asfortranarray(d - r @ binv_c), overwrite_a=1)
         if sinfo != 0:
             return None
-        schur: tuple[Array, Array] | None = (slu, spiv)
-    else:
-        c = binv_c = np.zeros((s.m, 0))
-        r = np.zeros((0, s.m))
-        schur = None
-    fact = BandedBorderedLU(a, s, lu, ipiv, c, r, binv_c, schur)
-    # one checked solve: block elimination can lose accuracy where B alone is ill conditioned
-    rhs = np.random.default_rng(12345).standard_normal(s.n)
-    x = fact.solve(rhs)
-    scale = _inf_norm(a) * np.max(np.abs(x)) + np.max(np.abs(rhs))
-    backward = np.max(np.abs(rhs - a @ x)) / scale
-    if not (math.isfinite(backward) and backward <= CHECK_TOL):
-        return None
-    return fact
-
-
-def _inf_norm(a: sp.csc_matrix) -> float:
-    return float(np.max(np.bincount(a.indices, weights=np.abs(a.data), minlength=a.shape[0]), initial=0.0))
+        schur = (slu, spiv)
+    fact = BandedBorderedLU(matvec, s, row_order, col_order, lu, ipiv, r, binv_c, schur)
+    # Self-check on one random right-hand side: block elimination loses backward stability
+    # where B alone is ill conditioned; one refinement step then restores it (else: None).
+    rhs = np.random.default_rng(12345).standard_normal(fact.size)
+    norm_a = float(np.max(norm_rows, initial=0.0))
+    for refine in (False, True):
+        fact.refine = refine
+        x = fact.solve(rhs)
+        backward = np.max(np.abs(rhs - matvec(x, "N"))) / (norm_a * np.max(np.abs(x)) + np.max(np.abs(rhs)))
+        if math.isfinite(backward) and backward <= CHECK_TOL:
+            return fact
+    return None

@@ -234,6 +234,14 @@ def factorize_bordered(jac: object, column: Array, row: Array) -> Factorization 
     """
     if not sp.issparse(jac):
         return _dense_lu(bordered_dense(jac, column, row))
+    n = jac.shape[0]  # type: ignore[attr-defined]
+    if n + 1 >= BANDED_MIN:
+        csc = canonical_csc(jac)
+        s = structure_of(csc)
+        if s is not None:  # J banded plus border: the continuation border joins J's border
+            fact = factorize_banded(csc, s, border=(column, row))
+            if fact is not None:
+                return fact  # type: ignore[return-value]
     return factorize(bordered(jac, column, row))
 
 
