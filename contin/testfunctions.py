@@ -19,8 +19,8 @@ import functools
 import logging
 import math
 import weakref
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -41,11 +41,13 @@ SignLog = tuple[float, float]
 
 @dataclass(frozen=True)
 class TestValues:
-    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q)."""
+    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q);
+    ``extra`` holds the values of the tracer's point tests (``contin.pointtests``) by name."""
 
     fold: float
     bp: SignLog
     anti: SignLog | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def symmetric_bp(self) -> SignLog:
