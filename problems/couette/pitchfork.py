@@ -67,6 +67,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
+from contin.blas import limited
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, switch, trace, trace_both
 from contin.options import ContinuationOptions, NewtonOptions
@@ -471,13 +472,31 @@ class StabilityOperator:
         nu, u, T, _, _ = pb.unpack(np.asarray(x, dtype=float))
         grid, nu, u, T = to_chebyshev(pb.grid, nu, u, T)
         A, B = linear_operator(grid, nu, u, T, p, walls=pb.walls, kx=kx, kz=kz, chi=pb.chi, dufour=pb.dufour,
-                               gravity=False)
+                               gravity=False, dense=True)
         if kx == 0.0 and kz == 0.0:
             n = grid.size
             keep = np.r_[0:3 * n, 4 * n:5 * n]
-            A = sp.csr_matrix(A)[keep][:, keep]
-            B = sp.csr_matrix(B)[keep][:, keep]
+            A = A[np.ix_(keep, keep)]
+            B = B[np.ix_(keep, keep)]
         return A, B
+
+    def spectrum(self, x: Array, p: Mapping[str, float], kx: float = 0.0) -> np.ndarray:
+        """All finite eigenvalues at wavenumber k_x (k_z = 0), real part descending.
+
+        k_x = 0: ``linear.k0_spectrum`` (the constrained Schur form, split into S-even and S-odd
+        halves on symmetric states); otherwise, or if its boundary block is singular,
+        :func:`finite_eigenvalues` of :meth:`eigenproblem`.
+        """
+        if kx == 0.0:
+            from problems.couette.linear import k0_spectrum, to_chebyshev
+
+            pb = self.problem
+            nu, u, T, _, _ = pb.unpack(np.asarray(x, dtype=float))
+            grid, nu, u, T = to_chebyshev(pb.grid, nu, u, T)
+            w = k0_spectrum(grid, nu, u, T, p, walls=pb.walls, chi=pb.chi, dufour=pb.dufour, gravity=False)
+            if w is not None:
+                return w
+        return finite_eigenvalues(*self.eigenproblem(x, p, kx=kx))
 
 
 def finite_eigenvalues(A: Any, B: Any) -> np.ndarray:
@@ -515,7 +534,7 @@ def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx:
     for i in range(s):
         p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
         try:
-            w = finite_eigenvalues(*op.eigenproblem(branch.states[i], p, kx=kx))
+            w = op.spectrum(branch.states[i], p, kx=kx)
         except (np.linalg.LinAlgError, ValueError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
             continue
@@ -525,6 +544,7 @@ def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx:
     return stable, n_unstable, eigs
 
 
+@limited()  # small dense eigenproblems: one BLAS thread (contin.blas)
 def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], *, n_eigs: int = 6) -> list[str]:
     """k_x = k_z = 0 stability of every stored point, then ``contin.stability.audit``.
 
@@ -557,6 +577,7 @@ def audit_branch(branch: Branch) -> list[str]:
     return audit(branch)
 
 
+@limited()
 def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list]:
     """max Re omega and the unstable count at wavenumber k_x (k_z = 0) at every stored point."""
     _, counts, eigs = _stability_columns(StabilityOperator(problem), branch, params, kx, 1)
