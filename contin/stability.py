@@ -385,6 +385,8 @@ def audit(branch: Branch) -> list[str]:
     for spt in branch.special_points:
         if spt.type not in ("BP", "LP", "HB"):
             continue
+        if spt.type == "HB" and (spt.data.get("kx", 0.0), spt.data.get("kz", 0.0)) != (branch.stability_k or (0.0, 0.0)):
+            continue  # a Hopf point of another wavenumber's stability problem
         i = spt.index
         p_sp = spt.params.get(par, np.nan)
         candidates = [i]
