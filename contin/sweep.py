@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from contin.atomic import publish
+from contin.atomic import OutputLock, publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
 from contin.options import check_resolution_tol, resolution_override
@@ -653,8 +653,47 @@ def run_sweep(
         taskdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SweepError(f"cannot create the output directory {str(out)!r}: {exc.strerror or exc}") from None
+    # One sweep per directory: a second one would delete the first one's partial files (below)
+    # and race it for the summary (tasks were lost with raw FileNotFoundError/BlockingIOError).
+    lock = OutputLock(out, directory=True).acquire()
+    try:
+        return _run_sweep_locked(spec, out, taskdir, executor, jobs, progress, retry_failed)
+    finally:
+        lock.release()
+
+
+def _die_with_parent(parent: int) -> None:
+    """Worker initializer: end this worker when the sweep's parent process dies.
+
+    Without it a killed ``contin sweep`` left its workers (and the resource tracker, which exits
+    when they do) computing as orphans.  Linux: PR_SET_PDEATHSIG sends SIGKILL at once; elsewhere
+    (and as a fallback) a watchdog thread checks every second whether the parent changed.
+    """
+    import signal
+    import threading
+
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="contin-parent-watch", daemon=True).start()
+
+
+def _run_sweep_locked(spec: SweepSpec, out: Path, taskdir: Path, executor: Executor | None, jobs: int | None,
+                      progress: Callable[[str], None] | None, retry_failed: bool) -> SweepSummary:
     for stale in itertools.chain(taskdir.glob("*.h5.part"), taskdir.glob("*.tmp")):
-        stale.unlink(missing_ok=True)  # left by a killed task; the single parent owns the directory
+        stale.unlink(missing_ok=True)  # left by a killed task; the single parent owns the directory (locked)
 
     def say(line: str) -> None:
         if progress is not None:
@@ -675,6 +714,14 @@ def run_sweep(
     summary = SweepSummary(spec, out, [])
 
     def finish() -> SweepSummary:
+        # A task whose worker finished its file but whose result was not collected yet (Ctrl-C)
+        # is done: the summary must match the task files (it said ok = 1, pending = 7 with 4 files).
+        for t in tasks:
+            if t.index not in records:
+                doc = read_task_file(out / t.file)
+                if doc is not None:
+                    records[t.index] = TaskRecord(t.index, t.key, t.swept, doc["status"], doc.get("reason", ""),
+                                                  file=t.file, result=doc)
         summary.records = [records.get(t.index) or TaskRecord(t.index, t.key, t.swept, "pending", "sweep interrupted")
                            for t in tasks]
         write_summary(summary)
@@ -689,7 +736,8 @@ def run_sweep(
         with env:
             if own:
                 executor = ProcessPoolExecutor(max_workers=min(jobs or os.cpu_count() or 1, len(todo)),
-                                               mp_context=multiprocessing.get_context("spawn"))
+                                               mp_context=multiprocessing.get_context("spawn"),
+                                               initializer=_die_with_parent, initargs=(os.getpid(),))
             assert executor is not None
             for task in todo:
                 futures[executor.submit(run_task, spec.scene, task.params, spec.options, str(out / task.file))] = task

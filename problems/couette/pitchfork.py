@@ -358,10 +358,11 @@ def isolated_symmetric_branch(problem: CouetteProblem, base: Branch, params: Map
 
 
 def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, params: Mapping[str, float],
-                    options: ContinuationOptions, prefix: str) -> list[Branch]:
+                    options: ContinuationOptions, prefix: str, *, first: Branch | None = None) -> list[Branch]:
     """Both signs of the branch bifurcating at ``bp``: ids f"{prefix}.1" and f"{prefix}.2".
 
-    The first is traced by :func:`contin.continuation.switch`; the second is its mirror image
+    The first is traced by :func:`contin.continuation.switch` (or is ``first``, a finished branch
+    of an interrupted run: ``--resume`` must not retrace it); the second is its mirror image
     when the first is not S-invariant (symmetry-breaking BPs), otherwise it is traced too
     (S-invariant branches, e.g. mode 2, whose two signs are different states).
     """
@@ -378,7 +379,7 @@ def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, par
         return retrace_on_jumps(run, options, what=f"branch from {bp.name}", unconverged_bp=False,
                                 jumped=lambda b: first_point_on(problem, base, b, params, start=2))
 
-    b1 = switched(+1)
+    b1 = first if first is not None else switched(+1)
     b1.id = f"{prefix}.1"
     if _is_invariant(problem, b1):
         b2 = switched(-1)

@@ -238,6 +238,10 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     else:
         request.report(f"{scene}: tracing the base branch in H from {H_start:.4g} to {H_max:.4g}")
         base = pf.trace_base(pb, p, H_start, base_opts, progress=request.report)
+    if len(base) == 0:  # say the real cause in one line (it used to surface as "Error: phi")
+        raise SceneError(f"{scene}: the base branch could not start: {base.message}"
+                         + ("; phi_w = 0 (specular walls) transmits no shear, use phi_w > 0"
+                            if jj and p["phi_w"] == 0 else ""))
     named = st["walls"] == "noslip" and math.isfinite(hc1)
     if named:
         pf.name_modes(base, hc1)
@@ -274,12 +278,15 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         pair = run.cached(*ids)
         if pair is None:
             request.report(f"{scene}: switching at {bp.name} (H = {bp.params['H']:.6g})")
+            first = run.cached(ids[0])  # resume reuses each finished branch, not only whole pairs
             try:
-                pair = pf.banded_branches(pb, base, bp, p, band_opts, prefix=f"n{k}")
+                pair = pf.banded_branches(pb, base, bp, p, band_opts, prefix=f"n{k}", first=first[0] if first else None)
             except ValueError as exc:
                 run.notes.append(f"switching at BP H = {bp.params['H']:.6g} failed: {exc}")
                 continue
             for b in pair:
+                if b.id in request.completed:
+                    continue
                 b.kind = f"banded n={k}" if st["walls"] == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
                 if b.message.startswith("mirror image"):
                     continue
