@@ -132,7 +132,13 @@ class OutputLock:
         if key in OutputLock._held:
             return OutputLock._held[key]
         while True:
-            fd = os.open(self.lockfile, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+            try:
+                fd = os.open(self.lockfile, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+            except OSError as exc:
+                if exc.errno in _FULL:
+                    raise OSError(exc.errno, disk_full_message(self.target, exc)) from None
+                raise OSError(exc.errno, f"cannot create the lock file {str(self.lockfile)!r}: "
+                                         f"{exc.strerror or exc}") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:

@@ -279,10 +279,18 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
-    if "ds" in options and options["ds"] == 0:
-        raise SweepError(f"option 'ds'{where} must be non-zero")
-    if "ds_max" in options and not options["ds_max"] > 0:
-        raise SweepError(f"option 'ds_max'{where} must be > 0, got {options['ds_max']}")
+    if "ds" in options and not (options["ds"] != 0 and math.isfinite(options["ds"])):
+        raise SweepError(f"option 'ds'{where} must be a finite non-zero number, got {options['ds']}")
+    if "ds_max" in options and not (options["ds_max"] > 0 and math.isfinite(options["ds_max"])):
+        raise SweepError(f"option 'ds_max'{where} must be a finite number > 0, got {options['ds_max']}")
+    from contin.limits import MAX_ABS_KX, MAX_GRID, MAX_STEPS, MAX_TRACE_KX  # the command line's limits
+
+    for key, most in (("grid", MAX_GRID), ("max_steps", MAX_STEPS)):
+        if key in options and options[key] > most:
+            raise SweepError(f"option {key!r}{where} must be at most {most}, got {options[key]}")
+    kx = options.get("kx", [])
+    if len(kx) > MAX_TRACE_KX or not all(math.isfinite(k) and abs(k) <= MAX_ABS_KX for k in kx):
+        raise SweepError(f"option 'kx'{where} must hold at most {MAX_TRACE_KX} finite numbers with |kx| <= {MAX_ABS_KX:g}")
     description = head.get("description", "")
     if not isinstance(description, str):
         raise SweepError(f"description{where} must be a string")
@@ -756,6 +764,13 @@ def _run_sweep_locked(spec: SweepSpec, out: Path, taskdir: Path, executor: Execu
     except BaseException:
         for fut in futures:
             fut.cancel()
+        if own and executor is not None:
+            # Stop our workers before the summary is written: a task still running would publish
+            # its file after it, and the summary would not match the task files.
+            for proc in list(getattr(executor, "_processes", {}).values()):
+                proc.terminate()
+            executor.shutdown(wait=True, cancel_futures=True)
+            executor = None
         finish()  # record what is done; unfinished tasks are 'pending' and rerun on resume
         raise
     finally:

@@ -80,3 +80,28 @@ def test_pitchfork_H_max_1000_starts_below_H1c_and_says_which_modes_are_missing(
     assert note.startswith(f"{len(missing)} of the {len(expected)} modes")
     shown = [int(m) for m in re.findall(r"(\d+) \(H = ", note)]
     assert shown == sorted(missing)[:12]
+
+
+def test_resume_reuses_each_finished_branch_not_only_pairs(monkeypatch):
+    """A kill between n2.1 and n2.2 must not retrace n2.1 (README: at most the branch in progress is lost)."""
+    from problems.couette import pitchfork as pf
+
+    req = dict(params={"nu": 0.3, "e": 0.8, "H_max": 30.0, "modes": 2}, grid=32, stability=False)
+    full = get_scene("pitchfork").run(SceneRequest(**req))
+    by_id = {b.id: b for b in full.branches}
+    assert {"0", "n1.1", "n1.2", "n2.1", "n2.2"} <= set(by_id)
+    calls = []
+    real = pf.switch
+
+    def counting(problem, base, bp, options, directions=(1,), **kw):
+        calls.append(tuple(directions))
+        return real(problem, base, bp, options, directions=directions, **kw)
+
+    monkeypatch.setattr(pf, "switch", counting)
+    done = {k: by_id[k] for k in ("0", "n1.1", "n1.2", "n2.1")}  # killed while tracing n2.2
+    again = get_scene("pitchfork").run(SceneRequest(**req, completed=done))
+    assert calls == [(-1,)]  # only n2.2 (mode 2 is S-invariant: its second sign is traced, not mirrored)
+    out = {b.id: b for b in again.branches}
+    for k in done:
+        assert out[k] is done[k]
+    np.testing.assert_allclose(out["n2.2"].parameter_values, by_id["n2.2"].parameter_values, rtol=1e-10)

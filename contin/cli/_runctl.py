@@ -27,15 +27,8 @@ from pathlib import Path
 
 import click
 
-#: largest number of grid intervals a command accepts (dense eigenproblems of ~5 N unknowns)
-MAX_GRID = 4096
-#: largest number of continuation steps per branch
-MAX_STEPS = 1_000_000
-#: largest |k_x| accepted, and most wavenumbers in one list or range
-MAX_ABS_KX = 1e4
-MAX_KX = 10_000
-#: most extra wavenumbers of ``trace --kx`` (each one is a stability pass over every branch)
-MAX_TRACE_KX = 32
+from contin.limits import MAX_ABS_KX, MAX_GRID, MAX_KX, MAX_STEPS, MAX_TRACE_KX  # noqa: F401 (re-exported)
+
 #: seconds between heartbeat lines on a non-terminal stderr
 HEARTBEAT = 5.0
 #: exit code of a run stopped by SIGTERM

@@ -230,6 +230,11 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     if request.stability:
         _stability_after_run(sc, request, result, progress, quiet)
     progress.close()
+    missing_kx = [f"{k:g}" for k in kx_values if k != 0 and request.stability
+                  and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
+    if missing_kx:  # never a silent no-op: the README promises a column per --kx value
+        echo_err(f"warning: --kx {','.join(missing_kx)} ignored: scene {scene!r} computed no stability "
+                 f"(no growth_rate_kx column was stored)")
 
     if step_overrides and not request.resolved_options:
         echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps; they were ignored")

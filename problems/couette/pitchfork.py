@@ -93,9 +93,10 @@ BASE_RETRACES = 4
 
 
 # ----------------------------------------------------------------------------- analytic facts
-def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65) -> list[float]:
-    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4); nan where psi is not finite."""
-    psi = float(critical_gap_factor(nu, e, chi, num))
+def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65,
+                           dufour: bool = False) -> list[float]:
+    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4; ``dufour``: with the kappa_h flux); nan where psi is not finite."""
+    psi = float(critical_gap_factor(nu, e, chi, num, dufour=dufour))
     return [n * math.pi * psi for n in range(1, modes + 1)]
 
 

@@ -53,7 +53,7 @@ from problems.couette.params import build_params
 
 PITCHFORK_DEFAULTS: dict[str, Any] = {
     "nu": 0.3, "e": 0.8, "H": "auto", "H_max": "auto", "modes": 3, "walls": "noslip", "chi": "jj",
-    "num": 0.65, "phi_w": 0.5, "ew": 0.9,
+    "num": 0.65, "phi_w": 0.5, "ew": 0.9, "dufour": 0,
 }
 JJ_DEFAULTS: dict[str, Any] = {**PITCHFORK_DEFAULTS, "walls": "jj"}
 #: ds_max of the JJ branches as a fraction of H_max: at nu = 0.3, e = 0.8 steps of ~4 in H jump
@@ -111,6 +111,11 @@ def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) ->
     if modes != int(modes) or not 1 <= modes <= 6:
         raise SceneError(f"parameter modes = {values['modes']!r} is out of range; it must be an integer 1..6")
     out["modes"] = int(modes)
+    dufour = values["dufour"]
+    if dufour not in (0, 1, 0.0, 1.0, "on", "off"):
+        raise SceneError(f"parameter dufour = {dufour!r} must be 0 (off, the default) or 1 (the Dufour heat flux "
+                         f"-kappa_h grad(nu) on)")
+    out["dufour"] = dufour in (1, 1.0, "on")
     return p, out
 
 
@@ -118,13 +123,14 @@ def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, 
     """Rebuild the gravity-free problem of a stored run (``contin stability`` uses it)."""
     return CouetteProblem(str(discretization.get("method", "cheb")), int(discretization.get("intervals", 64)),
                           walls=str(parameters.get("walls", "noslip")), chi=str(parameters.get("chi", "jj")),
+                          dufour=bool(parameters.get("dufour", False)),
                           engine=rebuilt_engine(discretization.get("engine")))
 
 
-def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64) -> CouetteProblem:
+def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64, dufour: bool = False) -> CouetteProblem:
     try:
         return CouetteProblem(request.method or "cheb", request.grid or default_grid, walls=walls, chi=chi,
-                              engine=request.engine or "numpy")
+                              dufour=dufour, engine=request.engine or "numpy")
     except ValueError as exc:
         raise SceneError(str(exc)) from None
 
@@ -182,6 +188,11 @@ class _Run:
                 cached = self.kx_extra.get(src.id, {}).get(key)
                 data = cached if cached is not None else pf.growth_rates(pb, src, self.params, kx)
                 self.kx_extra.setdefault(branch.id, {})[key] = data
+                # Also as observable columns, as contin.stability.growth_columns gives every other
+                # scene: `contin diagram -y growth_rate_kx0.5` (nan where the eigenproblem failed).
+                counts = np.asarray(data["n_unstable"], dtype=float)
+                branch.observables[f"growth_rate_kx{key}"] = np.asarray(data["growth_rate"], dtype=float)
+                branch.observables[f"n_unstable_kx{key}"] = np.where(counts < 0, np.nan, counts)
         if branch.status == "MX" and not branch.message.startswith("mirror image"):
             self.notes.append(f"branch {branch.id} stopped (MX): {branch.message}")
         self.done.append(branch)
@@ -201,10 +212,10 @@ def _h_max(settings: Mapping[str, Any], hc1: float) -> float:
 def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK_DEFAULTS,
                   scene: str = "pitchfork") -> SceneResult:
     p, st = _settings(request, defaults, scene)
-    pb = _problem(request, st["walls"], st["chi"])
+    pb = _problem(request, st["walls"], st["chi"], dufour=st["dufour"])
     nu, e = p["nu"], p["e"]
     modes = st["modes"]
-    analytic = pf.analytic_critical_gaps(nu, e, modes, chi=st["chi"], num=p["num"])
+    analytic = pf.analytic_critical_gaps(nu, e, modes, chi=st["chi"], num=p["num"], dufour=st["dufour"])
     hc1 = analytic[0]
     H_max = _h_max(st, hc1)
     low_density = st["walls"] == "noslip" and not math.isfinite(hc1)
@@ -348,7 +359,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         branches=run.done,
         parameters={**{k: p[k] for k in ("nu", "e", "num")}, **({"phi_w": p["phi_w"], "ew": p["ew"]} if st["walls"] == "jj" else {}),
                     "H": H_fixed if low_density else H_start, "H_max": H_max, "modes": modes,
-                    "walls": st["walls"], "chi": st["chi"]},
+                    "walls": st["walls"], "chi": st["chi"], "dufour": int(st["dufour"])},
         discretization={"method": pb.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
         profiles=lambda state: {k: v for k, v in pb.profiles(np.asarray(state)).items() if k in ("nu", "u", "T")},
