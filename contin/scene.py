@@ -37,9 +37,8 @@ from contin.branch import Branch
 from contin.options import ContinuationOptions
 
 
-#: Values of SceneRequest.engine (the CLI's --engine): 'auto' lets the problem pick its fastest
-#: available implementation, 'numpy' and 'numba' ask for one (an error where it cannot run).
-ENGINES = ("auto", "numpy", "numba")
+#: Values of SceneRequest.engine (the CLI's --engine), see :mod:`contin.engines`.
+from contin.engines import ENGINES  # noqa: E402
 
 
 class SceneError(ValueError):
@@ -63,7 +62,7 @@ class SceneRequest:
     engine : implementation of the problem's residual and Jacobian where a problem has several
         (ENGINES: 'auto', 'numpy', 'numba'); None = the problem's default.  Scenes whose
         problems have one implementation ignore it.
-    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``,
+    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``, ``--uz``, ``--stop-at``,
         ``--max-steps``, ``--resolution-tol`` -> keys 'ds', 'ds_max', 'max_steps',
         'resolution_tol' (None: guard off)); scenes apply them with :meth:`options_for` so that
         their own defaults (bounds...) survive.  (The command line also sets resolution_tol for
@@ -101,6 +100,10 @@ class SceneRequest:
             kw["max_steps"] = int(ov["max_steps"])
         if "resolution_tol" in ov:
             kw["resolution_tol"] = ov["resolution_tol"]
+        if "user_zeros" in ov:  # --uz NAME=V1,V2 (AUTO's UZR), added to the scene's own
+            kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}
+        if "stop_at" in ov:  # --stop-at UZ1 (AUTO's UZSTOP) replaces the scene's
+            kw["stop_at"] = tuple(ov["stop_at"])
         resolved = dataclasses.replace(base, **kw)
         self._resolved.append(resolved)
         return resolved
@@ -233,8 +236,28 @@ def available_scenes() -> dict[str, Scene]:
 
 
 def get_scene(name: str) -> Scene:
-    """The scene called ``name``; SceneError listing the known ones otherwise."""
-    scenes = available_scenes()
+    """The scene called ``name``; SceneError listing the known ones otherwise.
+
+    Lazy: the scene tables are loaded from the last source to the first and the search stops
+    at the first table holding ``name`` -- the table :func:`available_scenes` would take it
+    from (later sources override earlier ones there) -- so running one scene does not import
+    every problem package.
+    """
+    SCENE_LOAD_ERRORS.clear()
+    tables: list[Mapping[str, Scene]] = []
+    for label, load in reversed(_scene_sources()):
+        try:
+            table = dict(load())  # dict(): a malformed table fails here, as in available_scenes
+        except Exception as exc:  # noqa: BLE001 -- as in available_scenes
+            reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+            SCENE_LOAD_ERRORS.append((label, reason))
+            _log.warning("skipping scenes from %s: %s", label, reason)
+            continue
+        if name in table:
+            return table[name]
+        tables.append(table)
+    SCENE_LOAD_ERRORS.reverse()  # in source order, as available_scenes lists them
+    scenes = dict(sorted({k: v for table in reversed(tables) for k, v in table.items()}.items()))
     if name not in scenes:
         broken = f" ({len(SCENE_LOAD_ERRORS)} scene module(s) failed to load; see `contin scenes`)" if SCENE_LOAD_ERRORS else ""
         raise SceneError(f"unknown scene {name!r}; known scenes: {', '.join(scenes) or 'none'}{broken}")
