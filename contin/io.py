@@ -422,16 +422,15 @@ def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
 def check_writable(path: str | os.PathLike[str]) -> Path:
     """Raise ``OSError`` with a clear message if ``path`` (an output file) cannot be written.
 
-    Creates and removes ``PATH.tmp``, exactly what a publish will need, so a bad ``-o`` fails
-    before any computing.
+    Creates and removes a probe file beside PATH (a publish needs to create PATH.tmp there), so
+    a bad ``-o`` fails before any computing.
     """
     p = check_target(path)  # a regular file or a new path, never a device or a symlink
     if not p.parent.is_dir():
         raise FileNotFoundError(f"cannot write {str(p)!r}: directory {str(p.parent)!r} does not exist")
-    tmp = p.with_name(p.name + ".tmp")
+    # A probe of our own (never PATH.tmp: another run publishing to PATH may be writing that)
+    tmp = p.with_name(f".{p.name}.{os.getpid()}.probe")
     try:
-        if tmp.is_symlink():
-            tmp.unlink()
         write_bytes(tmp, b"")
         tmp.unlink()
     except OSError as exc:
