@@ -374,3 +374,21 @@ def test_symlink_output_is_refused_and_the_link_kept(tmp_path):
         r = run(*args)
         one_error(r.exit_code, r.stderr, "it is a symbolic link")
     assert link.is_symlink() and real.read_bytes() == before
+
+
+def test_sigterm_on_any_command_is_one_error_line_and_exit_143(tmp_path):
+    """The command group handles SIGTERM for every command; here a sweep busy in a slow task: one
+    Error line, exit 143, the summary written (the task pending), the directory lock gone."""
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('[sweep]\nscene = "normalform"\n[fixed]\ndelay = 30.0\n[grid]\na = [0.0]\n')
+    proc = popen("sweep", str(sweep), "-o", str(tmp_path / "out"), "-j", "1")
+    try:
+        wait_for(lambda: (tmp_path / "out" / ".contin.lock").exists(), what="the sweep to start")
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    one_error(proc.returncode, stderr, "terminated by SIGTERM", exit_code=143)
+    doc = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert doc["counts"]["pending"] == 1 and not (tmp_path / "out" / ".contin.lock").exists()

@@ -104,6 +104,8 @@ def test_stability_kx_range_with_a_billion_values_is_refused_at_once(toy_file):
     with pytest.raises(ValueError, match=r"\|kx\| <= 10000"):
         parse_kx_spec("1e300")
     assert parse_kx_spec("0:3:4") == [0.0, 1.0, 2.0, 3.0]
+    one_error(run("stability", str(toy_file), "--point", "0", "--kx", "0:3:1000000000"), "COUNT must be at most 10000")
+    one_error(run("stability", str(toy_file), "--point", "0", "--kz", "1e300"), "--kz must be a finite number")
 
 
 def test_accuracy_with_one_grid_is_an_error():

@@ -191,8 +191,8 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         fail("give exactly one of --point INDEX|LABEL and --at NAME=VALUE")
     at_spec = parse_at(at) if at is not None else None
     kx_values = parse_kx_spec(kx_spec)
-    if not math.isfinite(kz):
-        fail(f"--kz must be a finite number, got {kz}")
+    if not (math.isfinite(kz) and abs(kz) <= MAX_ABS_KX):
+        fail(f"--kz must be a finite number with |kz| <= {MAX_ABS_KX:g}, got {kz}")
     eig_path = None
     if eigenfunction:
         if output is None:
