@@ -476,6 +476,7 @@ class H5Writer:
         diagram_y: str = "phi",
         max_profiles: int = 40,
         lock: bool = True,
+        attrs: Mapping[str, str] | None = None,
     ) -> None:
         self.path = check_writable(path)
         # One writer per output, refused up front (two runs on one -o lost work silently).
@@ -497,6 +498,7 @@ class H5Writer:
         self.y = None if y is None else np.asarray(y, dtype=float)
         self.profiles = profiles
         self.max_profiles = max_profiles
+        self.attrs = dict(attrs or {})  # extra root attributes (text), e.g. a sweep task's result
         self._branches: dict[str, Branch] = {}
         self._extra_branches: list[Branch] = []
         self._profile_cache: dict[int, tuple[Branch, tuple[np.ndarray, dict[str, np.ndarray]] | None]] = {}
@@ -584,6 +586,8 @@ class H5Writer:
             a[key] = str(self.meta[key])
         for key in ("parameters", "discretization", "options", "notes", "extra"):
             a[key] = _json_dumps(self.meta[key])
+        for key, value in self.attrs.items():
+            a[key] = str(value)
         if self.y is not None:
             f.create_group("grid").create_dataset("y", data=self.y)
         bg = f.create_group("branches", track_order=True)

@@ -451,8 +451,6 @@ def _write_task_file(path: str, doc: Mapping[str, Any], scene_name: str, options
     ``PATH.part``; the compact result is added as the root attribute ``sweep_task`` (JSON) and
     the file is renamed to ``PATH`` only then, so ``PATH`` exists iff the task is finished.
     """
-    import h5py
-
     from contin import io
 
     final = Path(path)
@@ -468,9 +466,9 @@ def _write_task_file(path: str, doc: Mapping[str, Any], scene_name: str, options
         branches = []
 
     def write(tmp: Path) -> None:
-        io.write(tmp, branches, **meta)
-        with h5py.File(tmp, "r+") as f:
-            f.attrs["sweep_task"] = json_dumps(doc)
+        # One in-memory image, written with plain writes (contin.io._publish): HDF5 editing a file
+        # in place on a full disk crashed the worker.
+        io.write(tmp, branches, attrs={"sweep_task": json_dumps(doc)}, **meta)
 
     publish(final, write, temporary=part)
 
