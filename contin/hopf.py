@@ -36,6 +36,7 @@ Reported numbers
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, replace
 from typing import Any
@@ -50,6 +51,7 @@ from contin.pointtests import Crossing
 from contin.problem import Array, has
 
 CArray = np.ndarray
+log = logging.getLogger("contin")
 
 #: Relative imaginary part below which an eigenvalue counts as real.
 REAL_TOL = 1e-10
@@ -88,6 +90,23 @@ def _nearest(v: CArray, target: complex) -> int:
     return int(np.argmin(np.abs(v - target)))
 
 
+def crossing_pairs(va: CArray, vb: CArray) -> list[tuple[complex, complex]]:
+    """Eigenvalues (Im > 0) at two points paired by mutual nearest neighbours whose real parts
+    have opposite signs: the complex pairs that cross the imaginary axis in between.  A pair
+    that is not mutual (the step too long to track it) is not reported."""
+    out: list[tuple[complex, complex]] = []
+    if va.size == 0 or vb.size == 0:
+        return out
+    for i, mu_a in enumerate(va):
+        mu_b = vb[_nearest(vb, mu_a)]
+        if _nearest(va, mu_b) != i:
+            continue
+        if mu_a.real == 0 or mu_b.real == 0 or (mu_a.real > 0) == (mu_b.real > 0):
+            continue
+        out.append((complex(mu_a), complex(mu_b)))
+    return out
+
+
 def _to_segment(v: CArray, a: complex, b: complex) -> CArray:
     """Distances of the points v from the segment [a, b] of the complex plane."""
     d = b - a
@@ -111,20 +130,14 @@ class HopfTest:
         a, b = pencil(self.problem, x[:-1], system.params_at(x[-1]))
         try:
             return complex_eigenvalues(a, b, self.dense_max, self.k)
-        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError, ValueError):
+        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError, ValueError) as exc:
+            # no eigenvalues here: no Hopf point can be bracketed by this point (logged, not hidden)
+            log.warning("Hopf test: eigenvalues failed at %s=%g: %s", system.parameter, x[-1], exc)
             return np.zeros(0, dtype=complex)
 
     def crossings(self, va: CArray, vb: CArray) -> list[Crossing]:
         out: list[Crossing] = []
-        if va.size == 0 or vb.size == 0:
-            return out
-        for i, mu_a in enumerate(va):
-            j = _nearest(vb, mu_a)
-            mu_b = vb[j]
-            if _nearest(va, mu_b) != i:  # not a mutual pair: the step is too long to track it
-                continue
-            if mu_a.real == 0 or mu_b.real == 0 or (mu_a.real > 0) == (mu_b.real > 0):
-                continue
+        for mu_a, mu_b in crossing_pairs(va, vb):
 
             def g(v: CArray, a: complex = complex(mu_a), b: complex = complex(mu_b)) -> float:
                 if v.size == 0:

@@ -133,11 +133,36 @@ class SceneRequest:
         if branch.n_unstable is None:
             stability_pass(problem, branch, fixed, n_eigs=n_eigs)
         messages = audit(branch)
+        if any("complex pair" in m for m in messages):  # Hopf points the tracer did not locate
+            messages = self._hopf_points(problem, branch, fixed, 0.0, branch.n_unstable) + audit(branch)
         for kx in self.kx:
             if float(kx) != 0.0:
                 for name, column in growth_columns(problem, branch, fixed, kx=float(kx)).items():
                     branch.observables.setdefault(name, column)
+                counts = branch.observables.get(f"n_unstable_kx{float(kx):g}")
+                messages += self._hopf_points(problem, branch, fixed, float(kx), counts)
         return messages
+
+    @staticmethod
+    def _hopf_points(problem: Any, branch: Branch, fixed: Mapping[str, Any], kx: float, counts: Any) -> list[str]:
+        """HB points where a complex pair of the stability problem at kx crosses between stored
+        points with different unstable counts (:func:`contin.hopfscan.locate_hopf`), added to
+        the branch (label 0: numbered by ``contin.hopfscan.number_new_points``); returns the
+        reasons for count changes it could not locate as audit lines."""
+        from contin.hopfscan import locate_hopf
+
+        if counts is None or len(branch.free) != 1:
+            return []
+        scan = locate_hopf(problem, branch, fixed, kx=kx, counts=counts)
+        known = {(sp.type, round(sp.params.get(branch.parameter, np.nan), 9), sp.data.get("kx"))
+                 for sp in branch.special_points}
+        for sp in scan.points:
+            if ("HB", round(sp.params[branch.parameter], 9), sp.data.get("kx")) not in known:
+                branch.special_points.append(sp)
+        branch.special_points.sort(key=lambda sp: sp.index)
+        lines = [f"Hopf: {r}" for r in scan.reasons]
+        branch.audit.extend(lines)
+        return lines
 
     def report(self, message: str) -> None:
         if self.progress is not None:

@@ -11,6 +11,8 @@
   3x^2 + 2 beta x - lam = 0, i.e. alpha = 2x^3 + beta x^2, lam = 3x^2 + 2 beta x.
 - :class:`Transcritical`: lam x - x^2 = 0 (scalar); branches x = 0 and x = lam cross at 0.
 - :class:`Isola`: x^2 + (lam - c)^2 - r^2 = 0 (scalar); a closed curve with folds at lam = c +- r.
+- :class:`COOxidation`: BifurcationKit's CO-oxidation model (two Hopf points, two folds in q2;
+  BT points on its Hopf and fold curves in (q2, k)).
 - :class:`Lorenz`: the Lorenz (1963) system; its equilibria C+- = (+-sqrt(beta (rho - 1)), ..,
   rho - 1) lose stability at a subcritical Hopf point rho_H = sigma (sigma + beta + 3) /
   (sigma - beta - 1) (470/19 at sigma = 10, beta = 8/3) with omega^2 = beta (sigma + rho_H).
@@ -305,3 +307,37 @@ class Lorenz:
         """C+ = (sqrt(beta (rho - 1)), sqrt(beta (rho - 1)), rho - 1) for rho > 1."""
         x = float(np.sqrt(p["beta"] * (p["rho"] - 1)))
         return np.array([x, x, p["rho"] - 1])
+
+
+class COOxidation:
+    """CO oxidation (Bykov-Yablonskii-Kim; BifurcationKit's tutorialCO), z = 1 - x - y - s:
+    x' = 2 q1 z^2 - 2 q5 x^2 - q3 x y, y' = q2 z - q6 y - q3 x y, s' = q4 z - k q4 s.
+    In q2 at the tutorial's parameters: two Hopf points and two folds near q2 = 1.04-1.05."""
+
+    parameter_names = ("q1", "q2", "q3", "q4", "q5", "q6", "k")
+    PARAMS = dict(q1=2.5, q2=0.6, q3=10.0, q4=0.0675, q5=1.0, q6=0.1, k=0.4)
+
+    def residual(self, u, p):
+        x, y, s = u
+        z = 1 - x - y - s
+        return np.array([2 * p["q1"] * z**2 - 2 * p["q5"] * x**2 - p["q3"] * x * y,
+                         p["q2"] * z - p["q6"] * y - p["q3"] * x * y,
+                         p["q4"] * z - p["k"] * p["q4"] * s])
+
+    def jacobian(self, u, p):
+        x, y, s = u
+        z = 1 - x - y - s
+        q1, q2, q3, q4, q5, q6, k = (p[n] for n in self.parameter_names)
+        dz = -4 * q1 * z
+        return np.array([  # dense: contin accepts a dense J for tiny problems (and it is faster)
+            [dz - 4 * q5 * x - q3 * y, dz - q3 * x, dz],
+            [-q2 - q3 * y, -q2 - q6 - q3 * x, -q2],
+            [-q4, -q4, -q4 - k * q4]])
+
+    def dresidual_dp(self, u, p, name):
+        x, y, s = u
+        z = 1 - x - y - s
+        columns = {"q1": [2 * z * z, 0, 0], "q2": [0, z, 0], "q3": [-x * y, -x * y, 0],
+                   "q4": [0, 0, z - p["k"] * s], "q5": [-2 * x * x, 0, 0], "q6": [0, -y, 0],
+                   "k": [0, 0, -p["q4"] * s]}
+        return np.array(columns[name], dtype=float)

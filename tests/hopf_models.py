@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contin.problem import complex_step_dp
+from problems.demo import COOxidation
 
 
 class Lorenz:
@@ -56,29 +57,7 @@ class AB:
         return complex_step_dp(self, u, p, name)
 
 
-class CO:
-    parameter_names = ("q1", "q2", "q3", "q4", "q5", "q6", "k")
-    PARAMS = dict(q1=2.5, q2=0.6, q3=10.0, q4=0.0675, q5=1.0, q6=0.1, k=0.4)
-
-    def residual(self, u, p):
-        x, y, s = u
-        z = 1 - x - y - s
-        return np.array([2 * p["q1"] * z**2 - 2 * p["q5"] * x**2 - p["q3"] * x * y,
-                         p["q2"] * z - p["q6"] * y - p["q3"] * x * y,
-                         p["q4"] * z - p["k"] * p["q4"] * s])
-
-    def jacobian(self, u, p):
-        x, y, s = u
-        z = 1 - x - y - s
-        q1, q2, q3, q4, q5, q6, k = (p[n] for n in self.parameter_names)
-        dz = -4 * q1 * z
-        return np.array([  # dense: contin accepts a dense J for tiny problems (and it is faster)
-            [dz - 4 * q5 * x - q3 * y, dz - q3 * x, dz],
-            [-q2 - q3 * y, -q2 - q6 - q3 * x, -q2],
-            [-q4, -q4, -q4 - k * q4]])
-
-    def dresidual_dp(self, u, p, name):
-        return complex_step_dp(self, u, p, name)
+CO = COOxidation  # the demo problem (problems/demo.py), BifurcationKit's tutorialCO equations
 
 
 class Brusselator1D:

@@ -14,7 +14,7 @@ import pytest
 from scipy.optimize import brentq, fsolve
 
 from contin.continuation import trace
-from contin.hopf import first_lyapunov
+from contin.hopf import first_lyapunov, hopf_numbers
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
 from tests.hopf_models import AB, CO, Brusselator1D, Lorenz
 
@@ -90,6 +90,22 @@ def test_first_lyapunov_of_the_hopf_normal_form():
         l1 = first_lyapunov(Normal(), np.zeros(2), {"mu": 0.0, "a": a}, 1.0)
         assert l1 == pytest.approx(2 * a, rel=1e-6)
 
+    class Slow(Normal):
+        """2 u' = F(u): time runs half as fast, omega = 1/2, and l1 = Re c1 / omega is unchanged."""
+
+        def mass_matrix(self, u, p):
+            return 2.0 * np.eye(2)
+
+    for a in (-0.7, 0.4):
+        numbers = hopf_numbers(Slow(), np.zeros(2), {"mu": 0.0, "a": a})
+        assert numbers["omega"] == pytest.approx(0.5, rel=1e-12)
+        assert numbers["l1"] == pytest.approx(2 * a, rel=1e-6)
+    # the mass matrix also enters detection: the branch in mu crosses at mu = 0 with omega = 1/2
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.2), bounds={"mu": (-1.0, 1.0)})
+    (hb,) = trace(Slow(), np.zeros(2), {"mu": -1.0, "a": -0.7}, "mu", opts).points("HB")
+    assert abs(hb.params["mu"]) <= 1e-11 and hb.data["omega"] == pytest.approx(0.5, rel=1e-12)
+    assert hb.data["l1"] == pytest.approx(-1.4, rel=1e-6) and "supercritical" in hb.note
+
 
 def ab_hopf_reference(b: float, beta: float) -> list[tuple[float, float, float]]:
     """Hopf points (D, u1, omega) of AUTO's ab at fixed B, beta from the closed-form conditions of
@@ -118,8 +134,15 @@ def test_auto_ab_hopf_points_against_the_closed_form(b):
     Hopf point): every HB matches trace J = 0 with det J > 0."""
     ref = ab_hopf_reference(b, 3.0)
     assert len(ref) == 2 and all(r[0] < 0.5 for r in ref)
+    # c.ab.1: the trivial state u = 0 at D = 0 continued in B with UZR = 14, 15, 16, 17 and stop at 18
+    first = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.2), bounds={"B": (0.0, 100.0)},
+                                user_zeros={"B": (14.0, 15.0, 16.0, 17.0, 18.0)}, stop_at=("UZ5",))
+    start = trace(AB(), np.zeros(2), {"D": 0.0, "B": 0.0, "beta": 3.0}, "B", first)
+    uz = {round(sp.params["B"], 9): sp for sp in start.points("UZ")}
+    assert sorted(uz) == [14.0, 15.0, 16.0, 17.0, 18.0] and start.parameter_values[-1] < 18.2
+    # c.ab.2: from the UZ point continue in D
     opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"D": (0.0, 0.5)}, max_steps=2000)
-    br = trace(AB(), np.zeros(2), {"D": 0.0, "B": b, "beta": 3.0}, "D", opts)
+    br = trace(AB(), uz[b].state, uz[b].params, "D", opts)
     hb = br.points("HB")
     assert len(hb) == 2
     for sp in hb:
@@ -185,10 +208,10 @@ def brusselator_hopf_reference(n: int, par: dict) -> list[float]:
     return sorted(out)
 
 
-@pytest.mark.parametrize("n", [30, pytest.param(100, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("n", [30, pytest.param(100, marks=pytest.mark.slow), pytest.param(300, marks=pytest.mark.slow)])
 def test_brusselator_1d_three_hopf_points(n):
     """BifurcationKit's 1-D Brusselator tutorial: the trivial branch in l from 0.3 to 1.9 has three
-    Hopf points of the discretization."""
+    Hopf points of the discretization (n = 300: 600 unknowns, the shift-invert ARPACK path)."""
     par = Brusselator1D.PARAMS
     model = Brusselator1D(n)
     ref = [l for l in brusselator_hopf_reference(n, par) if l < 1.9]
@@ -199,3 +222,11 @@ def test_brusselator_1d_three_hopf_points(n):
     hb = br.points("HB")
     assert [sp.params["l"] for sp in hb] == pytest.approx(ref, rel=1e-10)
     assert all(sp.converged for sp in hb)
+
+
+def test_demo_models_have_exact_derivatives():
+    from contin.problem import check_jacobian
+
+    model = CO()
+    chk = check_jacobian(model, np.array([0.05, 0.3, 0.45]), {**CO.PARAMS, "q2": 1.05}, parameters=model.parameter_names)
+    assert chk.relative_error < 1e-7 and max(chk.dp_errors.values()) < 1e-7

@@ -274,6 +274,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at; they were ignored")
     options: Any = request.resolved_options[0] if request.resolved_options else (
         {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
+    from contin.hopfscan import number_new_points
+
+    number_new_points(result.branches)  # HB points the stability pass located after the run
     if writer is not None:
         writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
                       notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)
