@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.blas import limited
 from contin.bpdetect import EigenCounter
 from contin.branch import Branch, SpecialPoint, relabel
 from contin.closure import closing_distance, landed
@@ -352,6 +353,7 @@ def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0
     return float(lo), float(hi)
 
 
+@limited(lambda problem, u0, *args, **kwargs: np.size(u0))  # one BLAS thread on small problems (contin.blas)
 def trace(
     problem: Any,
     u0: Array,

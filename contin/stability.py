@@ -49,6 +49,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
+from contin.blas import limited
 from contin.branch import Branch
 from contin.problem import has
 
@@ -273,6 +274,7 @@ def stability_of_state(
     return StabilityResult(lead, n_unst, n_unst == 0, tol, float(kx), float(kz), int(w.size))
 
 
+@limited()  # one BLAS thread for the small dense eigenproblems (contin.blas)
 def stability_pass(
     problem: Any,
     branch: Branch,
@@ -320,6 +322,7 @@ def stability_pass(
     branch.stability_k = (float(kx), float(kz))
 
 
+@limited()
 def growth_columns(
     problem: Any,
     branch: Branch,
