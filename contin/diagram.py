@@ -16,8 +16,9 @@ subtree).  :func:`bifurcation_diagram` does the same recursion but
   ``symmetry_matrix``; F(S u, p) = S F(u, p)) by reflection instead of tracing it, and does not
   recurse into images (their children are the images of the children);
 - drops a traced branch lying on a known one (:func:`contin.overlap.lies_on`);
-- repairs jumps between nearby sheets by re-stepping after the jump
-  (:func:`contin.jumps.restep`), not by retracing the branch;
+- repairs jumps between nearby sheets (a run coming back along itself) by re-stepping after
+  the jump (:func:`contin.jumps.restep`), not by retracing the branch, when
+  ``DiagramSettings.excursion`` is finite (it is in units of the parameter, so problem-specific);
 - traces extra seeds (:mod:`contin.seeds`: homotopies in a second parameter, fold-curve
   crossings), so that isolas are discovered, not only closed (a closed loop is returned once).
 

@@ -49,7 +49,13 @@ def duplicated_pairs(branches: list[Branch], tol: float = 1e-3, fraction: float 
     out = []
     for a in branches:
         for b in branches:
-            if a is not b and np.mean(dist(pts(a), pts(b)) <= tol) >= fraction:
+            if a is b:
+                continue
+            pa, pb_ = pts(a), pts(b)
+            probe = pa[np.linspace(0, len(pa) - 1, min(20, len(pa))).astype(int)]
+            if np.sum(dist(probe, pb_) > tol) > 3:  # more than 15 % of a spread sample off: no
+                continue
+            if np.mean(dist(pa, pb_) <= tol) >= fraction:
                 out.append((a.id, b.id))
     return out
 
