@@ -205,9 +205,10 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
         if twin is not None:
             out.skipped.append(f"{bid}: probe lies on branch {twin.id}")
             continue
-        new = switch(problem, b, bp, options, directions=(d,), branch_id_prefix=f"{b.id}.{bp.name}")
-        if not new:
-            out.skipped.append(f"{bid}: switching found no start point")
+        try:
+            new = switch(problem, b, bp, options, directions=(d,), branch_id_prefix=f"{b.id}.{bp.name}")
+        except ValueError as exc:  # switch says why it found no branch (it never returns [])
+            out.skipped.append(f"{bid}: switching found no start point ({exc})")
             continue
         nb = new[0]
         nb.id = bid

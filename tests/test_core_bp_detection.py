@@ -179,3 +179,23 @@ def test_spectrum_sparse_path_gives_the_eigenvalues_nearest_zero() -> None:
     ref = diag[np.argsort(np.abs(diag))]
     assert np.sort(spec.values.real) == pytest.approx(np.sort(ref[:5]), abs=1e-10)
     assert spec.radius == pytest.approx(abs(ref[5]), abs=1e-10)
+
+
+def test_stability_audit_checks_kernel_dimensions() -> None:
+    """The stability pass's n_unstable (eigenvalues of J, M = I) changes by each BP's kernel
+    dimension on the diagonal problem; a BP claiming the wrong dimension is reported."""
+    import dataclasses
+
+    from contin.stability import audit, stability_pass
+
+    br = diagonal_branch(12)
+    stability_pass(Diagonal(), br, n_eigs=19)
+    assert audit(br) == []
+    # n_unstable = number of i with lam L_i > 1, stepping by the multiplicities 1, 2, 3, 4, 5, 1, 1, 1, 1
+    L = Diagonal().L
+    assert list(br.n_unstable) == [int(np.sum(lam * L > 1 + 1e-12)) for lam in br.params["lam"]]
+    wrong = [dataclasses.replace(bp, note=bp.note.replace("kernel dimension 2", "kernel dimension 1"))
+             for bp in br.special_points]
+    br.special_points = wrong
+    (msg,) = audit(br)
+    assert "n_unstable changes by 2" in msg and "add up to 1" in msg
