@@ -45,6 +45,10 @@ def test_pair_correlation_closed_forms():
     np.testing.assert_allclose(g_cs, nu * (1 - 7 * nu / 16) / (1 - nu) ** 2, rtol=1e-14)  # Henderson g * nu
     g_fv, _ = pair_correlation(nu, "fv", 0.7, 0.9)
     np.testing.assert_allclose(g_fv, 1 / (1.7 * (np.sqrt(0.9 / nu) - 1)), rtol=1e-14)
+    # with its (1+e), G_FV gives the free-volume equation of state p/(nT) = 1/(1 - sqrt(nu/phi_inf)) for any e
+    for e in (0.5, 0.7, 1.0):
+        np.testing.assert_allclose(1 + (1 + e) * pair_correlation(nu, "fv", e, 0.9)[0], 1 / (1 - np.sqrt(nu / 0.9)),
+                                   rtol=1e-12)
     g_gf, _ = pair_correlation(nu, "gf", 0.7, 0.9)
     assert abs(g_gf[0] - g_cs[0]) < 1e-12 * g_cs[0] and abs(g_gf[-1] - g_fv[-1]) < 1e-6 * g_fv[-1]
     # at phi_f the global fit is the mean of both
