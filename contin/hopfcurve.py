@@ -38,7 +38,6 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from contin.branch import Branch, SpecialPoint
 from contin.options import ContinuationOptions
