@@ -96,10 +96,60 @@ BASE_RETRACES = 4
 
 
 # ----------------------------------------------------------------------------- analytic facts
-def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65) -> list[float]:
-    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4); nan where psi is not finite."""
-    psi = float(critical_gap_factor(nu, e, chi, num))
+def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65,
+                           dufour: bool = False) -> list[float]:
+    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4; ``dufour``: with the kappa_h flux); nan where psi is not finite."""
+    psi = float(critical_gap_factor(nu, e, chi, num, dufour=dufour))
     return [n * math.pi * psi for n in range(1, modes + 1)]
+
+
+#: A BP of uniform shear is mode n when |H/(pi psi) - n| <= min(MODE_TOL n, 1/4) (nearest mode,
+#: never ambiguous between neighbours).
+MODE_TOL = 0.02
+
+
+def bp_mode(H: float, hc1: float) -> int | None:
+    """The mode n of a BP of uniform shear at gap H, from H_n^c = n pi psi (hc1 = pi psi); None if none fits."""
+    if not (math.isfinite(H) and math.isfinite(hc1) and hc1 > 0):
+        return None
+    n = round(H / hc1)
+    return n if n >= 1 and abs(H / hc1 - n) <= min(MODE_TOL * n, 0.25) else None
+
+
+def name_modes(base: Branch, hc1: float) -> None:
+    """Append "mode n (n pi psi = ...)" to the note of every BP of uniform shear that matches one.
+
+    Why: BP labels count the BPs found; a BP skipped (or not resolved by the grid) would shift
+    every later number, so the mode is read off the location, H_n^c = n pi psi (physics.md sec. 4).
+    Idempotent (a resumed branch already carries the names).
+    """
+    named = []
+    for s in base.special_points:
+        n = bp_mode(s.params.get("H", math.nan), hc1) if s.type == "BP" else None
+        if n is not None and "mode " not in s.note:
+            s = replace(s, note=f"{s.note}; mode {n} (n pi psi = {n * hc1:.10g})".lstrip("; "))
+        named.append(s)
+    base.special_points = named
+
+
+def mode_notes(base: Branch, hc1: float, H_lo: float, H_max: float) -> list[str]:
+    """Notes on the BPs of uniform shear that match no mode, and on the modes in [H_lo, H_max] not found."""
+    notes = []
+    found = set()
+    for s in base.branch_points:
+        n = bp_mode(s.params["H"], hc1)
+        if n is None:
+            notes.append(f"BP at H = {s.params['H']:.10g} on uniform shear matches no mode n pi psi "
+                         f"(pi psi = {hc1:.10g}): not a pitchfork of uniform shear; check the grid")
+        else:
+            found.add(n)
+    expected = [n for n in range(1, int(H_max / hc1) + 1) if H_lo < n * hc1 < H_max]
+    missing = [n for n in expected if n not in found]
+    if missing:
+        shown = ", ".join(f"{n} (H = {n * hc1:.6g})" for n in missing[:12]) + (", ..." if len(missing) > 12 else "")
+        notes.append(f"{len(missing)} of the {len(expected)} modes with H_n^c = n pi psi below H_max = {H_max:.6g} "
+                     f"were not found on uniform shear: modes {shown}; a finer grid resolves higher modes")
+    return notes
 
 
 def _psi_bracket(nu: float, e: float, chi: str, num: float) -> float:
@@ -281,10 +331,11 @@ def isolated_symmetric_branch(problem: CouetteProblem, base: Branch, params: Map
 
 
 def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, params: Mapping[str, float],
-                    options: ContinuationOptions, prefix: str) -> list[Branch]:
+                    options: ContinuationOptions, prefix: str, *, first: Branch | None = None) -> list[Branch]:
     """Both signs of the branch bifurcating at ``bp``: ids f"{prefix}.1" and f"{prefix}.2".
 
-    The first is traced by :func:`contin.continuation.switch`; the second is its mirror image
+    The first is traced by :func:`contin.continuation.switch` (or is ``first``, a finished branch
+    of an interrupted run: ``--resume`` must not retrace it); the second is its mirror image
     when the first is not S-invariant (symmetry-breaking BPs), otherwise it is traced too
     (S-invariant branches, e.g. mode 2, whose two signs are different states).
     """
@@ -301,7 +352,7 @@ def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, par
         return retrace_on_jumps(run, options, what=f"branch from {bp.name}", unconverged_bp=False,
                                 jumped=lambda b: first_point_on(problem, base, b, params, start=2))
 
-    b1 = switched(+1)
+    b1 = first if first is not None else switched(+1)
     b1.id = f"{prefix}.1"
     if _is_invariant(problem, b1):
         b2 = switched(-1)
