@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -43,19 +44,24 @@ def _contin_cmd(job: str, h5: str) -> list[str]:
     return [sys.executable, "-m", "benchmarks.auto_peer.contin_jobs", job]
 
 
-def _run_contin(job: str, tmp: Path) -> tuple[float, dict]:
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _run_contin(job: str, tmp: Path) -> tuple[float, float, dict]:
     h5 = str(tmp / "main.h5")
-    t = time.perf_counter()
+    c, t = _children_cpu(), time.perf_counter()
     out = subprocess.run(_contin_cmd(job, h5), capture_output=True, text=True, check=True)
-    dt = time.perf_counter() - t
+    dt, dc = time.perf_counter() - t, _children_cpu() - c
     doc = json.loads(out.stdout)
     if job.startswith("b"):
         bps = sorted(s["params"]["H"] for s in doc["special_points"] if s["type"] == "BP" and s["branch"] == "0")
         doc = {"points": sum(b["n_points"] for b in doc["branches"]), "BP": bps}
-    return dt, doc
+    return dt, dc, doc
 
 
-def _run_auto(job: str, exe: Path, tmp: Path) -> tuple[float, dict]:
+def _run_auto(job: str, exe: Path, tmp: Path) -> tuple[float, float, dict]:
     from benchmarks.auto_peer.auto import Runner
     from benchmarks.auto_peer.jobs import JOBS
 
@@ -63,10 +69,10 @@ def _run_auto(job: str, exe: Path, tmp: Path) -> tuple[float, dict]:
     work = tmp / f"auto_{job[0]}"
     work.mkdir(exist_ok=True)
     r = Runner(exe, work, start)
-    t = time.perf_counter()
+    c, t = _children_cpu(), time.perf_counter()
     res = fn(r)
-    dt = time.perf_counter() - t
-    return dt, {**res, "points": r.points}
+    dt, dc = time.perf_counter() - t, _children_cpu() - c
+    return dt, dc, {**res, "points": r.points}
 
 
 def _errors(job: str, res: dict) -> list[str]:
@@ -101,6 +107,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"AUTO-07p peer benchmark skipped: {why}.")
         return 0
     os.environ.setdefault("CONTIN_BLAS_THREADS", "1")
+    from benchmarks.precompile import precompile
+
+    precompile()  # .pyc files as an installed copy has them (benchmarks/precompile.py)
     jobs = []
     for j in args.jobs.split(","):
         jobs += ["b (stability)", "b (no stability)"] if j.strip() == "b" else [j.strip()]
@@ -109,29 +118,33 @@ def main(argv: list[str] | None = None) -> int:
         tmp = Path(tmpname)
         exe = compile_equations(auto_dir, tmp)
         for job in jobs:
-            tc, ta = [], []
+            tc, ta, cc, ca = [], [], [], []
             for k in range(args.repeats):
                 order = ("contin", "auto") if k % 2 == 0 else ("auto", "contin")
                 for who in order:
                     if who == "contin":
-                        dt, rc = _run_contin(job, tmp)
-                        tc.append(dt)
+                        dt, dc, rc = _run_contin(job, tmp)
+                        tc.append(dt), cc.append(dc)
                     else:
-                        dt, ra = _run_auto(job, exe, tmp)
-                        ta.append(dt)
+                        dt, dc, ra = _run_auto(job, exe, tmp)
+                        ta.append(dt), ca.append(dc)
             row = {"job": job, "contin_s": statistics.median(tc), "auto_s": statistics.median(ta),
+                   "contin_cpu_s": statistics.median(cc), "auto_cpu_s": statistics.median(ca),
                    "contin_points": rc["points"], "auto_points": ra["points"],
                    "contin": _errors(job[0], rc), "auto": _errors(job[0], ra)}
             row["ratio"] = row["contin_s"] / row["auto_s"]
+            row["cpu_ratio"] = row["contin_cpu_s"] / row["auto_cpu_s"]
             rows.append(row)
             target = TARGETS.get(job)
             verdict = "" if target is None else f"   target <= {target:g}x: {'met' if row['ratio'] <= target else 'NOT met'}"
             print(f"{job}: contin {row['contin_s']:.2f} s ({row['contin_points']} points), AUTO {row['auto_s']:.2f} s "
-                  f"({row['auto_points']} points), ratio {row['ratio']:.2f}x{verdict}")
+                  f"({row['auto_points']} points), ratio {row['ratio']:.2f}x{verdict}; CPU {row['contin_cpu_s']:.2f} s "
+                  f"/ {row['auto_cpu_s']:.2f} s = {row['cpu_ratio']:.2f}x")
             print(f"   contin: {'; '.join(row['contin']) or '-'}")
             print(f"   AUTO:   {'; '.join(row['auto']) or '-'}")
             sys.stdout.flush()
-    print(f"(wall-clock medians of {args.repeats} paired, interleaved runs; relative errors in parentheses; "
+    print(f"(wall-clock and CPU (user + system of the child processes) medians of {args.repeats} paired, interleaved "
+          "runs; relative errors in parentheses; "
           "AUTO-07p NTST 40, NCOL 4, EPSL = EPSU = 1e-5, EPSS = 1e-5; contin cheb 64)")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))

@@ -18,6 +18,8 @@ from typing import Any, NoReturn
 
 import click
 
+from contin import __version__
+
 #: exit code of a run that finished but left a branch with status MX
 EXIT_INCOMPLETE = 3
 
@@ -81,7 +83,7 @@ def _setup_logging(verbose: int) -> None:
                     "  contin diagram bratu.h5 -o bratu.png\n\n  contin info bratu.h5")
 @click.option("--debug", is_flag=True, help="Show full tracebacks instead of one-line errors.")
 @click.option("-v", "--verbose", count=True, help="Log more (-v info, -vv debug).")
-@click.version_option(package_name="contin")
+@click.version_option(__version__, package_name="contin")  # given: no metadata scan at start-up
 def main(debug: bool, verbose: int) -> None:
     """contin: numerical continuation and bifurcation diagrams.
 

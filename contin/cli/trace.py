@@ -175,12 +175,15 @@ def stability_messages(branch: Any) -> list[str]:
               help="User zeros (UZ): locate the points where parameter NAME takes these values (repeatable).")
 @click.option("--stop-at", "stop_at", default=None, metavar="LABELS",
               help="End each trace after the k-th point of a type, e.g. UZ1 or LP2,HB1 (AUTO's STOP/UZSTOP).")
+@click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=1), default=None, metavar="K",
+              help="Second BP detector: count the K eigenvalues of J nearest zero crossing it, cross-checked "
+                   "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no summary table.")
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
                   resolution_tol: str | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
-                  resume: str | None, quiet: bool) -> None:
+                  bp_eigs: int | None, resume: str | None, quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
@@ -205,6 +208,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                 f"unknown parameter {unknown[0]!r} for scene {scene!r}; its parameters are {', '.join(sc.defaults)}")
     step_overrides = {k: v for k, v in (("ds", ds), ("ds_max", ds_max), ("max_steps", max_steps)) if v is not None}
     step_overrides.update(_parse_uz(uz, stop_at))
+    if bp_eigs is not None:
+        step_overrides["bp_eigenvalues"] = bp_eigs
     overrides = dict(step_overrides)
     if resolution_tol is not None:
         overrides["resolution_tol"] = rtol
@@ -271,7 +276,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                  f"(no growth_rate_kx column was stored)")
 
     if step_overrides and not request.resolved_options:
-        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at; they were ignored")
+        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
     options: Any = request.resolved_options[0] if request.resolved_options else (
         {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
     from contin.hopfscan import number_new_points

@@ -128,7 +128,8 @@ class _Expr:
 
     @classmethod
     def var(cls, n: int, var: int, m: int = 0, coef=1.0) -> _Expr:
-        return cls(n, {(var, m): np.broadcast_to(np.asarray(coef, dtype=complex), (n,)).copy()})
+        coef = np.asarray(coef)  # real at k_x = k_z = 0 (then the whole operator is assembled in reals)
+        return cls(n, {(var, m): np.broadcast_to(coef.astype(np.result_type(coef, float)), (n,)).copy()})
 
     def __add__(self, other: _Expr) -> _Expr:
         out = dict(self.terms)
@@ -169,7 +170,7 @@ class _Expr:
     def row(self, node: int, ops: Sequence[NDArray]) -> NDArray:
         """The (5n,) row of this expression at one node."""
         n = self.n
-        out = np.zeros(5 * n, dtype=complex)
+        out = np.zeros(5 * n, dtype=np.result_type(*self.terms.values()))
         for (var, m), a in self.terms.items():
             if m == 0:
                 out[var * n + node] += a[node]
@@ -361,7 +362,8 @@ def _assemble(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: st
     dU = d1 @ u0
     dT0 = d1 @ T0
     dnu0 = d1 @ nu0
-    ikx, ikz = 1j * kx, 1j * kz
+    real = kx == 0.0 and kz == 0.0
+    ikx, ikz = (0.0, 0.0) if real else (1j * kx, 1j * kz)
     k2 = kx * kx + kz * kz
     ih2 = 1.0 / (H * H)
 
@@ -392,7 +394,7 @@ def _assemble(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: st
               - delta * c.p0 + (V(UX, 1) + V(VY, 0, ikx)) * (2.0 * c.mu0 * dU) + mu_hat * dU**2
               - V(NU, 0, c.D_nu) - V(TT, 0, c.D_T))
 
-    A = np.zeros((5 * n, 5 * n), dtype=complex)
+    A = np.zeros((5 * n, 5 * n), dtype=float if real else complex)
     # Continuity, with the mass flux D(nu0 v) in conservative form.
     diag = np.arange(n)
     A[diag, NU * n + diag] = -adv
@@ -443,10 +445,6 @@ def _assemble(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: st
         R[J, :] = 0.0
         R[J, :n] = C.T
         bdiag[J] = 0.0
-    if kx == 0.0 and kz == 0.0:
-        if np.any(A.imag != 0.0):
-            raise AssertionError("imaginary entries at kx = kz = 0")
-        A = np.ascontiguousarray(A.real)
     return A, bdiag
 
 
@@ -495,13 +493,18 @@ def _fold(M: NDArray, basis_r: tuple, basis_c: tuple) -> NDArray:
     return (cols[a] + cols[b] * s[:, None]) * w[:, None]
 
 
-def _restrict(M: NDArray, idx: NDArray, W: NDArray) -> NDArray:
-    """Q^T M Q with Q = W on the coordinates ``idx`` and the identity elsewhere (W orthonormal
-    columns): M restricted to an M-invariant subspace that constrains only those coordinates."""
-    rest = np.setdiff1d(np.arange(M.shape[0]), idx)
-    top = np.hstack([W.T @ M[np.ix_(idx, idx)] @ W, W.T @ M[np.ix_(idx, rest)]])
-    bottom = np.hstack([M[np.ix_(rest, idx)] @ W, M[np.ix_(rest, rest)]])
-    return np.vstack([top, bottom])
+def _restrict(M: NDArray, m: int, W: NDArray) -> NDArray:
+    """Q^T M Q with Q = W on the leading ``m`` coordinates and the identity on the others (W
+    orthonormal columns): M restricted to an M-invariant subspace that constrains only those
+    coordinates."""
+    k = W.shape[1]
+    out = np.empty((M.shape[0] - m + k, M.shape[1] - m + k), dtype=M.dtype)
+    top = W.T @ M[:m]
+    out[:k, :k] = top[:, :m] @ W
+    out[:k, k:] = top[:, m:]
+    out[k:, :k] = M[m:, :m] @ W
+    out[k:, k:] = M[m:, m:]
+    return out
 
 
 def _constraint_basis(Ct: NDArray, scale: float) -> NDArray | None:
@@ -528,6 +531,29 @@ def _k0_layout(n: int) -> tuple[NDArray, ...]:
         refl[a], refl[b] = b, a
     sign = np.concatenate([np.full(nd.size, PARITY[f]) for f, nd in zip(fields, nodes)])
     return walls_idx, keep, even, odd, refl, sign
+
+
+@lru_cache(maxsize=16)
+def _k0_constraint_bases(grid: Grid) -> tuple[NDArray, NDArray | None, NDArray | None]:
+    """Orthonormal bases of {C^T nu = 0} (the density constraints, :func:`_constraint_rows`) in
+    the nodal nu coordinates and in the nu coordinates of the S-even and S-odd bases of
+    :func:`_k0_layout` (those come first there); None for a half the constraints do not touch."""
+    C = _constraint_rows(grid, True)[0]
+    scale = float(np.max(np.abs(C)))
+    out: list[NDArray | None] = [la.null_space(C.T, rcond=1e-12)]
+    m_total = 0
+    for a, b, s, w in _k0_layout(grid.size)[2:4]:
+        nu_pos = np.flatnonzero(a < grid.size)  # basis vectors on nu nodes
+        if not np.array_equal(nu_pos, np.arange(nu_pos.size)):
+            raise AssertionError("the nu basis vectors must come first")
+        Cb = (C[a[nu_pos]] + C[b[nu_pos]] * s[nu_pos, None]) * w[nu_pos, None]
+        W = _constraint_basis(Cb.T, scale)
+        if W is not None:
+            m_total += nu_pos.size - W.shape[1]
+        out.append(W)
+    if m_total != C.shape[1]:
+        raise AssertionError(f"constraints split into {m_total} != {C.shape[1]} conditions")
+    return out[0], out[1], out[2]
 
 
 def k0_spectrum(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: str = "noslip", chi: str = "jj",
@@ -564,9 +590,6 @@ def k0_spectrum(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: 
         return None
     M = A[np.ix_(keep, keep)] - A[np.ix_(keep, walls_idx)] @ np.linalg.solve(azz, A[np.ix_(walls_idx, keep)])
     M /= bdiag[keep][:, None]
-    C = _constraint_rows(grid, True)[0]  # (n x m) functionals on nu = coordinates 0..n-1 of M
-    nu_idx = np.arange(n)
-    cscale = float(np.max(np.abs(C)))
     blocks: list[NDArray] = []
     if split is not False:
         # cheap pre-test on the profiles, then the commutation S M S = M itself
@@ -578,21 +601,11 @@ def k0_spectrum(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: 
         if split and not symmetric:
             raise ValueError("split=True but the base state is not reflection-symmetric")
         if symmetric:
-            m_total = 0
-            for basis in (even, odd):
+            for basis, W in zip((even, odd), _k0_constraint_bases(grid)[1:]):
                 Mb = _fold(M, basis, basis)
-                nu_pos = np.flatnonzero(basis[0] < n)  # basis vectors on nu nodes
-                a, b, s, w = basis
-                Cb = (C[a[nu_pos]] + C[b[nu_pos]] * s[nu_pos, None]) * w[nu_pos, None]
-                W = _constraint_basis(Cb.T, cscale)
-                if W is not None:
-                    m_total += nu_pos.size - W.shape[1]
-                    Mb = _restrict(Mb, nu_pos, W)
-                blocks.append(Mb)
-            if m_total != C.shape[1]:
-                raise AssertionError(f"constraints split into {m_total} != {C.shape[1]} conditions")
+                blocks.append(Mb if W is None else _restrict(Mb, W.shape[0], W))
     if not blocks:
-        blocks.append(_restrict(M, nu_idx, la.null_space(C.T, rcond=1e-12)))
+        blocks.append(_restrict(M, n, _k0_constraint_bases(grid)[0]))
     w = np.concatenate([la.eigvals(b, check_finite=False) for b in blocks]).astype(complex)
     return w[np.lexsort((-w.imag, -w.real))]
 
