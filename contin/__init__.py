@@ -6,6 +6,7 @@ The core is import-light: plotting (``contin.plot``), HDF5 (``contin.io``) and t
 
 from contin.branch import Branch, SpecialPoint
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
+from contin.fromfunctions import from_functions
 from contin.problem import Problem, check_jacobian
 
 __version__ = "0.1.0"
@@ -20,4 +21,5 @@ __all__ = [
     "StepOptions",
     "__version__",
     "check_jacobian",
+    "from_functions",
 ]

@@ -13,6 +13,10 @@ cancellation, is alpha / beta = c / q with q = -(b + sign(b) sqrt(b^2 - a c)) ~ 
 transcritical point has c != 0; at a pitchfork c = 0 and the new tangent is phi itself.
 G_xx[v, w] is the central difference of G_x v along w (two sparse Jacobians).
 
+This module finds the first point of each new branch (:func:`departures`); the tracer
+(``contin.continuation``) imports it and traces on (:func:`contin.continuation.switch`), so the
+two modules do not import each other.
+
 Null vectors come from the bordered matrix [[J, F_p], [<t1, .>]], whose kernel at the BP is
 phi (orthogonal to t1) and whose left kernel is (psi, 0), by inverse iteration on its sparse LU.
 At a symmetry-breaking BP (found by the antisymmetric test) they are the null vectors of J
@@ -23,7 +27,7 @@ mode exactly.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -133,37 +137,44 @@ def new_tangent(system: ExtendedSystem, t1: Array, phi: Array, a: float, b: floa
     return system.unit((c / q) * t1 + phi)
 
 
-def switch(
+@dataclass(frozen=True)
+class Departure:
+    """The first point of one bifurcating half-branch, found by :func:`departures`.
+
+    x0 : the branch point (u, p); start : the converged first point off it; tangent : the
+    theta-unit tangent there (d * tau); step : the accepted length of the first step.
+    """
+
+    system: ExtendedSystem
+    x0: Array
+    start: Array
+    tangent: Array
+    step: float
+    direction: int
+
+
+def departures(
     problem: Any,
     branch: Branch,
     point: SpecialPoint,
     options: ContinuationOptions = ContinuationOptions(),
     *,
     directions: tuple[int, ...] = (+1, -1),
-    branch_id_prefix: str | None = None,
     ds: float | None = None,
-    symmetric: bool | None = None,
-) -> list[Branch]:
-    """Trace the branches bifurcating at the simple BP ``point`` of ``branch``.
+) -> list[Departure | None]:
+    """The first point of each bifurcating half-branch at the simple BP ``point`` of ``branch``.
 
-    Parameters
-    ----------
-    directions : signs of the new tangent to follow (both halves of the new branch by default).
-    branch_id_prefix : ids are f"{prefix}.{k}" (default prefix f"{branch.id}.{point.name}").
-    ds : length of the first step off the BP (default |options.step.ds|).
-
-    Returns
-    -------
-    list of Branch
-        kind='bifurcated', parent=f"{point.name}@{branch.id}", each starting at the BP.
+    The tangent tau of the new branch solves the ABE (module docstring); the first point is the
+    corrector's solution from x0 + d * step * tau in the hyperplane orthogonal to tau, with the
+    step halved (up to MAX_START_HALVINGS times) until the solution lies near the predictor.
+    The list follows ``directions``; None where no first step was accepted.  Tracing the rest of the branch
+    is :func:`contin.continuation.switch` (this module does not import the tracer).
 
     Raises
     ------
     ValueError
         If ``point`` is not a BP with a tangent, or the BP is not simple (b = 0 in the ABE).
     """
-    from contin.continuation import trace
-
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
     param = branch.parameter
@@ -175,12 +186,9 @@ def switch(
     phi, psi = null_directions(system, x0, t1, "symmetry-breaking" in point.note)
     a, b, c = bifurcation_coefficients(system, x0, t1, phi, psi)
     tau = new_tangent(system, t1, phi, a, b, c)
-    prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
-    parent = f"{point.name}@{branch.id}"
-    out: list[Branch] = []
-    for k, d in enumerate(directions, start=1):
+    out: list[Departure | None] = []
+    for d in directions:
         step = abs(ds if ds is not None else options.step.ds)
-        start = None
         # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
         # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
         # the test below passes: halve up to MAX_START_HALVINGS times.
@@ -190,20 +198,22 @@ def switch(
             # A good start lies near the predictor; a large correction means the predictor fell
             # back onto the known branch or diverged.
             if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
-                start = corr.x
+                out.append(Departure(system, x0, corr.x, d * tau, step, d))
                 break
             step *= 0.5
-        if start is None:
-            continue
-        # The accepted first step measures the branch's scale near the BP: continue with it
-        # instead of restarting at options.step.ds, which the halvings above just rejected.
-        sopt = options.step
-        first = replace(options, step=replace(sopt, ds=math.copysign(min(max(step, sopt.ds_min), sopt.ds_max), sopt.ds)))
-        new = trace(problem, start[:-1], system.params_at(start[-1]), param, first,
-                    tangent=d * tau, branch_id=f"{prefix}.{k}", kind="bifurcated", parent=parent,
-                    symmetric=symmetric)
-        out.append(_prepend(system, new, x0, d * tau))
+        else:
+            out.append(None)
     return out
+
+
+def first_step_options(options: ContinuationOptions, step: float) -> ContinuationOptions:
+    """``options`` with ds set to the accepted first step (clipped to [ds_min, ds_max], sign of ds).
+
+    The accepted first step measures the branch's scale near the BP: continuing with it
+    beats restarting at options.step.ds, which the halvings of :func:`departures` just rejected.
+    """
+    sopt = options.step
+    return replace(options, step=replace(sopt, ds=math.copysign(min(max(step, sopt.ds_min), sopt.ds_max), sopt.ds)))
 
 
 class _FarFromPredictor:
@@ -229,7 +239,7 @@ class _FarFromPredictor:
         return None
 
 
-def _prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
+def prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
     """Insert the branch point itself as point 0 of a bifurcated branch."""
     if len(br) == 0:
         return br
