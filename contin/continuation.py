@@ -41,6 +41,7 @@ from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
+from contin.pointtests import PointTest, point_tests
 from contin.predictor import secant, tangent
 from contin.problem import Array, has, require_protocol
 from contin.stepsize import angle, next_step, reduced_step
@@ -94,6 +95,7 @@ class _Tracer:
         self.records: list[dict[str, float]] = []
         self.special: list[SpecialPoint] = []
         self.audit: list[str] = []
+        self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
 
     # --- point construction ------------------------------------------------------------------
     def finish_point(self, corr: Correction, orient: Array) -> _Point:
@@ -105,7 +107,8 @@ class _Tracer:
         t = tangent(self.system, corr.factorization, orient)
         bp = bp_value(corr.factorization, corr.row, t)
         anti = self.anti.det(self.system.state_jacobian(x)) if self.anti is not None else None
-        return _Point(x, t, TestValues(float(t[-1]), bp, anti))
+        extra = {pt.name: pt.value(self.system, x) for pt in self.point_tests}
+        return _Point(x, t, TestValues(float(t[-1]), bp, anti, extra))
 
     def correct_at(self, x_pred: Array, direction: Array) -> Correction:
         project = self.anti.symmetrize if self.anti is not None else None
@@ -134,7 +137,11 @@ class _Tracer:
         unconfirmed: list[Unconfirmed] = []
         sys = self.system
         s_b = math.nan  # <a.t, b.x - a.x>, computed at the first sign change
-        for kind, note, fn in self._test_functions():
+        tests: list[tuple[str, str, Any, PointTest | None]] = [(k, nt, f, None) for k, nt, f in self._test_functions()]
+        for pt in self.point_tests:
+            tests.extend((pt.kind, note, lambda v, g=g, name=pt.name: g(v.extra[name]), pt)
+                         for note, g in pt.crossings(a.tests.extra[pt.name], b.tests.extra[pt.name]))
+        for kind, note, fn, point_test in tests:
             va, vb = fn(a.tests), fn(b.tests)
             if isinstance(va, tuple):
                 if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
@@ -161,11 +168,13 @@ class _Tracer:
                     if corr.factorization is None and corr.residual_history[-1] <= self.options.newton.tol:
                         # A solution where the bordered matrix is exactly singular: the
                         # trial hit the singular point itself, where g = 0.
-                        return Sample(s, 0.0, _Point(corr.x, a.t, a.tests))
+                        return Sample(s, 0.0, _Point(corr.x, a.t, a.tests)) if point_test is None else None
                     if not corr.converged or sys.admissible(corr.x) is not None:
                         return None
                     pt = self.finish_point(corr, a.t)
-                    return Sample(s, g_of(pt.tests), pt)
+                    g = g_of(pt.tests)
+                    # a test function that cannot be evaluated there (NaN) counts as a failed trial
+                    return Sample(s, g, pt) if math.isfinite(g) else None
 
                 tol = det.locate_tol * max(1.0, abs(b.x[-1]))
                 res = locate_zero(evaluate, sa, sb, tol=tol, max_iterations=det.max_bisections)
@@ -191,6 +200,8 @@ class _Tracer:
                 converged=converged,
                 note=full_note,
             )
+            if point_test is not None:
+                sp = point_test.finish(sys, sp, best.x)
             log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
             found.append((s_best, sp))
             if why is not None:
@@ -409,6 +420,7 @@ def trace(
 
     start = newton(problem, u0, system.params, options.newton)
     tracer = _Tracer(system, options, None)
+    tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
         msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{JACOBIAN_HINT}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))

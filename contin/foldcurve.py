@@ -106,6 +106,15 @@ class FoldProblem:
             return self.problem.admissible(u, q)  # type: ignore[attr-defined]
         return None
 
+    def point_tests(self) -> list[object]:
+        """Bogdanov-Takens points (BT) along the fold curve (``contin.hopfcurve.fold_bt_test``);
+        none for problems with their own ``eigenproblem`` (their M is not the steady one)."""
+        if has(self.problem, "eigenproblem"):
+            return []
+        from contin.hopfcurve import fold_bt_test
+
+        return [fold_bt_test(self.problem, self.n, self.c, self.second)]
+
     def under_resolved(self, state: Array, p: Mapping[str, float], tol: float) -> str | None:
         """The wrapped problem's resolution guard (``contin.problem``) on the base state u.
 

@@ -32,6 +32,9 @@ Layout (format "contin", format_version 1)
         phi, bracket_lo, bracket_hi (float); converged (bool);
         params/<name>         one column per parameter name (attr param_names)
         params_present        (K, P) bool: which parameters each row has
+        data/<name>           one float column per SpecialPoint.data name (attr data_names),
+                              e.g. omega and l1 of HB rows, value of UZ rows
+        data_present          (K, D) bool: which data each row has
         states                (K, n_max) located states (NaN-padded to state_size)
         tangents              (K, m_max) tangents (tangent_size = -1 when none)
         profiles/<name>       (K, N) profiles of the located states (optional)
@@ -202,7 +205,10 @@ def _options_dict(options: ContinuationOptions | Mapping[str, Any] | None) -> di
     if options is None:
         return {}
     if dataclasses.is_dataclass(options) and not isinstance(options, type):
-        return dataclasses.asdict(options)
+        out = dataclasses.asdict(options)
+        # event functions are code, not data: the file records their names
+        out["events"] = sorted(out.get("events", {}))
+        return out
     return dict(options)
 
 
@@ -215,6 +221,7 @@ def options_from_dict(d: Mapping[str, Any]) -> ContinuationOptions:
             kw[key] = cls(**d.pop(key))
     if "bounds" in d:
         kw["bounds"] = {k: (float(lo), float(hi)) for k, (lo, hi) in d.pop("bounds").items()}
+    d.pop("events", None)  # only their names are stored; the functions cannot be rebuilt
     return ContinuationOptions(**kw, **d)
 
 
@@ -348,6 +355,7 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
         else:
             pg.create_dataset(name.replace("/", "%2F"), data=np.asarray(vals, dtype=float))
     g.create_dataset("params_present", data=present)
+    _write_special_data(g, [sp for _, sp in rows])
     for col, get in (("states", lambda sp: sp.state), ("tangents", lambda sp: sp.tangent)):
         vecs = [None if get(sp) is None else np.asarray(get(sp)).ravel() for _, sp in rows]
         width = max([v.size for v in vecs if v is not None], default=0)
@@ -364,6 +372,30 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
         spg = g.create_group("profiles")
         for name, arr in sp_profiles.items():
             spg.create_dataset(name.replace("/", "%2F"), data=np.asarray(arr, dtype=float))
+
+
+def _write_special_data(g: h5py.Group, sps: Sequence[SpecialPoint]) -> None:
+    """SpecialPoint.data as float columns data/<name> and a presence table (HB omega, l1; UZ value)."""
+    names: list[str] = []
+    for sp in sps:
+        names.extend(n for n in sp.data if n not in names)
+    g.attrs["data_names"] = np.asarray(names, dtype=_STR)
+    dg = g.create_group("data")
+    present = np.zeros((len(sps), len(names)), dtype=bool)
+    for j, name in enumerate(names):
+        present[:, j] = [name in sp.data for sp in sps]
+        dg.create_dataset(name.replace("/", "%2F"), data=np.asarray([sp.data.get(name, np.nan) for sp in sps], dtype=float))
+    g.create_dataset("data_present", data=present)
+
+
+def _read_special_data(g: h5py.Group, k: int) -> list[dict[str, float]]:
+    """The data dicts of k special-point rows (empty dicts for files written before data existed)."""
+    if "data" not in g:
+        return [{} for _ in range(k)]
+    names = _attr_list(g.attrs["data_names"])
+    cols = {n: g["data"][n.replace("/", "%2F")][()] for n in names}
+    present = g["data_present"][()]
+    return [{n: float(cols[n][i]) for j, n in enumerate(names) if present[i, j]} for i in range(k)]
 
 
 def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
@@ -644,6 +676,7 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
     phi, lo, hi, conv = g["phi"][()], g["bracket_lo"][()], g["bracket_hi"][()], g["converged"][()]
     states, state_size = g["states"][()], g["state_size"][()]
     tangents, tangent_size = g["tangents"][()], g["tangent_size"][()]
+    data = _read_special_data(g, k)
     out = []
     for i in range(k):
         params = {}
@@ -662,6 +695,7 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
             converged=bool(conv[i]),
             label=int(label[i]),
             note=note[i],
+            data=data[i],
         )))
     return out
 

@@ -23,10 +23,11 @@ Counting unstable eigenvalues
 
 Audit
     Along a branch, each fold (LP) or simple branch point (BP) is a real eigenvalue
-    crossing zero, so ``n_unstable`` must change across it, and every change of
-    ``n_unstable`` must be explained by such a point (a complex pair crossing would be a
-    Hopf point, which contin does not locate: it is reported as unexplained).  This is
-    the branch invariant of BifurcationKit's ``test_bif_detection.jl``.
+    crossing zero and each Hopf point (HB, ``contin.hopf``) a complex pair crossing the
+    imaginary axis, so ``n_unstable`` must change across it, and every change of
+    ``n_unstable`` must be explained by such a point (a complex pair crossing where the tracer
+    did not detect Hopf points is reported as unexplained; :func:`locate_hopf` locates it).
+    This is the branch invariant of BifurcationKit's ``test_bif_detection.jl``.
 
 References
 ----------
@@ -399,8 +400,10 @@ def audit(branch: Branch) -> list[str]:
     messages: list[str] = []
     per_interval: dict[int, list[Any]] = {}
     for spt in branch.special_points:
-        if spt.type not in ("BP", "LP"):
+        if spt.type not in ("BP", "LP", "HB"):
             continue
+        if spt.type == "HB" and (spt.data.get("kx", 0.0), spt.data.get("kz", 0.0)) != (branch.stability_k or (0.0, 0.0)):
+            continue  # a Hopf point of another wavenumber's stability problem
         i = spt.index
         p_sp = spt.params.get(par, np.nan)
         candidates = [i]
@@ -431,7 +434,7 @@ def audit(branch: Branch) -> list[str]:
         if branch.eigenvalues is not None:
             lead = branch.eigenvalues[c + 1 if nu[c + 1] > nu[c] else c, 0]
             if np.isfinite(lead) and abs(lead.imag) > 1e-8 * max(1.0, abs(lead)):
-                kind = " (complex pair: possible Hopf point, not detected by contin)"
+                kind = " (complex pair: possible Hopf point, not located: run contin.stability.locate_hopf)"
         messages.append(f"n_unstable changes {nu[c]} -> {nu[c + 1]} between points {c} and {c + 1} "
                         f"({par} = {pv[c]:.6g} .. {pv[c + 1]:.6g}) with no BP/LP in between{kind}")
     for c in np.flatnonzero(nu < 0):

@@ -19,7 +19,7 @@ import functools
 import logging
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -40,11 +40,13 @@ SignLog = tuple[float, float]
 
 @dataclass(frozen=True)
 class TestValues:
-    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q)."""
+    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q);
+    ``extra`` holds the values of the tracer's point tests (``contin.pointtests``) by name."""
 
     fold: float
     bp: SignLog
     anti: SignLog | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def symmetric_bp(self) -> SignLog:

@@ -139,7 +139,7 @@ def resolution_guard(text: str | None) -> tuple[contextlib.AbstractContextManage
 
 def engine_option(f: Any) -> Any:
     """The ``--engine auto|numpy|numba`` option (SceneRequest.engine)."""
-    from contin.scene import ENGINES
+    from contin.engines import ENGINES  # not contin.scene: it imports numpy
 
     return click.option(
         "--engine", type=click.Choice(ENGINES), default="auto", show_default=True,
@@ -198,7 +198,9 @@ def special_points_table(branches: Sequence[Any]) -> str:
         for sp in b.special_points:
             names = [n for n in b.free if n in sp.params] or [b.parameter]
             pv = ", ".join(f"{n}={fmt(sp.params.get(n, math.nan))}" for n in names)
-            rows.append((b.id, sp.name, sp.type, pv, fmt(sp.order_parameter), "yes" if sp.converged else "NO", sp.note))
+            data = ", ".join(f"{k}={fmt(v)}" for k, v in getattr(sp, "data", {}).items())  # HB omega, l1; UZ value
+            note = "; ".join(t for t in (data, sp.note) if t)
+            rows.append((b.id, sp.name, sp.type, pv, fmt(sp.order_parameter), "yes" if sp.converged else "NO", note))
     if not rows:
         return "no special points"
     return table(rows, ("branch", "label", "type", "parameters", "phi", "converged", "note"))

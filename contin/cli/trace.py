@@ -60,6 +60,34 @@ def _parse_kx(text: str | None) -> tuple[float, ...]:
         raise click.BadParameter(f"expected comma-separated numbers, got {text!r}", param_hint="'--kx'") from None
 
 
+def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
+    """``--uz NAME=V1,V2`` (repeatable) and ``--stop-at L1,L2`` as option overrides; checked here
+    so that bad input is one ``Error:`` line before anything runs."""
+    from contin.options import ContinuationOptions
+
+    out: dict[str, Any] = {}
+    zeros: dict[str, list[float]] = {}
+    for item in uz:
+        name, sep, values = item.partition("=")
+        try:
+            vals = [float(v) for v in values.split(",") if v.strip()]
+        except ValueError:
+            vals = []
+        if not sep or not name.strip() or not vals:
+            raise click.BadParameter(f"expected NAME=V1,V2,... with numbers, got {item!r}", param_hint="'--uz'")
+        zeros.setdefault(name.strip(), []).extend(vals)
+    labels = tuple(t.strip() for t in (stop_at or "").split(",") if t.strip())
+    try:  # the options' own validation: finite values, LP/BP/UZ/HB<k> labels
+        ContinuationOptions(user_zeros=zeros, stop_at=labels)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--uz'" if zeros and not labels else "'--stop-at'") from None
+    if zeros:
+        out["user_zeros"] = zeros
+    if labels:
+        out["stop_at"] = labels
+    return out
+
+
 def _stability_after_run(sc: Any, request: Any, result: Any, progress: _Progress, quiet: bool) -> None:
     """The stability pass the scene left undone, through ``sc.problem_factory``.
 
@@ -127,11 +155,16 @@ def stability_messages(branch: Any) -> list[str]:
 @engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
+@click.option("--uz", "uz", multiple=True, metavar="NAME=V1,V2,...",
+              help="User zeros (UZ): locate the points where parameter NAME takes these values (repeatable).")
+@click.option("--stop-at", "stop_at", default=None, metavar="LABELS",
+              help="End each trace after the k-th point of a type, e.g. UZ1 or LP2,HB1 (AUTO's STOP/UZSTOP).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no summary table.")
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resolution_tol: str | None, engine: str, resume: str | None, quiet: bool) -> None:
+                  resolution_tol: str | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
+                  resume: str | None, quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
@@ -151,6 +184,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             raise scene_mod.SceneError(
                 f"unknown parameter {unknown[0]!r} for scene {scene!r}; its parameters are {', '.join(sc.defaults)}")
     step_overrides = {k: v for k, v in (("ds", ds), ("ds_max", ds_max), ("max_steps", max_steps)) if v is not None}
+    step_overrides.update(_parse_uz(uz, stop_at))
     overrides = dict(step_overrides)
     if resolution_tol is not None:
         overrides["resolution_tol"] = rtol
@@ -198,9 +232,12 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         _stability_after_run(sc, request, result, progress, quiet)
 
     if step_overrides and not request.resolved_options:
-        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps; they were ignored")
+        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at; they were ignored")
     options: Any = request.resolved_options[0] if request.resolved_options else (
         {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
+    from contin.hopfscan import number_new_points
+
+    number_new_points(result.branches)  # HB points the stability pass located after the run
     if writer is not None:
         writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
                       notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)

@@ -44,7 +44,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import brentq
 
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import switch, trace
@@ -105,6 +104,8 @@ def threshold_density(e: float, *, chi: str = "jj", num: float = 0.65, xtol: flo
     if up.size == 0:
         raise ValueError(f"B(nu, e = {e:g}) has no sign change from - to + in (0, {top:g}): no threshold density")
     i = int(up[0])
+    from scipy.optimize import brentq  # lazily: scipy.optimize is slow to import
+
     return float(brentq(lambda nu: instability_bracket(nu, e, chi=chi, num=num), grid[i], grid[i + 1],
                         xtol=xtol, rtol=4 * np.finfo(float).eps))
 
@@ -209,6 +210,8 @@ def tricritical_density_normal_form(problem: CouetteProblem, e: float, *, num: f
         raise ValueError(f"the pitchfork bend a(nu) at e = {e:g} has no sign change from subcritical to "
                          f"supercritical in nu = {nus[0]:.4g} ... {nus[-1]:.4g}")
     lo, hi = samples[-2][0], samples[-1][0]
+    from scipy.optimize import brentq
+
     nu_tc = float(brentq(a_of, lo, hi, xtol=xtol))
     return TricriticalNormalForm(nu_tc=nu_tc, H_tc=critical_gap(nu_tc, e, chi=problem.chi, num=num),
                                  samples=tuple(samples), evaluations=count)

@@ -65,7 +65,6 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg as la
-import scipy.optimize as so
 import scipy.sparse as sp
 
 from contin.branch import Branch, SpecialPoint
@@ -118,7 +117,9 @@ def threshold_density(e: float, *, chi: str = "jj", num: float = 0.65, below: fl
     if change.size == 0:
         return math.nan
     i = int(change[-1])
-    return float(so.brentq(_psi_bracket, grid[i], grid[i + 1], args=(e, chi, num), xtol=1e-14, rtol=1e-14))
+    from scipy.optimize import brentq  # lazily: scipy.optimize costs ~0.1-0.25 s to import
+
+    return float(brentq(_psi_bracket, grid[i], grid[i + 1], args=(e, chi, num), xtol=1e-14, rtol=1e-14))
 
 
 # ----------------------------------------------------------------------------- helpers

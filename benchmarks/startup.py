@@ -1,0 +1,114 @@
+"""Start-up figures: ``python -m benchmarks.startup [--repeats N] [--json FILE]``.
+
+Prints wall-clock medians (whole processes, ``--repeats`` runs each, default 7) of
+
+- ``contin --version`` and ``contin --help`` (target <= 0.15 s);
+- ``import contin.cli`` inside the interpreter (and which heavy libraries it loaded: none);
+- start-up to the first continuation step of the main job ``contin trace pitchfork -s nu=0.3
+  -s e=0.8``: process launch to the first call of ``contin.continuation.trace`` (target
+  <= 0.3 s), measured by a wrapper that runs the CLI with that function replaced by a stop
+  watch; ``python -c pass`` (the interpreter alone) alongside.
+
+These are measurements, not tests (tests/test_startup.py asserts the import structure).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+HEAVY = ("numpy", "scipy", "h5py", "matplotlib", "numba")
+
+_IMPORT = """
+import sys, time
+t = time.perf_counter()
+import contin.cli
+dt = time.perf_counter() - t
+print(dt, ",".join(m for m in {heavy!r} if m in sys.modules))
+"""
+
+# Runs the CLI of the main job; the first call of contin.continuation.trace prints the time
+# since launch (passed in CONTIN_T0) and ends the process.
+_FIRST_STEP = """
+import os, sys, time
+import contin.continuation as c
+
+def stop(*args, **kwargs):
+    print(time.time() - float(os.environ["CONTIN_T0"]), flush=True)
+    os._exit(0)
+
+c.trace = stop
+c.trace_both = stop
+from contin.cli import main
+main(["trace", "pitchfork", "-s", "nu=0.3", "-s", "e=0.8", "-q", "--no-stability", "-o", os.devnull + ".h5"])
+"""
+
+TARGETS = {"contin --version": 0.15, "contin --help": 0.15, "first continuation step": 0.3}
+
+
+def _contin() -> list[str]:
+    return [sys.executable, "-m", "contin"]
+
+
+def _wall(cmd: list[str], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
+def _first_step(repeats: int, tmp: str) -> float:
+    times = []
+    for _ in range(repeats):
+        env = {**os.environ, "CONTIN_T0": repr(time.time())}
+        out = subprocess.run([sys.executable, "-c", _FIRST_STEP.replace("os.devnull + \".h5\"", repr(tmp))],
+                             env=env, capture_output=True, text=True, check=True)
+        times.append(float(out.stdout.split()[-1]))
+    return statistics.median(times)
+
+
+def measure(repeats: int = 7) -> dict[str, float | str]:
+    import tempfile
+
+    rows: dict[str, float | str] = {}
+    rows["python -c pass"] = _wall([sys.executable, "-c", "pass"], repeats)
+    rows["contin --version"] = _wall([*_contin(), "--version"], repeats)
+    rows["contin --help"] = _wall([*_contin(), "--help"], repeats)
+    imp = [subprocess.run([sys.executable, "-c", _IMPORT.format(heavy=HEAVY)], capture_output=True, text=True,
+                          check=True).stdout.split() for _ in range(repeats)]
+    rows["import contin.cli (in-process)"] = statistics.median(float(x[0]) for x in imp)
+    rows["heavy modules after import contin.cli"] = imp[0][1] if len(imp[0]) > 1 else "none"
+    with tempfile.TemporaryDirectory() as tmp:
+        rows["first continuation step"] = _first_step(repeats, os.path.join(tmp, "x.h5"))
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.startup", description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--json", metavar="FILE")
+    args = ap.parse_args(argv)
+    rows = measure(args.repeats)
+    print(f"start-up, wall-clock medians of {args.repeats} runs (s)")
+    for name, value in rows.items():
+        if isinstance(value, str):
+            print(f"  {name:40s} {value}")
+            continue
+        target = TARGETS.get(name)
+        verdict = "" if target is None else f"  target <= {target:g}: {'met' if value <= target else 'NOT met'}"
+        print(f"  {name:40s} {value:7.3f}{verdict}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
