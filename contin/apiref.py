@@ -27,6 +27,8 @@ MODULES = (
     "contin.stability",
     "contin.twoparam",
     "contin.foldcurve",
+    "contin.hopfcurve",
+    "contin.diagram",
     "contin.bpfit",
     "contin.fit",
     "contin.normalform",

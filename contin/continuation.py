@@ -41,7 +41,8 @@ from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
-from contin.pointtests import PointTest, point_tests
+from contin.pointtests import PointTest
+from contin.pointtestset import point_tests
 from contin.predictor import secant, tangent
 from contin.problem import Array, has, require_protocol
 from contin.stepsize import angle, next_step, reduced_step

@@ -12,20 +12,29 @@ free parameters, ``ICP=[p1, p2]``).
   transcritical BP unfolded by the second parameter it is the fold curve through the BP
   (lam x - x^2 + mu: x = lam/2, mu = -lam^2/4).  Where it is singular (a second parameter
   that keeps a transcritical BP) the corrector fails and the error says so;
-- ``HB`` -- Hopf curves: registered by a Hopf module with :func:`register_curve`; until one
-  is, asking for one is a clear error (:class:`NotAvailable`).
+- ``HB`` -- the Hopf curve (:func:`contin.hopfcurve.trace_hopf_curve`; Bogdanov-Takens points
+  located on it).
+
+Other point types are a clear error (:class:`NotAvailable`); :func:`register_curve` adds one.
+Bounds on the second parameter (``options.bounds[second]``) end the curve exactly on the bound:
+the last point is corrected onto it with the roles of the parameters swapped.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-from contin.branch import Branch, SpecialPoint
-from contin.continuation import join, trace
-from contin.foldcurve import as_fold_curve, fold_start
-from contin.options import ContinuationOptions
+import numpy as np
+
+from contin.branch import Branch, SpecialPoint, relabel
+from contin.continuation import join, newton, trace
+from contin.extended import ExtendedSystem
+from contin.foldcurve import FoldProblem, as_fold_curve, fold_start
+from contin.hopfcurve import trace_hopf_curve
+from contin.options import ContinuationOptions, NewtonOptions
 
 #: curve(problem, point, second, options, parameter=..., branch_id=...) -> Branch
 CurveTracer = Callable[..., Branch]
@@ -45,19 +54,81 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
     of d p1/ds cannot tell the halves apart.
     """
     fold, start = fold_start(problem, point, second)
-    opts = replace(options, detection=replace(options.detection, detect_branch_points=False))
+    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
+    opts = replace(options, detection=replace(options.detection, detect_branch_points=False),
+                   bounds={k: v for k, v in options.bounds.items() if k != second})
     common = dict(branch_id=branch_id, kind="fold-curve", parent=point.name)
-    forward = trace(fold, start, dict(point.params), parameter, opts, direction=+1, **common)
+    forward = _cut_at_bound(trace(fold, start, dict(point.params), parameter, opts, direction=+1, **common),
+                            fold, second, lo, hi)
     if forward.closed or len(forward) < 2:
         return as_fold_curve(forward, fold, opts)
-    backward = trace(fold, start, dict(point.params), parameter, opts, direction=-1, tangent=forward.tangents[0],
-                     **common)
+    backward = _cut_at_bound(trace(fold, start, dict(point.params), parameter, opts, direction=-1,
+                                   tangent=forward.tangents[0], **common), fold, second, lo, hi)
     return as_fold_curve(join(backward, forward), fold, opts)
+
+
+def _cut_at_bound(half: Branch, fold: FoldProblem, second: str, lo: float, hi: float) -> Branch:
+    """``half`` (a traced augmented branch, state (u, phi, p2)) up to where p2 first leaves
+    [lo, hi], ending with a point exactly on the bound and EP "reached bound ...".
+
+    The tracer lands on bounds of its continuation parameter only; p2 is part of the state, so
+    the crossing is corrected here: Newton on the same fold system with p2 fixed at the bound
+    and the first parameter an unknown (FoldProblem with the roles swapped), from the linear
+    interpolation of the two points around the crossing.
+    """
+    n = fold.n
+    if half.state_index is not None or len(half) < 2:
+        return half
+    p2 = half.states[:, 2 * n]
+    out = np.nonzero((p2 < lo) | (p2 > hi))[0]
+    if out.size == 0 or out[0] == 0:
+        return half
+    i = int(out[0])
+    bound = hi if p2[i] > hi else lo
+    w = (bound - p2[i - 1]) / (p2[i] - p2[i - 1])
+    first = half.parameter
+    guess = (1 - w) * half.states[i - 1] + w * half.states[i]
+    p1 = (1 - w) * half.params[first][i - 1] + w * half.params[first][i]
+    params = {k: float(v[i - 1]) for k, v in half.params.items()}
+    params[second] = bound
+    swapped = FoldProblem(fold.problem, first, fold.c, fold.eps)
+    res = newton(swapped, np.concatenate([guess[: 2 * n], [p1]]), params, NewtonOptions(max_iterations=20))
+    keep = i
+    specials = [sp for sp in half.special_points if sp.index < keep - 1 or (sp.index == keep - 1 and sp.type not in ("EP", "MX"))]
+    cut = replace(half, params={k: v[:keep] for k, v in half.params.items()},
+                  observables={k: v[:keep] for k, v in half.observables.items()},
+                  states=half.states[:keep], tangents=half.tangents[:keep], ds=half.ds[:keep],
+                  newton_iterations=half.newton_iterations[:keep], special_points=specials, status="EP",
+                  message=f"reached bound {second}={bound:g}", closed=False)
+    if not res.converged:
+        cut.message += f" (landing on it failed: {res.message}; stopped before it)"
+        return cut
+    state = np.concatenate([res.u[: 2 * n], [bound]])
+    at = {**params, first: float(res.u[2 * n])}
+    system = ExtendedSystem(fold, at, first)
+    x = system.pack(state, at[first])
+    record = system.record(x)
+    cut.params = {k: np.append(v, at[k]) for k, v in cut.params.items()}
+    cut.observables = {k: np.append(v, record.get(k, np.nan)) for k, v in cut.observables.items()}
+    cut.states = np.vstack([cut.states, state])
+    cut.tangents = np.vstack([cut.tangents, cut.tangents[-1]])
+    cut.ds = np.append(cut.ds, system.norm(x - system.pack(cut.states[-2], cut.params[first][-2])))
+    cut.newton_iterations = np.append(cut.newton_iterations, res.iterations)
+    cut.special_points = [*cut.special_points, SpecialPoint(
+        type="EP", index=len(cut) - 1, params=dict(at), order_parameter=system.order_parameter(x), state=state,
+        tangent=cut.tangents[-1], note=cut.message)]
+    relabel([cut])
+    return cut
+
+
+def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationOptions, *,
+          parameter: str, branch_id: str) -> Branch:
+    return trace_hopf_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
 
 
 #: Point type -> tracer of its two-parameter curve.  A module that adds one (e.g. Hopf curves)
 #: calls register_curve('HB', fn) on import.
-CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitchfork}
+CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitchfork, "HB": _hopf}
 
 
 def register_curve(point_type: str, tracer: CurveTracer) -> None:
@@ -69,10 +140,12 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
                    options: ContinuationOptions, *, branch_id: str | None = None) -> Branch:
     """The curve of ``point`` (a located LP, BP or HB of ``branch``) in (branch.parameter, ``second``).
 
+    Bounds: ``options.bounds`` of either parameter; the curve ends exactly on them.
+
     Raises
     ------
     NotAvailable
-        For a point type without a registered curve tracer (HB until Hopf curves exist; EP, MX...).
+        For a point type without a registered curve tracer (EP, MX, UZ...).
     ValueError
         For a bad second parameter, a point without a state, or a start the corrector cannot
         converge (e.g. a transcritical BP, where the fold system is singular).
@@ -87,9 +160,6 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
         raise ValueError(f"point {point.name} has no value of {second!r}")
     tracer = CURVES.get(point.type)
     if tracer is None:
-        if point.type == "HB":
-            raise NotAvailable(f"{point.name}: two-parameter continuation of Hopf points is not available yet "
-                               "(no Hopf-curve tracer registered; contin.twoparam.register_curve('HB', ...))")
         raise NotAvailable(f"{point.name}: only {', '.join(sorted(CURVES))} points can be continued in two parameters, "
                            f"not {point.type}")
     if point.state is None:

@@ -6,6 +6,7 @@ unfolding are known in closed form."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -61,8 +62,12 @@ def test_fold_curve_from_LP(run_file, tmp_path):
     (curve,), meta = io.load(out)
     assert meta["scene"] == "imperfect-pitchfork" and curve.free == ("lam", "mu")
     assert len(curve) > 50 and _on_fold_curve(curve) < 1e-9
-    # through the cusp at the pitchfork (lam, mu) = (0, 0): both signs of mu, lam >= 0
-    assert curve.params["mu"].min() < -1e-3 < 1e-3 < curve.params["mu"].max()
+    # through the cusp at the pitchfork (lam, mu) = (0, 0) to both bounds of mu, ending exactly on them
+    mu = curve.params["mu"]
+    assert mu[0] == pytest.approx(-0.01, abs=1e-12) and mu[-1] == pytest.approx(0.01, abs=1e-12)
+    assert np.all(np.abs(mu) <= 0.01 + 1e-12)
+    ends = [sp for sp in curve.special_points if sp.type == "EP"]
+    assert [sp.note for sp in ends] == ["reached bound mu=-0.01", "reached bound mu=0.01"]
     assert curve.params["lam"].min() > -1e-9
     cusp = [sp for sp in curve.special_points if sp.type == "LP"]
     assert len(cusp) == 1 and abs(cusp[0].params["lam"]) < 1e-8 and abs(cusp[0].params["mu"]) < 1e-8
@@ -87,7 +92,7 @@ def test_continue_bad_input(run_file, tmp_path):
         assert r.exit_code == 1 and "Error:" in r.output and expect in r.output, r.output
         assert "Traceback" not in r.output
 
-    err("--from", "EP1", "--free", "mu", expect="only BP, LP points")
+    err("--from", "EP1", "--free", "mu", expect="only BP, HB, LP points")
     err("--from", "LP99", "--free", "mu", expect="no point 'LP99'")
     err("--from", "BP2", "--free", "lam", expect="must differ")
     err("--from", "BP2", "--free", "nope", expect="unknown parameter 'nope'")
@@ -100,18 +105,37 @@ def test_continue_bad_input(run_file, tmp_path):
     err("--from", "BP2", "--free", "K", expect="did not start")
 
 
-def test_hopf_points_have_a_clear_error_until_a_tracer_is_registered():
-    from contin.branch import Branch, SpecialPoint
-    from contin.twoparam import CURVES, NotAvailable, continue_point
+def test_hopf_point_is_continued_to_its_bogdanov_takens_point():
+    """HB of the BT normal form (x' = y, y' = b1 + b2 x + x^2 - x y, tests/hopf_models.py): the
+    Hopf curve is the line b1 = 0 (closed form) and meets the BT point at b1 = b2 = 0."""
+    from contin.continuation import trace
+    from contin.options import ContinuationOptions, StepOptions
+    from contin.twoparam import continue_point
+    from tests.hopf_models import BTNormalForm
 
-    hb = SpecialPoint(type="HB", index=0, params={"lam": 0.0, "mu": 0.0}, order_parameter=0.0,
+    x = 0.5 * (1 - math.sqrt(1 + 4 * 0.5))
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b1": (-1.0, 0.2)}, max_steps=200)
+    br = trace(BTNormalForm(), np.array([x, 0.0]), {"b1": -0.5, "b2": -1.0}, "b1", opts)
+    (hb,) = br.points("HB")
+    curve = continue_point(BTNormalForm(), br, hb, "b2",
+                           ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b2": (-2.0, 1.0)},
+                                               max_steps=200))
+    assert curve.free == ("b1", "b2") and np.allclose(curve.params["b1"], 0.0, atol=1e-10)
+    (bt,) = curve.points("BT")
+    assert abs(bt.params["b1"]) < 1e-10 and abs(bt.params["b2"]) < 1e-10
+
+
+def test_unknown_point_types_are_a_clear_error():
+    from contin.branch import Branch, SpecialPoint
+    from contin.twoparam import NotAvailable, continue_point
+
+    uz = SpecialPoint(type="UZ", index=0, params={"lam": 0.0, "mu": 0.0}, order_parameter=0.0,
                       state=np.zeros(1), label=3)
     br = Branch(parameter="lam", free=("lam",), params={"lam": np.zeros(1), "mu": np.zeros(1)}, observables={},
                 states=np.zeros((1, 1)), tangents=np.zeros((1, 2)), ds=np.zeros(1),
-                newton_iterations=np.zeros(1, dtype=np.int64), special_points=[hb])
-    assert "HB" not in CURVES
-    with pytest.raises(NotAvailable, match="HB3: two-parameter continuation of Hopf points is not available yet"):
-        continue_point(object(), br, hb, "mu", None)
+                newton_iterations=np.zeros(1, dtype=np.int64), special_points=[uz])
+    with pytest.raises(NotAvailable, match="UZ3: only BP, HB, LP points can be continued in two parameters"):
+        continue_point(object(), br, uz, "mu", None)
 
 
 def test_fit_recovers_the_closed_form_unfolding(run_file):
