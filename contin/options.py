@@ -84,6 +84,11 @@ class DetectionOptions:
         to ds_min, where it is kept with the BP marked unconfirmed); if they end at the same
         point the step is kept as it is.  Every such step is logged in ``Branch.audit``.
         False: no check (every corrected step is kept).
+    bp_eigenvalues : k > 0 switches on the second BP detector (``contin.bpdetect``): the k
+        eigenvalues of J nearest zero at every point, real ones crossing zero counted across
+        each step and cross-checked with the determinant tests (which miss kernels of even
+        dimension and two BPs in one step); a disagreement re-takes the step with half the ds.
+        Located BPs then carry ``kernel dimension d`` in their note.  0 (default): off.
     detect_hopf : Hopf points (HB, ``contin.hopf``): a complex pair of eigenvalues of
         J x = omega M x crossing the imaginary axis.  Needs eigenvalues at every point, so the
         default None means "on for n <= :data:`HOPF_AUTO_MAX` unknowns and problems without
@@ -100,6 +105,7 @@ class DetectionOptions:
     locate_tol: float = 1e-11
     max_bisections: int = 60
     retry_unconfirmed_bp: bool = True
+    bp_eigenvalues: int = 0
     detect_hopf: bool | None = None
     hopf_eigs: int = 12
     hopf_dense_max: int = 400
@@ -107,6 +113,8 @@ class DetectionOptions:
     def __post_init__(self) -> None:
         if self.hopf_eigs < 2 or self.hopf_dense_max < 2:
             raise ValueError(f"hopf_eigs and hopf_dense_max must be >= 2, got {self.hopf_eigs}, {self.hopf_dense_max}")
+        if self.bp_eigenvalues < 0:
+            raise ValueError(f"bp_eigenvalues must be >= 0 (0 switches the eigenvalue count off), got {self.bp_eigenvalues}")
 
 
 #: DetectionOptions.detect_hopf=None detects Hopf points on problems with at most this many unknowns.
