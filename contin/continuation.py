@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from contin.bpdetect import EigenCounter
-from contin.branch import Branch, SpecialPoint, relabel
+from contin.branch import MAX_AUDIT, Branch, SpecialPoint, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
@@ -54,8 +54,6 @@ __all__ = ["NewtonResult", "newton", "relabel", "switch", "trace", "trace_both"]
 
 log = logging.getLogger("contin")
 
-#: Rejected-step diagnostics kept in Branch.audit.
-MAX_AUDIT = 200
 
 #: Branch-jump protection (DetectionOptions.retry_unconfirmed_bp).  A located BP is confirmed
 #: when its test function, scaled to 1 at the larger end of the step, has fallen below

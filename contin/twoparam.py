@@ -5,13 +5,15 @@ free parameters, ``ICP=[p1, p2]``).
 
 - ``LP`` -- the fold curve through the Moore-Spence system F = 0, J phi = 0, c.phi = 1
   (:class:`contin.foldcurve.FoldProblem`, as in :func:`contin.foldcurve.trace_fold_curve`);
-- ``BP`` -- the same system.  At a simple symmetry-breaking pitchfork it is regular (Werner &
-  Spence, SIAM J. Numer. Anal. 21, 1984): with a symmetry-preserving second parameter the
-  curve is the curve of pitchforks; with a symmetry-breaking one it is the fold curve of the
-  imperfect pitchfork, whose projection on (p1, p2) has its cusp at the BP.  At a
-  transcritical BP unfolded by the second parameter it is the fold curve through the BP
-  (lam x - x^2 + mu: x = lam/2, mu = -lam^2/4).  Where it is singular (a second parameter
-  that keeps a transcritical BP) the corrector fails and the error says so;
+- ``BP`` -- the same system, when the second parameter unfolds the BP (psi . dF/dp2 != 0, psi
+  the left null vector of J): then the system is regular at the BP and the curve is the fold
+  curve of the unfolded bifurcation -- for a pitchfork broken by p2 the imperfect pitchfork's
+  fold curve, whose projection on (p1, p2) has its cusp at the BP; for a transcritical BP
+  (lam x - x^2 + mu) the fold curve x = lam/2, mu = -lam^2/4 through it.  A second parameter
+  that keeps the BP (psi . dF/dp2 = 0, e.g. a symmetry-preserving one at a pitchfork) makes the
+  plain system singular there; the curve of such BPs needs the system restricted to the
+  symmetric / antisymmetric subspaces (Werner & Spence, SIAM J. Numer. Anal. 21, 1984), which
+  is not implemented: that case is a clear error;
 - ``HB`` -- the Hopf curve (:func:`contin.hopfcurve.trace_hopf_curve`; Bogdanov-Takens points
   located on it).
 
@@ -33,6 +35,7 @@ from contin.branch import Branch, SpecialPoint, relabel
 from contin.continuation import join, newton, trace
 from contin.extended import ExtendedSystem
 from contin.foldcurve import FoldProblem, as_fold_curve, fold_start
+from contin.normalform import null_vectors
 from contin.hopfcurve import trace_hopf_curve
 from contin.options import ContinuationOptions, NewtonOptions
 
@@ -53,6 +56,8 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
     ``second`` the curve has a cusp in (p1, p2), p1 is extremal there (d p1/ds = 0) and the sign
     of d p1/ds cannot tell the halves apart.
     """
+    if point.type == "BP":
+        _check_unfolds(problem, point, second)
     fold, start = fold_start(problem, point, second)
     lo, hi = options.bounds.get(second, (-math.inf, math.inf))
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False),
@@ -65,6 +70,24 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
     backward = _cut_at_bound(trace(fold, start, dict(point.params), parameter, opts, direction=-1,
                                    tangent=forward.tangents[0], **common), fold, second, lo, hi)
     return as_fold_curve(join(backward, forward), fold, opts)
+
+
+#: psi . dF/dp2 below this fraction of |psi| |dF/dp2| means p2 does not unfold the BP
+UNFOLD_TOL = 1e-8
+
+
+def _check_unfolds(problem: Any, point: SpecialPoint, second: str) -> None:
+    """ValueError unless ``second`` unfolds the BP at first order (psi . dF/dp2 != 0)."""
+    import scipy.sparse as sp
+
+    u = np.asarray(point.state, float)
+    psi = null_vectors(sp.csc_matrix(problem.jacobian(u, point.params))).psi
+    fp = np.asarray(problem.dresidual_dp(u, point.params, second), float)
+    scale = float(np.linalg.norm(psi) * np.linalg.norm(fp))
+    if scale == 0.0 or abs(float(psi @ fp)) <= UNFOLD_TOL * scale:
+        raise ValueError(f"{second!r} does not unfold {point.name} (psi . dF/d{second} = 0: the branch point "
+                         f"persists as {second} changes, e.g. a symmetry-preserving parameter at a pitchfork); "
+                         "its curve needs the Werner-Spence system, which contin does not implement")
 
 
 def _cut_at_bound(half: Branch, fold: FoldProblem, second: str, lo: float, hi: float) -> Branch:
@@ -167,7 +190,5 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     curve = tracer(problem, point, second, options, parameter=first,
                    branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
     if len(curve) <= 1:
-        hint = (f" (the fold system is singular at a BP that {second!r} does not unfold)"
-                if point.type == "BP" else "")
-        raise ValueError(f"the {point.type} curve from {point.name} did not start: {curve.message}{hint}")
+        raise ValueError(f"the {point.type} curve from {point.name} did not start: {curve.message}")
     return curve

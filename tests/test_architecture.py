@@ -24,10 +24,15 @@ def _modules() -> dict[str, Path]:
 
 
 def _imports(path: Path, name: str) -> set[str]:
-    """Every module named by an import statement anywhere in the file (relative ones resolved)."""
+    """Every module named by an import statement anywhere in the file (relative ones resolved),
+    function bodies included; only ``if TYPE_CHECKING:`` blocks are left out."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    tree = ast.parse(path.read_text(), str(path))
+    for node in ast.walk(tree):  # `if TYPE_CHECKING:` imports are for annotations only, never run
+        if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", "")) == "TYPE_CHECKING":
+            node.body = []
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):

@@ -101,8 +101,10 @@ def test_continue_bad_input(run_file, tmp_path):
     err("--from", "BP2", "--free", "mu", "--bounds", "mu=1:0", expect="LO < HI")
     err("--from", "BP2", "--free", "mu", "--bounds", "K=0:1", expect="only the two free parameters")
     err("--from", "BP2", "--free", "mu", "-o", tmp_path / "no" / "x.h5", expect="does not exist")
-    # a BP that the second parameter does not unfold: the fold system is singular there
-    err("--from", "BP2", "--free", "K", expect="did not start")
+    # a BP that the second parameter does not unfold (K multiplies mu: at mu = 0 the pitchfork stays):
+    # the plain fold system is singular there
+    err("--from", "BP2", "--free", "K", expect="'K' does not unfold BP2")
+    err("--from", "BP2", "--free", "Q", expect="'Q' does not unfold BP2")
 
 
 def test_hopf_point_is_continued_to_its_bogdanov_takens_point():

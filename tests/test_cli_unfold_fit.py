@@ -9,6 +9,7 @@ import json
 import pytest
 from click.testing import CliRunner
 
+from contin import io
 from contin.cli import main
 from problems.couette import compiled
 
@@ -50,6 +51,18 @@ def test_fit_agrees_with_lyapunov_schmidt(tmp_path):
     assert doc["hysteresis"]["exists"] is False and doc["hysteresis"]["perturbative"] is False
     assert doc["hysteresis"]["mu"] ** -0.5 == pytest.approx(40.6, rel=0.02)  # Fr = G^-1/2 where it would be
     assert len(doc["fit"]["unfolding"]["covariance"]["matrix"]) == 5
+    # the pitchfork continued in (H, G): the fold curve through the cusp at BP1 meets the folds that
+    # the one-parameter traces at G = 3e-7 located, and is mirror-symmetric (H(G) = H(-G))
+    cusp = tmp_path / "cusp.h5"
+    r = CliRunner().invoke(main, ["continue", str(path), "--from", "BP1", "--free", "G", "--bounds", "G=-3e-7:3e-7",
+                                  "--bounds", "H=12:14", "--ds", "0.01", "--ds-max", "0.05", "-o", str(cusp)])
+    assert r.exit_code == 0, r.output
+    (curve,), _ = io.load(cusp)
+    ends = [sp for sp in curve.special_points if sp.type == "EP"]
+    assert sorted(sp.params["G"] for sp in ends) == pytest.approx([-3e-7, 3e-7], abs=1e-18)
+    h_lp = folds[3e-7]["lambda_minus_lc"] + doc["critical_value"]
+    for sp in ends:
+        assert sp.params["H"] == pytest.approx(h_lp, abs=1e-7)
 
 
 def test_fit_bad_input(tmp_path):
