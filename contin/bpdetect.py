@@ -90,23 +90,55 @@ def spectrum(jac: Any, k: int) -> Spectrum:
     return Spectrum(w[:-1], float(abs(w[-1])))
 
 
-def crossings(sa: Spectrum, sb: Spectrum) -> tuple[int, bool, str]:
-    """(number of real eigenvalues that crossed zero from a to b, conclusive, detail).
+def disc_radius(sa: Spectrum, sb: Spectrum, k: int, moved: float = 0.0) -> float:
+    """Radius of the disc in which crossings are counted.
 
-    In the disc |lambda| < r that both ends cover (everything for dense spectra), p = number of
-    positive and m = number of negative real eigenvalues.  A real eigenvalue through zero moves
-    one from one side to the other: p_b - p_a = m_a - m_b = the net number of crossings (the
-    count is *conclusive*).  Unequal changes mean that something else happened as well: two
-    real eigenvalues met and turned complex (or the reverse), or an eigenvalue crossed the rim
-    of the disc; a shorter step separates that from a crossing.
+    Far from zero, discretized operators have many eigenvalues that meet and turn complex, and
+    a disc whose rim an eigenvalue crosses during the step miscounts.  The radius is therefore
+    put in a gap between consecutive magnitudes of both ends' eigenvalues (the 2k smallest)
+    where both ends have the same number of eigenvalues inside (nothing crossed the rim), above
+    the smallest magnitude of each end and above ``moved`` (a bound on how far an eigenvalue
+    moved in the step, ||J_b - J_a||_F: an eigenvalue that crossed zero is then inside at both
+    ends; Bauer-Fike for normal J), choosing the widest such gap by ratio; the whole common
+    range if there is none.
     """
     r = min(sa.radius, sb.radius)
+    ma, mb = np.abs(sa.values), np.abs(sb.values)
+    m = np.sort(np.concatenate([ma, mb]))
+    m = m[m < r][: 2 * k]
+    floor = max(float(np.min(ma, initial=0.0)), float(np.min(mb, initial=0.0)), moved)
+    best, radius = 1.0, r
+    for j in range(m.size - 1):
+        if m[j] < floor or m[j] <= 0 or m[j + 1] / m[j] <= best:
+            continue
+        cut = math.sqrt(m[j] * m[j + 1])
+        if np.count_nonzero(ma < cut) == np.count_nonzero(mb < cut):
+            best, radius = m[j + 1] / m[j], cut
+    return radius
+
+
+def crossings(sa: Spectrum, sb: Spectrum, k: int = 12, moved: float = 0.0) -> tuple[int, bool, str]:
+    """(number of real eigenvalues that crossed zero from a to b, conclusive, detail).
+
+    In the disc |lambda| < r of :func:`disc_radius`, p = number of positive and m = number of
+    negative real eigenvalues.  A real eigenvalue through zero moves one from one side to the
+    other: p_b - p_a = m_a - m_b = the net number of crossings (the count is *conclusive*).  Two
+    real eigenvalues meeting and turning complex (or the reverse) change one side by two and
+    the other not at all: no crossing, also conclusive.  Anything else (an eigenvalue crossing
+    the rim of the disc, or a crossing and a collision together) is inconclusive; a shorter
+    step separates the events.
+    """
+    r = disc_radius(sa, sb, k, moved)
     pa, ma = sa.real_counts(r)
     pb, mb = sb.real_counts(r)
     up, down = pb - pa, ma - mb
     rim = f"|lambda| < {r:.3g}" if math.isfinite(r) else "all eigenvalues"
     detail = f"real eigenvalues (+, -) {rim}: ({pa}, {ma}) -> ({pb}, {mb})"
-    return abs(up), up == down, detail
+    if up == down:
+        return abs(up), True, detail
+    if (up == 0 and down % 2 == 0) or (down == 0 and up % 2 == 0):
+        return 0, True, detail + " (a collision into or out of a complex pair)"
+    return abs(up), False, detail
 
 
 def kernel_dimension_of(spec: Spectrum) -> int:
@@ -144,19 +176,28 @@ class EigenCounter:
 
     def __init__(self, k: int) -> None:
         self.k = int(k)
-        self._cache: dict[int, tuple[Any, Spectrum]] = {}
+        self._cache: dict[int, tuple[Any, Spectrum, Any]] = {}
         self._halvings: dict[int, int] = {}
 
     def spectrum_at(self, tracer: _Tracer, pt: _Point) -> Spectrum:
+        return self._at(tracer, pt)[0]
+
+    def _at(self, tracer: _Tracer, pt: _Point) -> tuple[Spectrum, Any]:
         key = id(pt)
         hit = self._cache.get(key)
         if hit is not None and hit[0] is pt:
-            return hit[1]
-        spec = spectrum(tracer.system.state_jacobian(pt.x), self.k)
+            return hit[1], hit[2]
+        jac = tracer.system.state_jacobian(pt.x)
+        spec = spectrum(jac, self.k)
         if len(self._cache) > 8:
             self._cache.clear()
-        self._cache[key] = (pt, spec)
-        return spec
+        self._cache[key] = (pt, spec, jac)
+        return spec, jac
+
+    def moved(self, ja: Any, jb: Any) -> float:
+        """||J_b - J_a||_F: bounds how far an eigenvalue of (normal) J moved in the step."""
+        d = jb - ja
+        return float(spla.norm(d) if sp.issparse(d) else np.linalg.norm(d))
 
     def dimension_at(self, tracer: _Tracer, x: Array) -> int:
         return kernel_dimension_of(spectrum(tracer.system.state_jacobian(x), self.k))
@@ -174,7 +215,8 @@ class EigenCounter:
             return tracer.finish_point(corr, cur.t)
 
         s_new = sys.dot(cur.t, new.x - cur.x)
-        c, conclusive, detail = crossings(self.spectrum_at(tracer, cur), self.spectrum_at(tracer, new))
+        (sa, ja), (sb, jb) = self._at(tracer, cur), self._at(tracer, new)
+        c, conclusive, detail = crossings(sa, sb, self.k, self.moved(ja, jb))
         # a fold is a real eigenvalue through zero as well
         n_det = sum(sp_.type in ("BP", "LP") for sp_ in found)
         head = f"{sys.parameter}={cur.x[-1]:.10g} ds={ds:.3g}"
@@ -248,7 +290,7 @@ class EigenCounter:
     def _locate_first(self, tracer: _Tracer, cur: _Point, evaluate: Callable[[float], _Point | None],
                       s_new: float) -> tuple[Array, bool] | None:
         """Bisection on the count for the first crossing after cur; (x, converged) or None."""
-        sa = self.spectrum_at(tracer, cur)
+        sa, ja = self._at(tracer, cur)
         lo, hi = 0.0, s_new
         x_hi = None
         tol = tracer.options.detection.locate_tol * max(1.0, abs(cur.x[-1]))
@@ -261,7 +303,8 @@ class EigenCounter:
                     break
             if pt is None:
                 return None if x_hi is None else (x_hi, False)
-            c, conclusive, _ = crossings(sa, spectrum(tracer.system.state_jacobian(pt.x), self.k))
+            jm = tracer.system.state_jacobian(pt.x)
+            c, conclusive, _ = crossings(sa, spectrum(jm, self.k), self.k, self.moved(ja, jm))
             if not conclusive:
                 return None if x_hi is None else (x_hi, False)
             if c >= 1:

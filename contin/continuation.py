@@ -33,13 +33,15 @@ from typing import Any
 
 import numpy as np
 
-from contin.bpdetect import EigenCounter
+from contin.blas import limited
+from contin.bpdetect import EigenCounter, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero, outside_bracket
+from contin.ndbp import nd_departures
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
 from contin.pointtests import PointTest
@@ -355,6 +357,7 @@ def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0
     return float(lo), float(hi)
 
 
+@limited(lambda problem, u0, *args, **kwargs: np.size(u0))  # one BLAS thread on small problems (contin.blas)
 def trace(
     problem: Any,
     u0: Array,
@@ -726,10 +729,13 @@ def switch(
     ds: float | None = None,
     symmetric: bool | None = None,
 ) -> list[Branch]:
-    """Trace the branches bifurcating at the simple BP ``point`` of ``branch``.
+    """Trace the branches bifurcating at the BP ``point`` of ``branch``.
 
     The first point of each half-branch comes from the algebraic bifurcation equation
-    (:func:`contin.switching.departures`); each is traced on from there and starts with the BP.
+    (:func:`contin.switching.departures`), or, at a BP whose kernel dimension d > 1 was recorded
+    (``contin.bpdetect``), from the reduced bifurcation equations in d amplitudes
+    (:func:`contin.ndbp.nd_departures`; one branch per root direction, ``directions`` and
+    ``symmetric`` ignored); each is traced on from there and starts with the BP.
 
     Parameters
     ----------
@@ -745,17 +751,35 @@ def switch(
     Raises
     ------
     ValueError
-        If ``point`` is not a BP with a tangent, or the BP is not simple (b = 0 in the ABE).
+        If ``point`` is not a BP with a tangent, the BP is not simple (b = 0 in the ABE), or no
+        direction gives a new branch (the reason per direction; never an empty list).
     """
+    if point.type != "BP" or point.tangent is None:
+        raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
+    param = branch.parameter
+    dim = kernel_dimension(point)
+    nd = dim is not None and dim > 1
+    if nd:
+        deps = nd_departures(problem, branch, point, options, dim, ds=ds)
+    else:
+        deps = departures(problem, branch, point, options, directions=directions, ds=ds)
     prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
     parent = f"{point.name}@{branch.id}"
     out: list[Branch] = []
-    for k, dep in enumerate(departures(problem, branch, point, options, directions=directions, ds=ds), start=1):
-        if dep is None:  # no accepted first step in this direction
+    failed: list[str] = []
+    for k, dep in enumerate(deps, start=1):
+        if isinstance(dep, str):  # no accepted first step in this direction
+            failed.append(dep)
             continue
         system = dep.system
-        new = trace(problem, dep.start[:-1], system.params_at(dep.start[-1]), branch.parameter,
+        new = trace(problem, dep.start[:-1], system.params_at(dep.start[-1]), param,
                     first_step_options(options, dep.step), tangent=dep.tangent, branch_id=f"{prefix}.{k}",
-                    kind="bifurcated", parent=parent, symmetric=symmetric)
+                    kind="bifurcated", parent=parent, symmetric=None if nd else symmetric)
+        if nd:
+            new.audit.insert(0, f"switched at {point.name} (kernel dimension {dim}) along the reduced root {dep.note}")
         out.append(prepend(system, new, dep.x0, dep.tangent))
+    if not out:  # never an empty list without a reason
+        where = f"{point.name} ({param} = {point.params[param]:.10g}" + (f", kernel dimension {dim})" if nd else ")")
+        raise ValueError(f"switching at {where} found no new branch: "
+                         + (f"none along any of the {len(deps)} reduced roots" if nd else "; ".join(failed)))
     return out

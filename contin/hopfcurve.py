@@ -293,10 +293,11 @@ def trace_hopf_curve(
     return as_hopf_curve(raw, curve)
 
 
-def _cut_at_bound(branch: Branch, curve: HopfCurveProblem, second: str) -> Branch:
+def _cut_at_bound(branch: Branch, curve: Any, second: str, index: int | None = None) -> Branch:
     """The branch up to its first crossing of a bound of ``second`` (the located UZ of
     :func:`_second_bound_event`), ending there with EP "reached bound ...".  The tracer's own
-    bound landing works on the continuation parameter only; p2 is part of the state here."""
+    bound landing works on the continuation parameter only; p2 is part of the state here, at
+    ``index`` (default: its place in the Hopf-curve state; ``contin.foldcurve`` passes its own)."""
     from contin.extended import ExtendedSystem
 
     tag = f"bound of {second}"
@@ -309,7 +310,7 @@ def _cut_at_bound(branch: Branch, curve: HopfCurveProblem, second: str) -> Branc
     system = ExtendedSystem(curve, {**uz.params}, branch.parameter)
     x = system.pack(uz.state, uz.params[branch.parameter])
     record = system.record(x)
-    p2 = float(uz.state[3 * curve.n + 1])
+    p2 = float(uz.state[3 * curve.n + 1 if index is None else index])
     end = SpecialPoint(type="EP", index=n_keep, params=dict(uz.params), order_parameter=uz.order_parameter,
                        state=uz.state.copy(), tangent=None if uz.tangent is None else uz.tangent.copy(),
                        bracket=uz.bracket, note=f"reached bound {second}={p2:g}")
@@ -341,10 +342,11 @@ def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:
     return abs(s.params[p] - a) <= abs(uz.params[p] - a)
 
 
-def _second_bound_event(curve: HopfCurveProblem, second: str, lo: float, hi: float) -> dict[str, Any]:
+def _second_bound_event(curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> dict[str, Any]:
     """An event that vanishes on the bounds of the second parameter (p2 is part of the state,
-    so the tracer's bound landing does not see it): the run stops at the located crossing."""
-    index = 3 * curve.n + 1
+    so the tracer's bound landing does not see it): the run stops at the located crossing.
+    ``index``: p2's place in the state (default: the Hopf-curve state's)."""
+    index = 3 * curve.n + 1 if index is None else index
 
     def g(state: Array, p: Mapping[str, float]) -> float:
         p2 = float(state[index])

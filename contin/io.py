@@ -7,7 +7,9 @@ Layout (format "contin", format_version 1)
     /                         attrs: format="contin", format_version=1, contin_version,
                                      git_commit, created_utc, command (exact argv), scene,
                                      parameters, discretization, options, notes, extra (JSON
-                                     text), diagram_x, diagram_y, complete (bool)
+                                     text), diagram_x, diagram_y, complete (bool),
+                                     stopped (why an incomplete run stopped: "interrupted",
+                                     "terminated by SIGTERM", "failed: <reason>"; "" otherwise)
     /grid/y                   (N,) wall-normal grid of the profiles (optional)
     /branches/<id>/           attrs: id, parameter, free, status, message, closed, kind,
                                      parent, position, param_names, observable_names,
@@ -83,9 +85,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from contin.atomic import publish
+from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
+from contin.filecheck import BadDataset, check_branch, check_special_point
 from contin.jsonout import dumps as _json_dumps
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
@@ -399,12 +402,20 @@ def _read_special_data(g: h5py.Group, k: int) -> list[dict[str, float]]:
 
 
 def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
-    """Write a whole file through ``fill`` into PATH.tmp, fsync, and rename it onto PATH."""
+    """Write a whole file through ``fill`` into PATH.tmp, fsync, and rename it onto PATH.
+
+    The HDF5 image is built in memory and then written with plain ``write`` calls: HDF5 itself
+    writing onto a full disk crashed the process (segmentation fault, hundreds of traceback
+    lines, a stray PATH.tmp), while a failed ``write`` is an ordinary OSError that
+    :func:`contin.atomic.publish` turns into one sentence.  Runs are a few MB.
+    """
+    import io as _io
 
     def write(tmp: Path) -> None:
-        with h5py.File(tmp, "w") as f:
+        buf = _io.BytesIO()
+        with h5py.File(buf, "w") as f:
             fill(f)
-            f.flush()
+        write_bytes(tmp, buf.getvalue())
 
     publish(path, write)
 
@@ -412,18 +423,16 @@ def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
 def check_writable(path: str | os.PathLike[str]) -> Path:
     """Raise ``OSError`` with a clear message if ``path`` (an output file) cannot be written.
 
-    Creates and removes ``PATH.tmp``, exactly what a publish will need, so a bad ``-o`` fails
-    before any computing.
+    Creates and removes a probe file beside PATH (a publish needs to create PATH.tmp there), so
+    a bad ``-o`` fails before any computing.
     """
-    p = Path(path)
-    if p.is_dir():
-        raise IsADirectoryError(f"output path {str(p)!r} is a directory")
+    p = check_target(path)  # a regular file or a new path, never a device or a symlink
     if not p.parent.is_dir():
         raise FileNotFoundError(f"cannot write {str(p)!r}: directory {str(p.parent)!r} does not exist")
-    tmp = p.with_name(p.name + ".tmp")
+    # A probe of our own (never PATH.tmp: another run publishing to PATH may be writing that)
+    tmp = p.with_name(f".{p.name}.{os.getpid()}.probe")
     try:
-        with open(tmp, "wb"):
-            pass
+        write_bytes(tmp, b"")
         tmp.unlink()
     except OSError as exc:
         raise OSError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
@@ -467,8 +476,12 @@ class H5Writer:
         diagram_x: str = "",
         diagram_y: str = "phi",
         max_profiles: int = 40,
+        lock: bool = True,
+        attrs: Mapping[str, str] | None = None,
     ) -> None:
         self.path = check_writable(path)
+        # One writer per output, refused up front (two runs on one -o lost work silently).
+        self._lock = OutputLock(self.path).acquire() if lock else None
         argv = sys.argv if command is None else command
         self.meta: dict[str, Any] = {
             "scene": scene,
@@ -481,10 +494,12 @@ class H5Writer:
             "extra": dict(extra or {}),
             "diagram_x": diagram_x,
             "diagram_y": diagram_y,
+            "stopped": "",
         }
         self.y = None if y is None else np.asarray(y, dtype=float)
         self.profiles = profiles
         self.max_profiles = max_profiles
+        self.attrs = dict(attrs or {})  # extra root attributes (text), e.g. a sweep task's result
         self._branches: dict[str, Branch] = {}
         self._extra_branches: list[Branch] = []
         self._profile_cache: dict[int, tuple[Branch, tuple[np.ndarray, dict[str, np.ndarray]] | None]] = {}
@@ -500,6 +515,8 @@ class H5Writer:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         if exc_type is None:
             self.close()
+        else:
+            self.release()
 
     @property
     def branches(self) -> list[Branch]:
@@ -566,10 +583,12 @@ class H5Writer:
         a["contin_version"] = _contin_version()
         a["git_commit"] = git_commit()
         a["complete"] = bool(self.complete)
-        for key in ("created_utc", "command", "scene", "diagram_x", "diagram_y"):
+        for key in ("created_utc", "command", "scene", "diagram_x", "diagram_y", "stopped"):
             a[key] = str(self.meta[key])
         for key in ("parameters", "discretization", "options", "notes", "extra"):
             a[key] = _json_dumps(self.meta[key])
+        for key, value in self.attrs.items():
+            a[key] = str(value)
         if self.y is not None:
             f.create_group("grid").create_dataset("y", data=self.y)
         bg = f.create_group("branches", track_order=True)
@@ -596,9 +615,18 @@ class H5Writer:
         self.publishes += 1
 
     def close(self) -> None:
-        """Final publish with ``complete=True``."""
+        """Final publish with ``complete=True``; releases the output lock."""
         self.complete = True
-        self.publish()
+        try:
+            self.publish()
+        finally:
+            self.release()
+
+    def release(self) -> None:
+        """Drop the output lock (also done by :meth:`close`; a dying process drops it anyway)."""
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
 
 def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:
@@ -612,6 +640,7 @@ def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any)
     if not meta.get("parameters"):
         first = next((b for b in branches if len(b)), None)
         meta["parameters"] = {} if first is None else {k: float(v[0]) for k, v in first.params.items()}
+    meta.setdefault("lock", False)  # one publish, atomic by itself; no run to protect
     w = H5Writer(path, **meta)
     w.set_branches(branches)
     w.close()
@@ -668,6 +697,15 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
     k = int(g.attrs["n_rows"])
     if k == 0:
         return []
+    for name in ("branch", "name", "type", "note", "label", "index", "branch_position", "phi", "bracket_lo",
+                 "bracket_hi", "converged", "params_present", "states", "state_size", "tangents", "tangent_size"):
+        if name in g and g[name].shape[:1] != (k,):
+            raise BadDataset(f"dataset special_points/{name} has {g[name].shape[0] if g[name].shape else 0} rows, "
+                             f"the table has {k} (attribute n_rows)")
+    for name, ds in g["params"].items():
+        if ds.shape[:1] != (k,):
+            raise BadDataset(f"dataset special_points/params/{name} has {ds.shape[0] if ds.shape else 0} rows, "
+                             f"the table has {k} (attribute n_rows)")
     names = _attr_list(g.attrs["param_names"])
     cols = {n: _read_column(g["params"][n.replace("/", "%2F")]) for n in names}
     present = g["params_present"][()]
@@ -737,7 +775,8 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                 "format_version": version,
                 "complete": bool(a.get("complete", False)),
             }
-            for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "diagram_x", "diagram_y"):
+            for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "diagram_x", "diagram_y",
+                        "stopped"):
                 meta[key] = str(a.get(key, ""))
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
@@ -746,22 +785,27 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
             branches = [_read_branch(g) for g in groups]
             profiles = {}
             for g, b in zip(groups, branches):
+                prof: dict[str, np.ndarray] | None = None
                 if "profile_index" in g:
-                    prof: dict[str, np.ndarray] = {"index": g["profile_index"][()]}
+                    prof = {"index": g["profile_index"][()]}
                     for name, ds in g["profiles"].items():
                         prof[name.replace("%2F", "/")] = ds[()]
                     profiles[b.id] = prof
+                check_branch(g.name.lstrip("/"), b, json.loads(g.attrs["datasets"]), prof)
             meta["profiles"] = profiles
             sp_group = f["special_points"]
             if "profiles" in sp_group:
                 meta["special_point_profiles"] = {n.replace("%2F", "/"): d[()] for n, d in sp_group["profiles"].items()}
-            for pos, bid, sp in _read_special_points(sp_group):
+            for row, (pos, bid, sp) in enumerate(_read_special_points(sp_group)):
                 if not 0 <= pos < len(branches) or branches[pos].id != bid:
                     raise FileFormatError(f"{str(p)!r} is damaged: special point {sp.name} names a missing branch {bid!r}")
+                check_special_point(row, branches[pos], sp)
                 branches[pos].special_points.append(sp)
             return branches, meta
     except FileFormatError:
         raise
+    except BadDataset as exc:
+        raise FileFormatError(f"{str(p)!r} is damaged: {exc}") from None
     except (KeyError, ValueError, TypeError, OSError, RuntimeError, IndexError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise FileFormatError(f"{str(p)!r} is damaged or truncated ({msg})") from None

@@ -135,8 +135,8 @@ def restep(problem: Any, branch: Branch, params: Mapping[str, float], options: C
                  tangent=branch.tangents[k], **kw)
     if tail.closed:
         return cut
-    tail = trim_self_overlap(tail, coordinates, excursion=excursion)
-    out = concat(head, tail)
+    # the re-stepped part may still come back along the part kept before it: cut the whole
+    out = trim_self_overlap(concat(head, tail), coordinates, excursion=excursion)
     out.message += f" (re-stepped from {par} = {branch.params[par][k]:.6g} with ds_max = {finer.step.ds_max:g})"
     return out
 

@@ -104,6 +104,8 @@ class SceneRequest:
             kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}
         if "stop_at" in ov:  # --stop-at UZ1 (AUTO's UZSTOP) replaces the scene's
             kw["stop_at"] = tuple(ov["stop_at"])
+        if "bp_eigenvalues" in ov:  # --bp-eigs K: the eigenvalue-count BP detector (contin.bpdetect)
+            kw["detection"] = dataclasses.replace(base.detection, bp_eigenvalues=int(ov["bp_eigenvalues"]))
         resolved = dataclasses.replace(base, **kw)
         self._resolved.append(resolved)
         return resolved

@@ -139,10 +139,12 @@ def new_tangent(system: ExtendedSystem, t1: Array, phi: Array, a: float, b: floa
 
 @dataclass(frozen=True)
 class Departure:
-    """The first point of one bifurcating half-branch, found by :func:`departures`.
+    """The first point of one bifurcating half-branch (:func:`departures`,
+    :func:`contin.ndbp.nd_departures`).
 
     x0 : the branch point (u, p); start : the converged first point off it; tangent : the
-    theta-unit tangent there (d * tau); step : the accepted length of the first step.
+    theta-unit tangent there (d * tau); step : the accepted length of the first step;
+    note : how the direction was found (the reduced root at a BP of kernel dimension > 1).
     """
 
     system: ExtendedSystem
@@ -151,6 +153,28 @@ class Departure:
     tangent: Array
     step: float
     direction: int
+    note: str = ""
+
+
+def first_point(system: ExtendedSystem, x0: Array, tau: Array, step: float,
+                options: ContinuationOptions) -> tuple[Array | None, float, str]:
+    """(start, step, reason): the corrector's solution from x0 + step * tau in the hyperplane
+    orthogonal to tau, the step halved (up to MAX_START_HALVINGS times) until the solution lies
+    near the predictor; start None (and the reason) when no step is accepted."""
+    corr = None
+    # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
+    # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
+    # the test below passes: halve up to MAX_START_HALVINGS times.
+    for _ in range(MAX_START_HALVINGS):
+        x_pred = x0 + step * tau
+        corr = correct(system, x_pred, system.row(tau), options.newton, give_up=_FarFromPredictor(system, x_pred, 0.5 * step))
+        # A good start lies near the predictor; a large correction means the predictor fell
+        # back onto the known branch or diverged.
+        if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
+            return corr.x, step, ""
+        step *= 0.5
+    why = "no corrected first step near the predictor" if corr is None or corr.converged else corr.message
+    return None, 2 * step, f"{why} (first step halved to {2 * step:.3g})"
 
 
 def departures(
@@ -161,14 +185,13 @@ def departures(
     *,
     directions: tuple[int, ...] = (+1, -1),
     ds: float | None = None,
-) -> list[Departure | None]:
+) -> list[Departure | str]:
     """The first point of each bifurcating half-branch at the simple BP ``point`` of ``branch``.
 
-    The tangent tau of the new branch solves the ABE (module docstring); the first point is the
-    corrector's solution from x0 + d * step * tau in the hyperplane orthogonal to tau, with the
-    step halved (up to MAX_START_HALVINGS times) until the solution lies near the predictor.
-    The list follows ``directions``; None where no first step was accepted.  Tracing the rest of the branch
-    is :func:`contin.continuation.switch` (this module does not import the tracer).
+    The tangent tau of the new branch solves the ABE (module docstring); the first point comes
+    from :func:`first_point`.  The list follows ``directions``; a direction without an accepted
+    first step gives the reason (a str).  Tracing the rest of the branch is
+    :func:`contin.continuation.switch` (this module does not import the tracer).
 
     Raises
     ------
@@ -186,23 +209,10 @@ def departures(
     phi, psi = null_directions(system, x0, t1, "symmetry-breaking" in point.note)
     a, b, c = bifurcation_coefficients(system, x0, t1, phi, psi)
     tau = new_tangent(system, t1, phi, a, b, c)
-    out: list[Departure | None] = []
+    out: list[Departure | str] = []
     for d in directions:
-        step = abs(ds if ds is not None else options.step.ds)
-        # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
-        # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
-        # the test below passes: halve up to MAX_START_HALVINGS times.
-        for _ in range(MAX_START_HALVINGS):
-            x_pred = x0 + d * step * tau
-            corr = correct(system, x_pred, system.row(tau), options.newton, give_up=_FarFromPredictor(system, x_pred, 0.5 * step))
-            # A good start lies near the predictor; a large correction means the predictor fell
-            # back onto the known branch or diverged.
-            if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
-                out.append(Departure(system, x0, corr.x, d * tau, step, d))
-                break
-            step *= 0.5
-        else:
-            out.append(None)
+        start, step, why = first_point(system, x0, d * tau, abs(ds if ds is not None else options.step.ds), options)
+        out.append(Departure(system, x0, start, d * tau, step, d) if start is not None else f"direction {d:+d}: {why}")
     return out
 
 

@@ -5,15 +5,15 @@ free parameters, ``ICP=[p1, p2]``).
 
 - ``LP`` -- the fold curve through the Moore-Spence system F = 0, J phi = 0, c.phi = 1
   (:class:`contin.foldcurve.FoldProblem`, as in :func:`contin.foldcurve.trace_fold_curve`);
-- ``BP`` -- the same system, when the second parameter unfolds the BP (psi . dF/dp2 != 0, psi
-  the left null vector of J): then the system is regular at the BP and the curve is the fold
-  curve of the unfolded bifurcation -- for a pitchfork broken by p2 the imperfect pitchfork's
-  fold curve, whose projection on (p1, p2) has its cusp at the BP; for a transcritical BP
-  (lam x - x^2 + mu) the fold curve x = lam/2, mu = -lam^2/4 through it.  A second parameter
-  that keeps the BP (psi . dF/dp2 = 0, e.g. a symmetry-preserving one at a pitchfork) makes the
-  plain system singular there; the curve of such BPs needs the system restricted to the
-  symmetric / antisymmetric subspaces (Werner & Spence, SIAM J. Numer. Anal. 21, 1984), which
-  is not implemented: that case is a clear error;
+- ``BP`` -- when the second parameter unfolds the BP (psi . dF/dp2 != 0, psi the left null
+  vector of J) the same system, regular at the BP: the curve is the fold curve of the unfolded
+  bifurcation -- for a pitchfork broken by p2 the imperfect pitchfork's fold curve, whose
+  projection on (p1, p2) has its cusp at the BP; for a transcritical BP (lam x - x^2 + mu) the
+  fold curve x = lam/2, mu = -lam^2/4 through it.  When p2 keeps the BP (psi . dF/dp2 = 0, e.g.
+  a symmetry-preserving parameter at a symmetry-breaking pitchfork) the plain system is
+  singular there and the curve of pitchforks is traced by the system restricted to symmetric
+  u and antisymmetric phi (Werner & Spence, SIAM J. Numer. Anal. 21, 1984;
+  :func:`contin.bpcurve.trace_bp_curve`); any other BP kept by p2 is a clear error;
 - ``HB`` -- the Hopf curve (:func:`contin.hopfcurve.trace_hopf_curve`; Bogdanov-Takens points
   located on it).
 
@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.bpcurve import trace_bp_curve
 from contin.branch import Branch, SpecialPoint, relabel
 from contin.continuation import join, newton, trace
 from contin.extended import ExtendedSystem
@@ -56,8 +57,12 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
     ``second`` the curve has a cusp in (p1, p2), p1 is extremal there (d p1/ds = 0) and the sign
     of d p1/ds cannot tell the halves apart.
     """
-    if point.type == "BP":
-        _check_unfolds(problem, point, second)
+    if point.type == "BP" and not _unfolds(problem, point, second):
+        if "symmetry-breaking" not in point.note:
+            raise ValueError(f"{second!r} does not unfold {point.name} (psi . dF/d{second} = 0: the branch point "
+                             f"persists as {second} changes) and {point.name} is not a symmetry-breaking pitchfork, "
+                             "so contin cannot continue it in two parameters")
+        return trace_bp_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
     fold, start = fold_start(problem, point, second)
     lo, hi = options.bounds.get(second, (-math.inf, math.inf))
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False),
@@ -76,18 +81,15 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
 UNFOLD_TOL = 1e-8
 
 
-def _check_unfolds(problem: Any, point: SpecialPoint, second: str) -> None:
-    """ValueError unless ``second`` unfolds the BP at first order (psi . dF/dp2 != 0)."""
+def _unfolds(problem: Any, point: SpecialPoint, second: str) -> bool:
+    """True if ``second`` unfolds the BP at first order: psi . dF/dp2 != 0 (relative UNFOLD_TOL)."""
     import scipy.sparse as sp
 
     u = np.asarray(point.state, float)
     psi = null_vectors(sp.csc_matrix(problem.jacobian(u, point.params))).psi
     fp = np.asarray(problem.dresidual_dp(u, point.params, second), float)
     scale = float(np.linalg.norm(psi) * np.linalg.norm(fp))
-    if scale == 0.0 or abs(float(psi @ fp)) <= UNFOLD_TOL * scale:
-        raise ValueError(f"{second!r} does not unfold {point.name} (psi . dF/d{second} = 0: the branch point "
-                         f"persists as {second} changes, e.g. a symmetry-preserving parameter at a pitchfork); "
-                         "its curve needs the Werner-Spence system, which contin does not implement")
+    return scale > 0.0 and abs(float(psi @ fp)) > UNFOLD_TOL * scale
 
 
 def _cut_at_bound(half: Branch, fold: FoldProblem, second: str, lo: float, hi: float) -> Branch:

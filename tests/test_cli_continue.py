@@ -101,8 +101,8 @@ def test_continue_bad_input(run_file, tmp_path):
     err("--from", "BP2", "--free", "mu", "--bounds", "mu=1:0", expect="LO < HI")
     err("--from", "BP2", "--free", "mu", "--bounds", "K=0:1", expect="only the two free parameters")
     err("--from", "BP2", "--free", "mu", "-o", tmp_path / "no" / "x.h5", expect="does not exist")
-    # a BP that the second parameter does not unfold (K multiplies mu: at mu = 0 the pitchfork stays):
-    # the plain fold system is singular there
+    # a BP that the second parameter does not unfold (K multiplies mu: at mu = 0 the pitchfork stays)
+    # and that is not a symmetry-breaking pitchfork (the fixture has no symmetry): refused
     err("--from", "BP2", "--free", "K", expect="'K' does not unfold BP2")
     err("--from", "BP2", "--free", "Q", expect="'Q' does not unfold BP2")
 

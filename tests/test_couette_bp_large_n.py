@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from contin.continuation import trace
@@ -62,3 +63,23 @@ def test_fd4_converges_at_fourth_order_then_sits_on_the_rounding_floor() -> None
     assert all(o == pytest.approx(4.0, abs=0.25) for o in orders), orders
     for n in (1600, 3200, 6400):
         assert rel_error("fd4", n) < 5e-9
+
+
+def test_uniform_shear_to_h200_every_mode_none_skipped() -> None:
+    """Issue 12 sec. 3: H_n^c = n H_1^c, n = 1..15, all below 200, with long steps (ds_max = 40,
+    up to three BPs per step: the determinant tests alone found 9 of the 15)."""
+    from contin.bpdetect import kernel_dimension
+    from contin.options import DetectionOptions
+
+    pb = CouetteProblem("cheb", 48, engine="numpy")
+    p = pb.params({"nu": NU, "e": E, "H": 2.0})
+    opts = ContinuationOptions(step=StepOptions(ds=0.5, ds_max=40.0), bounds={"H": (2.0, 200.0)}, max_steps=500,
+                               resolution_tol=None, detection=DetectionOptions(bp_eigenvalues=12))
+    br = trace(pb, pb.uniform_state(p), p, "H", opts)
+    h1 = analytic_critical_gaps(NU, E, 1)[0]
+    modes = [n * h1 for n in range(1, 16)]
+    assert modes[-1] < 200 < 16 * h1
+    hs = [bp.params["H"] for bp in br.branch_points]
+    assert len(hs) == 15
+    assert np.max(np.abs(np.array(hs) - modes) / np.array(modes)) < 1e-8  # measured 1.8e-10 (cheb 48)
+    assert all(bp.converged and kernel_dimension(bp) == 1 for bp in br.branch_points)

@@ -13,7 +13,7 @@ from contin.branch import Branch
 from contin.continuation import join, trace, trace_both
 from contin.diagram import DiagramSettings, bifurcation_diagram
 from contin.foldcurve import trace_fold_curve
-from contin.jumps import halved, jumped, retrace_on_jumps, trace_both_ways, trim_self_overlap
+from contin.jumps import halved, jumped, restep, retrace_on_jumps, trace_both_ways, trim_self_overlap
 from contin.options import ContinuationOptions, StepOptions
 from contin.overlap import StateCoordinates, deduplicate, lies_on, mirror_branch, near, params_at
 from contin.seeds import Seed, discover, fold_seeds, homotopy, homotopy_seeds, off_fold
@@ -283,6 +283,25 @@ def test_trim_self_overlap_and_jumped(bratu):
     assert "own earlier part" in cut.message and jumped(cut)
     # the same fold met twice is a jump too
     assert len(twice.fold_points) == 2 and jumped(twice)
+
+
+def test_restep_continues_from_before_the_overlap_and_leaves_none(bratu):
+    """A run that comes back along itself is re-stepped from a few points before the cut with
+    half the largest step; the part before is kept as it was, every re-stepped point solves F,
+    and the result no longer comes back along itself."""
+    pb, opts, a = bratu
+    coords = StateCoordinates("lam")
+    twice = join(a, a)
+    cut = trim_self_overlap(twice, coords, excursion=0.5)
+    out = restep(pb, twice, {"lam": 0.0}, opts, coords, excursion=0.5)
+    assert "re-stepped from lam" in out.message
+    k = len(cut) - 4
+    assert np.array_equal(out.states[: k + 1], twice.states[: k + 1])
+    assert np.all(out.ds[k + 1:] <= 0.055)  # re-stepped with ds_max = 0.1 / 2
+    for j in range(k, len(out)):
+        assert np.max(np.abs(pb.residual(out.states[j], {"lam": out.params["lam"][j]}))) < 1e-9
+    assert trim_self_overlap(out, coords, excursion=0.5) is out
+    assert restep(pb, a, {"lam": 0.0}, opts, coords, excursion=0.5) is a  # nothing to repair
 
 
 def test_retrace_on_jumps_halves_ds_max_until_no_jump():

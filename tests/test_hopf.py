@@ -134,8 +134,15 @@ def test_auto_ab_hopf_points_against_the_closed_form(b):
     Hopf point): every HB matches trace J = 0 with det J > 0."""
     ref = ab_hopf_reference(b, 3.0)
     assert len(ref) == 2 and all(r[0] < 0.5 for r in ref)
+    # c.ab.1: the trivial state u = 0 at D = 0 continued in B with UZR = 14, 15, 16, 17 and stop at 18
+    first = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.2), bounds={"B": (0.0, 100.0)},
+                                user_zeros={"B": (14.0, 15.0, 16.0, 17.0, 18.0)}, stop_at=("UZ5",))
+    start = trace(AB(), np.zeros(2), {"D": 0.0, "B": 0.0, "beta": 3.0}, "B", first)
+    uz = {round(sp.params["B"], 9): sp for sp in start.points("UZ")}
+    assert sorted(uz) == [14.0, 15.0, 16.0, 17.0, 18.0] and start.parameter_values[-1] < 18.2
+    # c.ab.2: from the UZ point continue in D
     opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"D": (0.0, 0.5)}, max_steps=2000)
-    br = trace(AB(), np.zeros(2), {"D": 0.0, "B": b, "beta": 3.0}, "D", opts)
+    br = trace(AB(), uz[b].state, uz[b].params, "D", opts)
     hb = br.points("HB")
     assert len(hb) == 2
     for sp in hb:

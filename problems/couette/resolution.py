@@ -179,7 +179,8 @@ def _suggest(method: str, n: int, error: float, tol: float, a: Array | None) -> 
 
 
 def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
-    """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem`.
+    """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem` (or of any
+    problem on a ``grid`` with ``profiles`` nu, u, T and a ``packing_limit(p)`` method, e.g. problems.disks).
 
     ``tol`` only enters the grid suggestion.
     """
@@ -187,7 +188,9 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
 
     profiles = problem.profiles(np.asarray(x, dtype=float))
     grid = problem.grid
-    limit = packing_limit(problem.chi, float(np.real(p["num"])))
+    # problems with their own closure (problems.disks) say where it ends; gPCF's is chi's limit
+    own_limit = getattr(problem, "packing_limit", None)
+    limit = float(own_limit(p)) if callable(own_limit) else packing_limit(problem.chi, float(np.real(p["num"])))
     if grid.method != "cheb":
         m = _to_chebyshev_matrix(grid)
         profiles = {k: m @ v for k, v in profiles.items()}

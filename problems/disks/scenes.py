@@ -105,7 +105,7 @@ def run_pitchfork(request: SceneRequest) -> SceneResult:
     pb = None
     for model in models:
         closure = DiskClosure(G=model)
-        pb = _problem(request, closure)
+        pb = _problem(request, closure, grid=64)  # cheb 32 under-resolves the n = 1 plugs from H ~ 1.8 H_1^c
         p = _params(pb, s)
         hcs = critical_gaps(p, closure, modes)
         if not math.isfinite(hcs[0]):
@@ -245,8 +245,12 @@ def run_savage(request: SceneRequest) -> SceneResult:
     s = _settings(request, SAVAGE_DEFAULTS, "savage-rheology")
     if s["corr"] not in G_MODELS:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
+    if not s["phi_c"] < s["nu_band"]:
+        raise SceneError(f"parameter nu_band = {s['nu_band']:g} <= phi_c = {s['phi_c']:g}: the dense (contact) closure "
+                         "has no contact part there; the banding question is asked above phi_c")
     closure = DiskClosure(G=s["corr"], contact=True, normalization="esi")
-    pb = _problem(request, closure, grid=32)
+    # cheb 96: the banded dense plug nears phi_inf within ~2 H_1^c (the resolution guard ends it there)
+    pb = _problem(request, closure, grid=96)
     p = _params(pb, {**s, "nu": s["nu_band"], "a0": s["a0_band"]})
     kn = kn_in_time_units(s["e"])  # k_n in units m / t_m^2
     a0_esi = s["a0_over_kn"] / kn  # a0 in units m / t_m^2 (the ESI's stress unit with upsilon = d^2)
