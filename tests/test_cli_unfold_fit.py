@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -63,6 +64,20 @@ def test_fit_agrees_with_lyapunov_schmidt(tmp_path):
     h_lp = folds[3e-7]["lambda_minus_lc"] + doc["critical_value"]
     for sp in ends:
         assert sp.params["H"] == pytest.approx(h_lp, abs=1e-7)
+    # continued in nu instead (which keeps the symmetry, so the pitchfork persists): the curve of
+    # pitchforks H_1^c(nu), against the closed form pi psi(nu, e) of physics.md sec. 4
+    from problems.couette.pitchfork import analytic_critical_gaps
+
+    pf = tmp_path / "pf.h5"
+    r = CliRunner().invoke(main, ["continue", str(path), "--from", "BP1", "--free", "nu", "--bounds", "nu=0.29:0.31",
+                                  "--bounds", "H=1:20", "--ds", "0.005", "--ds-max", "0.01", "-o", str(pf)])
+    assert r.exit_code == 0, r.output
+    (bpc,), _ = io.load(pf)
+    assert bpc.kind == "bp-curve" and bpc.free == ("H", "nu")
+    nu = bpc.params["nu"]
+    assert nu.min() == pytest.approx(0.29, abs=1e-12) and nu.max() == pytest.approx(0.31, abs=1e-12)
+    ref = np.array([analytic_critical_gaps(v, 0.8, 1)[0] for v in nu])
+    assert np.max(np.abs(bpc.params["H"] - ref) / ref) < 1e-9
 
 
 def test_fit_bad_input(tmp_path):
