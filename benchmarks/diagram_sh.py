@@ -74,6 +74,15 @@ def _distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return np.concatenate(out)
 
 
+def _on(a: np.ndarray, b: np.ndarray, tol: float, fraction: float) -> bool:
+    """>= fraction of the points a within tol of the polyline b; 20 evenly spread points first
+    (more than 3 of them off means no), then all."""
+    probe = a[np.linspace(0, len(a) - 1, min(20, len(a))).astype(int)]
+    if np.sum(_distance(probe, b) > tol) > 3:
+        return False
+    return bool(np.mean(_distance(a, b) <= tol) >= fraction)
+
+
 def duplicates(branches: list[Branch], tol: float = 1e-3, fraction: float = 0.9) -> int:
     """Branches of which >= fraction of the points lie within tol of the polyline of another
     branch kept before (longest first), in (u / sqrt(n), lam) on the full states."""
@@ -85,7 +94,7 @@ def duplicates(branches: list[Branch], tol: float = 1e-3, fraction: float = 0.9)
     kept: list[Branch] = []
     dup = 0
     for b in order:
-        if any(np.mean(_distance(pts(b), pts(k)) <= tol) >= fraction for k in kept):
+        if any(_on(pts(b), pts(k), tol, fraction) for k in kept):
             dup += 1
         else:
             kept.append(b)

@@ -24,17 +24,21 @@ _LAZY = {
     "Problem": "contin.problem",
     "check_jacobian": "contin.problem",
     "from_functions": "contin.fromfunctions",
+    "DiagramSettings": "contin.diagram",
+    "bifurcation_diagram": "contin.diagram",
 }
 
 __all__ = [
     "Branch",
     "ContinuationOptions",
     "DetectionOptions",
+    "DiagramSettings",
     "NewtonOptions",
     "Problem",
     "SpecialPoint",
     "StepOptions",
     "__version__",
+    "bifurcation_diagram",
     "check_jacobian",
     "from_functions",
 ]

@@ -16,8 +16,9 @@ subtree).  :func:`bifurcation_diagram` does the same recursion but
   ``symmetry_matrix``; F(S u, p) = S F(u, p)) by reflection instead of tracing it, and does not
   recurse into images (their children are the images of the children);
 - drops a traced branch lying on a known one (:func:`contin.overlap.lies_on`);
-- repairs jumps between nearby sheets by re-stepping after the jump
-  (:func:`contin.jumps.restep`), not by retracing the branch;
+- repairs jumps between nearby sheets (a run coming back along itself) by re-stepping after
+  the jump (:func:`contin.jumps.restep`), not by retracing the branch, when
+  ``DiagramSettings.excursion`` is finite (it is in units of the parameter, so problem-specific);
 - traces extra seeds (:mod:`contin.seeds`: homotopies in a second parameter, fold-curve
   crossings), so that isolas are discovered, not only closed (a closed loop is returned once).
 
@@ -203,9 +204,10 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
         if twin is not None:
             out.skipped.append(f"{bid}: probe lies on branch {twin.id}")
             continue
-        new = switch(problem, b, bp, options, directions=(d,), branch_id_prefix=f"{b.id}.{bp.name}")
-        if not new:
-            out.skipped.append(f"{bid}: switching found no start point")
+        try:
+            new = switch(problem, b, bp, options, directions=(d,), branch_id_prefix=f"{b.id}.{bp.name}")
+        except ValueError as exc:  # switch says why it found no branch (it never returns [])
+            out.skipped.append(f"{bid}: switching found no start point ({exc})")
             continue
         nb = new[0]
         nb.id = bid
