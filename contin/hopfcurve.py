@@ -43,6 +43,7 @@ from contin.branch import Branch, SpecialPoint
 from contin.options import ContinuationOptions
 from contin.pointtests import Crossing
 from contin.problem import Array, has
+from contin.testfunctions import signed_value
 
 #: Relative step of the central differences of J and F_p along v, w.
 FD_EPS = 1e-6
@@ -406,7 +407,8 @@ class _FoldBT:
         ref = max(va[1], vb[1])
 
         def g(v: tuple[float, float]) -> float:
-            return v[0] * math.exp(min(v[1] - ref, 700.0))
+            # clamped both ways: an underflow to 0 would pass for a located zero (issue 14 sec. 3)
+            return signed_value(v, ref)
 
         return [("Bogdanov-Takens (psi^T M phi = 0)", g)]
 
