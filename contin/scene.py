@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import logging
+import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -213,6 +214,47 @@ class Scene:
     x: str = ""  # default x-axis of its diagram (a parameter name)
     y: str = "phi"  # default y-axis (an observable name)
     problem_factory: Callable[[Mapping[str, Any], Mapping[str, Any]], Any] | None = None
+
+
+def scene_params(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:
+    """``defaults`` merged with the request's values as typed; SceneError for an unknown name.
+
+    The error lists the scene's parameters."""
+    out = dict(defaults)
+    for name, value in request.params.items():
+        _known(name, defaults, scene)
+        out[name] = value
+    return out
+
+
+def _known(name: str, defaults: Mapping[str, Any], scene: str) -> None:
+    if name not in defaults:
+        raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
+
+
+def scene_number(scene: str, name: str, value: Any) -> float:
+    """``value`` as a finite float; else a one-line SceneError naming the parameter and the scene."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
+    return v
+
+
+def scene_numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str, *,
+                  words: frozenset[str] | set[str] = frozenset()) -> dict[str, Any]:
+    """``defaults`` merged with the request's values, each a finite number or, in ``words``, a string.
+
+    Checked one by one in the order given: a known name (as :func:`scene_params`), then a finite
+    number (:func:`scene_number`); a name in ``words`` is kept as ``str``.  Defaults are taken as
+    they are."""
+    out = dict(defaults)
+    for name, value in request.params.items():
+        _known(name, defaults, scene)
+        out[name] = str(value) if name in words else scene_number(scene, name, value)
+    return out
 
 
 _log = logging.getLogger("contin.scene")

@@ -21,23 +21,13 @@ from contin.branch import Branch, relabel
 from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
 from contin.resume import switch_reusing
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
 from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -> dict[str, float]:
     """Defaults merged with the user's values, each checked to be a finite number."""
-    out = dict(defaults)
-    for name, value in request.params.items():
-        if name not in defaults:
-            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {value!r}") from None
-        if not math.isfinite(v):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
-        out[name] = v
+    out = scene_numbers(request, defaults, scene)
     if "lam_min" in out and not out["lam_min"] < out["lam_max"]:
         raise SceneError(f"need lam_min < lam_max, got lam_min={out['lam_min']:g}, lam_max={out['lam_max']:g}")
     return out

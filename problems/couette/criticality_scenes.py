@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, relabel
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_number, scene_params
 from problems.couette import criticality as cr
 from problems.couette.closures import CHI_MODELS, critical_gap_factor
 from problems.couette.model import CouetteProblem
@@ -40,23 +40,13 @@ DEFAULT_GRID = 32
 
 def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:
     """Defaults merged with the user's values, each checked (SceneError: one sentence)."""
-    values = dict(defaults)
-    for name, value in request.params.items():
-        if name not in defaults:
-            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
-        values[name] = value
+    values = scene_params(request, defaults, scene)
     if values["chi"] not in CHI_MODELS:
         raise SceneError(f"unknown radial distribution chi = {values['chi']!r}; choose one of {', '.join(CHI_MODELS)}")
     for name, value in values.items():
         if name == "chi" or (name == "nu_fold" and value == "auto"):
             continue
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {value!r}") from None
-        if not math.isfinite(v):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
-        values[name] = v
+        values[name] = scene_number(scene, name, value)
     try:
         build_params({"nu": values["nu"], "e": values["e"], "num": values["num"]}, chi=values["chi"])
     except ValueError as exc:

@@ -21,7 +21,7 @@ from dataclasses import replace
 from typing import Any
 
 from contin.branch import relabel
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_params
 from problems.couette.gravity import GravitySettings, discover, gravity_problem
 from problems.couette.model import rebuilt_engine
 
@@ -33,11 +33,7 @@ GRAVITY_GRID = 64
 
 
 def _settings(request: SceneRequest) -> dict[str, Any]:
-    out = dict(GRAVITY_DEFAULTS)
-    for name, value in request.params.items():
-        if name not in out:
-            raise SceneError(f"unknown parameter {name!r} for scene 'gravity'; its parameters are {', '.join(out)}")
-        out[name] = value
+    out = scene_params(request, GRAVITY_DEFAULTS, "gravity")
     for name in ("nu", "e", "Fr", "H_min", "H_max", "modes"):
         try:
             out[name] = float(out[name])

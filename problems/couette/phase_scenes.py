@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import relabel
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_number, scene_params
 from problems.couette.gravity import gravity_problem, phase_diagram
 from problems.couette.model import rebuilt_engine
 
@@ -38,20 +38,10 @@ UNFOLDING_GRID = 32
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str, skip: tuple[str, ...] = ()) -> dict[str, Any]:
     """Defaults merged with the user's values; every numeric one a finite number."""
-    out = dict(defaults)
-    for name, value in request.params.items():
-        if name not in defaults:
-            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
-        out[name] = value
+    out = scene_params(request, defaults, scene)
     for name in out:
-        if name in skip:
-            continue
-        try:
-            out[name] = float(out[name])
-        except (TypeError, ValueError):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {out[name]!r}") from None
-        if not math.isfinite(out[name]):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {out[name]!r}")
+        if name not in skip:
+            out[name] = scene_number(scene, name, out[name])
     if not 0 < out["nu"] < 0.65:
         raise SceneError(f"scene {scene!r} needs 0 < nu < 0.65 (random close packing), got nu={out['nu']:g}")
     if not 0 < out["e"] <= 1:

@@ -23,7 +23,7 @@ from contin.branch import Branch, relabel
 from contin.continuation import trace
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
 from contin.resume import switch_reusing
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
 from problems.disks.closures import (
     G_MODELS, DiskClosure, critical_gaps, homogeneous_stresses, kn_in_time_units, savage_contact_stresses,
 )
@@ -34,21 +34,7 @@ _WORDS = {"corr", "walls"}
 
 def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:
     """Defaults merged with the request's parameters: numbers checked finite, words kept."""
-    out = dict(defaults)
-    for name, value in request.params.items():
-        if name not in defaults:
-            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
-        if name in _WORDS:
-            out[name] = str(value)
-            continue
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {value!r}") from None
-        if not math.isfinite(v):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
-        out[name] = v
-    return out
+    return scene_numbers(request, defaults, scene, words=_WORDS)
 
 
 def _problem(request: SceneRequest, closure: DiskClosure, *, walls: str = "noslip", grid: int = 32) -> DiskCouetteProblem:

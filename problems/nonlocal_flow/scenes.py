@@ -26,7 +26,6 @@ Branch ids are deterministic (``--resume`` reuses finished branches).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -35,7 +34,7 @@ import numpy as np
 from contin.branch import Branch, relabel
 from contin.continuation import trace_both
 from contin.options import ContinuationOptions, StepOptions
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
 
 from .closures import CriticalState, PlaneShearAnalytic
 from .cylinder import DEFAULTS as CYL_DEFAULTS
@@ -58,18 +57,7 @@ ANALYTIC_TOL = 1e-8
 
 def numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, float]:
     """Defaults merged with the user's values, each a finite number (SceneError otherwise)."""
-    out = dict(defaults)
-    for name, value in request.params.items():
-        if name not in defaults:
-            raise SceneError(f"unknown parameter {name!r} for scene {scene!r}; its parameters are {', '.join(defaults)}")
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got {value!r}") from None
-        if not math.isfinite(v):
-            raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
-        out[name] = v
-    return out
+    return scene_numbers(request, defaults, scene)
 
 
 def critical_state(s: Mapping[str, float]) -> CriticalState:
