@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.branch import Branch, SpecialPoint, relabel
+from contin.branch import Branch, SpecialPoint, pad_rows, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
@@ -90,6 +90,13 @@ class _Tracer:
         self.records: list[dict[str, float]] = []
         self.special: list[SpecialPoint] = []
         self.audit: list[str] = []
+        self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)
+        self.adaptive = False
+
+    @property
+    def grid(self) -> int | None:
+        """The grid size in force (None unless the run adapts its grid, ``contin.adapt``)."""
+        return int(self.system.problem.grid_size) if self.adaptive else None
 
     # --- point construction ------------------------------------------------------------------
     def finish_point(self, corr: Correction, orient: Array) -> _Point:
@@ -186,6 +193,7 @@ class _Tracer:
                 bracket=(float(a.x[-1]), float(b.x[-1])),
                 converged=converged,
                 note=full_note,
+                grid=self.grid,
             )
             log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
             found.append((s_best, sp))
@@ -235,6 +243,7 @@ class _Tracer:
         self.ds.append(ds)
         self.iterations.append(iterations)
         self.records.append(self.system.record(pt.x))
+        self.grids.append(self.grid)
 
     def end_point(self, type_: str, note: str, x: Array | None = None, t: Array | None = None) -> SpecialPoint:
         sys = self.system
@@ -251,6 +260,7 @@ class _Tracer:
             bracket=(float(x[-1]), float(x[-1])),
             converged=type_ != "MX",
             note=note,
+            grid=self.grid,
         )
 
     def build(self, parameter: str, status: str, message: str, closed: bool, n: int, **meta: Any) -> Branch:
@@ -266,8 +276,14 @@ class _Tracer:
         if every > 1 and s:
             keep = np.unique(np.concatenate([np.arange(0, s, every), [s - 1]]))
             state_index = keep
-        states = np.array([self.points[i].x[:-1] for i in keep], dtype=float).reshape(len(keep), n)
-        tangents = np.array([p.t for p in self.points], dtype=float).reshape(s, n + 1)
+        if self.adaptive and s:  # states of several sizes: NaN-padded rows (contin.branch.pad_rows)
+            states = pad_rows([self.points[i].x[:-1] for i in keep])
+            tangents = pad_rows([p.t for p in self.points])
+            meta["grid"] = np.array(self.grids, dtype=np.int64)
+            meta["sizes"] = np.array([p.x.size - 1 for p in self.points], dtype=np.int64)
+        else:
+            states = np.array([self.points[i].x[:-1] for i in keep], dtype=float).reshape(len(keep), n)
+            tangents = np.array([p.t for p in self.points], dtype=float).reshape(s, n + 1)
         return Branch(
             parameter=parameter,
             free=(parameter,),
@@ -402,8 +418,24 @@ def trace(
         if progress is not None:
             progress(msg)
 
+    adaptor, problem0, grid_lines = None, problem, []
+    if options.adapt is not None:  # adaptive resolution (contin.adapt): choose the start grid
+        from contin.adapt import Adaptor, start_grid
+
+        problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton)
+        if problem is not problem0:
+            system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
+            if tangent is not None:
+                tangent = np.asarray(tangent, dtype=float).ravel()
+                tangent = system.pack(problem0.transfer(tangent[:-1], problem), tangent[-1])
+        n = u0.size
+        system.n = n
+        adaptor = Adaptor(options.adapt)
+        problem0 = problem  # the grid x0 and the start tangent live on
     start = newton(problem, u0, system.params, options.newton)
     tracer = _Tracer(system, options, None)
+    tracer.adaptive = adaptor is not None
+    tracer.audit.extend(grid_lines)
     if not start.converged:
         msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
@@ -412,8 +444,11 @@ def trace(
     anti = _symmetry(problem, start.u, symmetric)
     tracer.anti = anti
     x0 = system.pack(anti.symmetrize(start.u) if anti is not None else start.u, p0)
-    resolution_tol = effective_resolution_tol(options)
+    # With adaptive resolution its estimate replaces the fixed-grid guard.
+    resolution_tol = effective_resolution_tol(options) if adaptor is None else None
     coarse = _under_resolved(problem, system, x0, resolution_tol)
+    if adaptor is not None and (err0 := adaptor.too_coarse(system, x0)) is not None:
+        coarse = adaptor.at_max(system, x0, err0).removeprefix("under-resolved at ")
     if coarse is not None:
         msg = f"start point {coarse}"
         tracer.special.append(tracer.end_point("MX", msg, x=x0))
@@ -445,6 +480,7 @@ def trace(
     first = tracer.finish_point(Correction(x0, True, 0, fact, row), guess)
     tracer.append(first, 0.0, start.iterations)
 
+    x0c, t0c = x0, first.t  # the start point and tangent on the grid in force (for closure)
     ds = abs(sopt.ds)
     travelled = 0.0
     closing = False
@@ -480,10 +516,19 @@ def trace(
             ds = reduced_step(ds, sopt)
             continue
         assert new is not None
+        if adaptor is not None and (err := adaptor.too_coarse(system, new.x)) is not None:
+            # Not resolved: refine at the last accepted point and retry the step from there.
+            stop = adaptor.refine(tracer, err, "estimate above tol", options.newton)
+            if stop is not None:
+                status, message = "MX", stop
+                break
+            system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+            x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+            continue
         steps += 1
 
         if closing:
-            if landed(system, x0, new.x):
+            if landed(system, x0c, new.x):
                 tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1)[0])
                 status, message, closed = "EP", "closed loop: the branch returned to its start point", True
                 break
@@ -530,6 +575,20 @@ def trace(
             steps -= 1
             ds = reduced_step(ds, sopt)
             continue
+        if adaptor is not None and found:
+            # Special points are located on the grid in force; one that grid does not resolve
+            # (state, or the kernel fixing its position) is located again on a finer grid.
+            err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
+                      for sp in found)
+            if err > options.adapt.tol:
+                kinds = "/".join(sorted({sp.type for sp in found}))
+                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton) is None:
+                    steps -= 1
+                    system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                    continue
+                found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
+                                 f"located on the maximum grid with estimate {err:.2g} > tol") for sp in found]
         tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
@@ -542,9 +601,14 @@ def trace(
             say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
         ds = next_step(ds, corr.iterations, sopt)
         if options.detect_closed and len(tracer.points) > 3:
-            sigma = closing_distance(system, x0, first.t, new.x, new.t, 1.5 * ds, travelled)
+            sigma = closing_distance(system, x0c, t0c, new.x, new.t, 1.5 * ds, travelled)
             if sigma is not None:
                 closing, ds = True, sigma
+        if adaptor is not None and not closing:
+            adaptor.maybe_coarsen(tracer, options.newton)
+            if tracer.system is not system:
+                system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
 
     mark = "MX" if status == "MX" else "EP"
     note = message
@@ -622,6 +686,26 @@ def join(backward: Branch, forward: Branch) -> Branch:
     def cat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.concatenate([a[:-1], b])
 
+    sizes = grid = None
+    if r.grid is not None or forward.grid is not None or r.sizes is not None or forward.sizes is not None:
+        # Halves on different grids (adaptive runs): pad both to the wider one.
+        width = max(r.states.shape[1], forward.states.shape[1])
+        twidth = max(r.tangents.shape[1], forward.tangents.shape[1])
+
+        def widen(b: Branch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            n_b = b.sizes if b.sizes is not None else np.full(len(b), b.states.shape[1], dtype=np.int64)
+            st = pad_rows(list(b.states), width)
+            tg = pad_rows([b.tangents[i, : int(n_b[i]) + len(b.free)] for i in range(len(b))], twidth)
+            return st, tg, n_b
+
+        rs, rt, rn = widen(r)
+        fs, ft, fn = widen(forward)
+        r = replace(r, states=rs, tangents=rt)
+        forward = replace(forward, states=fs, tangents=ft)
+        sizes = cat(rn, fn)
+        if r.grid is not None and forward.grid is not None:
+            grid = cat(r.grid, forward.grid)
+
     if r.state_index is None and forward.state_index is None:
         states, state_index = cat(r.states, forward.states), None
     else:
@@ -649,6 +733,8 @@ def join(backward: Branch, forward: Branch) -> Branch:
         id=forward.id,
         audit=r.audit + forward.audit,
         state_index=state_index,
+        grid=grid,
+        sizes=sizes,
     )
 
 

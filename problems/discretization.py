@@ -278,6 +278,33 @@ class Grid:
         return np.arange(self.intervals, -1, -1)
 
 
+def chebyshev_coefficients(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a_0..a_N of the interpolant sum a_k T_k(2y) through values at ascending Gauss-Lobatto nodes.
+
+    DCT-I: a_k = (2/N) sum_j'' f(x_j) cos(pi j k / N) with x_j = cos(pi j / N) (descending, hence
+    the reversal), the first and last terms of the sum and a_0, a_N halved (Trefethen, *Spectral
+    Methods in MATLAB*, ch. 8).
+    """
+    import scipy.fft as sfft
+
+    f = np.asarray(values, dtype=float)[::-1]
+    n = f.size - 1
+    a = sfft.dct(f, type=1) / n
+    a[0] *= 0.5
+    a[-1] *= 0.5
+    return a
+
+
+def chebyshev_tail(values: NDArray[np.float64], modes: int = 4) -> float:
+    """Relative Chebyshev tail max_{k > N - modes} |a_k| / max_k |a_k| of nodal values on a
+    Chebyshev grid: the a-posteriori truncation-error estimate of a spectral interpolant (Boyd,
+    *Chebyshev and Fourier Spectral Methods*, 2nd ed., sec. 2.12).  0 for a zero vector.  The last
+    ``modes`` coefficients (4: both parities of a symmetric or antisymmetric profile count)."""
+    a = np.abs(chebyshev_coefficients(values))
+    scale = float(np.max(a)) if a.size else 0.0
+    return float(np.max(a[-modes:]) / scale) if scale > 0 else 0.0
+
+
 @lru_cache(maxsize=64)
 def make_grid(method: str, intervals: int) -> Grid:
     """Build (and cache) the grid for ``method`` with ``intervals`` intervals.

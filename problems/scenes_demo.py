@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.adapt import on_grid
 from contin.branch import Branch, relabel
 from contin.continuation import switch, trace
 from contin.options import ContinuationOptions, StepOptions
@@ -47,6 +48,12 @@ def _problem(cls: type, request: SceneRequest) -> Any:
         raise SceneError(str(exc)) from None
 
 
+def _on_start_grid(pb: Any, state: Any) -> np.ndarray:
+    """A state of any grid of ``pb``'s method (adaptive runs) on ``pb``'s own nodes (the file's y)."""
+    u = np.asarray(state, dtype=float)
+    return u if u.size == pb.n else on_grid(pb, u.size - 1).transfer(u, pb)
+
+
 def _emit(request: SceneRequest, done: list[Branch], branch: Branch) -> None:
     done.append(branch)
     relabel(done)  # earlier branches keep their labels; the new one continues the numbering
@@ -77,7 +84,7 @@ def run_bratu(request: SceneRequest) -> SceneResult:
         parameters=p,
         discretization={"method": pb.grid.method, "intervals": pb.grid.intervals},
         y=pb.x,
-        profiles=lambda state: {"u": np.asarray(state)},
+        profiles=lambda state: {"u": _on_start_grid(pb, state)},
         notes=notes,
     )
 
@@ -116,7 +123,7 @@ def run_allen_cahn(request: SceneRequest) -> SceneResult:
         parameters=p,
         discretization={"method": pb.grid.method, "intervals": pb.grid.intervals},
         y=pb.x,
-        profiles=lambda state: {"u": np.asarray(state)},
+        profiles=lambda state: {"u": _on_start_grid(pb, state)},
         notes=notes,
     )
 
@@ -129,6 +136,7 @@ SCENES = {
         run=run_bratu,
         x="lam",
         y="phi",
+        adaptive=True,
     ),
     "allen-cahn": Scene(
         name="allen-cahn",
@@ -137,5 +145,6 @@ SCENES = {
         run=run_allen_cahn,
         x="lam",
         y="phi",
+        adaptive=True,
     ),
 }
