@@ -20,8 +20,8 @@ sec. 2.12 for the tail estimate the spectral problems use):
 
 - start: the start state is solved on the problem's grid and re-solved on finer grids (growth
   factor ``growth``, or the problem's suggestion) until its estimate is <= tol; if it is below
-  ``coarsen_below * tol`` coarser grids are tried instead, and the coarsest whose estimate is <=
-  ``COARSEN_MARGIN * tol`` is kept (never below ``min_grid``);
+  ``coarsen_below * tol`` coarser grids are tried instead (from ``min_grid`` up), and the
+  coarsest whose estimate is <= ``COARSEN_MARGIN * tol`` is kept;
 - along the branch: a converged candidate point whose estimate exceeds tol is not accepted; the
   last accepted point is carried onto a finer grid (state and tangent transferred, corrected on
   the pseudo-arclength hyperplane of the transferred tangent, tangent re-solved) and the step is
@@ -137,12 +137,15 @@ class GridChange:
                 f"({self.why}, estimate {self.error:.2g})")
 
 
-def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any) -> tuple[Any, Array, list[str]]:
+def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any, *,
+               coarsen: bool = True) -> tuple[Any, Array, list[str]]:
     """The grid to start a branch on: (problem on it, start state on it (converged where
     possible), audit lines).  Refines while the estimate of the solved start state exceeds tol;
     coarsens while it is below coarsen_below * tol and the coarser grid keeps it <=
-    COARSEN_MARGIN * tol.  A start state that fails to converge is returned as given (the
-    tracer then reports the failure)."""
+    COARSEN_MARGIN * tol (unless ``coarsen`` is False: the tracer passes False for a start with a
+    given tangent, e.g. one step off a branch point, where a coarser grid moves the BP and the
+    small-amplitude branch next to it may not exist there).  A start state that fails to
+    converge is returned as given (the tracer then reports the failure)."""
     from contin.newton import newton
 
     check_problem(problem)
@@ -164,19 +167,23 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
         problem, u = other, trial.u
         err = state_error(problem, u, params)
     else:
-        while opts.coarsen_below is not None and err < opts.coarsen_below * opts.tol:
-            n_new = coarser(problem, opts)
-            if n_new is None:
-                break
-            other = problem.with_grid(n_new)
-            trial = newton(other, problem.transfer(u, other), params, newton_options)
-            if not trial.converged:
-                break
-            e_new = state_error(other, trial.u, params)
-            if e_new > COARSEN_MARGIN * opts.tol:
-                break
-            lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
-            problem, u, err = other, trial.u, e_new
+        if coarsen and opts.coarsen_below is not None and err < opts.coarsen_below * opts.tol:
+            # The coarsest grid that keeps the estimate <= COARSEN_MARGIN tol: candidates from
+            # min_grid up by the growth factor, first fit taken (few solves, all on small grids).
+            n, sizes = opts.min_grid, []
+            while n < problem.grid_size:
+                sizes.append(n)
+                n = max(_round(opts.growth * n, opts.multiple), n + 1)
+            for n_new in sizes:
+                other = problem.with_grid(n_new)
+                trial = newton(other, problem.transfer(u, other), params, newton_options)
+                if not trial.converged:
+                    continue
+                e_new = state_error(other, trial.u, params)
+                if e_new <= COARSEN_MARGIN * opts.tol:
+                    lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
+                    problem, u = other, trial.u
+                    break
     return problem, u, lines
 
 
@@ -189,6 +196,26 @@ class Adaptor:
         self.opts = opts
         self.since_change = 0
         self.lines: list[str] = []
+        self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
+        self._special: float | None = None  # estimate that triggered the last refinement for a special point
+
+    def special_refinable(self, err: float) -> bool:
+        """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
+        when the previous such refinement left a special point with more than a tenth of its
+        estimate.  A genuine BP's or LP's kernel converges with the grid (spectrally: 4e-3 -> 2e-8
+        from cheb 8 to 16 at gPCF's H_1^c); a kernel that does not is a grid-scale mode (a
+        discretization artefact that moves with the grid, which refinement would chase to
+        max_grid: 3e-2, 6e-3, 2e-3, 1e-3 on cheb 80..288 on gPCF's nu = 0.5 banded branch).
+        The memory is cleared by a special point that meets tol (:meth:`special_resolved`).
+        """
+        last = self._special
+        if last is not None and err > 0.1 * last:
+            return False
+        self._special = err
+        return True
+
+    def special_resolved(self) -> None:
+        self._special = None
 
     # --- estimates -------------------------------------------------------------------------
     def error(self, system: Any, x: Array) -> float:
@@ -260,9 +287,20 @@ class Adaptor:
         return True
 
     def refine(self, tracer: Any, err: float, why: str, newton_options: Any) -> str | None:
-        """Refine at the tracer's last point; None on success, else why the run must end."""
+        """Refine at the tracer's last point; None on success, else why the run must end: at
+        max_grid, or when the previous refinement from the same point did not halve the estimate
+        (the estimate has reached a floor that finer grids cannot lower, e.g. the rounding of a
+        spectral tail measured against a tiny scale: tol is then below what the problem's
+        estimate can certify there)."""
         sys = tracer.system
         cur = tracer.points[-1]
+        count = len(tracer.points)
+        last = self._state_refine
+        self._state_refine = (count, err, int(sys.problem.grid_size))
+        if last is not None and last[0] == count and err > 0.5 * last[1]:
+            return (f"under-resolved at {sys.parameter} = {cur.x[-1]:.6g}: estimated relative error {err:.2g} > tol "
+                    f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "
+                    f"grid {sys.problem.grid_size}): the estimate's floor is above tol here")
         size = finer(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), self.opts)
         while size is not None:
             if self.regrid(tracer, size, why, err, newton_options):

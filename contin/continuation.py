@@ -422,7 +422,8 @@ def trace(
     if options.adapt is not None:  # adaptive resolution (contin.adapt): choose the start grid
         from contin.adapt import Adaptor, start_grid
 
-        problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton)
+        problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
+                                             coarsen=tangent is None)
         if problem is not problem0:
             system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
             if tangent is not None:
@@ -580,15 +581,19 @@ def trace(
             # (state, or the kernel fixing its position) is located again on a finer grid.
             err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
                       for sp in found)
-            if err > options.adapt.tol:
+            if err <= options.adapt.tol:
+                adaptor.special_resolved()
+            elif adaptor.special_refinable(err):
                 kinds = "/".join(sorted({sp.type for sp in found}))
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton) is None:
                     steps -= 1
                     system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
                     x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
                     continue
+            if err > options.adapt.tol:
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
-                                 f"located on the maximum grid with estimate {err:.2g} > tol") for sp in found]
+                                 f"kernel not resolved by refinement (estimate {err:.2g} > tol on grid "
+                                 f"{system.problem.grid_size}): a grid artefact or past max_grid") for sp in found]
         tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len

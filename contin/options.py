@@ -99,7 +99,9 @@ class AdaptOptions:
     """Adaptive resolution settings (``ContinuationOptions.adapt``).
 
     tol : largest estimated relative discretization error of an accepted point (the problem's
-        ``error_estimate``); the grid is refined where it is exceeded.
+        ``error_estimate``); the grid is refined where it is exceeded.  Default 3e-5: the
+        fixed-grid guard's ``ContinuationOptions.resolution_tol``, so an adaptive run accepts no
+        point a fixed-grid run would have refused.
     max_grid : largest grid size; an estimate above tol there ends the run with MX.
     min_grid : smallest grid size coarsening may choose.
     coarsen_below : coarsen where the estimate falls below coarsen_below * tol (None: never).
@@ -108,7 +110,7 @@ class AdaptOptions:
     cooldown : accepted steps after a grid change before coarsening is tried again.
     """
 
-    tol: float = 1e-8
+    tol: float = 3e-5
     max_grid: int = 512
     min_grid: int = 8
     coarsen_below: float | None = 1e-3

@@ -182,7 +182,9 @@ class Scene:
     problems have the grid hooks, its traces get their options from
     :meth:`SceneRequest.options_for`, and whatever it does with stored points uses each point's
     grid (``Branch.grid``; ``problem_factory`` builds the start grid, ``contin.adapt.on_grid``
-    the others).  Its profiles callable accepts states of any of its grids.
+    the others).  Its profiles callable accepts states of any of its grids.  ``default_tol``:
+    the tol of a run without --grid and --tol, chosen per scene so that it keeps the accuracy of
+    the scene's former fixed default grid.
     """
 
     name: str
@@ -193,6 +195,7 @@ class Scene:
     y: str = "phi"  # default y-axis (an observable name)
     problem_factory: Callable[[Mapping[str, Any], Mapping[str, Any]], Any] | None = None
     adaptive: bool = False
+    default_tol: float = 3e-5
 
 
 _log = logging.getLogger("contin.scene")

@@ -248,6 +248,8 @@ class Grid:
 
         Chebyshev: barycentric interpolation (Berrut & Trefethen, SIAM Rev. 46, 2004).
         Finite differences: local Lagrange interpolation of the scheme's order.
+        ``f`` may have trailing axes (columns interpolated together; e.g. the identity gives the
+        interpolation matrix).
         """
         y_new = np.atleast_1d(np.asarray(y_new, dtype=float))
         if self.method == "cheb":
@@ -259,12 +261,12 @@ class Grid:
             exact = np.isclose(diff, 0.0, atol=1e-15)
             diff[exact] = 1.0
             terms = wb / diff
-            out = (terms @ f) / terms.sum(axis=1)
+            out = (terms @ f) / terms.sum(axis=1).reshape((-1,) + (1,) * (np.ndim(f) - 1))
             hit_rows, hit_cols = np.nonzero(exact)
             out[hit_rows] = f[hit_cols]
             return out
         width = int(self.order) + 1
-        out = np.empty(len(y_new))
+        out = np.empty((len(y_new),) + np.shape(f)[1:], dtype=np.result_type(f, float))
         h = 1.0 / self.intervals
         for k, yk in enumerate(y_new):
             i = int(np.clip(np.floor((yk + 0.5) / h), 0, self.intervals))

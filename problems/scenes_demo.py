@@ -137,6 +137,7 @@ SCENES = {
         x="lam",
         y="phi",
         adaptive=True,
+        default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
     ),
     "allen-cahn": Scene(
         name="allen-cahn",
@@ -146,5 +147,6 @@ SCENES = {
         x="lam",
         y="phi",
         adaptive=True,
+        default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
     ),
 }

@@ -127,7 +127,8 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("--tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None, metavar="REL",
               help="Adaptive resolution: largest estimated relative discretization error of a point; the grid is "
                    "chosen and changed along each branch to meet it [default for adaptive scenes without --grid: "
-                   "1e-8; with --grid and no --tol the grid is fixed].")
+                   "the scene's (gPCF 3e-5, the resolution guard's; demos 1e-10); with --grid and no --tol the "
+                   "grid is fixed].")
 @click.option("--max-grid", type=click.IntRange(min=4), default=None,
               help="Largest grid adaptive resolution may use [default 512]; past it a branch ends with MX.")
 @engine_option
@@ -144,8 +145,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
     to stdout.  Exit code 3 when the run finished but a branch ended with MX.
 
-    Scenes marked adaptive choose their grid to meet --tol (default 1e-8 when no --grid is
-    given; --grid alone fixes the grid, --grid with --tol is the start grid).
+    Scenes marked adaptive choose their grid to meet --tol (the scene's default when no --grid
+    is given; --grid alone fixes the grid, --grid with --tol is the start grid).
     """
     import contin.scene as scene_mod
     from contin import io
@@ -167,9 +168,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     if (tol is not None or max_grid is not None) and not sc.adaptive:
         fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid); choose its grid with --grid")
     if sc.adaptive and (tol is not None or grid is None):
-        from contin.options import AdaptOptions
-
-        overrides["tol"] = tol if tol is not None else AdaptOptions().tol
+        overrides["tol"] = tol if tol is not None else sc.default_tol
         if max_grid is not None:
             if grid is not None and grid > max_grid:
                 fail(f"--grid {grid} exceeds --max-grid {max_grid}")

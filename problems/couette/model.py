@@ -789,9 +789,12 @@ class CouetteProblem:
         return self.N
 
     def with_grid(self, N: int) -> CouetteProblem:
-        """The same model (method, walls, chi, gravity, Dufour term, engine) on N intervals."""
+        """The same model (method, walls, chi, gravity, Dufour term) on N intervals; the same engine
+        where it can run that grid (the compiled engine stops at its dense-Jacobian size limit,
+        ``compiled.supports``: beyond it the numpy engine serves)."""
+        engine = "auto" if self.engine == "numba" else self.engine
         return CouetteProblem(self.method, int(N), walls=self.walls, chi=self.chi, gravity=self.gravity,
-                              dufour=self.dufour, engine=self.engine)
+                              dufour=self.dufour, engine=engine)
 
     def transfer(self, x: Array, other: CouetteProblem) -> Array:
         """A state (or the state part of a tangent) carried onto ``other``'s grid: the profiles
