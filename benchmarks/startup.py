@@ -9,7 +9,7 @@ Prints wall-clock medians (whole processes, ``--repeats`` runs each, default 7) 
   <= 0.3 s), measured by a wrapper that runs the CLI with that function replaced by a stop
   watch; ``python -c pass`` (the interpreter alone) alongside.
 
-These are measurements, not tests (tests/test_startup.py asserts the import structure).
+The project's .pyc files are written first (benchmarks/precompile.py).  These are measurements, not tests (tests/test_startup.py asserts the import structure).
 """
 
 from __future__ import annotations
@@ -95,6 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--json", metavar="FILE")
     args = ap.parse_args(argv)
+    from benchmarks.precompile import precompile
+
+    precompile()  # as an installed copy has them (benchmarks/precompile.py)
     rows = measure(args.repeats)
     print(f"start-up, wall-clock medians of {args.repeats} runs (s)")
     for name, value in rows.items():

@@ -23,17 +23,21 @@ _LAZY = {
     "StepOptions": "contin.options",
     "Problem": "contin.problem",
     "check_jacobian": "contin.problem",
+    "DiagramSettings": "contin.diagram",
+    "bifurcation_diagram": "contin.diagram",
 }
 
 __all__ = [
     "Branch",
     "ContinuationOptions",
     "DetectionOptions",
+    "DiagramSettings",
     "NewtonOptions",
     "Problem",
     "SpecialPoint",
     "StepOptions",
     "__version__",
+    "bifurcation_diagram",
     "check_jacobian",
 ]
 

@@ -270,12 +270,16 @@ class Adaptor:
         corr = correct(new_sys, x, new_sys.row(t), newton_options, anti.symmetrize if anti is not None else None)
         if not corr.converged or new_sys.admissible(corr.x) is not None or corr.factorization is None:
             return False
-        old_sys, old_anti = tracer.system, tracer.anti
+        saved = (tracer.system, tracer.anti, getattr(tracer, "point_tests", []))
         tracer.system, tracer.anti = new_sys, anti
+        if hasattr(tracer, "point_tests"):  # HB/UZ test functions are set up per grid (contin.pointtests)
+            from contin.pointtests import point_tests
+
+            tracer.point_tests = point_tests(other, new_sys, tracer.options, new_sys.n)
         try:
             pt = tracer.finish_point(corr, t)
         except Exception:  # noqa: BLE001 -- keep the old grid if the new one cannot give a tangent
-            tracer.system, tracer.anti = old_sys, old_anti
+            tracer.system, tracer.anti, tracer.point_tests = saved
             return False
         change = GridChange(sys.parameter, float(cur.x[-1]), int(old.grid_size), int(size), err, why)
         tracer.points[-1] = pt
@@ -328,11 +332,13 @@ class Adaptor:
         if e_new > COARSEN_MARGIN * opts.tol:
             self.since_change = 0  # try again after the cooldown
             return
-        keep = (tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1], len(tracer.audit))
+        keep = (tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1], len(tracer.audit),
+                tracer.point_tests)
         if not self.regrid(tracer, size, f"estimate below {opts.coarsen_below:g} tol", err, newton_options):
             return
         if self.error(tracer.system, tracer.points[-1].x) > COARSEN_MARGIN * opts.tol:  # the corrected state says no
             tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1] = keep[:5]
+            tracer.point_tests = keep[6]
             del tracer.audit[keep[5]:]
             self.lines.pop()
             self.since_change = 0

@@ -2,8 +2,9 @@
 
 Vocabulary follows AUTO-07p: ``BP`` branch point, ``LP`` limit point (fold), ``EP`` end
 point (normal stop: bound, max steps, closed loop), ``MX`` failure (Newton or step-size
-underflow), ``UZ`` user point.  For a two-parameter fold curve, extrema of a parameter
-along the curve are ``XT`` (isola birth/death) and cusps are ``CP``.
+underflow), ``UZ`` user point (a parameter value or a user event g(u, p) = 0), ``HB`` Hopf point.  For
+a two-parameter fold curve, extrema of a parameter along the curve are ``XT`` (isola
+birth/death) and cusps are ``CP``; ``BT`` is a Bogdanov-Takens point on a fold or Hopf curve.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-PointType = Literal["BP", "LP", "EP", "MX", "UZ", "XT", "CP"]
+PointType = Literal["BP", "LP", "EP", "MX", "UZ", "XT", "CP", "HB", "BT"]
 Status = Literal["running", "EP", "MX"]
 
 
@@ -47,6 +48,10 @@ class SpecialPoint:
     grid : int or None
         Grid size the point was located on (adaptive runs, ``contin.adapt``; None: the
         problem's own grid).
+    data : dict[str, float]
+        Named numbers of the point's type: ``omega`` (imaginary part of the critical
+        eigenvalue) and ``l1`` (first Lyapunov coefficient) of an HB; ``value`` (the
+        parameter value or event name's target) of a UZ.  Stored as special-point columns.
     """
 
     type: str
@@ -60,6 +65,7 @@ class SpecialPoint:
     label: int = 0
     note: str = ""
     grid: int | None = None
+    data: dict[str, float] = field(default_factory=dict)
 
     @property
     def name(self) -> str:

@@ -33,18 +33,21 @@ from typing import Any
 
 import numpy as np
 
+from contin.blas import limited
+from contin.bpdetect import EigenCounter
 from contin.branch import Branch, SpecialPoint, pad_rows, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
-from contin.locate import Sample, locate_zero
+from contin.locate import Sample, locate_zero, outside_bracket
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
+from contin.pointtests import PointTest, point_tests
 from contin.predictor import secant, tangent
 from contin.problem import Array, has
 from contin.stepsize import angle, next_step, reduced_step
-from contin.testfunctions import Antisymmetric, TestValues, bp_value, signed_value
+from contin.testfunctions import Antisymmetric, TestValues, bp_value, detrended
 
 __all__ = ["NewtonResult", "newton", "relabel", "switch", "trace", "trace_both"]
 
@@ -90,6 +93,9 @@ class _Tracer:
         self.records: list[dict[str, float]] = []
         self.special: list[SpecialPoint] = []
         self.audit: list[str] = []
+        k = options.detection.bp_eigenvalues if options.detection.detect_branch_points else 0
+        self.eigen = EigenCounter(k) if k else None
+        self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
         self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)
         self.adaptive = False
 
@@ -108,7 +114,8 @@ class _Tracer:
         t = tangent(self.system, corr.factorization, orient)
         bp = bp_value(corr.factorization, corr.row, t)
         anti = self.anti.det(self.system.state_jacobian(x)) if self.anti is not None else None
-        return _Point(x, t, TestValues(float(t[-1]), bp, anti))
+        extra = {pt.name: pt.value(self.system, x) for pt in self.point_tests}
+        return _Point(x, t, TestValues(float(t[-1]), bp, anti, extra))
 
     def correct_at(self, x_pred: Array, direction: Array) -> Correction:
         project = self.anti.symmetrize if self.anti is not None else None
@@ -137,26 +144,35 @@ class _Tracer:
         unconfirmed: list[Unconfirmed] = []
         sys = self.system
         s_b = math.nan  # <a.t, b.x - a.x>, computed at the first sign change
-        for kind, note, fn in self._test_functions():
+        tests: list[tuple[str, str, Any, PointTest | None]] = [(k, nt, f, None) for k, nt, f in self._test_functions()]
+        for pt in self.point_tests:
+            tests.extend((pt.kind, note, lambda v, g=g, name=pt.name: g(v.extra[name]), pt)
+                         for note, g in pt.crossings(a.tests.extra[pt.name], b.tests.extra[pt.name]))
+        for kind, note, fn, point_test in tests:
             va, vb = fn(a.tests), fn(b.tests)
             if isinstance(va, tuple):
                 if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
                     continue
-                ref = max(va[1], vb[1])
+                if math.isnan(s_b):
+                    s_b = sys.dot(a.t, b.x - a.x)
+                # (sign, log) with its exponential trend across the step taken out
+                # (testfunctions.detrended: an underflow is never a zero)
+                trend = detrended(va, vb, s_b)
 
-                def g_of(v: TestValues, fn: Any = fn, ref: float = ref) -> float:
-                    return signed_value(fn(v), ref)
+                def g_of(v: TestValues, s: float, fn: Any = fn, trend: Any = trend) -> float:
+                    return trend(fn(v), s)
             else:
                 if va == 0 or vb == 0 or (va > 0) == (vb > 0):
                     continue
 
-                def g_of(v: TestValues, fn: Any = fn) -> float:
+                def g_of(v: TestValues, s: float, fn: Any = fn) -> float:
                     return float(fn(v))
 
             if math.isnan(s_b):
                 s_b = sys.dot(a.t, b.x - a.x)
-            sa, sb = Sample(0.0, g_of(a.tests), a), Sample(s_b, g_of(b.tests), b)
+            sa, sb = Sample(0.0, g_of(a.tests, 0.0), a), Sample(s_b, g_of(b.tests, s_b), b)
             det = self.options.detection
+            tol = det.locate_tol * max(1.0, abs(b.x[-1]))
             if det.locate:
 
                 def evaluate(s: float, g_of: Any = g_of) -> Sample[_Point] | None:
@@ -164,13 +180,14 @@ class _Tracer:
                     if corr.factorization is None and corr.residual_history[-1] <= self.options.newton.tol:
                         # A solution where the bordered matrix is exactly singular: the
                         # trial hit the singular point itself, where g = 0.
-                        return Sample(s, 0.0, _Point(corr.x, a.t, a.tests))
+                        return Sample(s, 0.0, _Point(corr.x, a.t, a.tests)) if point_test is None else None
                     if not corr.converged or sys.admissible(corr.x) is not None:
                         return None
                     pt = self.finish_point(corr, a.t)
-                    return Sample(s, g_of(pt.tests), pt)
+                    g = g_of(pt.tests, s)
+                    # a test function that cannot be evaluated there (NaN) counts as a failed trial
+                    return Sample(s, g, pt) if math.isfinite(g) else None
 
-                tol = det.locate_tol * max(1.0, abs(b.x[-1]))
                 res = locate_zero(evaluate, sa, sb, tol=tol, max_iterations=det.max_bisections)
                 best, converged, s_best = res.best.point, res.converged, res.best.s
             else:
@@ -178,6 +195,13 @@ class _Tracer:
             full_note = note
             if not converged:
                 full_note = (note + "; " if note else "") + "location did not converge"
+            elif kind == "BP":
+                # a located BP lies inside its bracket and the bounds, or it is no location
+                # (issue 12: Swift-Hohenberg secondary branches stored one outside both)
+                outside = outside_bracket(best.x[-1], a.x[-1], b.x[-1], tol, self.options.bounds.get(sys.parameter))
+                if outside is not None:
+                    converged = False
+                    full_note = (note + "; " if note else "") + f"location did not converge ({outside})"
             why = None
             if kind == "BP" and det.locate and det.retry_unconfirmed_bp:
                 why = "location did not converge" if not converged else self._unconfirmed(a, b, best, res.best.g)
@@ -195,6 +219,8 @@ class _Tracer:
                 note=full_note,
                 grid=self.grid,
             )
+            if point_test is not None:
+                sp = point_test.finish(sys, sp, best.x)
             log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
             found.append((s_best, sp))
             if why is not None:
@@ -226,7 +252,7 @@ class _Tracer:
 
     def _unconfirmed(self, a: _Point, b: _Point, best: _Point, g_best: float) -> str | None:
         """Why a converged BP location between a and b is no BP (None if it is one)."""
-        if abs(g_best) > BP_VANISH:  # the scaled test function is 1 at the larger end
+        if abs(g_best) > BP_VANISH:  # the detrended test function is +-1 at both ends
             return f"the test function does not vanish there ({abs(g_best):.2g} of its end value)"
         sys = self.system
         seg = b.x - a.x
@@ -343,6 +369,7 @@ def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0
     return float(lo), float(hi)
 
 
+@limited(lambda problem, u0, *args, **kwargs: np.size(u0))  # one BLAS thread on small problems (contin.blas)
 def trace(
     problem: Any,
     u0: Array,
@@ -437,6 +464,7 @@ def trace(
     tracer = _Tracer(system, options, None)
     tracer.adaptive = adaptor is not None
     tracer.audit.extend(grid_lines)
+    tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
         msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
@@ -628,10 +656,13 @@ def _detect_checked(tracer: _Tracer, step: int, cur: _Point, new: _Point, steppe
     landed on a bound from it), or None if the step jumped onto another branch and is to be
     retried with a smaller ds (:func:`_jump_retry`, on unconfirmed BPs only)."""
     found, unconfirmed = tracer.detect(cur, new, len(tracer.points) - 1)
-    if not unconfirmed:
-        return found
-    retry, found = _jump_retry(tracer, step, cur, stepped, direction, ds, sopt, found, unconfirmed)
-    return None if retry else found
+    if unconfirmed:
+        retry, found = _jump_retry(tracer, step, cur, stepped, direction, ds, sopt, found, unconfirmed)
+        if retry:
+            return None
+    if tracer.eigen is not None:  # the eigenvalue-count cross-check (contin.bpdetect)
+        return tracer.eigen.check(tracer, cur, new, found, ds, ds > sopt.ds_min * (1 + 1e-12))
+    return found
 
 
 def _jump_retry(tracer: _Tracer, step: int, cur: _Point, new: _Point, direction: Array, ds: float,

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from contin.linalg import DENSE_LIMIT
+from contin.linalg import dense_factorization
 from contin.problem import Array, has
 
 
@@ -55,6 +55,7 @@ class ExtendedSystem:
         # Optional hooks looked up once (they are called at every Newton iteration).
         self._admissible = problem.admissible if has(problem, "admissible") else None
         self._dense_jacobian = problem.dense_jacobian if has(problem, "dense_jacobian") else None
+        self._dense_decided = self._dense_jacobian is None  # decided at the first Jacobian
 
     # --- packing ------------------------------------------------------------------------
     def pack(self, u: Array, p: float) -> Array:
@@ -72,13 +73,18 @@ class ExtendedSystem:
     def jacobian(self, x: Array, dense: bool = True) -> tuple[sp.spmatrix | Array, Array]:
         """(J = dF/du, F_p = dF/dp) at x.
 
-        J is dense when it will be factorized densely (n + 1 <= ``contin.linalg.DENSE_LIMIT``)
-        and the problem has the optional ``dense_jacobian`` hook (``dense=False`` declines it);
-        otherwise as the problem's ``jacobian`` returns it (sparse, or dense for tiny problems).
+        J is dense when it will be factorized densely (``contin.linalg.dense_factorization`` of
+        the first sparse J decides, by its structure) and the problem has the optional
+        ``dense_jacobian`` hook (``dense=False`` declines it); otherwise as the problem's
+        ``jacobian`` returns it (sparse, or dense for tiny problems).
         """
         q = self.params_at(x[-1])
         u = x[:-1]
-        if dense and x.size <= DENSE_LIMIT and self._dense_jacobian is not None:
+        if not self._dense_decided:
+            self._dense_decided = True
+            if not dense_factorization(self.state_jacobian(x, q), bordered=True):
+                self._dense_jacobian = None
+        if dense and self._dense_jacobian is not None:
             jac = np.asarray(self._dense_jacobian(u, q), dtype=float)
         else:
             jac = self.state_jacobian(x, q)

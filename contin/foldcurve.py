@@ -35,6 +35,9 @@ from contin.problem import Array, has
 class FoldProblem:
     """The augmented fold system as a contin Problem (state U = [u, phi, p2])."""
 
+    #: Locate cusps (CP) along the curve (``contin.cusp``).
+    detect_cusps: bool = True
+
     def __init__(self, problem: object, second: str, normalisation: Array, eps: float = 1e-6) -> None:
         self.problem = problem
         self.second = second
@@ -103,6 +106,19 @@ class FoldProblem:
         if has(self.problem, "admissible"):
             return self.problem.admissible(u, q)  # type: ignore[attr-defined]
         return None
+
+    def point_tests(self) -> list[object]:
+        """Cusps (CP, ``contin.cusp``; unless ``detect_cusps`` is False) and Bogdanov-Takens
+        points (BT) along the fold curve (``contin.hopfcurve.fold_bt_test``); no BT for problems
+        with their own ``eigenproblem`` (their M is not the steady one)."""
+        from contin.cusp import CuspTest
+
+        tests: list[object] = [CuspTest(self)] if self.detect_cusps else []
+        if has(self.problem, "eigenproblem"):
+            return tests
+        from contin.hopfcurve import fold_bt_test
+
+        return tests + [fold_bt_test(self.problem, self.n, self.c, self.second)]
 
     def under_resolved(self, state: Array, p: Mapping[str, float], tol: float) -> str | None:
         """The wrapped problem's resolution guard (``contin.problem``) on the base state u.
@@ -227,13 +243,43 @@ def trace_fold_curve(
     Returns a fold-curve :class:`Branch` (``kind='fold-curve'``) with ``XT`` points at the
     extrema of ``second`` and ``LP`` points at the extrema of ``parameter``.
     """
-    from contin.continuation import trace, trace_both
-
     if parameter is None:
         raise ValueError("trace_fold_curve needs the name of the first continuation parameter")
     fold, start = fold_start(problem, point, second)
-    opts = replace(options, detection=replace(options.detection, detect_branch_points=False))
-    run = trace_both if both else trace
-    raw = run(fold, start, dict(point.params), parameter, opts, branch_id=branch_id, kind="fold-curve",
-              parent=f"{point.name}")
-    return as_fold_curve(raw, fold, opts)
+    raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=both,
+                          branch_id=branch_id, kind="fold-curve")
+    return as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
+
+
+def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second: str, index: int,
+                    options: ContinuationOptions, *, parameter: str, both: bool, branch_id: str, kind: str) -> Branch:
+    """Trace an augmented two-parameter system (fold or BP curve) whose state holds the second
+    parameter at ``index``, in ``parameter``, both directions joined.
+
+    BP detection of the augmented system is off (its singularities are not the problem's).
+    Bounds on ``second`` in ``options.bounds`` are honoured: the tracer lands on bounds of the
+    continuation parameter only, so each half is cut at the located crossing of the bound (a
+    UZ event, as for Hopf curves: ``contin.hopfcurve``) and ends there with EP.
+    """
+    import math
+
+    from contin.continuation import join, trace
+    from contin.hopfcurve import _cut_at_bound, _second_bound_event
+
+    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
+    p2 = float(point.params[second])
+    if not lo <= p2 <= hi:
+        raise ValueError(f"start value {second}={p2:g} lies outside its bounds ({lo:g}, {hi:g})")
+    opts = replace(options, detection=replace(options.detection, detect_branch_points=False),
+                   bounds={k: v for k, v in options.bounds.items() if k != second})
+    bounded = math.isfinite(lo) or math.isfinite(hi)
+    if bounded:
+        opts = replace(opts, events={**opts.events, **_second_bound_event(augmented, second, lo, hi, index=index)})
+    halves = []
+    for direction in ((1, -1) if both else (1,)):
+        half = trace(augmented, start, dict(point.params), parameter, opts, direction=direction,
+                     branch_id=branch_id, kind=kind, parent=f"{point.name}")
+        halves.append(_cut_at_bound(half, augmented, second, index=index) if bounded else half)
+        if half.closed:
+            break
+    return halves[0] if len(halves) == 1 else join(halves[1], halves[0])

@@ -7,7 +7,9 @@ Layout (format "contin", format_version 2; version 1 files are read too)
     /                         attrs: format="contin", format_version=2, contin_version,
                                      git_commit, created_utc, command (exact argv), scene,
                                      parameters, discretization, options, notes, extra (JSON
-                                     text), diagram_x, diagram_y, complete (bool)
+                                     text), diagram_x, diagram_y, complete (bool),
+                                     stopped (why an incomplete run stopped: "interrupted",
+                                     "terminated by SIGTERM", "failed: <reason>"; "" otherwise)
     /grid/y                   (N,) wall-normal grid of the profiles (optional)
     /branches/<id>/           attrs: id, parameter, free, status, message, closed, kind,
                                      parent, position, param_names, observable_names,
@@ -38,6 +40,9 @@ Layout (format "contin", format_version 2; version 1 files are read too)
         phi, bracket_lo, bracket_hi (float); converged (bool);
         params/<name>         one column per parameter name (attr param_names)
         params_present        (K, P) bool: which parameters each row has
+        data/<name>           one float column per SpecialPoint.data name (attr data_names),
+                              e.g. omega and l1 of HB rows, value of UZ rows
+        data_present          (K, D) bool: which data each row has
         states                (K, n_max) located states (NaN-padded to state_size)
         tangents              (K, m_max) tangents (tangent_size = -1 when none)
         grid                  (K,) int  grid size the point was located on (-1: the
@@ -88,9 +93,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from contin.atomic import publish
+from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
+from contin.filecheck import BadDataset, check_branch, check_special_point
 from contin.jsonout import dumps as _json_dumps
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
@@ -219,7 +225,10 @@ def _options_dict(options: ContinuationOptions | Mapping[str, Any] | None) -> di
     if options is None:
         return {}
     if dataclasses.is_dataclass(options) and not isinstance(options, type):
-        return dataclasses.asdict(options)
+        out = dataclasses.asdict(options)
+        # event functions are code, not data: the file records their names
+        out["events"] = sorted(out.get("events", {}))
+        return out
     return dict(options)
 
 
@@ -232,6 +241,7 @@ def options_from_dict(d: Mapping[str, Any]) -> ContinuationOptions:
             kw[key] = cls(**d.pop(key))
     if "bounds" in d:
         kw["bounds"] = {k: (float(lo), float(hi)) for k, (lo, hi) in d.pop("bounds").items()}
+    d.pop("events", None)  # only their names are stored; the functions cannot be rebuilt
     return ContinuationOptions(**kw, **d)
 
 
@@ -365,6 +375,7 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
         else:
             pg.create_dataset(name.replace("/", "%2F"), data=np.asarray(vals, dtype=float))
     g.create_dataset("params_present", data=present)
+    _write_special_data(g, [sp for _, sp in rows])
     for col, get in (("states", lambda sp: sp.state), ("tangents", lambda sp: sp.tangent)):
         vecs = [None if get(sp) is None else np.asarray(get(sp)).ravel() for _, sp in rows]
         width = max([v.size for v in vecs if v is not None], default=0)
@@ -384,13 +395,45 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
             spg.create_dataset(name.replace("/", "%2F"), data=np.asarray(arr, dtype=float))
 
 
+def _write_special_data(g: h5py.Group, sps: Sequence[SpecialPoint]) -> None:
+    """SpecialPoint.data as float columns data/<name> and a presence table (HB omega, l1; UZ value)."""
+    names: list[str] = []
+    for sp in sps:
+        names.extend(n for n in sp.data if n not in names)
+    g.attrs["data_names"] = np.asarray(names, dtype=_STR)
+    dg = g.create_group("data")
+    present = np.zeros((len(sps), len(names)), dtype=bool)
+    for j, name in enumerate(names):
+        present[:, j] = [name in sp.data for sp in sps]
+        dg.create_dataset(name.replace("/", "%2F"), data=np.asarray([sp.data.get(name, np.nan) for sp in sps], dtype=float))
+    g.create_dataset("data_present", data=present)
+
+
+def _read_special_data(g: h5py.Group, k: int) -> list[dict[str, float]]:
+    """The data dicts of k special-point rows (empty dicts for files written before data existed)."""
+    if "data" not in g:
+        return [{} for _ in range(k)]
+    names = _attr_list(g.attrs["data_names"])
+    cols = {n: g["data"][n.replace("/", "%2F")][()] for n in names}
+    present = g["data_present"][()]
+    return [{n: float(cols[n][i]) for j, n in enumerate(names) if present[i, j]} for i in range(k)]
+
+
 def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
-    """Write a whole file through ``fill`` into PATH.tmp, fsync, and rename it onto PATH."""
+    """Write a whole file through ``fill`` into PATH.tmp, fsync, and rename it onto PATH.
+
+    The HDF5 image is built in memory and then written with plain ``write`` calls: HDF5 itself
+    writing onto a full disk crashed the process (segmentation fault, hundreds of traceback
+    lines, a stray PATH.tmp), while a failed ``write`` is an ordinary OSError that
+    :func:`contin.atomic.publish` turns into one sentence.  Runs are a few MB.
+    """
+    import io as _io
 
     def write(tmp: Path) -> None:
-        with h5py.File(tmp, "w") as f:
+        buf = _io.BytesIO()
+        with h5py.File(buf, "w") as f:
             fill(f)
-            f.flush()
+        write_bytes(tmp, buf.getvalue())
 
     publish(path, write)
 
@@ -398,18 +441,16 @@ def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
 def check_writable(path: str | os.PathLike[str]) -> Path:
     """Raise ``OSError`` with a clear message if ``path`` (an output file) cannot be written.
 
-    Creates and removes ``PATH.tmp``, exactly what a publish will need, so a bad ``-o`` fails
-    before any computing.
+    Creates and removes a probe file beside PATH (a publish needs to create PATH.tmp there), so
+    a bad ``-o`` fails before any computing.
     """
-    p = Path(path)
-    if p.is_dir():
-        raise IsADirectoryError(f"output path {str(p)!r} is a directory")
+    p = check_target(path)  # a regular file or a new path, never a device or a symlink
     if not p.parent.is_dir():
         raise FileNotFoundError(f"cannot write {str(p)!r}: directory {str(p.parent)!r} does not exist")
-    tmp = p.with_name(p.name + ".tmp")
+    # A probe of our own (never PATH.tmp: another run publishing to PATH may be writing that)
+    tmp = p.with_name(f".{p.name}.{os.getpid()}.probe")
     try:
-        with open(tmp, "wb"):
-            pass
+        write_bytes(tmp, b"")
         tmp.unlink()
     except OSError as exc:
         raise OSError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
@@ -453,8 +494,12 @@ class H5Writer:
         diagram_x: str = "",
         diagram_y: str = "phi",
         max_profiles: int = 40,
+        lock: bool = True,
+        attrs: Mapping[str, str] | None = None,
     ) -> None:
         self.path = check_writable(path)
+        # One writer per output, refused up front (two runs on one -o lost work silently).
+        self._lock = OutputLock(self.path).acquire() if lock else None
         argv = sys.argv if command is None else command
         self.meta: dict[str, Any] = {
             "scene": scene,
@@ -467,10 +512,12 @@ class H5Writer:
             "extra": dict(extra or {}),
             "diagram_x": diagram_x,
             "diagram_y": diagram_y,
+            "stopped": "",
         }
         self.y = None if y is None else np.asarray(y, dtype=float)
         self.profiles = profiles
         self.max_profiles = max_profiles
+        self.attrs = dict(attrs or {})  # extra root attributes (text), e.g. a sweep task's result
         self._branches: dict[str, Branch] = {}
         self._extra_branches: list[Branch] = []
         self._profile_cache: dict[int, tuple[Branch, tuple[np.ndarray, dict[str, np.ndarray]] | None]] = {}
@@ -486,6 +533,8 @@ class H5Writer:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         if exc_type is None:
             self.close()
+        else:
+            self.release()
 
     @property
     def branches(self) -> list[Branch]:
@@ -556,10 +605,12 @@ class H5Writer:
         a["contin_version"] = _contin_version()
         a["git_commit"] = git_commit()
         a["complete"] = bool(self.complete)
-        for key in ("created_utc", "command", "scene", "diagram_x", "diagram_y"):
+        for key in ("created_utc", "command", "scene", "diagram_x", "diagram_y", "stopped"):
             a[key] = str(self.meta[key])
         for key in ("parameters", "discretization", "options", "notes", "extra"):
             a[key] = _json_dumps(self.meta[key])
+        for key, value in self.attrs.items():
+            a[key] = str(value)
         if self.y is not None:
             f.create_group("grid").create_dataset("y", data=self.y)
         bg = f.create_group("branches", track_order=True)
@@ -586,13 +637,23 @@ class H5Writer:
         self.publishes += 1
 
     def close(self) -> None:
-        """Final publish with ``complete=True``."""
+        """Final publish with ``complete=True``; releases the output lock."""
         self.complete = True
-        self.publish()
+        try:
+            self.publish()
+        finally:
+            self.release()
+
+    def release(self) -> None:
+        """Drop the output lock (also done by :meth:`close`; a dying process drops it anyway)."""
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
 
 def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:
     """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`."""
+    meta.setdefault("lock", False)  # one publish, atomic by itself; no run to protect
     w = H5Writer(path, **meta)
     w.set_branches(branches)
     w.close()
@@ -651,6 +712,15 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
     k = int(g.attrs["n_rows"])
     if k == 0:
         return []
+    for name in ("branch", "name", "type", "note", "label", "index", "branch_position", "phi", "bracket_lo",
+                 "bracket_hi", "converged", "params_present", "states", "state_size", "tangents", "tangent_size"):
+        if name in g and g[name].shape[:1] != (k,):
+            raise BadDataset(f"dataset special_points/{name} has {g[name].shape[0] if g[name].shape else 0} rows, "
+                             f"the table has {k} (attribute n_rows)")
+    for name, ds in g["params"].items():
+        if ds.shape[:1] != (k,):
+            raise BadDataset(f"dataset special_points/params/{name} has {ds.shape[0] if ds.shape else 0} rows, "
+                             f"the table has {k} (attribute n_rows)")
     names = _attr_list(g.attrs["param_names"])
     cols = {n: _read_column(g["params"][n.replace("/", "%2F")]) for n in names}
     present = g["params_present"][()]
@@ -660,6 +730,7 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
     states, state_size = g["states"][()], g["state_size"][()]
     tangents, tangent_size = g["tangents"][()], g["tangent_size"][()]
     grid = g["grid"][()] if "grid" in g else np.full(k, -1, dtype=np.int64)
+    data = _read_special_data(g, k)
     out = []
     for i in range(k):
         params = {}
@@ -679,6 +750,7 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
             label=int(label[i]),
             note=note[i],
             grid=None if grid[i] < 0 else int(grid[i]),
+            data=data[i],
         )))
     return out
 
@@ -721,7 +793,8 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                 "format_version": version,
                 "complete": bool(a.get("complete", False)),
             }
-            for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "diagram_x", "diagram_y"):
+            for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "diagram_x", "diagram_y",
+                        "stopped"):
                 meta[key] = str(a.get(key, ""))
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
@@ -730,22 +803,27 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
             branches = [_read_branch(g) for g in groups]
             profiles = {}
             for g, b in zip(groups, branches):
+                prof: dict[str, np.ndarray] | None = None
                 if "profile_index" in g:
-                    prof: dict[str, np.ndarray] = {"index": g["profile_index"][()]}
+                    prof = {"index": g["profile_index"][()]}
                     for name, ds in g["profiles"].items():
                         prof[name.replace("%2F", "/")] = ds[()]
                     profiles[b.id] = prof
+                check_branch(g.name.lstrip("/"), b, json.loads(g.attrs["datasets"]), prof)
             meta["profiles"] = profiles
             sp_group = f["special_points"]
             if "profiles" in sp_group:
                 meta["special_point_profiles"] = {n.replace("%2F", "/"): d[()] for n, d in sp_group["profiles"].items()}
-            for pos, bid, sp in _read_special_points(sp_group):
+            for row, (pos, bid, sp) in enumerate(_read_special_points(sp_group)):
                 if not 0 <= pos < len(branches) or branches[pos].id != bid:
                     raise FileFormatError(f"{str(p)!r} is damaged: special point {sp.name} names a missing branch {bid!r}")
+                check_special_point(row, branches[pos], sp)
                 branches[pos].special_points.append(sp)
             return branches, meta
     except FileFormatError:
         raise
+    except BadDataset as exc:
+        raise FileFormatError(f"{str(p)!r} is damaged: {exc}") from None
     except (KeyError, ValueError, TypeError, OSError, RuntimeError, IndexError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise FileFormatError(f"{str(p)!r} is damaged or truncated ({msg})") from None

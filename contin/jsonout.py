@@ -85,7 +85,8 @@ def branch_summary(branch: Branch) -> dict[str, Any]:
 
 
 def special_point_summary(sp: SpecialPoint, branch_id: str) -> dict[str, Any]:
-    """``{type, label, name, branch, index, params, phi, bracket, converged, note}``."""
+    """``{type, label, name, branch, index, params, phi, bracket, converged, note, data}``
+    (data: e.g. omega and l1 of an HB, value of a UZ; ``{}`` for other points)."""
     return {
         "type": sp.type,
         "label": sp.name,
@@ -96,6 +97,7 @@ def special_point_summary(sp: SpecialPoint, branch_id: str) -> dict[str, Any]:
         "bracket": list(sp.bracket),
         "converged": bool(sp.converged),
         "note": sp.note,
+        "data": dict(sp.data),
     }
 
 

@@ -13,7 +13,13 @@ branch-point test function.  Two back ends behind one interface (:class:`Factori
   overhead and fill-in: on gPCF (Chebyshev blocks are dense, and the bordering row/column and
   the mass constraint are dense) dgetrf beats SuperLU 5x at n = 76, 6x at n = 148 and still
   1.3x at n = 772 (FD4, N = 256), CPU time, one BLAS thread;
-- SuperLU (``scipy.sparse.linalg.splu``, P_r A P_c = L U) above it.
+- above it the matrix's structure decides (:func:`factorize`): a banded matrix with a few dense
+  rows and columns (finite differences: node-by-node bands plus integral constraints, global
+  unknowns and the continuation border) by banded LAPACK LU with the border eliminated
+  (``contin.banded``: 37x faster than dense LU at fd4 N = 256); a matrix with at least
+  :data:`DENSE_FILL` of its entries nonzero (collocation) by dense LAPACK up to
+  :data:`DENSE_MAX`; any other sparse matrix by SuperLU (``scipy.sparse.linalg.splu``,
+  P_r A P_c = L U).
 
 With unit-diagonal L the determinant's sign is
 
@@ -30,9 +36,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
-from scipy.sparse.csgraph import connected_components
 
+from contin.banded import factorize_banded, structure_of
 from contin.problem import Array
+from contin.sparsity import as_csc, canonical_csc, permutation_parity
+
+__all__ = ["DENSE_FILL", "DENSE_LIMIT", "DENSE_MAX", "DenseLU", "Factorization", "SparseLU", "as_csc", "bordered",
+           "bordered_dense", "factorize", "factorize_bordered", "inf_norm", "inverse_iteration", "permutation_parity",
+           "structure"]
 
 _getrf, _getrs = lapack.dgetrf, lapack.dgetrs
 # ufunc reductions called directly (ndarray.all & co. add a Python wrapper: at continuation
@@ -40,30 +51,15 @@ _getrf, _getrs = lapack.dgetrf, lapack.dgetrs
 _ALL, _SUM = np.logical_and.reduce, np.add.reduce
 
 
-def as_csc(a: object) -> sp.csc_matrix:
-    """``a`` as CSC (no copy when it already is one); dense input is accepted for tiny problems."""
-    if sp.issparse(a):
-        return a.tocsc()  # type: ignore[no-any-return,union-attr]
-    return sp.csc_matrix(np.atleast_2d(np.asarray(a, dtype=float)))
-
-
-def permutation_parity(perm: Array) -> int:
-    """+1 for an even permutation, -1 for an odd one.
-
-    parity = (-1)^(n - number of cycles); the cycles are the connected components of the graph
-    i -> perm[i], counted in C by ``scipy.sparse.csgraph`` (no Python loop over n).
-    """
-    perm = np.asarray(perm, dtype=np.int64)
-    n = perm.size
-    if n == 0:
-        return 1
-    graph = sp.csr_matrix((np.ones(n), perm, np.arange(n + 1)), shape=(n, n))
-    cycles, _ = connected_components(graph, directed=True, connection="weak")
-    return 1 if (n - cycles) % 2 == 0 else -1
-
-
-#: Largest matrix order factorized densely (LAPACK getrf) instead of by SuperLU.
+#: Matrices below this order are factorized densely whatever their structure.
+BANDED_MIN = 64
+#: Matrices up to this order are factorized densely (LAPACK getrf) unless banded.
 DENSE_LIMIT = 800
+#: Above DENSE_LIMIT, a sparse matrix with at least this fraction of nonzeros is factorized
+#: densely too (collocation matrices: SuperLU on a dense matrix is 6-7x slower than getrf) ...
+DENSE_FILL = 0.1
+#: ... up to this order (8 bytes n^2: 288 MB at 6000).
+DENSE_MAX = 6000
 
 
 class Factorization:
@@ -142,16 +138,54 @@ def _arange(n: int) -> Array:
     return _ARANGE[:n] if n <= DENSE_LIMIT else np.arange(n)
 
 
-def factorize(a: object) -> Factorization | None:
-    """LU of a square sparse or dense matrix; None if exactly singular (a zero pivot).
+def structure(a: object) -> str:
+    """How :func:`factorize` treats ``a``: 'dense', 'banded' or 'sparse' (module docstring).
 
-    Dense LAPACK for order <= :data:`DENSE_LIMIT` (see module docstring), SuperLU above.
+    By structure, not size: a sparse matrix that is banded plus a small dense border
+    (``contin.banded.analyze``) is 'banded' from :data:`BANDED_MIN` unknowns on, because its
+    banded LU is O(n) where a dense one is O(n^3) (fd4 N = 256, n = 773: 0.5 ms against 27 ms);
+    other matrices are 'dense' up to :data:`DENSE_LIMIT`, or up to :data:`DENSE_MAX` when at
+    least :data:`DENSE_FILL` of their entries are nonzero (collocation), and 'sparse' above.
     """
     n = a.shape[0]  # type: ignore[attr-defined]
-    if n <= DENSE_LIMIT:
-        return _dense_lu(a.toarray() if sp.issparse(a) else np.array(a, dtype=float, order="F"))  # type: ignore[attr-defined]
+    if not sp.issparse(a) or n < BANDED_MIN:
+        return "dense"
+    if structure_of(canonical_csc(a)) is not None:
+        return "banded"
+    if n <= DENSE_LIMIT or (n <= DENSE_MAX and a.nnz >= DENSE_FILL * n * n):  # type: ignore[attr-defined]
+        return "dense"
+    return "sparse"
+
+
+def dense_factorization(jac: object, bordered: bool = False) -> bool:
+    """True when :func:`factorize` (``bordered``: :func:`factorize_bordered`) of a matrix with
+    the structure of ``jac`` is a dense LU, i.e. when a problem's ``dense_jacobian`` hook saves
+    building a sparse J only to copy it densely (``contin.problem``)."""
+    if not sp.issparse(jac):
+        return True
+    if bordered:  # the border's dense row and column are part of what factorize sees
+        jac = bordered_matrix_pattern(jac)
+    return structure(jac) == "dense"
+
+
+def factorize(a: object) -> Factorization | None:
+    """LU of a square sparse or dense matrix, chosen by its structure; None if exactly singular.
+
+    Dense LAPACK up to :data:`DENSE_LIMIT` and for dense matrices (at least :data:`DENSE_FILL`
+    nonzero) up to :data:`DENSE_MAX`; banded LAPACK with the dense border eliminated
+    (``contin.banded``) for banded-plus-border matrices; SuperLU otherwise (also when the
+    banded factorization's self-check fails).  All of them give the determinant's sign.
+    """
+    kind = structure(a)
+    if kind == "dense":
+        return _dense_lu(a.toarray(order="F") if sp.issparse(a) else np.array(a, dtype=float, order="F"))  # type: ignore[attr-defined]
+    csc = canonical_csc(a)
+    if kind == "banded":
+        fact = factorize_banded(csc)
+        if fact is not None:
+            return fact  # type: ignore[return-value]
     try:
-        return SparseLU(spla.splu(as_csc(a)))
+        return SparseLU(spla.splu(csc))
     except RuntimeError:  # SuperLU: "Factor is exactly singular"
         return None
 
@@ -194,14 +228,27 @@ def bordered_dense(jac: object, column: Array, row: Array) -> Array:
 
 
 def factorize_bordered(jac: object, column: Array, row: Array) -> Factorization | None:
-    """:func:`factorize` of the bordered matrix of :func:`bordered`, built densely when small.
+    """:func:`factorize` of the bordered matrix of :func:`bordered` (built densely when J is dense).
 
     ``jac`` itself is not modified (the dense path factorizes a bordered copy).
     """
-    n = jac.shape[0]  # type: ignore[attr-defined]
-    if n + 1 <= DENSE_LIMIT:
+    if not sp.issparse(jac):
         return _dense_lu(bordered_dense(jac, column, row))
+    n = jac.shape[0]  # type: ignore[attr-defined]
+    if n + 1 >= BANDED_MIN:
+        csc = canonical_csc(jac)
+        s = structure_of(csc)
+        if s is not None:  # J banded plus border: the continuation border joins J's border
+            fact = factorize_banded(csc, s, border=(column, row))
+            if fact is not None:
+                return fact  # type: ignore[return-value]
     return factorize(bordered(jac, column, row))
+
+
+def bordered_matrix_pattern(jac: object) -> sp.csc_matrix:
+    """[[J, 1], [1^T, 1]]: the pattern :func:`factorize_bordered` factorizes (values of the border: 1)."""
+    n = jac.shape[0]  # type: ignore[attr-defined]
+    return bordered(jac, np.ones(n), np.ones(n + 1))
 
 
 def inf_norm(a: object) -> float:

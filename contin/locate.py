@@ -109,3 +109,21 @@ def locate_zero(
     lo, hi = (old, new) if old.s <= new.s else (new, old)
     best = lo if abs(lo.g) <= abs(hi.g) else hi
     return Located(best, lo, hi, it, converged)
+
+
+def outside_bracket(p: float, pa: float, pb: float, tol: float, bounds: tuple[float, float] | None = None) -> str | None:
+    """Why a located parameter value p is no valid location of a branch point between branch
+    points with values pa and pb (None if it is one): it lies outside [min, max] of the two (by
+    more than tol) or outside the run's bounds.
+
+    A BP between two regular points of a branch that does not fold inside the step lies
+    between their parameter values; a "located" point elsewhere came from a trial that the
+    corrector carried onto another branch.  (Folds are exempt: their parameter is an extremum
+    and lies beyond both ends of its step by construction.)
+    """
+    lo, hi = min(pa, pb), max(pa, pb)
+    if not lo - tol <= p <= hi + tol:
+        return f"the located value {p:.10g} lies outside its bracket [{lo:.10g}, {hi:.10g}]"
+    if bounds is not None and not bounds[0] - tol <= p <= bounds[1] + tol:
+        return f"the located value {p:.10g} lies outside the bounds [{bounds[0]:g}, {bounds[1]:g}]"
+    return None

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.linalg import DENSE_LIMIT, factorize, inf_norm
+from contin.linalg import dense_factorization, factorize, inf_norm
 from contin.options import NewtonOptions
 from contin.problem import Array, has
 
@@ -109,9 +109,12 @@ def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newto
         return NewtonResult(u, False, 0, history, "residual is not finite at the initial guess")
     if r <= options.tol:
         return NewtonResult(u, True, 0, history, "converged")
-    # Dense LU for small systems: take J densely if the problem can (see contin.problem).
-    dense = u.size <= DENSE_LIMIT and has(problem, "dense_jacobian")
+    # Where J is factorized densely anyway, take it densely if the problem can (contin.problem).
+    dense: bool | None = False if not has(problem, "dense_jacobian") else None
     for it in range(1, options.max_iterations + 1):
+        if dense is None:
+            jac = problem.jacobian(u, p)
+            dense = dense_factorization(jac)
         jac = problem.dense_jacobian(u, p) if dense else problem.jacobian(u, p)
         fact = factorize(jac)  # a copy: jac stays intact for the rounding floor below
         if fact is None:

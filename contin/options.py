@@ -7,7 +7,7 @@ Change a setting with :func:`dataclasses.replace`; every constructor validates a
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -84,6 +84,19 @@ class DetectionOptions:
         to ds_min, where it is kept with the BP marked unconfirmed); if they end at the same
         point the step is kept as it is.  Every such step is logged in ``Branch.audit``.
         False: no check (every corrected step is kept).
+    bp_eigenvalues : k > 0 switches on the second BP detector (``contin.bpdetect``): the k
+        eigenvalues of J nearest zero at every point, real ones crossing zero counted across
+        each step and cross-checked with the determinant tests (which miss kernels of even
+        dimension and two BPs in one step); a disagreement re-takes the step with half the ds.
+        Located BPs then carry ``kernel dimension d`` in their note.  0 (default): off.
+    detect_hopf : Hopf points (HB, ``contin.hopf``): a complex pair of eigenvalues of
+        J x = omega M x crossing the imaginary axis.  Needs eigenvalues at every point, so the
+        default None means "on for n <= :data:`HOPF_AUTO_MAX` unknowns and problems without
+        their own ``eigenproblem``" (whose stability is a family in kx, kz: locate their Hopf
+        points with ``contin.stability.locate_hopf``) and that are no augmented systems (fold
+        and Hopf curves, which have ``point_tests``); True / False force it.
+    hopf_eigs : eigenvalues nearest 0 computed per point when n > ``hopf_dense_max`` (shift-
+        invert ARPACK); all of them (dense QZ) below.
     """
 
     detect_folds: bool = True
@@ -92,6 +105,24 @@ class DetectionOptions:
     locate_tol: float = 1e-11
     max_bisections: int = 60
     retry_unconfirmed_bp: bool = True
+    bp_eigenvalues: int = 0
+    detect_hopf: bool | None = None
+    hopf_eigs: int = 12
+    hopf_dense_max: int = 400
+
+    def __post_init__(self) -> None:
+        if self.hopf_eigs < 2 or self.hopf_dense_max < 2:
+            raise ValueError(f"hopf_eigs and hopf_dense_max must be >= 2, got {self.hopf_eigs}, {self.hopf_dense_max}")
+        if self.bp_eigenvalues < 0:
+            raise ValueError(f"bp_eigenvalues must be >= 0 (0 switches the eigenvalue count off), got {self.bp_eigenvalues}")
+
+
+#: DetectionOptions.detect_hopf=None detects Hopf points on problems with at most this many unknowns.
+HOPF_AUTO_MAX = 100
+
+
+#: Special-point types that ``ContinuationOptions.stop_at`` counts.
+STOP_KINDS = ("LP", "BP", "UZ", "HB")
 
 
 @dataclass(frozen=True)
@@ -158,6 +189,11 @@ class ContinuationOptions:
     stop_at : AUTO's STOP: labels like ``"LP1"`` or ``"BP2"`` (type and count along this
         run); the run ends with EP right after the k-th point of that type is located,
         e.g. when only the first fold of a branch is wanted and what lies beyond it is not.
+        ``"UZ<k>"`` (AUTO's UZSTOP) and ``"HB<k>"`` work the same way.
+    user_zeros : {parameter: values}: a UZ point wherever the continuation parameter takes
+        one of the values (AUTO's UZR), located like a fold, with its state stored.
+    events : {name: g(u, p) -> float}: a UZ point (note = name) at every zero of g along the
+        branch (BifurcationKit's event functions); p is the dict of all parameters.
     """
 
     newton: NewtonOptions = field(default_factory=NewtonOptions)
@@ -170,13 +206,25 @@ class ContinuationOptions:
     resolution_tol: float | None = 3e-5
     stop_at: tuple[str, ...] = ()
     adapt: AdaptOptions | None = None
+    user_zeros: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    events: dict[str, Callable[..., float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "stop_at", tuple(self.stop_at))
         for label in self.stop_at:
             kind, count = label[:2], label[2:]
-            if kind not in ("LP", "BP") or not count.isdigit() or int(count) < 1:
-                raise ValueError(f"stop_at labels are LP<k> or BP<k> with k >= 1, got {label!r}")
+            if kind not in STOP_KINDS or not count.isdigit() or int(count) < 1:
+                raise ValueError(f"stop_at labels are {', '.join(k + '<k>' for k in STOP_KINDS)} with k >= 1, got {label!r}")
+        zeros = {}
+        for name, values in self.user_zeros.items():
+            vals = tuple(float(v) for v in ([values] if isinstance(values, int | float) else values))
+            if not all(math.isfinite(v) for v in vals):
+                raise ValueError(f"user_zeros for {name!r} must be finite numbers, got {values!r}")
+            zeros[str(name)] = vals
+        object.__setattr__(self, "user_zeros", zeros)
+        for name, fn in self.events.items():
+            if not callable(fn):
+                raise ValueError(f"event {name!r} must be a callable g(u, p) -> float")
         if self.max_steps < 1:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
         if self.resolution_tol is not None and not self.resolution_tol > 0:
@@ -188,6 +236,7 @@ class ContinuationOptions:
     def __hash__(self) -> int:  # bounds is a dict; hash its items so options stay usable as keys
         return hash((self.newton, self.step, self.detection, tuple(sorted(self.bounds.items())),
                      self.max_steps, self.detect_closed, self.save_every, self.resolution_tol, self.stop_at,
+                     tuple(sorted(self.user_zeros.items())), tuple(sorted(self.events.items(), key=lambda kv: kv[0])),
                      self.adapt))
 
 

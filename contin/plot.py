@@ -42,6 +42,7 @@ MARKERS: dict[str, tuple[str, str]] = {
     "UZ": ("D", "tab:green"),
     "XT": ("^", "tab:purple"),
     "CP": ("v", "tab:orange"),
+    "BT": ("s", "tab:red"),
     "MX": ("X", "tab:red"),
     "EP": ("|", "grey"),
 }
@@ -97,7 +98,7 @@ def plot_branch(
     ax: Axes | None = None,
     *,
     label: str | None = None,
-    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "MX"),
+    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "MX"),
     annotate: bool = True,
     **line_kw: Any,
 ) -> list[Any]:

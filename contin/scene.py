@@ -62,7 +62,7 @@ class SceneRequest:
     engine : implementation of the problem's residual and Jacobian where a problem has several
         (ENGINES: 'auto', 'numpy', 'numba'); None = the problem's default.  Scenes whose
         problems have one implementation ignore it.
-    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``,
+    overrides : user changes to the scene's continuation options (``--ds``, ``--ds-max``, ``--uz``, ``--stop-at``,
         ``--max-steps``, ``--resolution-tol`` -> keys 'ds', 'ds_max', 'max_steps',
         'resolution_tol' (None: guard off)); scenes apply them with :meth:`options_for` so that
         their own defaults (bounds...) survive.  (The command line also sets resolution_tol for
@@ -104,6 +104,12 @@ class SceneRequest:
         if ov.get("tol") is not None:
             adapt = AdaptOptions(tol=float(ov["tol"]))
             kw["adapt"] = dataclasses.replace(adapt, max_grid=int(ov["max_grid"])) if ov.get("max_grid") else adapt
+        if "user_zeros" in ov:  # --uz NAME=V1,V2 (AUTO's UZR), added to the scene's own
+            kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}
+        if "stop_at" in ov:  # --stop-at UZ1 (AUTO's UZSTOP) replaces the scene's
+            kw["stop_at"] = tuple(ov["stop_at"])
+        if "bp_eigenvalues" in ov:  # --bp-eigs K: the eigenvalue-count BP detector (contin.bpdetect)
+            kw["detection"] = dataclasses.replace(base.detection, bp_eigenvalues=int(ov["bp_eigenvalues"]))
         resolved = dataclasses.replace(base, **kw)
         self._resolved.append(resolved)
         return resolved
@@ -133,11 +139,36 @@ class SceneRequest:
         if branch.n_unstable is None:
             stability_pass(problem, branch, fixed, n_eigs=n_eigs)
         messages = audit(branch)
+        if any("complex pair" in m for m in messages):  # Hopf points the tracer did not locate
+            messages = self._hopf_points(problem, branch, fixed, 0.0, branch.n_unstable) + audit(branch)
         for kx in self.kx:
             if float(kx) != 0.0:
                 for name, column in growth_columns(problem, branch, fixed, kx=float(kx)).items():
                     branch.observables.setdefault(name, column)
+                counts = branch.observables.get(f"n_unstable_kx{float(kx):g}")
+                messages += self._hopf_points(problem, branch, fixed, float(kx), counts)
         return messages
+
+    @staticmethod
+    def _hopf_points(problem: Any, branch: Branch, fixed: Mapping[str, Any], kx: float, counts: Any) -> list[str]:
+        """HB points where a complex pair of the stability problem at kx crosses between stored
+        points with different unstable counts (:func:`contin.hopfscan.locate_hopf`), added to
+        the branch (label 0: numbered by ``contin.hopfscan.number_new_points``); returns the
+        reasons for count changes it could not locate as audit lines."""
+        from contin.hopfscan import locate_hopf
+
+        if counts is None or len(branch.free) != 1:
+            return []
+        scan = locate_hopf(problem, branch, fixed, kx=kx, counts=counts)
+        known = {(sp.type, round(sp.params.get(branch.parameter, np.nan), 9), sp.data.get("kx"))
+                 for sp in branch.special_points}
+        for sp in scan.points:
+            if ("HB", round(sp.params[branch.parameter], 9), sp.data.get("kx")) not in known:
+                branch.special_points.append(sp)
+        branch.special_points.sort(key=lambda sp: sp.index)
+        lines = [f"Hopf: {r}" for r in scan.reasons]
+        branch.audit.extend(lines)
+        return lines
 
     def report(self, message: str) -> None:
         if self.progress is not None:

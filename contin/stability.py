@@ -23,10 +23,11 @@ Counting unstable eigenvalues
 
 Audit
     Along a branch, each fold (LP) or simple branch point (BP) is a real eigenvalue
-    crossing zero, so ``n_unstable`` must change across it, and every change of
-    ``n_unstable`` must be explained by such a point (a complex pair crossing would be a
-    Hopf point, which contin does not locate: it is reported as unexplained).  This is
-    the branch invariant of BifurcationKit's ``test_bif_detection.jl``.
+    crossing zero and each Hopf point (HB, ``contin.hopf``) a complex pair crossing the
+    imaginary axis, so ``n_unstable`` must change across it, and every change of
+    ``n_unstable`` must be explained by such a point (a complex pair crossing where the tracer
+    did not detect Hopf points is reported as unexplained; :func:`locate_hopf` locates it).
+    This is the branch invariant of BifurcationKit's ``test_bif_detection.jl``.
 
 References
 ----------
@@ -48,6 +49,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
+from contin.blas import limited
 from contin.branch import Branch
 from contin.problem import has
 
@@ -272,6 +274,7 @@ def stability_of_state(
     return StabilityResult(lead, n_unst, n_unst == 0, tol, float(kx), float(kz), int(w.size))
 
 
+@limited()  # one BLAS thread for the small dense eigenproblems (contin.blas)
 def stability_pass(
     problem: Any,
     branch: Branch,
@@ -322,6 +325,7 @@ def stability_pass(
     branch.stability_k = (float(kx), float(kz))
 
 
+@limited()
 def growth_columns(
     problem: Any,
     branch: Branch,
@@ -358,6 +362,21 @@ def growth_columns(
     return {"growth_rate" + suffix: growth, "n_unstable" + suffix: count}
 
 
+def _crossing_counts(points: list[Any]) -> list[int] | None:
+    """Eigenvalues through the imaginary axis at each point (LP 1, HB 2, BP its kernel dimension),
+    or None unless some BP has a recorded kernel dimension (``contin.bpdetect``) and all are known."""
+    from contin.bpdetect import kernel_dimension
+
+    out, known = [], False
+    for p in points:
+        d = {"LP": 1, "HB": 2}.get(p.type) if p.type != "BP" else kernel_dimension(p)
+        if d is None:
+            return None
+        known = known or p.type == "BP"
+        out.append(d)
+    return out if known else None
+
+
 def audit(branch: Branch) -> list[str]:
     """Check special points against changes of ``n_unstable``; store and return disagreements.
 
@@ -366,6 +385,9 @@ def audit(branch: Branch) -> list[str]:
     accepted too).  An interval holding an odd number of BP/LP must show a change of
     ``n_unstable``; an interval whose ``n_unstable`` changes must hold at least one BP/LP
     (two points in one interval may cancel, so an even number with no change is accepted).
+    Where the BPs carry their kernel dimension (``contin.bpdetect``; LP counts 1, HB 2) the
+    change must equal the sum of the dimensions up to cancelling pairs: a BP of kernel
+    dimension 2 changes ``n_unstable`` by 2 (or 0), one of dimension 3 by 3 or 1.
     Messages are human readable, one per disagreement; they replace the messages of any
     earlier audit in ``branch.audit`` (the rejected-step diagnostics of
     :mod:`contin.continuation`, which start with ``"step "``, are kept in front).  An empty
@@ -385,8 +407,10 @@ def audit(branch: Branch) -> list[str]:
     messages: list[str] = []
     per_interval: dict[int, list[Any]] = {}
     for spt in branch.special_points:
-        if spt.type not in ("BP", "LP"):
+        if spt.type not in ("BP", "LP", "HB"):
             continue
+        if spt.type == "HB" and (spt.data.get("kx", 0.0), spt.data.get("kz", 0.0)) != (branch.stability_k or (0.0, 0.0)):
+            continue  # a Hopf point of another wavenumber's stability problem
         i = spt.index
         p_sp = spt.params.get(par, np.nan)
         candidates = [i]
@@ -406,8 +430,16 @@ def audit(branch: Branch) -> list[str]:
         changing = [c for c in candidates if c not in unknown and nu[c] != nu[c + 1]]
         per_interval.setdefault(changing[0] if changing else candidates[0], []).append(spt)
     for c, pts in sorted(per_interval.items()):
-        if nu[c] == nu[c + 1] and len(pts) % 2 == 1:
-            names = ", ".join(f"{p.name} at {par}={p.params.get(par, np.nan):.6g}" for p in pts)
+        names = ", ".join(f"{p.name} at {par}={p.params.get(par, np.nan):.6g}" for p in pts)
+        crossing = _crossing_counts(pts)
+        if crossing is not None:
+            # kernel dimensions known (contin.bpdetect): the count must change by their sum,
+            # less pairs that cancel (eigenvalues crossing in opposite directions)
+            total, delta = sum(crossing), abs(int(nu[c + 1]) - int(nu[c]))
+            if delta > total or (total - delta) % 2:
+                messages.append(f"{names}: n_unstable changes by {delta} between points {c} and {c + 1}, but "
+                                f"their kernel dimensions add up to {total}")
+        elif nu[c] == nu[c + 1] and len(pts) % 2 == 1:
             messages.append(f"{names}: n_unstable does not change between points {c} and {c + 1} "
                             f"(stays {nu[c]})")
     for c in range(s - 1):
@@ -417,7 +449,7 @@ def audit(branch: Branch) -> list[str]:
         if branch.eigenvalues is not None:
             lead = branch.eigenvalues[c + 1 if nu[c + 1] > nu[c] else c, 0]
             if np.isfinite(lead) and abs(lead.imag) > 1e-8 * max(1.0, abs(lead)):
-                kind = " (complex pair: possible Hopf point, not detected by contin)"
+                kind = " (complex pair: possible Hopf point, not located: run contin.stability.locate_hopf)"
         messages.append(f"n_unstable changes {nu[c]} -> {nu[c + 1]} between points {c} and {c + 1} "
                         f"({par} = {pv[c]:.6g} .. {pv[c + 1]:.6g}) with no BP/LP in between{kind}")
     for c in np.flatnonzero(nu < 0):

@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from contin.atomic import publish
+from contin.atomic import OutputLock, publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
 from contin.options import check_resolution_tol, resolution_override
@@ -279,10 +279,18 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
-    if "ds" in options and options["ds"] == 0:
-        raise SweepError(f"option 'ds'{where} must be non-zero")
-    if "ds_max" in options and not options["ds_max"] > 0:
-        raise SweepError(f"option 'ds_max'{where} must be > 0, got {options['ds_max']}")
+    if "ds" in options and not (options["ds"] != 0 and math.isfinite(options["ds"])):
+        raise SweepError(f"option 'ds'{where} must be a finite non-zero number, got {options['ds']}")
+    if "ds_max" in options and not (options["ds_max"] > 0 and math.isfinite(options["ds_max"])):
+        raise SweepError(f"option 'ds_max'{where} must be a finite number > 0, got {options['ds_max']}")
+    from contin.limits import MAX_ABS_KX, MAX_GRID, MAX_STEPS, MAX_TRACE_KX  # the command line's limits
+
+    for key, most in (("grid", MAX_GRID), ("max_steps", MAX_STEPS)):
+        if key in options and options[key] > most:
+            raise SweepError(f"option {key!r}{where} must be at most {most}, got {options[key]}")
+    kx = options.get("kx", [])
+    if len(kx) > MAX_TRACE_KX or not all(math.isfinite(k) and abs(k) <= MAX_ABS_KX for k in kx):
+        raise SweepError(f"option 'kx'{where} must hold at most {MAX_TRACE_KX} finite numbers with |kx| <= {MAX_ABS_KX:g}")
     description = head.get("description", "")
     if not isinstance(description, str):
         raise SweepError(f"description{where} must be a string")
@@ -443,8 +451,6 @@ def _write_task_file(path: str, doc: Mapping[str, Any], scene_name: str, options
     ``PATH.part``; the compact result is added as the root attribute ``sweep_task`` (JSON) and
     the file is renamed to ``PATH`` only then, so ``PATH`` exists iff the task is finished.
     """
-    import h5py
-
     from contin import io
 
     final = Path(path)
@@ -460,9 +466,9 @@ def _write_task_file(path: str, doc: Mapping[str, Any], scene_name: str, options
         branches = []
 
     def write(tmp: Path) -> None:
-        io.write(tmp, branches, **meta)
-        with h5py.File(tmp, "r+") as f:
-            f.attrs["sweep_task"] = json_dumps(doc)
+        # One in-memory image, written with plain writes (contin.io._publish): HDF5 editing a file
+        # in place on a full disk crashed the worker.
+        io.write(tmp, branches, attrs={"sweep_task": json_dumps(doc)}, **meta)
 
     publish(final, write, temporary=part)
 
@@ -653,8 +659,47 @@ def run_sweep(
         taskdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SweepError(f"cannot create the output directory {str(out)!r}: {exc.strerror or exc}") from None
+    # One sweep per directory: a second one would delete the first one's partial files (below)
+    # and race it for the summary (tasks were lost with raw FileNotFoundError/BlockingIOError).
+    lock = OutputLock(out, directory=True).acquire()
+    try:
+        return _run_sweep_locked(spec, out, taskdir, executor, jobs, progress, retry_failed)
+    finally:
+        lock.release()
+
+
+def _die_with_parent(parent: int) -> None:
+    """Worker initializer: end this worker when the sweep's parent process dies.
+
+    Without it a killed ``contin sweep`` left its workers (and the resource tracker, which exits
+    when they do) computing as orphans.  Linux: PR_SET_PDEATHSIG sends SIGKILL at once; elsewhere
+    (and as a fallback) a watchdog thread checks every second whether the parent changed.
+    """
+    import signal
+    import threading
+
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="contin-parent-watch", daemon=True).start()
+
+
+def _run_sweep_locked(spec: SweepSpec, out: Path, taskdir: Path, executor: Executor | None, jobs: int | None,
+                      progress: Callable[[str], None] | None, retry_failed: bool) -> SweepSummary:
     for stale in itertools.chain(taskdir.glob("*.h5.part"), taskdir.glob("*.tmp")):
-        stale.unlink(missing_ok=True)  # left by a killed task; the single parent owns the directory
+        stale.unlink(missing_ok=True)  # left by a killed task; the single parent owns the directory (locked)
 
     def say(line: str) -> None:
         if progress is not None:
@@ -675,6 +720,14 @@ def run_sweep(
     summary = SweepSummary(spec, out, [])
 
     def finish() -> SweepSummary:
+        # A task whose worker finished its file but whose result was not collected yet (Ctrl-C)
+        # is done: the summary must match the task files (it said ok = 1, pending = 7 with 4 files).
+        for t in tasks:
+            if t.index not in records:
+                doc = read_task_file(out / t.file)
+                if doc is not None:
+                    records[t.index] = TaskRecord(t.index, t.key, t.swept, doc["status"], doc.get("reason", ""),
+                                                  file=t.file, result=doc)
         summary.records = [records.get(t.index) or TaskRecord(t.index, t.key, t.swept, "pending", "sweep interrupted")
                            for t in tasks]
         write_summary(summary)
@@ -689,7 +742,8 @@ def run_sweep(
         with env:
             if own:
                 executor = ProcessPoolExecutor(max_workers=min(jobs or os.cpu_count() or 1, len(todo)),
-                                               mp_context=multiprocessing.get_context("spawn"))
+                                               mp_context=multiprocessing.get_context("spawn"),
+                                               initializer=_die_with_parent, initargs=(os.getpid(),))
             assert executor is not None
             for task in todo:
                 futures[executor.submit(run_task, spec.scene, task.params, spec.options, str(out / task.file))] = task
@@ -708,6 +762,13 @@ def run_sweep(
     except BaseException:
         for fut in futures:
             fut.cancel()
+        if own and executor is not None:
+            # Stop our workers before the summary is written: a task still running would publish
+            # its file after it, and the summary would not match the task files.
+            for proc in list(getattr(executor, "_processes", {}).values()):
+                proc.terminate()
+            executor.shutdown(wait=True, cancel_futures=True)
+            executor = None
         finish()  # record what is done; unfinished tasks are 'pending' and rerun on resume
         raise
     finally:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from contin.bpdetect import kernel_dimension
 from contin.branch import Branch, SpecialPoint
 from contin.corrector import correct
 from contin.extended import ExtendedSystem
@@ -41,6 +42,13 @@ from contin.testfunctions import Antisymmetric
 FD_STEP = 1e-5
 #: Halvings of the first step off the BP before a direction is given up.
 MAX_START_HALVINGS = 24
+
+
+def switch_nd(*args: Any, **kwargs: Any) -> list[Branch]:
+    """Switching at a BP of kernel dimension > 1; see :func:`contin.ndbp.switch_nd`."""
+    from contin.ndbp import switch_nd as _switch_nd
+
+    return _switch_nd(*args, **kwargs)
 
 
 def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_breaking: bool) -> tuple[Array, Array]:
@@ -157,10 +165,14 @@ def switch(
     list of Branch
         kind='bifurcated', parent=f"{point.name}@{branch.id}", each starting at the BP.
 
+    A BP whose kernel dimension d > 1 was recorded (``contin.bpdetect``) goes to
+    :func:`contin.ndbp.switch_nd` (reduced bifurcation equations in d amplitudes).
+
     Raises
     ------
     ValueError
-        If ``point`` is not a BP with a tangent, or the BP is not simple (b = 0 in the ABE).
+        If ``point`` is not a BP with a tangent, the BP is not simple (b = 0 in the ABE), or no
+        direction gives a new branch (the reason per direction; never an empty list).
     """
     from contin.continuation import trace
 
@@ -170,6 +182,9 @@ def switch(
 
     problem = on_grid(problem, point.grid)  # a BP of an adaptive run is a solution on its own grid
     param = branch.parameter
+    dim = kernel_dimension(point)
+    if dim is not None and dim > 1:
+        return switch_nd(problem, branch, point, options, dim, branch_id_prefix=branch_id_prefix, ds=ds)
     system = ExtendedSystem(problem, point.params, param, options.step.theta)
     u0 = np.asarray(point.state, dtype=float)
     system.n = u0.size
@@ -181,9 +196,11 @@ def switch(
     prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
     parent = f"{point.name}@{branch.id}"
     out: list[Branch] = []
+    failed: list[str] = []
     for k, d in enumerate(directions, start=1):
         step = abs(ds if ds is not None else options.step.ds)
         start = None
+        corr = None
         # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
         # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
         # the test below passes: halve up to MAX_START_HALVINGS times.
@@ -197,6 +214,8 @@ def switch(
                 break
             step *= 0.5
         if start is None:
+            why = "no corrected first step near the predictor" if corr is None or corr.converged else corr.message
+            failed.append(f"direction {d:+d}: {why} (first step halved to {step:.3g})")
             continue
         # The accepted first step measures the branch's scale near the BP: continue with it
         # instead of restarting at options.step.ds, which the halvings above just rejected.
@@ -206,6 +225,9 @@ def switch(
                     tangent=d * tau, branch_id=f"{prefix}.{k}", kind="bifurcated", parent=parent,
                     symmetric=symmetric)
         out.append(_prepend(system, new, x0, d * tau))
+    if not out:  # never an empty list without a reason
+        raise ValueError(f"switching at {point.name} ({param} = {point.params[param]:.10g}) found no new branch: "
+                         + "; ".join(failed))
     return out
 
 

@@ -19,7 +19,8 @@ import functools
 import logging
 import math
 import weakref
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -40,11 +41,13 @@ SignLog = tuple[float, float]
 
 @dataclass(frozen=True)
 class TestValues:
-    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q)."""
+    """Test functions at one point: fold = t_p, bp = (sign, log|kappa|), anti = det(Q^T J Q);
+    ``extra`` holds the values of the tracer's point tests (``contin.pointtests``) by name."""
 
     fold: float
     bp: SignLog
     anti: SignLog | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def symmetric_bp(self) -> SignLog:
@@ -61,9 +64,42 @@ def bp_value(fact: Factorization, row: Array, t: Array) -> SignLog:
     return (sign * math.copysign(1.0, ct), logabs - math.log(abs(ct)) if ct != 0 else math.inf)
 
 
+#: Bound on |log| of :func:`signed_value`: exp(+-700) is finite and nonzero in double precision.
+LOG_CLAMP = 700.0
+
+
 def signed_value(v: SignLog, reference: float) -> float:
-    """sign * exp(log - reference): a continuous real version of a (sign, log) pair."""
-    return v[0] * math.exp(min(v[1] - reference, 700.0))
+    """sign * exp(log - reference): a continuous real version of a (sign, log) pair.
+
+    The exponent is clamped to +-:data:`LOG_CLAMP`, so a value is zero only where the
+    determinant itself is (sign 0 or log -inf): a locator must never mistake an underflow
+    for a located zero (issue 14 sec. 3: at fd2 N = 1200 log|kappa| changes by more than
+    745 across one step, exp underflowed to 0 at one end of the bracket, and that end was
+    reported as a converged BP).
+    """
+    if v[0] == 0 or v[1] == -math.inf:
+        return 0.0
+    return v[0] * math.exp(min(max(v[1] - reference, -LOG_CLAMP), LOG_CLAMP))
+
+
+def detrended(va: SignLog, vb: SignLog, s_b: float) -> Callable[[SignLog, float], float]:
+    """g(v, s) = sign * exp(log|v| - l(s)), l linear in s with l(0) = log|va|, l(s_b) = log|vb|.
+
+    A determinant along a branch has log|det| = sum log|lambda_i|: a smooth trend from the
+    many eigenvalues that do not cross (it grows like the number of unknowns: hundreds of
+    e-folds per step on fine grids) plus log|lambda_c| of the one that crosses zero.  Taking
+    the trend out linearly between the two ends of a step makes g = +-1 at the ends and keeps
+    it of order one inside, so regula falsi sees the crossing eigenvalue and not an
+    exponential that under- or overflows.  g is a fixed function of s (the trend does not
+    move while the bracket shrinks), so the locator's samples stay comparable.
+    """
+    la, lb = va[1], vb[1]
+    slope = (lb - la) / s_b if s_b != 0 and math.isfinite(la) and math.isfinite(lb) else 0.0
+
+    def g(v: SignLog, s: float) -> float:
+        return signed_value(v, la + slope * s if math.isfinite(la) else max(la, lb))
+
+    return g
 
 
 #: Antisymmetric.from_problem results per problem instance.

@@ -11,6 +11,11 @@
   3x^2 + 2 beta x - lam = 0, i.e. alpha = 2x^3 + beta x^2, lam = 3x^2 + 2 beta x.
 - :class:`Transcritical`: lam x - x^2 = 0 (scalar); branches x = 0 and x = lam cross at 0.
 - :class:`Isola`: x^2 + (lam - c)^2 - r^2 = 0 (scalar); a closed curve with folds at lam = c +- r.
+- :class:`COOxidation`: BifurcationKit's CO-oxidation model (two Hopf points, two folds in q2;
+  BT points on its Hopf and fold curves in (q2, k)).
+- :class:`Lorenz`: the Lorenz (1963) system; its equilibria C+- = (+-sqrt(beta (rho - 1)), ..,
+  rho - 1) lose stability at a subcritical Hopf point rho_H = sigma (sigma + beta + 3) /
+  (sigma - beta - 1) (470/19 at sigma = 10, beta = 8/3) with omega^2 = beta (sigma + rho_H).
 
 The BVPs use ``problems.discretization.make_grid`` on y in [-1/2, 1/2] with the physical
 coordinate x = L (y + 1/2); boundary rows of the collocation system are replaced by the
@@ -283,3 +288,95 @@ class Isola(_Scalar):
     def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
         d = {"lam": 2 * (p["lam"] - p["c"]), "c": -2 * (p["lam"] - p["c"]), "r": -2 * p["r"]}
         return np.array([d[name]])
+
+
+class DetachedIsola(_Scalar):
+    """F(x) = x ((x - 2)^2 + lam^2 - mu): the line x = 0 and the circle of radius sqrt(mu) about
+    (lam, x) = (0, 2).
+
+    For 0 < mu < 4 the two sets are disjoint and F's gradient vanishes on neither (on x = 0,
+    F_x = 4 + lam^2 - mu > 0; on the circle F_x = 2x (x - 2), F_lam = 2 lam x, not both zero),
+    so the circle is an isola with folds at lam = +-sqrt(mu), x = 2, unreachable from x = 0 by
+    continuation or switching.  For mu > 4 the circle crosses x = 0 transversally at
+    lam = +-sqrt(mu - 4) (two simple BPs of the line; at mu = 4 it touches it), so a homotopy in
+    mu from a state of the circle switched there reaches the isola -- the route by which
+    isolas of imperfect bifurcations are found (Golubitsky & Schaeffer, Singularities and
+    Groups in Bifurcation Theory I, 1985, ch. III: the isola centre x^2 + lam^2 - mu).
+    """
+
+    parameter_names = ("lam", "mu")
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        x = u[0]
+        return np.array([x * ((x - 2) ** 2 + p["lam"] ** 2 - p["mu"])])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        x = u[0]
+        return self._j((x - 2) ** 2 + p["lam"] ** 2 - p["mu"] + 2 * x * (x - 2))
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        x = u[0]
+        return np.array([{"lam": 2 * p["lam"] * x, "mu": -x}[name]])
+
+
+class Lorenz:
+    """x' = sigma (y - x), y' = rho x - y - x z, z' = x y - beta z (parameters sigma, rho, beta)."""
+
+    parameter_names = ("sigma", "rho", "beta")
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        x, y, z = u
+        return np.array([p["sigma"] * (y - x), p["rho"] * x - y - x * z, x * y - p["beta"] * z])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        x, y, z = u
+        s, r, b = p["sigma"], p["rho"], p["beta"]
+        return sp.csr_matrix(np.array([[-s, s, 0.0], [r - z, -1.0, -x], [y, x, -b]]))
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        x, y, z = u
+        return {"sigma": np.array([y - x, 0.0, 0.0]), "rho": np.array([0.0, x, 0.0]),
+                "beta": np.array([0.0, 0.0, -z])}[name]
+
+    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
+        return float(u[2])  # z, AUTO's usual axis for Lorenz
+
+    @staticmethod
+    def equilibrium(p: Mapping[str, float]) -> Array:
+        """C+ = (sqrt(beta (rho - 1)), sqrt(beta (rho - 1)), rho - 1) for rho > 1."""
+        x = float(np.sqrt(p["beta"] * (p["rho"] - 1)))
+        return np.array([x, x, p["rho"] - 1])
+
+
+class COOxidation:
+    """CO oxidation (Bykov-Yablonskii-Kim; BifurcationKit's tutorialCO), z = 1 - x - y - s:
+    x' = 2 q1 z^2 - 2 q5 x^2 - q3 x y, y' = q2 z - q6 y - q3 x y, s' = q4 z - k q4 s.
+    In q2 at the tutorial's parameters: two Hopf points and two folds near q2 = 1.04-1.05."""
+
+    parameter_names = ("q1", "q2", "q3", "q4", "q5", "q6", "k")
+    PARAMS = dict(q1=2.5, q2=0.6, q3=10.0, q4=0.0675, q5=1.0, q6=0.1, k=0.4)
+
+    def residual(self, u, p):
+        x, y, s = u
+        z = 1 - x - y - s
+        return np.array([2 * p["q1"] * z**2 - 2 * p["q5"] * x**2 - p["q3"] * x * y,
+                         p["q2"] * z - p["q6"] * y - p["q3"] * x * y,
+                         p["q4"] * z - p["k"] * p["q4"] * s])
+
+    def jacobian(self, u, p):
+        x, y, s = u
+        z = 1 - x - y - s
+        q1, q2, q3, q4, q5, q6, k = (p[n] for n in self.parameter_names)
+        dz = -4 * q1 * z
+        return np.array([  # dense: contin accepts a dense J for tiny problems (and it is faster)
+            [dz - 4 * q5 * x - q3 * y, dz - q3 * x, dz],
+            [-q2 - q3 * y, -q2 - q6 - q3 * x, -q2],
+            [-q4, -q4, -q4 - k * q4]])
+
+    def dresidual_dp(self, u, p, name):
+        x, y, s = u
+        z = 1 - x - y - s
+        columns = {"q1": [2 * z * z, 0, 0], "q2": [0, z, 0], "q3": [-x * y, -x * y, 0],
+                   "q4": [0, 0, z - p["k"] * s], "q5": [-2 * x * x, 0, 0], "q6": [0, -y, 0],
+                   "k": [0, 0, -p["q4"] * s]}
+        return np.array(columns[name], dtype=float)

@@ -126,18 +126,38 @@ def _fd_matrix(n: int, deriv: int, order: int) -> sp.csr_matrix:
     y -> -y; the diagonal is then set to minus the exactly summed off-diagonal entries, so
     each row sum (the image of a constant, 0 in exact arithmetic) is one rounding of the
     diagonal, ~eps |D_ii|, instead of ~eps * stencil width * max |D_ij|.
+
+    O(n): the interior rows all hold the same numbers, computed once.
     """
     scale = Fraction(n - 1) ** deriv
-    rows, cols, vals = [], [], []
-    for i in range(n):
+    half = order // 2
+
+    def row(i: int) -> tuple[NDArray[np.int64], list[float]]:
         idx = _fd_stencil(i, n, deriv, order)
         w = [float(c * scale) for c in uniform_stencil(tuple(int(j) - i for j in idx), deriv)]
         diag = int(np.flatnonzero(idx == i)[0])
         w[diag] = -math.fsum(v for k, v in enumerate(w) if k != diag)
-        rows.extend([i] * len(idx))
-        cols.extend(idx)
-        vals.extend(w)
-    return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+        return idx, w
+
+    walls = [i for i in range(n) if not half <= i <= n - 1 - half]
+    interior = np.arange(half, n - half)
+    parts_r, parts_c, parts_v = [], [], []
+    for i in walls:
+        idx, w = row(i)
+        parts_r.append(np.full(len(idx), i))
+        parts_c.append(idx)
+        parts_v.append(np.array(w))
+    if interior.size:
+        idx, w = row(int(interior[0]))
+        offsets = idx - interior[0]
+        parts_r.append(np.repeat(interior, len(offsets)))
+        parts_c.append((interior[:, None] + offsets[None, :]).ravel())
+        parts_v.append(np.tile(np.array(w), interior.size))
+    return sp.csr_matrix((np.concatenate(parts_v), (np.concatenate(parts_r), np.concatenate(parts_c))), shape=(n, n))
+
+
+def _cell_start(i: int, n: int, width: int) -> int:
+    return min(max(i - width // 2 + 1, 0), n - width)
 
 
 def _fd_cells(n: int, order: int) -> list[tuple[NDArray[np.int64], list[Fraction]]]:
@@ -146,10 +166,39 @@ def _fd_cells(n: int, order: int) -> list[tuple[NDArray[np.int64], list[Fraction
     h = Fraction(1, n - 1)
     out = []
     for i in range(n - 1):
-        start = min(max(i - width // 2 + 1, 0), n - width)
+        start = _cell_start(i, n, width)
         idx = np.arange(start, start + width)
         out.append((idx, [h * c for c in uniform_cell_weights(tuple(int(j) - i for j in idx))]))
     return out
+
+
+def _fd_cell_arrays(n: int, order: int) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """(cell, node, float weight) of every entry of :func:`_fd_cells`, cell by cell, in O(n):
+    cells whose interpolant is centred all carry the same numbers times h."""
+    width = max(order, 2)
+    h = Fraction(1, n - 1)
+    centred = [i for i in range(n - 1) if _cell_start(i, n, width) == i - width // 2 + 1]
+    if not centred:
+        cells = _fd_cells(n, order)
+        rows = np.repeat(np.arange(n - 1), width)
+        return rows, np.concatenate([idx for idx, _ in cells]), np.array([float(c) for _, cw in cells for c in cw])
+    lo, hi = centred[0], centred[-1]
+    rows, cols, vals = [], [], []
+    for i in [*range(lo), *range(hi + 1, n - 1)]:
+        start = _cell_start(i, n, width)
+        idx = np.arange(start, start + width)
+        rows.append(np.full(width, i))
+        cols.append(idx)
+        vals.append(np.array([float(h * c) for c in uniform_cell_weights(tuple(int(j) - i for j in idx))]))
+    mid = np.arange(lo, hi + 1)
+    offsets = np.arange(width) - width // 2 + 1
+    w = np.array([float(h * c) for c in uniform_cell_weights(tuple(int(o) for o in offsets))])
+    rows.append(np.repeat(mid, width))
+    cols.append((mid[:, None] + offsets[None, :]).ravel())
+    vals.append(np.tile(w, mid.size))
+    r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    order_ = np.argsort(r, kind="stable")
+    return r[order_], c[order_], v[order_]
 
 
 def interpolatory_weights(y: NDArray[np.float64], order: int) -> NDArray[np.float64]:
@@ -160,13 +209,38 @@ def interpolatory_weights(y: NDArray[np.float64], order: int) -> NDArray[np.floa
     in rational arithmetic (:func:`uniform_cell_weights`).  The rule is O(h^order), exactly
     symmetric under y -> -y, sums to 1 up to one rounding per weight, and reduces to the
     trapezoid rule for order 2.
+
+    O(n): the exact sum of a node's cell weights depends only on its distance to the nearer
+    wall once that exceeds the interpolant's width, so it is computed for the nodes next to
+    the walls and for one interior node (on a template grid, in units of h), and rounded once.
     """
     n = len(y)
-    w = [Fraction(0)] * n
-    for idx, cw in _fd_cells(n, order):
-        for j, c in zip(idx, cw):
-            w[j] += c
-    return np.array([float(c) for c in w])
+    width = max(order, 2)
+    edge = 2 * width  # nodes this close to a wall see a one-sided interpolant
+    if n <= 4 * edge:
+        w = [Fraction(0)] * n
+        for idx, cw in _fd_cells(n, order):
+            for j, c in zip(idx, cw):
+                w[j] += c
+        return np.array([float(c) for c in w])
+    m = 4 * edge + 1  # template grid: sums of the unscaled weights, exact
+    sums = [Fraction(0)] * m
+    for i in range(m - 1):
+        start = _cell_start(i, m, width)
+        idx = range(start, start + width)
+        for j, c in zip(idx, uniform_cell_weights(tuple(j - i for j in idx))):
+            sums[j] += c
+    h = Fraction(1, n - 1)
+    out = np.full(n, float(h * sums[m // 2]))
+    out[:edge] = [float(h * c) for c in sums[:edge]]
+    out[n - edge:] = [float(h * c) for c in sums[m - edge:]]
+    return out
+
+
+def chebyshev_nodes(n: int) -> NDArray[np.float64]:
+    """The n + 1 Gauss-Lobatto points on [-1/2, 1/2], ascending: ``make_grid("cheb", n).y``
+    bitwise, without the O(n^2) differentiation matrices."""
+    return np.cos(np.pi * np.arange(n + 1) / n)[::-1] / 2
 
 
 def chebyshev(n: int, dtype: type = np.float64) -> tuple[NDArray, NDArray, NDArray]:
@@ -275,6 +349,30 @@ class Grid:
             out[k] = fornberg_weights(yk, self.y[idx], 0)[:, 0] @ f[idx]
         return out
 
+    def interpolation_weights(self, y0: float) -> NDArray[np.float64]:
+        """Weights w (n,) with w . f = ``interpolate(f, [y0])[0]`` for every f, in O(n) time and
+        memory (the same barycentric or local Lagrange formula as :meth:`interpolate`)."""
+        w = np.zeros(self.size)
+        if self.method == "cheb":
+            n = self.intervals
+            diff = y0 - self.y
+            exact = np.isclose(diff, 0.0, atol=1e-15)
+            if exact.any():
+                w[np.argmax(exact)] = 1.0
+                return w
+            wb = (-1.0) ** np.arange(n + 1)
+            wb[0] *= 0.5
+            wb[-1] *= 0.5
+            terms = wb / diff
+            return terms / terms.sum()
+        width = int(self.order) + 1
+        h = 1.0 / self.intervals
+        i = int(np.clip(np.floor((y0 + 0.5) / h), 0, self.intervals))
+        start = min(max(i - width // 2 + 1, 0), self.size - width)
+        idx = np.arange(start, start + width)
+        w[idx] = fornberg_weights(y0, self.y[idx], 0)[:, 0]
+        return w
+
     def reflection(self) -> NDArray[np.int64]:
         """Index permutation j -> N - j, i.e. y -> -y on this symmetric grid."""
         return np.arange(self.intervals, -1, -1)
@@ -358,9 +456,7 @@ def cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
         cumulative = 0.5 * np.linalg.solve(vander.T, anti.T).T  # anti @ inv(vander), dy = dx / 2
         cells = cumulative[1:] - cumulative[:-1]
     else:
-        cells = np.zeros((n - 1, n))
-        for i, (idx, cw) in enumerate(_fd_cells(n, int(grid.order))):
-            cells[i, idx] = [float(c) for c in cw]
+        return _fd_cell_integration_matrix(grid)
     cells = 0.5 * (cells + cells[::-1, ::-1])
     # Give each node's rounding discrepancy to the (one or two) cells it bounds: keeps the
     # band and the reflection symmetry.
@@ -372,6 +468,46 @@ def cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
     cells[left - 1, left] += share[left] * delta[left]
     cells[right, right] += share[right] * delta[right]
     return sp.csr_matrix(cells)
+
+
+def _fd_cell_integration_matrix(grid: Grid) -> sp.csr_matrix:
+    """:func:`cell_integration_matrix` of an FD grid, sparse and O(n): the same entries, the
+    same symmetrization and the same rounding corrections as the dense construction (column
+    sums accumulated row by row in the same order), without the (N, N + 1) dense array."""
+    n = grid.size
+    r, c, v = _fd_cell_arrays(n, int(grid.order))
+    # 0.5 (C + C reflected): entries of C and of its reflection on the union of the two patterns
+    key = np.concatenate([r * n + c, (n - 2 - r) * n + (n - 1 - c)])
+    uniq, inv = np.unique(key, return_inverse=True)
+    a = np.zeros(uniq.size)
+    b = np.zeros(uniq.size)
+    a[inv[: r.size]] = v
+    b[inv[r.size:]] = v
+    vals = 0.5 * (a + b)
+    rows, cols = uniq // n, uniq % n  # sorted by row, then column
+    # column sums row by row (as numpy sums a dense array over axis 0)
+    by_col = np.lexsort((rows, cols))
+    counts = np.bincount(cols, minlength=n)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    rank = np.arange(uniq.size) - np.repeat(first, counts)
+    padded = np.zeros((n, int(counts.max())))
+    padded[cols[by_col], rank] = vals[by_col]
+    colsum = np.zeros(n)
+    for k in range(padded.shape[1]):
+        colsum += padded[:, k]
+    delta = grid.weights - colsum
+    share = np.full(n, 0.5)
+    share[[0, -1]] = 1.0
+    k = np.arange(n)
+    left, right = k[1:], k[:-1]  # node k closes cell k-1 and opens cell k
+    pos_left = np.searchsorted(uniq, (left - 1) * n + left)
+    pos_right = np.searchsorted(uniq, right * n + right)
+    assert np.array_equal(uniq[pos_left], (left - 1) * n + left) and np.array_equal(uniq[pos_right], right * n + right)
+    vals[pos_left] += share[left] * delta[left]
+    vals[pos_right] += share[right] * delta[right]
+    out = sp.csr_matrix((vals, (rows, cols)), shape=(n - 1, n))
+    out.eliminate_zeros()
+    return out
 
 
 # ----------------------------------------------------------------------------- extended precision

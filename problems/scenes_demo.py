@@ -5,6 +5,8 @@
 - ``allen-cahn``: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet; the trivial branch u = 0 for
   lam in [lam_min, lam_max], its branch points (lam = k^2) and both signs of every bifurcated
   branch.
+- ``lorenz``: the Lorenz equilibrium C+ for rho in [rho_min, rho_max] (sigma = 10, beta = 8/3 by
+  default): a subcritical Hopf point (HB) at rho = 470/19 with omega and l1.
 """
 
 from __future__ import annotations
@@ -17,10 +19,10 @@ import numpy as np
 
 from contin.adapt import on_grid
 from contin.branch import Branch, relabel
-from contin.continuation import switch, trace
+from contin.continuation import switch, trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
-from problems.demo import BRATU_FOLD, AllenCahn, Bratu
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -> dict[str, float]:
@@ -36,7 +38,7 @@ def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -
         if not math.isfinite(v):
             raise SceneError(f"parameter {name} of scene {scene!r} must be finite, got {value!r}")
         out[name] = v
-    if not out["lam_min"] < out["lam_max"]:
+    if "lam_min" in out and not out["lam_min"] < out["lam_max"]:
         raise SceneError(f"need lam_min < lam_max, got lam_min={out['lam_min']:g}, lam_max={out['lam_max']:g}")
     return out
 
@@ -128,6 +130,32 @@ def run_allen_cahn(request: SceneRequest) -> SceneResult:
     )
 
 
+LORENZ_DEFAULTS = {"sigma": 10.0, "beta": 8.0 / 3.0, "rho_min": 1.5, "rho_max": 40.0}
+
+
+def run_lorenz(request: SceneRequest) -> SceneResult:
+    p = _numbers(request, LORENZ_DEFAULTS, "lorenz")
+    if not 1.0 < p["rho_min"] < p["rho_max"]:
+        raise SceneError("need 1 < rho_min < rho_max (C+ exists for rho > 1)")
+    params = {"sigma": p["sigma"], "beta": p["beta"], "rho": 0.5 * (p["rho_min"] + p["rho_max"])}
+    options = request.options_for(ContinuationOptions(
+        bounds={"rho": (p["rho_min"], p["rho_max"])}, max_steps=200, step=StepOptions(ds=0.5, ds_max=2.0)))
+    done: list[Branch] = []
+    if "0" in request.completed:
+        branch = request.completed["0"]
+    else:
+        request.report("lorenz: tracing C+")
+        branch = trace_both(Lorenz(), Lorenz.equilibrium(params), params, "rho", options, progress=request.report)
+    _emit(request, done, branch)
+    s, b = p["sigma"], p["beta"]
+    notes = []
+    if s > b + 1:
+        rho_h = s * (s + b + 3) / (s - b - 1)
+        notes = [f"{hb.name}: rho = {hb.params['rho']:.15g} (exact {rho_h:.15g}), omega = {hb.data['omega']:.12g} "
+                 f"(exact {np.sqrt(b * (s + rho_h)):.12g}), l1 = {hb.data['l1']:.4g}" for hb in branch.points("HB")]
+    return SceneResult(branches=done, parameters=p, notes=notes)
+
+
 SCENES = {
     "bratu": Scene(
         name="bratu",
@@ -148,5 +176,14 @@ SCENES = {
         y="phi",
         adaptive=True,
         default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
+    ),
+    "lorenz": Scene(
+        name="lorenz",
+        summary="Lorenz equilibrium C+ in rho: subcritical Hopf point at rho = 470/19 (HB, omega, l1)",
+        defaults=LORENZ_DEFAULTS,
+        run=run_lorenz,
+        x="rho",
+        y="phi",
+        problem_factory=lambda parameters, discretization: Lorenz(),
     ),
 }

@@ -7,3 +7,9 @@ The tests factorize and diagonalize many small matrices; multithreaded OpenBLAS 
 from contin.blas import limit_blas_threads
 
 limit_blas_threads(1)
+
+# No heartbeat progress lines (contin.cli._runctl) unless a test asks for them: a slow machine
+# must not add lines to the output of commands whose stderr the tests compare line by line.
+import os  # noqa: E402
+
+os.environ.setdefault("CONTIN_PROGRESS_SECONDS", "0")

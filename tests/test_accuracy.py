@@ -163,6 +163,6 @@ def test_cli_accuracy_bad_input_one_line(args, message):
 
 
 def test_cli_accuracy_all_runs_failed():
-    r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "fd6", "--grids", "6", "--no-memory"])
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "fd6", "--grids", "6,8", "--no-memory"])
     assert r.exit_code == 1
     assert "no key points" in r.stderr and "fd6 needs at least 12 intervals" in r.stderr

@@ -330,7 +330,8 @@ def test_ci_script_runs_the_readme_test_command():
 def test_readme_library_example_runs(tmp_path, monkeypatch):
     import re
 
-    (code,) = [b for b in re.findall(r"```python\n(.*?)\n```", _readme(), flags=re.S) if "trace(" in b]
+    section = _readme().split("\n## Library usage\n", 1)[1].split("\n## ", 1)[0]
+    (code,) = [b for b in re.findall(r"```python\n(.*?)\n```", section, flags=re.S) if "trace(" in b]
     monkeypatch.chdir(tmp_path)
     ns: dict = {}
     exec(compile(code, "README.md", "exec"), ns)

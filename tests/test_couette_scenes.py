@@ -738,8 +738,9 @@ def test_switch_onto_strongly_bent_pitchfork(monkeypatch):
     assert len(new) == 2
     for nb in new:
         assert len(nb) > 5 and np.max(np.abs(nb.order_parameter ** 2 - nb.parameter_values)) < 1e-10
-    monkeypatch.setattr(sw, "MAX_START_HALVINGS", 8)  # the old behaviour finds nothing
-    assert switch(pb, br, bp, bent) == []
+    monkeypatch.setattr(sw, "MAX_START_HALVINGS", 8)  # the old behaviour finds nothing (and now says so)
+    with pytest.raises(ValueError, match="found no new branch"):
+        switch(pb, br, bp, bent)
 
 
 # ----------------------------------------------------------------------------- CLI

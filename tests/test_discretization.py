@@ -239,3 +239,115 @@ def test_extended_fd6_d2_stays_at_order_6_beyond_the_double_rounding():
         gd = make_grid("fd6", N)
         double.append(float(np.abs((gd.d2 @ f(gd.y) - f2(gd.y))[4:-4]).max()))
     assert math.log(double[0] / double[1]) / math.log(Ns[1] / Ns[0]) < 5.6  # rounding already shows
+
+
+# ----------------------------------------------------------------------------- O(n) set-up (issue 14)
+def _dense_fd_reference(n: int, deriv: int, order: int):
+    """The row-by-row construction of an FD matrix (every row from its own stencil)."""
+    import math
+    from fractions import Fraction
+
+    from problems.discretization import _fd_stencil, uniform_stencil
+
+    scale = Fraction(n - 1) ** deriv
+    out = np.zeros((n, n))
+    for i in range(n):
+        idx = _fd_stencil(i, n, deriv, order)
+        w = [float(c * scale) for c in uniform_stencil(tuple(int(j) - i for j in idx), deriv)]
+        diag = int(np.flatnonzero(idx == i)[0])
+        w[diag] = -math.fsum(v for k, v in enumerate(w) if k != diag)
+        out[i, idx] = w
+    return out
+
+
+def _dense_cells_reference(grid):
+    """The dense construction of the FD cell-integration matrix (cell by cell, exact rationals)."""
+    from problems.discretization import _fd_cells
+
+    n = grid.size
+    cells = np.zeros((n - 1, n))
+    for i, (idx, cw) in enumerate(_fd_cells(n, int(grid.order))):
+        cells[i, idx] = [float(c) for c in cw]
+    cells = 0.5 * (cells + cells[::-1, ::-1])
+    delta = grid.weights - cells.sum(axis=0)
+    share = np.full(n, 0.5)
+    share[[0, -1]] = 1.0
+    k = np.arange(n)
+    cells[k[1:] - 1, k[1:]] += share[k[1:]] * delta[k[1:]]
+    cells[k[:-1], k[:-1]] += share[k[:-1]] * delta[k[:-1]]
+    return cells
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4", "fd6"])
+@pytest.mark.parametrize("N", [13, 16, 40, 65, 257])
+def test_fd_setup_is_bitwise_the_row_by_row_construction(method, N):
+    from fractions import Fraction
+
+    from problems.discretization import _fd_cells, cell_integration_matrix, make_grid
+
+    grid = make_grid(method, N)
+    order = int(method[2:])
+    for deriv, op in ((1, grid.d1), (2, grid.d2)):
+        assert np.array_equal(op.toarray(), _dense_fd_reference(N + 1, deriv, order))
+    w = [Fraction(0)] * (N + 1)
+    for idx, cw in _fd_cells(N + 1, order):
+        for j, c in zip(idx, cw):
+            w[j] += c
+    assert np.array_equal(grid.weights, np.array([float(c) for c in w]))
+    cells = cell_integration_matrix(grid)
+    ref = _dense_cells_reference(grid)
+    assert np.array_equal(cells.toarray(), ref)
+    assert cells.nnz == np.count_nonzero(ref)
+
+
+def test_fd_setup_memory_is_linear():
+    """fd4 N = 25600: grid, cell integration and the gPCF problem set up in O(N) memory (the dense
+    (N, N + 1) cell matrix alone was 5.2 GB)."""
+    import tracemalloc
+
+    from problems.couette.model import CouetteProblem
+    from problems.discretization import cell_integration_matrix, make_grid
+
+    tracemalloc.start()
+    try:
+        grid = make_grid("fd4", 25600)
+        cell_integration_matrix(grid)
+        pb = CouetteProblem("fd4", 25600)
+        p = pb.params({"nu": 0.3, "e": 0.8, "H": 10.0})
+        x = pb.uniform_state(p)
+        obs = pb.observables(x, p)
+        assert pb.under_resolved(x, p, 3e-5) is None
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert obs["T_mid"] == pytest.approx(x[2 * 25601 + 12800], rel=1e-14)
+    assert peak < 200e6
+
+
+@pytest.mark.parametrize("method,N", [("cheb", 16), ("cheb", 17), ("fd2", 16), ("fd4", 33), ("fd6", 64)])
+def test_interpolation_weights_equal_interpolate(method, N):
+    from problems.discretization import make_grid
+
+    grid = make_grid(method, N)
+    for y0 in (0.0, 0.123, -0.5, grid.y[3]):
+        ref = np.array([grid.interpolate(e, np.array([y0]))[0] for e in np.eye(grid.size)])
+        assert np.array_equal(grid.interpolation_weights(y0), ref)
+
+
+def test_lagrange_matrix_interpolates_polynomials_exactly():
+    from problems.couette.resolution import lagrange_matrix
+    from problems.discretization import chebyshev_nodes
+
+    nodes = np.linspace(-0.5, 0.5, 41)
+    targets = chebyshev_nodes(40)
+    m = lagrange_matrix(nodes, targets, 8)
+    assert m.nnz == 8 * targets.size
+    poly = np.polynomial.Polynomial([0.3, -1.0, 2.0, 0.5, -0.7, 1.1, 0.2, -0.4])  # degree 7: exact
+    assert np.max(np.abs(m @ poly(nodes) - poly(targets))) < 1e-13
+    assert np.array_equal(chebyshev_nodes(40), make_grid_nodes(40))
+
+
+def make_grid_nodes(n):
+    from problems.discretization import make_grid
+
+    return make_grid("cheb", n).y

@@ -62,3 +62,13 @@ def test_get_scene_later_source_wins(monkeypatch):
     else:  # pragma: no cover
         raise AssertionError("unknown scene accepted")
     assert sc.SCENE_LOAD_ERRORS == [("c", "ImportError: no such module")]
+
+
+def test_version_matches_the_package_metadata():
+    """``contin --version`` prints contin.__version__ without a metadata scan: it must stay the
+    installed package's version."""
+    from importlib.metadata import version
+
+    import contin
+
+    assert contin.__version__ == version("contin")

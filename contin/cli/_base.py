@@ -2,7 +2,7 @@
 
 Exit codes: 0 success; 1 bad input or error (one ``Error: ...`` line on stderr, traceback only
 with ``--debug``); 2 usage error (click); 3 the run finished but a branch ended with MX
-(:data:`EXIT_INCOMPLETE`).
+(:data:`EXIT_INCOMPLETE`); 143 stopped by SIGTERM (handled like Ctrl-C, one ``Error:`` line).
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any, NoReturn
 
 import click
+
+from contin import __version__
 
 #: exit code of a run that finished but left a branch with status MX
 EXIT_INCOMPLETE = 3
@@ -43,8 +45,14 @@ class ContinGroup(click.Group):
     """A group whose commands turn any exception into one ``Error:`` line (exit 1)."""
 
     def invoke(self, ctx: click.Context) -> Any:
+        from contin.cli._runctl import EXIT_TERMINATED, Terminated, sigterm_as_interrupt
+
         try:
-            return super().invoke(ctx)
+            with sigterm_as_interrupt():  # every command: SIGTERM unwinds like Ctrl-C, with a message
+                return super().invoke(ctx)
+        except Terminated:
+            click.echo("Error: terminated by SIGTERM", err=True)
+            raise click.exceptions.Exit(EXIT_TERMINATED) from None
         except (click.ClickException, click.exceptions.Exit, click.Abort, KeyboardInterrupt):
             raise
         except Exception as exc:
@@ -75,11 +83,11 @@ def _setup_logging(verbose: int) -> None:
                     "  contin diagram bratu.h5 -o bratu.png\n\n  contin info bratu.h5")
 @click.option("--debug", is_flag=True, help="Show full tracebacks instead of one-line errors.")
 @click.option("-v", "--verbose", count=True, help="Log more (-v info, -vv debug).")
-@click.version_option(package_name="contin")
+@click.version_option(__version__, package_name="contin")  # given: no metadata scan at start-up
 def main(debug: bool, verbose: int) -> None:
     """contin: numerical continuation and bifurcation diagrams.
 
-    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure).
+    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 143 SIGTERM.
     """
     _setup_logging(verbose)
     from contin.blas import limit_blas_threads
@@ -198,7 +206,9 @@ def special_points_table(branches: Sequence[Any]) -> str:
         for sp in b.special_points:
             names = [n for n in b.free if n in sp.params] or [b.parameter]
             pv = ", ".join(f"{n}={fmt(sp.params.get(n, math.nan))}" for n in names)
-            rows.append((b.id, sp.name, sp.type, pv, fmt(sp.order_parameter), "yes" if sp.converged else "NO", sp.note))
+            data = ", ".join(f"{k}={fmt(v)}" for k, v in getattr(sp, "data", {}).items())  # HB omega, l1; UZ value
+            note = "; ".join(t for t in (data, sp.note) if t)
+            rows.append((b.id, sp.name, sp.type, pv, fmt(sp.order_parameter), "yes" if sp.converged else "NO", note))
     if not rows:
         return "no special points"
     return table(rows, ("branch", "label", "type", "parameters", "phi", "converged", "note"))

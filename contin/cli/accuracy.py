@@ -69,6 +69,12 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
     grid_list = _split(grids, int, "'--grids'")
     if min(grid_list) < 2:
         raise ValueError(f"grids must be at least 2 intervals, got {min(grid_list)}")
+    from contin.limits import MAX_GRID
+
+    if max(grid_list) > MAX_GRID:
+        raise ValueError(f"grids must be at most {MAX_GRID} intervals, got {max(grid_list)}")
+    if len(set(grid_list)) < 2:  # the finest grid is the reference: one grid measured nothing (a table of nan)
+        raise ValueError(f"--grids needs at least two different grid sizes (the finest is the reference), got {grids!r}")
     sc = scene_mod.get_scene(scene)
     if sc.defaults:
         bad = [n for n in params if n not in sc.defaults]

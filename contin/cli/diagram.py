@@ -20,7 +20,9 @@ def diagram_command(file: str, x: str | None, y: str | None, branch_ids: tuple[s
                     title: bool) -> None:
     """Plot a bifurcation diagram from FILE (stable solid, unstable dashed, BP/LP labelled)."""
     from contin import io
+    from contin.cli._runctl import check_nonempty
 
+    x, y = check_nonempty(x, "-x"), check_nonempty(y, "-y")  # "" fell back to the default axis silently
     io.check_writable(output)
     branches, meta = io.load(file)
     if branch_ids:

@@ -31,7 +31,11 @@ def info_command(file: str, as_json: bool) -> None:
     for key, value in prov.items():
         click.echo(f"{key + ':':<16}{value}")
     if not meta["complete"]:
-        click.echo("                (incomplete: the run was interrupted; continue it with --resume)")
+        stopped = meta.get("stopped", "")
+        if stopped.startswith("failed"):  # an error, not an interrupt: --resume would fail the same way
+            click.echo(f"                (incomplete: the run {stopped})")
+        else:
+            click.echo(f"                (incomplete: the run was {stopped or 'interrupted'}; continue it with --resume)")
     for note in meta["notes"]:
         click.echo(f"note: {note}")
     click.echo("")

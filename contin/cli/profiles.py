@@ -21,9 +21,14 @@ def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str
     """
     from contin import io
 
+    import math
+
+    from contin.cli._runctl import check_nonempty
+
     ((name, value),) = parse_settings([at]).items()
-    if not isinstance(value, float):
-        raise click.BadParameter(f"{at!r} needs a numeric value", param_hint="'--at'")
+    if not isinstance(value, float) or not math.isfinite(value):  # H=inf drew other points, exit 0
+        raise click.BadParameter(f"{at!r} needs a finite numeric value", param_hint="'--at'")
+    names = check_nonempty(names, "--names")
     io.check_writable(output)
     branches, meta = io.load(file)
     if meta["y"] is None or not meta["profiles"]:

@@ -18,6 +18,7 @@ from typing import Any
 import click
 
 from contin.cli._base import echo_err, echo_json, fail, fmt, main, table
+from contin.cli._runctl import MAX_ABS_KX, MAX_KX
 
 #: leading eigenvalues listed per k_x in the JSON document
 N_LEADING = 6
@@ -42,6 +43,8 @@ def parse_kx_spec(text: str) -> list[float]:
             n = int(parts[2])
             if n < 1:
                 raise ValueError(f"bad --kx {text!r}: COUNT must be at least 1")
+            if n > MAX_KX:  # 0:3:1000000000 never ended
+                raise ValueError(f"bad --kx {text!r}: COUNT must be at most {MAX_KX}")
             if n == 1 and a != b:
                 raise ValueError(f"bad --kx {text!r}: COUNT = 1 needs START = STOP")
             values = [a + (b - a) * i / (n - 1) for i in range(n)] if n > 1 else [a]
@@ -53,6 +56,8 @@ def parse_kx_spec(text: str) -> list[float]:
         raise ValueError(bad)
     if not all(math.isfinite(v) for v in values):
         raise ValueError(f"bad --kx {text!r}: wavenumbers must be finite numbers")
+    if len(values) > MAX_KX or max(abs(v) for v in values) > MAX_ABS_KX:
+        raise ValueError(f"bad --kx {text!r}: at most {MAX_KX} wavenumbers with |kx| <= {MAX_ABS_KX:g}")
     return values
 
 
@@ -174,7 +179,8 @@ def _eigenfunction(problem: Any, state: Any, vec: Any, y: Any) -> tuple[Any, dic
               help="Instead of --point: the state where a parameter has this value (e.g. H=25), corrected by Newton; "
                    "the first crossing along the branch.")
 @click.option("--kx", "kx_spec", default="0:3:61", metavar="SPEC",
-              help="Streamwise wavenumbers: START:STOP:COUNT, a comma list, or one value.")
+              help="Streamwise wavenumbers: START:STOP:COUNT, a comma list, or one value "
+                   "(at most 10000 values, finite, |kx| <= 1e4).")
 @click.option("--kz", type=float, default=0.0, help="Spanwise wavenumber.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
@@ -197,8 +203,8 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         fail("give exactly one of --point INDEX|LABEL and --at NAME=VALUE")
     at_spec = parse_at(at) if at is not None else None
     kx_values = parse_kx_spec(kx_spec)
-    if not math.isfinite(kz):
-        fail(f"--kz must be a finite number, got {kz}")
+    if not (math.isfinite(kz) and abs(kz) <= MAX_ABS_KX):
+        fail(f"--kz must be a finite number with |kz| <= {MAX_ABS_KX:g}, got {kz}")
     eig_path = None
     if eigenfunction:
         if output is None:

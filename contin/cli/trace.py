@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-import time
 from typing import Any
 
 import click
@@ -22,45 +20,61 @@ from contin.cli._base import (
     resolution_tol_option,
     special_points_table,
 )
-
-
-class _Progress:
-    """Status lines on stderr: one overwritten line on a terminal, nothing otherwise."""
-
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled
-        self.t0 = time.perf_counter()
-        self._open = False
-
-    def status(self, message: str) -> None:
-        if self.enabled:
-            text = f"[{time.perf_counter() - self.t0:7.1f}s] {message}"
-            sys.stderr.write("\r\x1b[K" + text[:200])
-            sys.stderr.flush()
-            self._open = True
-
-    def line(self, message: str) -> None:
-        if self.enabled:
-            self.done()
-            echo_err(f"[{time.perf_counter() - self.t0:7.1f}s] {message}")
-
-    def done(self) -> None:
-        if self._open:
-            sys.stderr.write("\r\x1b[K")
-            sys.stderr.flush()
-            self._open = False
+from contin.cli._runctl import (
+    EXIT_TERMINATED,
+    MAX_GRID,
+    MAX_STEPS,
+    MAX_TRACE_KX,
+    Progress,
+    Terminated,
+    check_finite_positive,
+    check_hdf5_output,
+    check_kx,
+    check_nonempty,
+    sigterm_as_interrupt,
+)
 
 
 def _parse_kx(text: str | None) -> tuple[float, ...]:
     if not text:
         return ()
     try:
-        return tuple(float(x) for x in text.split(",") if x.strip())
+        values = tuple(float(x) for x in text.split(",") if x.strip())
     except ValueError:
         raise click.BadParameter(f"expected comma-separated numbers, got {text!r}", param_hint="'--kx'") from None
+    check_kx(values, most=MAX_TRACE_KX)
+    return values
 
 
-def _stability_after_run(sc: Any, request: Any, result: Any, progress: _Progress, quiet: bool) -> None:
+def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
+    """``--uz NAME=V1,V2`` (repeatable) and ``--stop-at L1,L2`` as option overrides; checked here
+    so that bad input is one ``Error:`` line before anything runs."""
+    from contin.options import ContinuationOptions
+
+    out: dict[str, Any] = {}
+    zeros: dict[str, list[float]] = {}
+    for item in uz:
+        name, sep, values = item.partition("=")
+        try:
+            vals = [float(v) for v in values.split(",") if v.strip()]
+        except ValueError:
+            vals = []
+        if not sep or not name.strip() or not vals:
+            raise click.BadParameter(f"expected NAME=V1,V2,... with numbers, got {item!r}", param_hint="'--uz'")
+        zeros.setdefault(name.strip(), []).extend(vals)
+    labels = tuple(t.strip() for t in (stop_at or "").split(",") if t.strip())
+    try:  # the options' own validation: finite values, LP/BP/UZ/HB<k> labels
+        ContinuationOptions(user_zeros=zeros, stop_at=labels)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--uz'" if zeros and not labels else "'--stop-at'") from None
+    if zeros:
+        out["user_zeros"] = zeros
+    if labels:
+        out["stop_at"] = labels
+    return out
+
+
+def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress, quiet: bool) -> None:
     """The stability pass the scene left undone, through ``sc.problem_factory``.
 
     Branches the scene left without stability columns get :meth:`SceneRequest.run_stability`
@@ -94,6 +108,31 @@ def _stability_after_run(sc: Any, request: Any, result: Any, progress: _Progress
     progress.done()
 
 
+def _stopped(writer: Any, exc: BaseException) -> None:
+    """Record why the run stopped in the published file, say where the work is, drop the lock.
+
+    An interrupt (Ctrl-C, SIGTERM), a full disk or a crash can be continued with --resume; bad
+    input found late (ValueError, LookupError) would fail the same way again, so no --resume is
+    suggested for it.  ``contin info`` says "failed: ...", not "interrupted", for any error.
+    """
+    interrupted = isinstance(exc, KeyboardInterrupt)
+    resumable = not isinstance(exc, ValueError | LookupError)  # bad input would fail the same way again
+    why = ("terminated by SIGTERM" if isinstance(exc, Terminated) else "interrupted" if interrupted
+           else f"failed: {error_line(exc)}")
+    try:
+        if writer.publishes:
+            writer.update(stopped=why)
+            writer.publish()
+    except Exception:  # noqa: BLE001 -- the earlier published file stays as it was
+        pass
+    finally:
+        writer.release()
+    done = [b for b in writer.branches if len(b) > 0]
+    if writer.publishes and done:
+        hint = f" (continue with --resume {writer.path})" if resumable else ""
+        echo_err(f"note: {len(done)} finished branch(es) are saved in {writer.path}{hint}")
+
+
 def stability_summary(branch: Any) -> dict[str, Any] | None:
     """{kx, kz, n_unstable: [...], audit: [...]} of a branch, None without stability."""
     if branch.n_unstable is None:
@@ -114,15 +153,20 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("-s", "--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Set a scene parameter (repeatable); values are numbers, 'inf', or words (e.g. chi=cs).")
 @click.option("--method", default=None, help="Discretization method (e.g. cheb, fd2, fd4, fd6).")
-@click.option("--grid", type=click.IntRange(min=2), default=None, help="Number of grid intervals.")
+@click.option("--grid", type=click.IntRange(min=2, max=MAX_GRID), default=None,
+              help=f"Number of grid intervals (2..{MAX_GRID}).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), default=None,
               help="HDF5 file to write (checkpointed after every finished branch).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 @click.option("--no-stability", is_flag=True, help="Skip the linear-stability pass.")
-@click.option("--kx", default=None, metavar="LIST", help="Extra streamwise wavenumbers for stability, e.g. 0.5,1.")
-@click.option("--max-steps", type=click.IntRange(min=1), default=None, help="Maximum continuation steps per branch.")
-@click.option("--ds", type=click.FloatRange(min=0, min_open=True), default=None, help="Initial arclength step.")
-@click.option("--ds-max", type=click.FloatRange(min=0, min_open=True), default=None, help="Largest arclength step.")
+@click.option("--kx", default=None, metavar="LIST",
+              help=f"Extra streamwise wavenumbers for stability, e.g. 0.5,1 (at most {MAX_TRACE_KX}, finite, |kx| <= 1e4).")
+@click.option("--max-steps", type=click.IntRange(min=1, max=MAX_STEPS), default=None,
+              help=f"Maximum continuation steps per branch (1..{MAX_STEPS}).")
+@click.option("--ds", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Initial arclength step (a finite number > 0).")
+@click.option("--ds-max", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Largest arclength step (a finite number > 0).")
 @resolution_tol_option
 @click.option("--tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None, metavar="REL",
               help="Adaptive resolution: largest estimated relative discretization error of a point; the grid is "
@@ -134,12 +178,19 @@ def stability_messages(branch: Any) -> list[str]:
 @engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
+@click.option("--uz", "uz", multiple=True, metavar="NAME=V1,V2,...",
+              help="User zeros (UZ): locate the points where parameter NAME takes these values (repeatable).")
+@click.option("--stop-at", "stop_at", default=None, metavar="LABELS",
+              help="End each trace after the k-th point of a type, e.g. UZ1 or LP2,HB1 (AUTO's STOP/UZSTOP).")
+@click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=1), default=None, metavar="K",
+              help="Second BP detector: count the K eigenvalues of J nearest zero crossing it, cross-checked "
+                   "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no summary table.")
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resolution_tol: str | None, tol: float | None, max_grid: int | None, engine: str,
-                  resume: str | None, quiet: bool) -> None:
+                  resolution_tol: str | None, tol: float | None, max_grid: int | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
+                  bp_eigs: int | None, resume: str | None, quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
@@ -154,6 +205,10 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     params = parse_settings(settings)
     kx_values = _parse_kx(kx)
+    method = check_nonempty(method, "--method")
+    check_finite_positive(ds, "--ds")
+    check_finite_positive(ds_max, "--ds-max")
+    check_hdf5_output(output)
     guard, rtol = resolution_guard(resolution_tol)  # every trace of the run, also those a scene sets up itself
     sc = scene_mod.get_scene(scene)
     if sc.defaults:
@@ -162,6 +217,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             raise scene_mod.SceneError(
                 f"unknown parameter {unknown[0]!r} for scene {scene!r}; its parameters are {', '.join(sc.defaults)}")
     step_overrides = {k: v for k, v in (("ds", ds), ("ds_max", ds_max), ("max_steps", max_steps)) if v is not None}
+    step_overrides.update(_parse_uz(uz, stop_at))
+    if bp_eigs is not None:
+        step_overrides["bp_eigenvalues"] = bp_eigs
     overrides = dict(step_overrides)
     if resolution_tol is not None:
         overrides["resolution_tol"] = rtol
@@ -183,17 +241,27 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             before = meta["parameters"].get(name)
             if before is not None and before != value:
                 fail(f"{resume!r} was computed with {name}={fmt(before)}, not {fmt(value)}; resume with the same parameters")
+        # The stored states belong to the file's discretization: another one is refused, and
+        # none given means the file's (a resumed cheb-32 run silently mixed in cheb-64 states).
+        stored = meta["discretization"]
+        for what, given, key in (("--method", method, "method"), ("--grid", grid, "intervals")):
+            if key in stored and given is not None and str(given) != str(stored[key]):
+                fail(f"{resume!r} was computed with {what} {stored[key]}, not {given}; resume with the same "
+                     f"discretization (or start a new run)")
+        method = method if method is not None or "method" not in stored else str(stored["method"])
+        grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
         completed = {b.id: b for b in old}
         if output is None:
             output = resume
+        check_hdf5_output(output)
 
-    progress = _Progress(enabled=not quiet and sys.stderr.isatty())
     writer = None
-    if output is not None:  # checked before any computing
+    if output is not None:  # checked (and locked against a second writer) before any computing
         writer = io.H5Writer(output, scene=scene, parameters={**sc.defaults, **params},
                              discretization={k: v for k, v in (("method", method), ("grid", grid)) if v is not None},
                              options=overrides, branches=completed.values(),
                              diagram_x=sc.x, diagram_y=sc.y)
+    progress = Progress(enabled=not quiet)
 
     def on_branch(branch: Any) -> None:
         if writer is not None:
@@ -205,21 +273,33 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         params=params, method=method, grid=grid, stability=not no_stability, kx=kx_values,
         completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
     try:
-        with guard:
+        with guard, sigterm_as_interrupt():
             result = sc.run(request)
-    except BaseException:
-        progress.done()
-        if writer is not None and writer.publishes:  # the published file stays (complete=False)
-            echo_err(f"note: finished branches are saved in {writer.path} (continue with --resume {writer.path})")
+    except BaseException as exc:
+        progress.close()
+        if writer is not None:
+            _stopped(writer, exc)
+        if isinstance(exc, Terminated):
+            echo_err("Error: terminated by SIGTERM")
+            raise click.exceptions.Exit(EXIT_TERMINATED) from None
         raise
     progress.done()
     if request.stability:
         _stability_after_run(sc, request, result, progress, quiet)
+    progress.close()
+    missing_kx = [f"{k:g}" for k in kx_values if k != 0 and request.stability
+                  and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
+    if missing_kx:  # never a silent no-op: the README promises a column per --kx value
+        echo_err(f"warning: --kx {','.join(missing_kx)} ignored: scene {scene!r} computed no stability "
+                 f"(no growth_rate_kx column was stored)")
 
     if step_overrides and not request.resolved_options:
-        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps; they were ignored")
+        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
     options: Any = request.resolved_options[0] if request.resolved_options else (
         {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
+    from contin.hopfscan import number_new_points
+
+    number_new_points(result.branches)  # HB points the stability pass located after the run
     if writer is not None:
         writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
                       notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)

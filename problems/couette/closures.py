@@ -211,14 +211,16 @@ def uniform_shear(nu, e, model: str = "jj", nu_max: float = 0.65):
     return t0, c.f2 * np.sqrt(t0), c.f1 * t0
 
 
-def critical_gap_factor(nu, e, model: str = "jj", nu_max: float = 0.65):
+def critical_gap_factor(nu, e, model: str = "jj", nu_max: float = 0.65, dufour: bool = False):
     """psi(nu, e) with H_n^c = n pi psi (physics.md section 4, no-slip/adiabatic walls).
 
     psi^2 = (f4/f5) / [(f1/f1')(f2'/f2 + f5'/f5) - 2]; returns nan where the bracket is not
-    positive (no shear-banding instability: "bifurcation from infinity").
+    positive (no shear-banding instability: "bifurcation from infinity").  With the Dufour flux
+    (``dufour``, heat flux -kappa_h nu') f4 is replaced by f4 - f_h f1/f1' (physics.md section 4).
     """
-    c = coefficients(nu, e, model, nu_max)
+    c = coefficients(nu, e, model, nu_max, dufour=dufour)
     bracket = (c.f1 / c.f1_nu) * (c.f2_nu / c.f2 + c.f5_nu / c.f5) - 2.0
+    f4 = c.f4 - c.fh * c.f1 / c.f1_nu if dufour else c.f4
     with np.errstate(invalid="ignore", divide="ignore"):
-        psi2 = (c.f4 / c.f5) / bracket
+        psi2 = (f4 / c.f5) / bracket
     return np.where(np.real(bracket) > 0, np.sqrt(np.abs(psi2)), np.nan)

@@ -16,14 +16,19 @@ Pieces:
 - :func:`low_density_banded` -- below the threshold density (no BP) the banded branch from the
   density continuation;
 - :func:`homotopy_in_G` -- a state continued in G at fixed H from G = 0 to the target G;
-- :func:`trace_in_H` -- a branch at fixed G traced both ways in H (closed loops are closed, jumps
-  between nearby sheets retraced with smaller steps, :func:`trim_self_overlap`);
-- :func:`fold_seeds`, :func:`off_fold` -- fold points at the target G taken from two-parameter
-  fold curves (the second isola-discovery route), started next to the fold;
+- :func:`trace_in_H` -- a branch at fixed G traced both ways in H
+  (:func:`contin.jumps.trace_both_ways`: closed loops closed, jumps between nearby sheets
+  retraced with smaller steps, self-overlapping halves trimmed);
+- :class:`GravityCoordinates` -- the scaled (H/10, Phi, nu_bottom, T_mid) space in which the
+  generic bookkeeping of :mod:`contin.overlap` (:func:`lies_on`, :func:`deduplicate`,
+  :func:`on_branch`, :func:`trim_to_new`, :func:`trim_self_overlap`) compares gPCF branches;
+- :func:`homotopy_seeds`, :func:`fold_seeds`, :func:`off_fold` -- the two isola-discovery
+  routes of :mod:`contin.seeds` with the gPCF physics: banded states continued in G
+  (theta = 1/G^2), fold curves in (H, G) crossing G;
 - :func:`resolved` -- the resolution check of states from the (unguarded) fold curves;
-- :func:`lies_on`, :func:`deduplicate`, :func:`classify` -- one branch per solution set,
-  labelled 'primary' / 'isola' / 'floating-plug' / 'bottom-plug';
-- :func:`discover` -- all branches at one G (both routes), de-duplicated and labelled;
+- :func:`classify` -- 'primary' / 'isola' / 'floating-plug' / 'bottom-plug';
+- :func:`discover` -- all branches at one G: which seeds (the physics), traced and
+  de-duplicated by :func:`contin.seeds.discover`, labelled;
 - :func:`fold_curves`, :func:`pitchfork_fold_curves`, :func:`extrema` -- fold curves in (H, G)
   (or (H, nu)) from the folds of a diagram or from the imperfect pitchforks, with the Fr at which
   each closed component is born and dies (XT extrema of G);
@@ -39,15 +44,17 @@ arclength weight of the parameter is theta = 1/G_target^2 (the homotopy is then 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint
-from contin.continuation import join, newton, trace, trace_both
-from contin.foldcurve import FoldProblem, trace_fold_curve
+from contin.continuation import newton, trace_both
+from contin.foldcurve import trace_fold_curve
+from contin.jumps import jumped, trace_both_ways
+from contin.jumps import trim_self_overlap as _trim_self_overlap
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
 from contin.options import (
     ContinuationOptions,
@@ -55,10 +62,25 @@ from contin.options import (
     NewtonOptions,
     StepOptions,
 )
+from contin.overlap import deduplicate as _deduplicate
+from contin.overlap import distance_to_polyline as _distance_to_polyline
+from contin.overlap import lies_on as _lies_on
+from contin.overlap import near, params_at
+from contin.overlap import slice_branch as slice_branch  # re-exported for existing callers
+from contin.overlap import trim_to_new as _trim_to_new
+from contin.seeds import Seed, homotopy
+from contin.seeds import discover as core_discover
+from contin.seeds import fold_seeds as core_fold_seeds
+from contin.seeds import homotopy_seeds as core_homotopy_seeds
+from contin.seeds import off_fold as core_off_fold
+from contin.seeds import resolved as _resolved
 from problems.couette.model import CouetteProblem
 
 log = logging.getLogger("contin")
 Array = np.ndarray
+
+#: H span a run must cover before coming back along itself counts as a jump (trim_self_overlap).
+OVERLAP_EXCURSION = 5.0
 
 #: Kinds of gravity branches (Branch.kind).
 KINDS = ("primary", "isola", "floating-plug", "bottom-plug")
@@ -166,110 +188,46 @@ def low_density_banded(problem: CouetteProblem, params: Mapping[str, float], set
 
 
 # ----------------------------------------------------------------------------- continuation
+#: Largest step in H of :func:`trace_in_H` at and below which a jump is not repaired again.
+RETRACE_DS_MAX = 0.06
+
+
 def homotopy_in_G(problem: CouetteProblem, state: Array, params: Mapping[str, float], G: float,
                   max_steps: int = 80) -> Array | None:
-    """The state continued in G at fixed H from params['G'] (usually 0) up to ``G``.
-
-    ``symmetric=False``: gravity breaks the reflection, so a symmetric start must not be
-    treated as lying on an S-invariant branch.  Returns None when the path does not reach G
-    (a fold in G: the state does not survive that much gravity).
-    """
-    br = trace(problem, state, dict(params), "G", g_options(G, max_steps), symmetric=False, branch_id="homotopy")
-    if br.status != "EP" or not br.message.startswith("reached bound G") or abs(br.params["G"][-1] - G) > 1e-12 * G:
-        return None
-    return br.state(-1)
+    """The state continued in G at fixed H from params['G'] (usually 0) up to ``G``
+    (:func:`contin.seeds.homotopy`); None when the path does not reach G (a fold in G: the
+    state does not survive that much gravity)."""
+    return homotopy(problem, state, params, "G", G, g_options(G, max_steps))
 
 
 def trace_in_H(problem: CouetteProblem, state: Array, params: Mapping[str, float], settings: GravitySettings,
                *, branch_id: str = "0", kind: str = "", parent: str = "",
                progress: Callable[[str], None] | None = None) -> Branch:
-    """Both directions in H at fixed G; a closed loop (isola) is returned once, closed.
-
-    Like contin.continuation.trace_both, except that a loop closed by the *backward* half is
-    also returned as is (the forward half can miss its closing point, e.g. when a step near
-    the start is rejected, and would then run round the loop until max_steps), open halves are
-    cut where they come back along themselves (:func:`trim_self_overlap`), and a run showing a
-    jump between sheets (:func:`_jumped`) is retraced once with half the largest step.
-    """
-    b = _trace_in_H_once(problem, state, params, settings, branch_id=branch_id, kind=kind, parent=parent,
-                         progress=progress)
-    if not b.closed and _jumped(b) and settings.ds_max > 0.06:
-        # smaller steps keep the run on its sheet at the O(G)-narrow mode-2 near-crossing
-        finer = replace(settings, ds=min(settings.ds, settings.ds_max / 2), ds_max=settings.ds_max / 2,
-                        max_steps=2 * settings.max_steps)
-        again = _trace_in_H_once(problem, state, params, finer, branch_id=branch_id, kind=kind, parent=parent,
-                                 progress=progress)
-        if again.closed or not _jumped(again):
-            again.message += f" (retraced with ds_max = {finer.ds_max:g} after a jump at ds_max = {settings.ds_max:g})"
-            return again
-    return b
+    """Both directions in H at fixed G (:func:`contin.jumps.trace_both_ways`): a closed loop
+    (isola) is returned once, closed; open halves are cut where they come back along
+    themselves (:func:`trim_self_overlap`), and a run showing a jump between sheets is retraced
+    once with half the largest step (smaller steps keep the run on its sheet at the O(G)-narrow
+    mode-2 near-crossing), unless ds_max <= :data:`RETRACE_DS_MAX`."""
+    return trace_both_ways(problem, state, params, "H", settings.h_options(), coordinates=COORDINATES,
+                           excursion=OVERLAP_EXCURSION, restep="whole", min_ds_max=RETRACE_DS_MAX,
+                           symmetric=False, branch_id=branch_id, kind=kind, parent=parent, progress=progress)
 
 
-def _jumped(branch: Branch) -> bool:
-    """Signs of a jump between sheets: a half-run cut by :func:`trim_self_overlap`, or the same
-    fold met twice (both halves, or one half going round a loop it did not close)."""
-    if "own earlier part" in branch.message:
-        return True
-    f = np.array([(lp.params["H"], lp.order_parameter) for lp in branch.fold_points]).reshape(-1, 2)
-    for i in range(len(f)):
-        for j in range(i + 1, len(f)):
-            if abs(f[i, 0] - f[j, 0]) <= 1e-6 * abs(f[i, 0]) and abs(f[i, 1] - f[j, 1]) <= 1e-6:
-                return True
-    return False
-
-
-def _trace_in_H_once(problem: CouetteProblem, state: Array, params: Mapping[str, float], settings: GravitySettings,
-                     *, branch_id: str, kind: str, parent: str,
-                     progress: Callable[[str], None] | None) -> Branch:
-    kw: dict[str, Any] = {"symmetric": False, "branch_id": branch_id, "kind": kind, "parent": parent,
-                          "progress": progress}
-    forward = trace(problem, state, dict(params), "H", settings.h_options(), direction=+1, **kw)
-    if forward.closed or len(forward) == 0:
-        return forward
-    backward = trace(problem, state, dict(params), "H", settings.h_options(), direction=-1, **kw)
-    if backward.closed:
-        return backward
-    return join(trim_self_overlap(backward), trim_self_overlap(forward))
+#: Signs of a jump between sheets (contin.jumps.jumped).
+_jumped = jumped
 
 
 def trim_self_overlap(branch: Branch, tol: float = 2e-3, skip: int = 20, run: int = 5,
-                      excursion: float = 5.0) -> Branch:
-    """The branch up to where it starts running along its own earlier part.
+                      excursion: float = OVERLAP_EXCURSION) -> Branch:
+    """:func:`contin.jumps.trim_self_overlap` in the gPCF coordinates (:class:`GravityCoordinates`).
 
-    An open half-run that comes back onto points it has already traced has gone round a
-    loop after a jump between two nearby sheets (near the imperfect pitchforks, in particular
-    the mode-2 one that gravity unfolds only at second order, the sheets are O(G) apart and a
-    step can land on the neighbour); a closed loop would have been detected.  The branch is
-    cut before the first of ``run`` consecutive points that lie within ``tol`` of a segment
-    more than ``skip`` steps earlier (scaled (H/10, Phi, nu_bottom, T_mid) space, as
-    :func:`lies_on`) such that the branch between that segment and the point spans more than
-    ``excursion`` in H.  The last condition spares folds: just past a fold the branch runs
-    close to its part before the fold, but only after an excursion of the fold's width in H.
+    Near the imperfect pitchforks, in particular the mode-2 one that gravity unfolds only at
+    second order, the sheets are O(G) apart and a step can land on the neighbour; the run then
+    goes round a loop and comes back along its own earlier part.  ``excursion`` (in H) spares
+    folds: just past a fold the branch runs close to its part before the fold, but only after
+    an excursion of the fold's width in H.
     """
-    n = len(branch)
-    if branch.closed or n <= skip + run or branch.state_index is not None:
-        return branch
-    pts = _coordinates(branch)
-    H = branch.params["H"]
-    near = np.zeros(n, bool)
-    for i0 in range(skip + 1, n, 200):
-        idx = np.arange(i0, min(i0 + 200, n))
-        d = _segment_distances(pts[idx], pts[: int(idx[-1]) - skip + 1])  # (points, segments)
-        d[np.arange(d.shape[1])[None, :] >= (idx[:, None] - skip)] = np.inf
-        for r, c in zip(*np.nonzero(d < tol)):
-            i = int(idx[r])
-            if not near[i] and np.ptp(H[int(c): i + 1]) > excursion:
-                near[i] = True
-    hits = np.convolve(near.astype(int), np.ones(run, int), "valid") == run
-    if not hits.any():
-        return branch
-    cut = int(np.argmax(hits))
-    if cut < 2:
-        return branch
-    out = slice_branch(branch, 0, cut - 1)
-    out.message = (f"{branch.message}; cut at H = {branch.params['H'][cut]:.6g}, where the run comes back "
-                   f"along its own earlier part (a jump between nearby sheets)")
-    return out
+    return _trim_self_overlap(branch, COORDINATES, tol=tol, skip=skip, run=run, excursion=excursion)
 
 
 # ----------------------------------------------------------------------------- bookkeeping
@@ -282,60 +240,35 @@ def _coordinates(branch: Branch, H_scale: float = 10.0) -> Array:
     return np.column_stack(cols)
 
 
-def _distance_to_polyline(points: Array, line: Array) -> Array:
-    """Distance of every point to the polyline through ``line`` (rows are vertices)."""
-    if len(line) == 1:
-        return np.linalg.norm(points - line[0], axis=1)
-    return np.min(_segment_distances(points, line), axis=1)
+class GravityCoordinates:
+    """contin.overlap.Coordinates of gPCF branches: (H/10, Phi, nu_bottom, T_mid scaled) for
+    branches, (H/10, Phi, nu_bottom) for single states (from the problem's observables)."""
+
+    def branch(self, b: Branch) -> Array:
+        return _coordinates(b)
+
+    def point(self, problem: Any, u: Array, p: Mapping[str, float]) -> Array:
+        obs = problem.observables(u, p)
+        return np.array([p["H"] / 10.0, obs["phi"], obs["nu_bottom"]])
 
 
-def _segment_distances(points: Array, line: Array) -> Array:
-    """(points, segments) distances of every point to every segment of the polyline ``line``."""
-    a, b = line[:-1], line[1:]
-    d = b - a
-    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-    # (P, S) projections of every point on every segment
-    t = np.clip(np.einsum("pk,sk->ps", points, d) - np.einsum("sk,sk->s", a, d)[None, :], 0.0, None) / dd[None, :]
-    t = np.minimum(t, 1.0)
-    proj = a[None, :, :] + t[:, :, None] * d[None, :, :]
-    return np.linalg.norm(points[:, None, :] - proj, axis=2)
+COORDINATES = GravityCoordinates()
 
 
 def lies_on(a: Branch, b: Branch, tol: float = 5e-3, fraction: float = 0.9) -> bool:
     """True when at least ``fraction`` of the points of ``a`` lie within ``tol`` of ``b``'s
     polyline in the scaled (H/10, Phi, nu_bottom, T_mid) space: ``a`` is (part of) ``b``."""
-    if len(a) == 0 or len(b) == 0:
-        return False
-    dist = _distance_to_polyline(_coordinates(a), _coordinates(b))
-    return bool(np.mean(dist <= tol) >= fraction)
+    return _lies_on(a, b, COORDINATES, tol, fraction)
 
 
 def on_branch(problem: CouetteProblem, x: Array, p: Mapping[str, float], branch: Branch, tol: float = 2e-3) -> bool:
     """True when the state (x, p) lies within ``tol`` of ``branch`` (scaled H, Phi, nu_bottom)."""
-    obs = problem.observables(x, p)
-    pt = np.array([[p["H"] / 10.0, obs["phi"], obs["nu_bottom"]]])
-    return bool(np.min(_distance_to_polyline(pt, _coordinates(branch)[:, :3])) < tol)
-
-
-def _arclength(b: Branch) -> float:
-    return float(np.sum(b.ds))
+    return near(problem, x, p, branch, COORDINATES, tol)
 
 
 def deduplicate(branches: Sequence[Branch], tol: float = 5e-3) -> tuple[list[Branch], list[tuple[str, str]]]:
-    """One branch per solution set: a branch lying on another (:func:`lies_on`) is dropped in
-    favour of the closed or longer one.  Returns (kept, [(dropped id, kept id), ...])."""
-    order = sorted(branches, key=lambda b: (not b.closed, -_arclength(b)))
-    kept: list[Branch] = []
-    dropped: list[tuple[str, str]] = []
-    for b in order:
-        twin = next((k for k in kept if lies_on(b, k, tol)), None)
-        if twin is None:
-            kept.append(b)
-        else:
-            dropped.append((b.id, twin.id))
-    ids = [b.id for b in branches]
-    kept.sort(key=lambda b: ids.index(b.id))
-    return kept, dropped
+    """One branch per solution set (:func:`contin.overlap.deduplicate` in the gPCF coordinates)."""
+    return _deduplicate(branches, COORDINATES, tol)
 
 
 def dense_side(problem: CouetteProblem, branch: Branch) -> str:
@@ -356,53 +289,15 @@ def classify(problem: CouetteProblem, branch: Branch, H_min: float) -> str:
     return "floating-plug" if dense_side(problem, branch) == "top" else "bottom-plug"
 
 
-def slice_branch(branch: Branch, i0: int, i1: int) -> Branch:
-    """Points i0..i1 (inclusive) of a fully stored branch, with the special points inside."""
-    keep = slice(i0, i1 + 1)
-    sps = [replace(s, index=s.index - i0) for s in branch.special_points if i0 <= s.index < i1 or
-           (s.type in ("EP", "MX") and i0 <= s.index <= i1)]
-    return replace(
-        branch, params={k: v[keep].copy() for k, v in branch.params.items()},
-        observables={k: v[keep].copy() for k, v in branch.observables.items()},
-        states=branch.states[keep].copy(), tangents=branch.tangents[keep].copy(),
-        ds=np.concatenate([[0.0], branch.ds[i0 + 1: i1 + 1]]), newton_iterations=branch.newton_iterations[keep].copy(),
-        special_points=sps, closed=branch.closed and i0 == 0 and i1 == len(branch) - 1, state_index=None,
-        stable=None, n_unstable=None, eigenvalues=None)
-
-
 def trim_to_new(problem: CouetteProblem, branch: Branch, seed: Array, known: Sequence[Branch],
                 tol: float = 2e-3) -> Branch:
-    """The part of ``branch`` around the seed that does not run along a ``known`` branch.
-
-    Near the imperfect pitchforks two branches pass within O(G^(1/3)) of each other and a
-    step may land on the neighbour; the run then retraces a branch already known.  The
-    contiguous stretch through the seed point whose points are off every known branch is
-    kept (one point of overlap at each end).
-    """
-    if not known or len(branch) < 3 or branch.state_index is not None:
-        return branch
-    pts = _coordinates(branch)
-    on = np.zeros(len(branch), bool)
-    for k in known:
-        on |= _distance_to_polyline(pts[:, :3], _coordinates(k)[:, :3]) < tol
-    if not on.any():
-        return branch
-    i = int(np.argmin(np.linalg.norm(branch.states - seed[None, :], axis=1)))
-    lo = i
-    while lo > 0 and not on[lo - 1]:
-        lo -= 1
-    hi = i
-    while hi < len(branch) - 1 and not on[hi + 1]:
-        hi += 1
-    lo, hi = max(lo - 1, 0), min(hi + 1, len(branch) - 1)
-    out = slice_branch(branch, lo, hi)
-    out.message = f"{branch.message}; trimmed to points {lo}..{hi} (the rest runs along known branches)"
-    return out
+    """:func:`contin.overlap.trim_to_new` on (H/10, Phi, nu_bottom): near the imperfect
+    pitchforks two branches pass within O(G^(1/3)) of each other and a step may land on the
+    neighbour; the part of the run around the seed that is off every known branch is kept."""
+    return _trim_to_new(branch, seed, known, COORDINATES, tol, columns=3)
 
 
-def _params_at(branch: Branch, i: int) -> dict[str, float]:
-    return {k: float(v[i]) for k, v in branch.params.items()}
-
+_params_at = params_at
 
 #: Largest estimated relative discretization error of a seed or fold-curve extremum that is
 #: used (the continuation default, contin.options.ContinuationOptions.resolution_tol).
@@ -414,8 +309,7 @@ def resolved(problem: CouetteProblem, x: Array, p: Mapping[str, float], tol: flo
     against the distance to packing).  Fold-curve traces are guarded by the core now
     (FoldProblem forwards the hook, with the run's resolution_tol); this check stays for
     stored points such as extrema located with the guard off, at the default tolerance."""
-    check = getattr(problem, "under_resolved", None)
-    return check is None or check(np.asarray(x)[: problem.size], p, tol) is None
+    return _resolved(problem, np.asarray(x)[: problem.size], p, tol)
 
 
 # ----------------------------------------------------------------------------- discovery
@@ -444,65 +338,36 @@ class GravityDiagram:
         return [b for b in self.branches if b.kind == kind]
 
 
+def _homotopy_seeds(problem: CouetteProblem, g0_branches: Sequence[Branch], G: float,
+                    seed_H: Sequence[float]) -> list[Seed]:
+    return core_homotopy_seeds(problem, g0_branches, "G", G, seed_H, g_options(G))
+
+
 def homotopy_seeds(problem: CouetteProblem, g0_branches: Sequence[Branch], G: float,
                    seed_H: Sequence[float]) -> list[tuple[str, Array, dict[str, float]]]:
-    """Route 1: states of the gravity-free banded branches at ``seed_H`` continued in G."""
-    out = []
-    for br in g0_branches:
-        H = br.params["H"]
-        for h in seed_H:
-            if not (H.min() < h < H.max()):
-                continue
-            i = int(np.argmin(np.abs(H - h)))
-            p = _params_at(br, i)
-            x = homotopy_in_G(problem, br.state(i), p, G)
-            if x is not None:
-                out.append((f"homotopy from {br.id} at H={p['H']:.4g}", x, {**p, "G": G}))
-    return out
+    """Route 1: states of the gravity-free banded branches at ``seed_H`` continued in G
+    (:func:`contin.seeds.homotopy_seeds`), as (label, state, params)."""
+    return [(s.label, s.state, dict(s.params)) for s in _homotopy_seeds(problem, g0_branches, G, seed_H)]
+
+
+def _fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float, H_range: tuple[float, float]) -> list[Seed]:
+    return core_fold_seeds(problem, curves, "G", G, "H", H_range, resolution_tol=RESOLUTION_TOL)
 
 
 def fold_seeds(problem: CouetteProblem, curves: Sequence[Branch], G: float,
                H_range: tuple[float, float]) -> list[tuple[str, Array, dict[str, float]]]:
-    """Route 2: points where fold curves in (H, G) cross the target G, polished by Newton at
-    (H, G) fixed (each is a fold of the diagram at G, hence a seed for every fold-bounded
-    branch and isola).  Crossings the grid does not resolve (near packing) are skipped."""
-    out = []
-    for c in curves:
-        g = c.params["G"]
-        for i in np.nonzero(np.sign(g[:-1] - G) * np.sign(g[1:] - G) <= 0)[0]:
-            j = int(i) if abs(g[i] - G) < abs(g[i + 1] - G) else int(i) + 1
-            p = {**_params_at(c, j), "G": G}
-            if not H_range[0] < p["H"] < H_range[1]:
-                continue
-            # polish on the fold system at G fixed with H free (Newton in the state at a
-            # fixed H next to a fold may have no solution to converge to)
-            n = problem.size
-            st = c.state(j)
-            phi = st[n: 2 * n]
-            fp = FoldProblem(problem, "H", phi / float(phi @ phi))
-            res = newton(fp, np.concatenate([st[: 2 * n], [p["H"]]]), p, NewtonOptions(max_iterations=20))
-            if res.converged and resolved(problem, res.u[:n], {**p, "H": float(res.u[2 * n])}):
-                p = {**p, "H": float(res.u[2 * n])}
-                # a curve started at a fold of this G meets G twice there (both halves start at it)
-                if any(abs(q["H"] - p["H"]) <= 1e-7 * p["H"] and lbl.startswith(f"fold curve {c.id} ") for lbl, _, q in out):
-                    continue
-                out.append((f"fold curve {c.id} at H={p['H']:.6g}", res.u[:n], p))
-    return out
+    """Route 2: points where fold curves in (H, G) cross the target G, polished on the fold
+    system at G fixed (:func:`contin.seeds.fold_seeds`; each is a fold of the diagram at G, hence
+    a seed for every fold-bounded branch and isola), as (label, state, params).  Crossings the
+    grid does not resolve (near packing) are skipped."""
+    return [(s.label, s.state, dict(s.params)) for s in _fold_seeds(problem, curves, G, H_range)]
 
 
 def off_fold(problem: CouetteProblem, x: Array, p: Mapping[str, float], settings: GravitySettings,
              steps: int = 4) -> tuple[Array, dict[str, float]]:
-    """A point a few continuation steps away from the fold (x, p) along its branch.
-
-    A branch traced from exactly a fold does not report that fold (its test function is zero
-    at the start, so no sign change is seen), and a closed isola would then show an odd
-    number of folds; starting next to the fold, the run passes it and locates it.
-    """
-    opts = replace(settings.h_options(), max_steps=steps)
-    b = trace(problem, x, dict(p), "H", opts, symmetric=False, branch_id="off-fold")
-    if len(b) < 2:
-        return x, dict(p)
-    return b.state(len(b) - 1), _params_at(b, len(b) - 1)
+    """A point a few continuation steps in H away from the fold (x, p) (:func:`contin.seeds.off_fold`)."""
+    s = core_off_fold(problem, Seed("fold", x, dict(p), "fold-curve"), "H", settings.h_options(), steps)
+    return s.state, dict(s.params)
 
 
 def discover(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings = GravitySettings(), *,
@@ -519,9 +384,11 @@ def discover(problem: CouetteProblem, params: Mapping[str, float], settings: Gra
     curves in (H, G) for route 2; None = the pitchfork fold curves
     (:func:`pitchfork_fold_curves`, started at ``settings.Fr_start``).
 
-    Each seed is traced in H (both ways; an isola closes); a seed already lying on a traced
-    branch is not traced again but recorded (``found_by``: every route whose seeds lie on the
-    branch); the branches are de-duplicated (:func:`deduplicate`) and labelled (:func:`classify`).
+    The physics is which seeds: the near-uniform small-H state, the banded states at
+    ``settings.seed_H`` continued in G, the fold-curve crossings of G (moved off the fold
+    first).  The bookkeeping is :func:`contin.seeds.discover` (a seed lying on a traced branch
+    is recorded in ``found_by``, not traced again; branches trimmed to their new part and
+    de-duplicated); each branch is then labelled (:func:`classify`).
     """
     G = float(params["G"])
     if not G > 0:
@@ -530,57 +397,38 @@ def discover(problem: CouetteProblem, params: Mapping[str, float], settings: Gra
     if bad:
         raise ValueError(f"unknown discovery route(s) {sorted(bad)}; use 'homotopy' and/or 'fold-curve'")
     p0 = {**params, "H": settings.H_range[0]}
-    say = progress or (lambda m: None)
-    traced: list[Branch] = []
-    route_of: dict[str, str] = {}
-    found_by: dict[str, list[str]] = {}
-    notes: list[str] = []
-
-    def known(x: Array, p: Mapping[str, float]) -> Branch | None:
-        return next((b for b in traced if on_branch(problem, x, p, b)), None)
-
-    def run(label: str, x: Array, p: Mapping[str, float], route: str) -> None:
-        if route == "fold-curve":
-            x, p = off_fold(problem, x, p, settings)
-        twin = known(x, p)
-        if twin is not None:
-            notes.append(f"{label}: on known branch {twin.id}")
-            if route not in found_by[twin.id]:
-                found_by[twin.id].append(route)
-            return
-        bid = f"{len(traced)}"
-        say(f"gravity: tracing branch {bid} ({label})")
-        b = trace_in_H(problem, x, p, settings, branch_id=bid, parent=label)
-        if not b.closed:
-            b = trim_to_new(problem, b, x, traced)
-        traced.append(b)
-        route_of[bid] = route
-        found_by[bid] = [route]
-        notes.append(f"{label}: branch {bid} ({len(b)} points{', closed' if b.closed else ''})")
-
-    run("small-H state", problem.initial_guess(p0), p0, "small-H")
     g0 = list(g0_branches) if g0_branches is not None else []
-    need_g0 = "homotopy" in routes or ("fold-curve" in routes and curves is None)
-    if need_g0 and (g0_branches is None or (base is None and "fold-curve" in routes and curves is None)):
-        base, g0 = gravity_free_branches(problem, params, settings, progress)
-    if "homotopy" in routes:
-        for label, x, p in homotopy_seeds(problem, g0, G, settings.seed_H):
-            run(label, x, p, "homotopy")
-    if "fold-curve" in routes:
-        if curves is None:
-            assert base is not None
-            curves = pitchfork_fold_curves(problem, params, base, g0, H_range=settings.H_range,
-                                           Fr_start=settings.Fr_start, max_steps=settings.fold_steps, progress=progress)
-        for label, x, p in fold_seeds(problem, curves, G, settings.H_range):
-            run(label, x, p, "fold-curve")
-    kept, dup = deduplicate(traced)
-    for a, k in dup:
-        found_by[k] += [r for r in found_by[a] if r not in found_by[k]]
-    for b in kept:
+    state: dict[str, Any] = {"base": base, "g0": g0, "curves": curves}
+
+    def seeds() -> Iterator[Seed]:
+        yield Seed("small-H state", problem.initial_guess(p0), p0, "small-H")
+        need_g0 = "homotopy" in routes or ("fold-curve" in routes and curves is None)
+        if need_g0 and (g0_branches is None or (base is None and "fold-curve" in routes and curves is None)):
+            state["base"], state["g0"] = gravity_free_branches(problem, params, settings, progress)
+        if "homotopy" in routes:
+            yield from _homotopy_seeds(problem, state["g0"], G, settings.seed_H)
+        if "fold-curve" in routes:
+            if state["curves"] is None:
+                assert state["base"] is not None
+                state["curves"] = pitchfork_fold_curves(problem, params, state["base"], state["g0"],
+                                                        H_range=settings.H_range, Fr_start=settings.Fr_start,
+                                                        max_steps=settings.fold_steps, progress=progress)
+            yield from _fold_seeds(problem, state["curves"], G, settings.H_range)
+
+    def prepare(s: Seed) -> Seed:
+        return core_off_fold(problem, s, "H", settings.h_options()) if s.route == "fold-curve" else s
+
+    def trace_seed(s: Seed, bid: str) -> Branch:
+        return trace_in_H(problem, s.state, s.params, settings, branch_id=bid, parent=s.label)
+
+    say = progress or (lambda m: None)
+    found = core_discover(problem, seeds(), trace_seed, COORDINATES, prepare=prepare, columns=3,
+                          progress=lambda m: say(f"gravity: {m}"))
+    for b in found.branches:
         b.kind = classify(problem, b, settings.H_range[0])
-    return GravityDiagram(G=G, branches=kept, routes={b.id: route_of[b.id] for b in kept}, duplicates=dup,
-                          seeds=notes, gravity_free=g0, found_by={b.id: found_by[b.id] for b in kept},
-                          curves=list(curves or []))
+    return GravityDiagram(G=G, branches=found.branches, routes=found.routes, duplicates=found.duplicates,
+                          seeds=found.notes, gravity_free=state["g0"], found_by=found.found_by,
+                          curves=list(state["curves"] or []))
 
 
 # ----------------------------------------------------------------------------- fold curves

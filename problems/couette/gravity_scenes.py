@@ -74,11 +74,9 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     branches = diagram.branches
     relabel(branches)
     if request.stability:
-        from contin.stability import stability_pass
-
-        for b in branches:
+        for b in branches:  # the pass at k_x = 0, its audit, and the --kx columns with their Hopf points
             request.report(f"gravity: stability of branch {b.id}")
-            stability_pass(pb, b, params)
+            request.run_stability(pb, b, params)
     for b in branches:
         request.finished(b)
     notes = [f"G = Fr^-2 = {params['G']:.6g}"]

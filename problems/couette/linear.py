@@ -95,6 +95,7 @@ collocation for this stability problem); P. C. Johnson, R. Jackson, J. Fluid Mec
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 from dataclasses import dataclass
 from functools import lru_cache
 from math import comb
@@ -127,7 +128,8 @@ class _Expr:
 
     @classmethod
     def var(cls, n: int, var: int, m: int = 0, coef=1.0) -> _Expr:
-        return cls(n, {(var, m): np.broadcast_to(np.asarray(coef, dtype=complex), (n,)).copy()})
+        coef = np.asarray(coef)  # real at k_x = k_z = 0 (then the whole operator is assembled in reals)
+        return cls(n, {(var, m): np.broadcast_to(coef.astype(np.result_type(coef, float)), (n,)).copy()})
 
     def __add__(self, other: _Expr) -> _Expr:
         out = dict(self.terms)
@@ -144,21 +146,36 @@ class _Expr:
 
     __rmul__ = __mul__
 
-    def d(self, d1: sp.csr_matrix) -> _Expr:
+    def d(self, d1: NDArray) -> _Expr:
         """D(expr) by the product rule, D(a D^m f) = a' D^m f + a D^{m+1} f."""
         out = _Expr(self.n)
         for (var, m), a in self.terms.items():
             out = out + _Expr(self.n, {(var, m): d1 @ a, (var, m + 1): a})
         return out
 
-    def blocks(self, ops: Sequence[sp.spmatrix]) -> list[sp.spmatrix | None]:
-        """The 5 (n x n) blocks of this row; ``ops[m]`` is the matrix of D^m."""
-        out: list[sp.spmatrix | None] = [None] * 5
+    def add_to(self, out: NDArray, ops: Sequence[NDArray], scale: complex = 1.0) -> None:
+        """out[:, var block] += scale * a D^m for every term; out is (n, 5n), ``ops[m]`` the
+        dense matrix of D^m (``ops[0]`` unused: the identity is added on the diagonal)."""
+        n = self.n
+        diag = np.arange(n)
         for (var, m), a in self.terms.items():
-            if m >= len(ops):
+            if m >= 3:
                 raise AssertionError("third derivatives do not occur in this model")
-            term = sp.diags(a) @ ops[m]
-            out[var] = term if out[var] is None else out[var] + term
+            block = out[:, var * n:(var + 1) * n]
+            if m == 0:
+                block[diag, diag] += scale * a
+            else:
+                block += (scale * a)[:, None] * ops[m]
+
+    def row(self, node: int, ops: Sequence[NDArray]) -> NDArray:
+        """The (5n,) row of this expression at one node."""
+        n = self.n
+        out = np.zeros(5 * n, dtype=np.result_type(*self.terms.values()))
+        for (var, m), a in self.terms.items():
+            if m == 0:
+                out[var * n + node] += a[node]
+            else:
+                out[var * n:(var + 1) * n] += a[node] * ops[m][node]
         return out
 
 
@@ -248,7 +265,8 @@ def linear_operator(
     dufour: bool = False,
     gravity: bool = True,
     conserve_mass: bool | None = None,
-) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    dense: bool = False,
+) -> tuple[Any, Any]:
     """The generalized eigenproblem A X = omega B X of physics.md section 5 (module docstring).
 
     Parameters
@@ -267,17 +285,66 @@ def linear_operator(
     dufour : include the kappa_h grad(nu) heat flux.
     gravity : include the -H G nu_hat body force (G from params).
     conserve_mass : restrict to int nu_hat = 0; default: exactly when kx = kz = 0.
+    dense : return dense ndarrays instead of CSR matrices (what the eigensolvers use).
 
     Returns
     -------
-    A, B : (5(N+1), 5(N+1)) CSR matrices, unknowns ordered (nu, u, v, w, T) node by node
-        within each field block; complex when kx or kz is nonzero.
+    A, B : (5(N+1), 5(N+1)) CSR matrices (ndarrays with ``dense=True``), unknowns ordered
+        (nu, u, v, w, T) node by node within each field block; complex when kx or kz is nonzero.
+
+    Assembly is dense, with the grid's dense D1, D2 and the density-constraint projector
+    cached per grid (:func:`_dense_ops`, :func:`_constraint_rows`): the matrices are small
+    (325 x 325 at N = 64) and mostly dense in their D-blocks, so thousands of small sparse
+    products cost far more than the arithmetic (the former sparse assembly is kept in
+    ``tests/linear_sparse_reference.py``; the two agree to rounding).
 
     Raises
     ------
     ValueError
         Unknown wall type, missing parameters, profiles of the wrong size or outside the
         physical range.
+    """
+    A, bdiag = _assemble(grid, nu0, u0, T0, params, walls=walls, kx=kx, kz=kz, chi=chi, dufour=dufour,
+                         gravity=gravity, conserve_mass=conserve_mass, replace_constraints=True)
+    if dense:
+        return A, np.diag(bdiag)
+    return sp.csr_matrix(A), sp.diags(bdiag, format="csr")
+
+
+@lru_cache(maxsize=64)
+def _dense_ops(grid: Grid) -> tuple[NDArray, NDArray]:
+    """Dense (D1, D2) of a grid, read-only (cached: the stability pass reuses them per state)."""
+    d1 = grid.d1.toarray() if sp.issparse(grid.d1) else np.array(grid.d1, dtype=float)
+    d2 = grid.d2.toarray() if sp.issparse(grid.d2) else np.array(grid.d2, dtype=float)
+    d1.flags.writeable = False
+    d2.flags.writeable = False
+    return d1, d2
+
+
+@lru_cache(maxsize=64)
+def _constraint_rows(grid: Grid, conserve_mass: bool) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """(C, Gdir, K, J) of the density constraints (module docstring), cached per grid.
+
+    C (n x m) the functionals, Gdir (n x m) the directions removed, K = (C^T Gdir)^-1 C^T so that
+    the projected tendency is R - Gdir (K R), J the m continuity rows replaced by C^T nu = 0
+    (pivoted QR of C^T: C[J] well conditioned).
+    """
+    C, Gdir = _density_constraints(grid, conserve_mass)
+    K = np.linalg.solve(C.T @ Gdir, C.T)
+    J = la.qr(C.T, pivoting=True, mode="r")[1][: C.shape[1]]
+    for arr in (C, Gdir, K, J):
+        arr.flags.writeable = False
+    return C, Gdir, K, J
+
+
+def _assemble(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: str, kx: float, kz: float, chi: str,
+              dufour: bool, gravity: bool, conserve_mass: bool | None,
+              replace_constraints: bool) -> tuple[NDArray, NDArray]:
+    """Dense A (real at k_x = k_z = 0) and the diagonal of B of :func:`linear_operator`.
+
+    ``replace_constraints=False`` leaves the projected continuity rows in place (no rows J
+    replaced by the constraints): the pencil then has the constrained spectrum plus m exact
+    zero eigenvalues, whose subspace :func:`k0_spectrum` removes by restriction instead.
     """
     if walls not in WALLS:
         raise ValueError(f"unknown wall type {walls!r}; choose one of {', '.join(WALLS)}")
@@ -289,14 +356,14 @@ def linear_operator(
         raise ValueError(f"H must be positive, got {H}")
     nu0, u0, T0 = _check_base(grid, nu0, u0, T0, nu_max, chi)
     n = grid.size
-    d1 = sp.csr_matrix(grid.d1)
-    ident = sp.identity(n, format="csr")
-    ops = [ident, d1, sp.csr_matrix(grid.d2)]
+    d1, d2 = _dense_ops(grid)
+    ops = (None, d1, d2)
     c = base_coefficients(nu0, T0, e, chi, nu_max, dufour)
     dU = d1 @ u0
     dT0 = d1 @ T0
     dnu0 = d1 @ nu0
-    ikx, ikz = 1j * kx, 1j * kz
+    real = kx == 0.0 and kz == 0.0
+    ikx, ikz = (0.0, 0.0) if real else (1j * kx, 1j * kz)
     k2 = kx * kx + kz * kz
     ih2 = 1.0 / (H * H)
 
@@ -327,15 +394,18 @@ def linear_operator(
               - delta * c.p0 + (V(UX, 1) + V(VY, 0, ikx)) * (2.0 * c.mu0 * dU) + mu_hat * dU**2
               - V(NU, 0, c.D_nu) - V(TT, 0, c.D_T))
 
+    A = np.zeros((5 * n, 5 * n), dtype=float if real else complex)
     # Continuity, with the mass flux D(nu0 v) in conservative form.
-    cont = [sp.diags(-adv), sp.diags(-ikx * nu0), -(d1 @ sp.diags(nu0)), sp.diags(-ikz * nu0), None]
-    rows = [cont] + [expr.blocks(ops) for expr in (mom_x, mom_y, mom_z, energy)]
-    dtype = complex if (kx != 0.0 or kz != 0.0) else float
-    zero = sp.csr_matrix((n, n))
-    A = sp.bmat([[blk if blk is not None else zero for blk in row] for row in rows], format="csr").astype(complex)
+    diag = np.arange(n)
+    A[diag, NU * n + diag] = -adv
+    A[diag, UX * n + diag] = -ikx * nu0
+    A[:n, VY * n:(VY + 1) * n] = -(d1 * nu0[None, :])
+    A[diag, WZ * n + diag] = -ikz * nu0
+    for var, expr in ((UX, mom_x), (VY, mom_y), (WZ, mom_z), (TT, energy)):
+        expr.add_to(A[var * n:(var + 1) * n], ops)
 
     # Boundary rows.
-    bc_rows: dict[int, list[tuple[int, _Expr]]] = {}
+    rows_idx: list[int] = []
     for node, nsign in ((0, 1.0), (n - 1, -1.0)):
         uw = -0.5 * nsign  # wall speed: -1/2 at the bottom, +1/2 at the top
         if walls == "noslip":
@@ -358,42 +428,186 @@ def linear_operator(
             heat = flux * -ih2 - (sw_hat * (H * slip**2) + V(UX, 0, 2 * H * sw * slip) - dw_hat * (1.0 / H)) * nsign
             conds = [(UX, shear_x), (VY, V(VY)), (WZ, shear_z), (TT, heat)]
         for var, expr in conds:
-            bc_rows.setdefault(var, []).append((node, expr))
-    # Replace the boundary rows: A <- (I - S S^T) A + S R_bc, S selecting the rows.
-    rows_idx, rows_mat = [], []
-    for var, items in bc_rows.items():
-        for node, expr in items:
             rows_idx.append(var * n + node)
-            rows_mat.append(sp.hstack([sp.csr_matrix(blk)[node, :] if blk is not None else sp.csr_matrix((1, n))
-                                       for blk in expr.blocks(ops)]))
-    keep = np.ones(5 * n)
-    keep[rows_idx] = 0.0
-    select = sp.csr_matrix((np.ones(len(rows_idx)), (rows_idx, np.arange(len(rows_idx)))),
-                           shape=(5 * n, len(rows_idx)))
-    A = sp.diags(keep) @ A + select @ sp.vstack(rows_mat)
+            A[var * n + node] = expr.row(node, ops)
 
     bdiag = np.concatenate([np.ones(n), nu0, nu0, nu0, 1.5 * nu0])
     bdiag[rows_idx] = 0.0
 
     if conserve_mass is None:
         conserve_mass = kx == 0.0 and kz == 0.0
-    C, Gdir = _density_constraints(grid, conserve_mass)
+    C, Gdir, K, J = _constraint_rows(grid, bool(conserve_mass))
     # Continuity rows: project the tendency onto the constrained subspace along Gdir, then
-    # replace m rows (chosen by pivoted QR so that C[J] is well conditioned) by C^T nu = 0.
-    R = A[:n, :].toarray()
-    R -= Gdir @ np.linalg.solve(C.T @ Gdir, C.T @ R)
-    m = C.shape[1]
-    J = la.qr(C.T, pivoting=True, mode="r")[1][:m]
-    R[J, :] = 0.0
-    R[J, :n] = C.T
-    bdiag[J] = 0.0
-    A = sp.vstack([sp.csr_matrix(R), A[n:, :]], format="csr")
-    if dtype is float:
-        if A.nnz and np.max(np.abs(A.data.imag)) > 0:
-            raise AssertionError("imaginary entries at kx = kz = 0")
-        A = sp.csr_matrix(A.real)
-    B = sp.diags(bdiag, format="csr")
-    return A, B
+    # replace m rows J by C^T nu = 0.
+    R = A[:n]
+    R -= Gdir @ (K @ R)
+    if replace_constraints:
+        R[J, :] = 0.0
+        R[J, :n] = C.T
+        bdiag[J] = 0.0
+    return A, bdiag
+
+
+# --------------------------------------------------------------------------------------------
+# k_x = k_z = 0 spectrum: Schur elimination of the boundary rows, restriction to the constraint
+# subspace, and the reflection split on symmetric base states.
+
+#: reflection parity of the perturbation fields under S: (nu, T)(y) -> (nu, T)(-y),
+#: (u, v, w)(y) -> -(u, v, w)(-y)  (physics.md section 3, Symmetry)
+PARITY = {NU: 1.0, UX: -1.0, VY: -1.0, WZ: -1.0, TT: 1.0}
+#: relative tolerance of the commutation test ||S M S - M|| <= SYMMETRY_TOL ||M|| of the split
+SYMMETRY_TOL = 1e-11
+
+
+def _orbits(fields: Sequence[int], nodes: Sequence[NDArray], n: int, parity: int) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Basis of the S-even (parity +1) or S-odd (-1) subspace of the unknowns ``fields`` x ``nodes``.
+
+    Returns (a, b, s, w): basis vector k is w_k (e_{a_k} + s_k e_{b_k}) in positions of the
+    concatenated unknown list (a_k = b_k, w_k = 1/2 for a node fixed by the reflection).
+    """
+    pos: dict[tuple[int, int], int] = {}
+    for f, nd in zip(fields, nodes):
+        for j in nd:
+            pos[(f, int(j))] = len(pos)
+    a, b, sg, w = [], [], [], []
+    for (f, j), i in pos.items():
+        jm = n - 1 - j
+        k = pos[(f, jm)]
+        if k < i:
+            continue
+        sign = parity * PARITY[f]
+        if k == i:
+            if sign < 0:  # e_i is in the other subspace
+                continue
+            a.append(i), b.append(i), sg.append(1.0), w.append(0.5)
+        else:
+            a.append(i), b.append(k), sg.append(sign), w.append(np.sqrt(0.5))
+    return np.array(a, dtype=int), np.array(b, dtype=int), np.array(sg), np.array(w)
+
+
+def _fold(M: NDArray, basis_r: tuple, basis_c: tuple) -> NDArray:
+    """basis_r^T M basis_c for bases given as (a, b, s, w) (see :func:`_orbits`)."""
+    a, b, s, w = basis_c
+    cols = (M[:, a] + M[:, b] * s) * w
+    a, b, s, w = basis_r
+    return (cols[a] + cols[b] * s[:, None]) * w[:, None]
+
+
+def _restrict(M: NDArray, m: int, W: NDArray) -> NDArray:
+    """Q^T M Q with Q = W on the leading ``m`` coordinates and the identity on the others (W
+    orthonormal columns): M restricted to an M-invariant subspace that constrains only those
+    coordinates."""
+    k = W.shape[1]
+    out = np.empty((M.shape[0] - m + k, M.shape[1] - m + k), dtype=M.dtype)
+    top = W.T @ M[:m]
+    out[:k, :k] = top[:, :m] @ W
+    out[:k, k:] = top[:, m:]
+    out[k:, :k] = M[m:, :m] @ W
+    out[k:, k:] = M[m:, m:]
+    return out
+
+
+def _constraint_basis(Ct: NDArray, scale: float) -> NDArray | None:
+    """Orthonormal basis of the null space of the functionals Ct (m x k); None if Ct ~ 0."""
+    if np.max(np.abs(Ct), initial=0.0) <= 1e-13 * scale:
+        return None
+    return la.null_space(Ct, rcond=1e-12)
+
+
+@lru_cache(maxsize=16)
+def _k0_layout(n: int) -> tuple[NDArray, ...]:
+    """Index sets of :func:`k0_spectrum` for n nodes: the boundary rows (u, v, T at both walls),
+    the kept unknowns (nu everywhere, u, v, T inside), the S-even and S-odd bases on them
+    (:func:`_orbits`) and the reflection as a signed permutation (refl, sign)."""
+    fields = (NU, UX, VY, TT)
+    inner = np.arange(1, n - 1)
+    nodes = [np.arange(n), inner, inner, inner]  # the wall rows of u, v, T are boundary conditions
+    walls_idx = np.array([f * n + j for f in (UX, VY, TT) for j in (0, n - 1)])
+    keep = np.concatenate([f * n + nd for f, nd in zip(fields, nodes)])
+    even = _orbits(fields, nodes, n, +1)
+    odd = _orbits(fields, nodes, n, -1)
+    refl = np.empty(keep.size, dtype=int)
+    for a, b, _, _ in (even, odd):
+        refl[a], refl[b] = b, a
+    sign = np.concatenate([np.full(nd.size, PARITY[f]) for f, nd in zip(fields, nodes)])
+    return walls_idx, keep, even, odd, refl, sign
+
+
+@lru_cache(maxsize=16)
+def _k0_constraint_bases(grid: Grid) -> tuple[NDArray, NDArray | None, NDArray | None]:
+    """Orthonormal bases of {C^T nu = 0} (the density constraints, :func:`_constraint_rows`) in
+    the nodal nu coordinates and in the nu coordinates of the S-even and S-odd bases of
+    :func:`_k0_layout` (those come first there); None for a half the constraints do not touch."""
+    C = _constraint_rows(grid, True)[0]
+    scale = float(np.max(np.abs(C)))
+    out: list[NDArray | None] = [la.null_space(C.T, rcond=1e-12)]
+    m_total = 0
+    for a, b, s, w in _k0_layout(grid.size)[2:4]:
+        nu_pos = np.flatnonzero(a < grid.size)  # basis vectors on nu nodes
+        if not np.array_equal(nu_pos, np.arange(nu_pos.size)):
+            raise AssertionError("the nu basis vectors must come first")
+        Cb = (C[a[nu_pos]] + C[b[nu_pos]] * s[nu_pos, None]) * w[nu_pos, None]
+        W = _constraint_basis(Cb.T, scale)
+        if W is not None:
+            m_total += nu_pos.size - W.shape[1]
+        out.append(W)
+    if m_total != C.shape[1]:
+        raise AssertionError(f"constraints split into {m_total} != {C.shape[1]} conditions")
+    return out[0], out[1], out[2]
+
+
+def k0_spectrum(grid: Grid, nu0, u0, T0, params: Mapping[str, float], *, walls: str = "noslip", chi: str = "jj",
+                dufour: bool = False, gravity: bool = True, split: bool | None = None) -> NDArray[np.complex128] | None:
+    """All finite eigenvalues at k_x = k_z = 0 without the decoupled w block, real part descending.
+
+    The same spectrum as dense QZ on :func:`linear_operator`'s pencil with the w rows and columns
+    dropped, computed on smaller standard eigenproblems:
+
+    1. the pencil is assembled with the projected continuity rows left in place (no rows
+       replaced by the constraints C^T nu = 0: it then has m extra exact zero eigenvalues, and
+       the subspace {C^T nu = 0} is invariant because every projected row satisfies C^T R = 0);
+    2. the boundary rows Z (zero rows of B) are eliminated with the unknowns of the same index:
+       M = B_KK^-1 (A_KK - A_KZ A_ZZ^-1 A_ZK), whose eigenvalues are the finite ones;
+    3. M is restricted to {C^T nu = 0} with an orthonormal basis of that subspace, which removes
+       exactly the m zero eigenvalues;
+    4. ``split`` (default: when it holds) on a reflection-symmetric base state (S: y -> -y,
+       physics.md section 3), M commutes with the signed reflection of the unknowns and is
+       block diagonal in the S-even / S-odd basis: two problems of half the size, about 4x
+       cheaper than one.  The commutation is checked on M itself (relative SYMMETRY_TOL), so
+       gravity or an asymmetric state simply takes the unsplit path.
+
+    Returns None when A_ZZ is numerically singular (condition > 1e12); use dense QZ then.
+    """
+    nu0, u0, T0 = (np.asarray(f, dtype=float) for f in (nu0, u0, T0))
+    A, bdiag = _assemble(grid, nu0, u0, T0, params, walls=walls, kx=0.0, kz=0.0, chi=chi, dufour=dufour,
+                         gravity=gravity, conserve_mass=True, replace_constraints=False)
+    n = grid.size
+    walls_idx, keep, even, odd, refl, sign = _k0_layout(n)
+    if np.any(bdiag[walls_idx] != 0.0) or np.any(bdiag[keep] == 0.0):
+        raise AssertionError("unexpected zero pattern of B")
+    azz = A[np.ix_(walls_idx, walls_idx)]
+    if np.linalg.cond(azz) > 1e12:
+        return None
+    M = A[np.ix_(keep, keep)] - A[np.ix_(keep, walls_idx)] @ np.linalg.solve(azz, A[np.ix_(walls_idx, keep)])
+    M /= bdiag[keep][:, None]
+    blocks: list[NDArray] = []
+    if split is not False:
+        # cheap pre-test on the profiles, then the commutation S M S = M itself
+        symmetric = max(np.max(np.abs(nu0 - nu0[::-1])), np.max(np.abs(T0 - T0[::-1])),
+                        np.max(np.abs(u0 + u0[::-1]))) < 1e-6
+        if symmetric:
+            mirrored = M[np.ix_(refl, refl)] * sign[:, None] * sign[None, :]
+            symmetric = np.max(np.abs(mirrored - M)) <= SYMMETRY_TOL * np.max(np.abs(M))
+        if split and not symmetric:
+            raise ValueError("split=True but the base state is not reflection-symmetric")
+        if symmetric:
+            for basis, W in zip((even, odd), _k0_constraint_bases(grid)[1:]):
+                Mb = _fold(M, basis, basis)
+                blocks.append(Mb if W is None else _restrict(Mb, W.shape[0], W))
+    if not blocks:
+        blocks.append(_restrict(M, n, _k0_constraint_bases(grid)[0]))
+    w = np.concatenate([la.eigvals(b, check_finite=False) for b in blocks]).astype(complex)
+    return w[np.lexsort((-w.imag, -w.real))]
 
 
 @lru_cache(maxsize=64)

@@ -663,8 +663,7 @@ class CouetteProblem:
     def _mid_interpolation(self) -> Array:
         """Weights w with w . f = grid.interpolate(f, 0) (the interpolant is linear in f)."""
         if self._mid_weights is None:
-            eye = np.eye(self.n)
-            self._mid_weights = np.array([self.grid.interpolate(e, np.array([0.0]))[0] for e in eye])
+            self._mid_weights = self.grid.interpolation_weights(0.0)
         return self._mid_weights
 
     def energy_balance(self, x: Array, p: Mapping[str, Any]) -> tuple[float, float]:

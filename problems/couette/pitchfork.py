@@ -68,9 +68,13 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 from contin.adapt import on_grid, point_problem
+from contin.blas import limited
 from contin.branch import Branch, SpecialPoint, pad_rows
 from contin.continuation import newton, switch, trace, trace_both
+from contin.jumps import retrace_on_jumps as _retrace_on_jumps
 from contin.options import ContinuationOptions, NewtonOptions
+from contin.overlap import is_invariant
+from contin.overlap import mirror_branch as _mirror_branch
 from contin.stability import audit, count_unstable, eigenvalues
 from problems.couette.closures import coefficients, critical_gap_factor, packing_limit
 from problems.couette.model import CouetteProblem, rebuilt_engine
@@ -93,10 +97,60 @@ BASE_RETRACES = 4
 
 
 # ----------------------------------------------------------------------------- analytic facts
-def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65) -> list[float]:
-    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4); nan where psi is not finite."""
-    psi = float(critical_gap_factor(nu, e, chi, num))
+def analytic_critical_gaps(nu: float, e: float, modes: int = 3, *, chi: str = "jj", num: float = 0.65,
+                           dufour: bool = False) -> list[float]:
+    """H_n^c = n pi psi(nu, e), n = 1..modes (physics.md section 4; ``dufour``: with the kappa_h flux); nan where psi is not finite."""
+    psi = float(critical_gap_factor(nu, e, chi, num, dufour=dufour))
     return [n * math.pi * psi for n in range(1, modes + 1)]
+
+
+#: A BP of uniform shear is mode n when |H/(pi psi) - n| <= min(MODE_TOL n, 1/4) (nearest mode,
+#: never ambiguous between neighbours).
+MODE_TOL = 0.02
+
+
+def bp_mode(H: float, hc1: float) -> int | None:
+    """The mode n of a BP of uniform shear at gap H, from H_n^c = n pi psi (hc1 = pi psi); None if none fits."""
+    if not (math.isfinite(H) and math.isfinite(hc1) and hc1 > 0):
+        return None
+    n = round(H / hc1)
+    return n if n >= 1 and abs(H / hc1 - n) <= min(MODE_TOL * n, 0.25) else None
+
+
+def name_modes(base: Branch, hc1: float) -> None:
+    """Append "mode n (n pi psi = ...)" to the note of every BP of uniform shear that matches one.
+
+    Why: BP labels count the BPs found; a BP skipped (or not resolved by the grid) would shift
+    every later number, so the mode is read off the location, H_n^c = n pi psi (physics.md sec. 4).
+    Idempotent (a resumed branch already carries the names).
+    """
+    named = []
+    for s in base.special_points:
+        n = bp_mode(s.params.get("H", math.nan), hc1) if s.type == "BP" else None
+        if n is not None and "mode " not in s.note:
+            s = replace(s, note=f"{s.note}; mode {n} (n pi psi = {n * hc1:.10g})".lstrip("; "))
+        named.append(s)
+    base.special_points = named
+
+
+def mode_notes(base: Branch, hc1: float, H_lo: float, H_max: float) -> list[str]:
+    """Notes on the BPs of uniform shear that match no mode, and on the modes in [H_lo, H_max] not found."""
+    notes = []
+    found = set()
+    for s in base.branch_points:
+        n = bp_mode(s.params["H"], hc1)
+        if n is None:
+            notes.append(f"BP at H = {s.params['H']:.10g} on uniform shear matches no mode n pi psi "
+                         f"(pi psi = {hc1:.10g}): not a pitchfork of uniform shear; check the grid")
+        else:
+            found.add(n)
+    expected = [n for n in range(1, int(H_max / hc1) + 1) if H_lo < n * hc1 < H_max]
+    missing = [n for n in expected if n not in found]
+    if missing:
+        shown = ", ".join(f"{n} (H = {n * hc1:.6g})" for n in missing[:12]) + (", ..." if len(missing) > 12 else "")
+        notes.append(f"{len(missing)} of the {len(expected)} modes with H_n^c = n pi psi below H_max = {H_max:.6g} "
+                     f"were not found on uniform shear: modes {shown}; a finer grid resolves higher modes")
+    return notes
 
 
 def _psi_bracket(nu: float, e: float, chi: str, num: float) -> float:
@@ -161,32 +215,16 @@ def newton_at(problem: Any, branch: Branch, values: Mapping[str, float], params:
 
 
 def mirror_branch(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
-    """The image of ``branch`` under the reflection S (problem.symmetry), with recomputed observables.
+    """The image of ``branch`` under the reflection S (:func:`contin.overlap.mirror_branch`), with
+    recomputed observables and the original's message.
 
     Stability columns are copied: S maps the k_x = 0 eigenproblem at x onto that at S x.
     """
-    if branch.state_index is not None:
-        raise ValueError("mirror_branch needs every state of the branch (save_every = 1)")
-    if branch.sizes is not None:
+    if branch.sizes is not None:  # points on several grids (adaptive runs)
         return _mirror_regridded(problem, branch, params, branch_id)
-    smat = problem.symmetry_matrix()
-    states = np.asarray((smat @ branch.states.T).T)
-    obs: dict[str, list[float]] = {}
-    for i, x in enumerate(states):
-        p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
-        for k, v in problem.observables(x, p).items():
-            obs.setdefault(k, []).append(v)
-    tang = branch.tangents.copy()
-    tang[:, :-1] = (smat @ tang[:, :-1].T).T
-    sps = [replace(sp_, state=np.asarray(smat @ sp_.state), order_parameter=problem.order_parameter(smat @ sp_.state),
-                   tangent=None if sp_.tangent is None else np.concatenate([smat @ sp_.tangent[:-1], sp_.tangent[-1:]]))
-           for sp_ in branch.special_points]
-    return dataclasses.replace(
-        branch, observables={k: np.array(v) for k, v in obs.items()}, states=states, tangents=tang,
-        special_points=sps, id=branch_id, kind=branch.kind, audit=list(branch.audit),
-        stable=None if branch.stable is None else branch.stable.copy(),
-        n_unstable=None if branch.n_unstable is None else branch.n_unstable.copy(),
-        eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())
+    out = _mirror_branch(problem, branch, params, branch_id)
+    out.message = branch.message
+    return out
 
 
 def _mirror_regridded(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
@@ -219,9 +257,11 @@ def _mirror_regridded(problem: CouetteProblem, branch: Branch, params: Mapping[s
 
 def _is_invariant(problem: CouetteProblem, branch: Branch, tol: float = 1e-6) -> bool:
     """True when the middle state of the branch is S-invariant (the branch maps to itself)."""
-    x = branch.state(len(branch) // 2) if branch.state_index is None else branch.states[len(branch.states) // 2]
-    x = state_on(problem, x[np.isfinite(x)])
-    return float(np.max(np.abs(problem.symmetry(x) - x))) <= tol * max(1.0, float(np.max(np.abs(x))))
+    if branch.sizes is not None:  # points on several grids (adaptive runs)
+        x = branch.state(len(branch) // 2)
+        x = state_on(problem, x)
+        return float(np.max(np.abs(problem.symmetry(x) - x))) <= tol * max(1.0, float(np.max(np.abs(x))))
+    return is_invariant(problem, branch, tol)
 
 
 # ----------------------------------------------------------------------------- branches
@@ -241,9 +281,10 @@ def trace_base(problem: CouetteProblem, params: Mapping[str, float], H_start: fl
 
 def retrace_on_jumps(run: Callable[[ContinuationOptions], Branch], options: ContinuationOptions, *, what: str,
                      jumped: Callable[[Branch], str | None] | None = None, unconverged_bp: bool = True) -> Branch:
-    """``run(options)``, repeated with ds_max halved (at most :data:`BASE_RETRACES` times) while it jumped.
+    """``run(options)``, repeated with ds_max halved (at most :data:`BASE_RETRACES` times) while it
+    jumped (:func:`contin.jumps.retrace_on_jumps`).
 
-    Why.  With JJ walls the base branch steepens where JJ walls unfold the no-slip mode-2
+    Why in gPCF.  With JJ walls the base branch steepens where JJ walls unfold the no-slip mode-2
     pitchfork (module docstring), next to a fold-bounded isolated symmetric branch.  The
     step-length norm is dominated by H (the state enters with weight 1/n), so a step long in H
     can land on the other branch: the tangent orientation there is the opposite one, the BP test
@@ -255,25 +296,8 @@ def retrace_on_jumps(run: Callable[[ContinuationOptions], Branch], options: Cont
     ``jumped(branch)`` reports (a reason, or None).  The retrace is recorded in ``branch.audit``
     ("<what> re-traced with ds_max = ...").
     """
-    opts = options
-    retraced: list[str] = []
-    for attempt in range(BASE_RETRACES + 1):
-        branch = run(opts)
-        bad = [b for b in branch.branch_points if not b.converged] if unconverged_bp else []
-        reason = f"BP location did not converge at H = {', '.join(format(b.params['H'], '.6g') for b in bad)}" \
-            if bad else (jumped(branch) if jumped is not None else None)
-        if reason is None or attempt == BASE_RETRACES:
-            break
-        retraced.append(f"ds_max = {opts.step.ds_max:.4g} ({reason})")
-        half = 0.5 * opts.step.ds_max
-        step = replace(opts.step, ds_max=half, ds=math.copysign(min(abs(opts.step.ds), half), opts.step.ds),
-                       ds_min=min(opts.step.ds_min, half))
-        opts = replace(opts, step=step)
-        log.info("%s re-traced with ds_max = %g: a step jumped between branches", what, half)
-    if retraced:
-        branch.audit = [*branch.audit, f"{what} re-traced with ds_max = {opts.step.ds_max:.4g}: the traces with "
-                        + "; ".join(retraced) + " jumped between branches"]
-    return branch
+    return _retrace_on_jumps(run, options, what=what, jumped=jumped, unconverged_bp=unconverged_bp,
+                             retraces=BASE_RETRACES)
 
 
 def first_point_on(problem: CouetteProblem, base: Branch, branch: Branch, params: Mapping[str, float], *,
@@ -355,10 +379,11 @@ def isolated_symmetric_branch(problem: CouetteProblem, base: Branch, params: Map
 
 
 def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, params: Mapping[str, float],
-                    options: ContinuationOptions, prefix: str) -> list[Branch]:
+                    options: ContinuationOptions, prefix: str, *, first: Branch | None = None) -> list[Branch]:
     """Both signs of the branch bifurcating at ``bp``: ids f"{prefix}.1" and f"{prefix}.2".
 
-    The first is traced by :func:`contin.continuation.switch`; the second is its mirror image
+    The first is traced by :func:`contin.continuation.switch` (or is ``first``, a finished branch
+    of an interrupted run: ``--resume`` must not retrace it); the second is its mirror image
     when the first is not S-invariant (symmetry-breaking BPs), otherwise it is traced too
     (S-invariant branches, e.g. mode 2, whose two signs are different states).
     """
@@ -375,7 +400,7 @@ def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, par
         return retrace_on_jumps(run, options, what=f"branch from {bp.name}", unconverged_bp=False,
                                 jumped=lambda b: first_point_on(problem, base, b, params, start=2))
 
-    b1 = switched(+1)
+    b1 = first if first is not None else switched(+1)
     b1.id = f"{prefix}.1"
     if _is_invariant(problem, b1):
         b2 = switched(-1)
@@ -517,13 +542,31 @@ class StabilityOperator:
         nu, u, T, _, _ = pb.unpack(np.asarray(x, dtype=float))
         grid, nu, u, T = to_chebyshev(pb.grid, nu, u, T)
         A, B = linear_operator(grid, nu, u, T, p, walls=pb.walls, kx=kx, kz=kz, chi=pb.chi, dufour=pb.dufour,
-                               gravity=False)
+                               gravity=False, dense=True)
         if kx == 0.0 and kz == 0.0:
             n = grid.size
             keep = np.r_[0:3 * n, 4 * n:5 * n]
-            A = sp.csr_matrix(A)[keep][:, keep]
-            B = sp.csr_matrix(B)[keep][:, keep]
+            A = A[np.ix_(keep, keep)]
+            B = B[np.ix_(keep, keep)]
         return A, B
+
+    def spectrum(self, x: Array, p: Mapping[str, float], kx: float = 0.0) -> np.ndarray:
+        """All finite eigenvalues at wavenumber k_x (k_z = 0), real part descending.
+
+        k_x = 0: ``linear.k0_spectrum`` (the constrained Schur form, split into S-even and S-odd
+        halves on symmetric states); otherwise, or if its boundary block is singular,
+        :func:`finite_eigenvalues` of :meth:`eigenproblem`.
+        """
+        if kx == 0.0:
+            from problems.couette.linear import k0_spectrum, to_chebyshev
+
+            pb = self.problem
+            nu, u, T, _, _ = pb.unpack(np.asarray(x, dtype=float))
+            grid, nu, u, T = to_chebyshev(pb.grid, nu, u, T)
+            w = k0_spectrum(grid, nu, u, T, p, walls=pb.walls, chi=pb.chi, dufour=pb.dufour, gravity=False)
+            if w is not None:
+                return w
+        return finite_eigenvalues(*self.eigenproblem(x, p, kx=kx))
 
 
 def finite_eigenvalues(A: Any, B: Any) -> np.ndarray:
@@ -562,7 +605,7 @@ def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx:
         p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
         op_i = op if branch.grid is None else type(op)(point_problem(op.problem, branch, i))  # its own grid
         try:
-            w = finite_eigenvalues(*op_i.eigenproblem(branch.state(i), p, kx=kx))
+            w = op_i.spectrum(branch.state(i), p, kx=kx)
         except (np.linalg.LinAlgError, ValueError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
             continue
@@ -572,6 +615,7 @@ def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx:
     return stable, n_unstable, eigs
 
 
+@limited()  # small dense eigenproblems: one BLAS thread (contin.blas)
 def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], *, n_eigs: int = 6) -> list[str]:
     """k_x = k_z = 0 stability of every stored point, then ``contin.stability.audit``.
 
@@ -604,6 +648,7 @@ def audit_branch(branch: Branch) -> list[str]:
     return audit(branch)
 
 
+@limited()
 def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list]:
     """max Re omega and the unstable count at wavenumber k_x (k_z = 0) at every stored point."""
     _, counts, eigs = _stability_columns(StabilityOperator(problem), branch, params, kx, 1)

@@ -55,9 +55,10 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from problems.discretization import Grid, chebyshev_coefficients, fornberg_weights, make_grid
+from problems.discretization import Grid, chebyshev_coefficients, chebyshev_nodes
 
 Array = NDArray[np.float64]
 
@@ -76,19 +77,30 @@ def tail(coefficients: Array, modes: int = TAIL_MODES) -> float:
     return float(np.max(np.abs(coefficients[-modes:])))
 
 
+def lagrange_matrix(nodes: Array, targets: Array, width: int) -> sp.csr_matrix:
+    """Sparse local Lagrange interpolation from ascending ``nodes`` to ``targets``: each target
+    uses the ``width`` consecutive nodes around it (shifted inwards at the ends), weights
+    l_i(y) = prod_{j != i} (y - x_j) / (x_i - x_j).  O(len(targets) width^2) time and memory."""
+    nodes = np.asarray(nodes, dtype=float)
+    targets = np.asarray(targets, dtype=float)
+    width = min(width, nodes.size)
+    i = np.searchsorted(nodes, targets, side="right") - 1
+    start = np.clip(i - width // 2 + 1, 0, nodes.size - width)
+    idx = start[:, None] + np.arange(width)[None, :]
+    x = nodes[idx]  # (T, width)
+    diff = targets[:, None] - x
+    weights = np.empty_like(x)
+    for a in range(width):
+        others = [b for b in range(width) if b != a]
+        weights[:, a] = np.prod(diff[:, others], axis=1) / np.prod(x[:, [a]] - x[:, others], axis=1)
+    rows = np.repeat(np.arange(targets.size), width)
+    return sp.csr_matrix((weights.ravel(), (rows, idx.ravel())), shape=(targets.size, nodes.size))
+
+
 @lru_cache(maxsize=16)
-def _to_chebyshev_matrix(grid: Grid) -> Array:
+def _to_chebyshev_matrix(grid: Grid) -> sp.csr_matrix:
     """Local Lagrange interpolation (FD_WIDTH nodes) from an FD grid onto the Chebyshev nodes with the same N."""
-    target = make_grid("cheb", grid.intervals).y
-    width = min(FD_WIDTH, grid.size)
-    h = 1.0 / grid.intervals
-    out = np.zeros((target.size, grid.size))
-    for k, yk in enumerate(target):  # once per grid (cached)
-        i = int(np.clip(np.floor((yk + 0.5) / h), 0, grid.intervals))
-        start = min(max(i - width // 2 + 1, 0), grid.size - width)
-        idx = np.arange(start, start + width)
-        out[k, idx] = fornberg_weights(yk, grid.y[idx], 0)[:, 0]
-    return out
+    return lagrange_matrix(grid.y, chebyshev_nodes(grid.intervals), FD_WIDTH)
 
 
 @dataclass(frozen=True)
@@ -152,7 +164,8 @@ def _suggest(method: str, n: int, error: float, tol: float, a: Array | None) -> 
 
 
 def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
-    """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem`.
+    """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem` (or of any
+    problem on a ``grid`` with ``profiles`` nu, u, T and a ``packing_limit(p)`` method, e.g. problems.disks).
 
     ``tol`` only enters the grid suggestion.
     """
@@ -160,7 +173,9 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
 
     profiles = problem.profiles(np.asarray(x, dtype=float))
     grid = problem.grid
-    limit = packing_limit(problem.chi, float(np.real(p["num"])))
+    # problems with their own closure (problems.disks) say where it ends; gPCF's is chi's limit
+    own_limit = getattr(problem, "packing_limit", None)
+    limit = float(own_limit(p)) if callable(own_limit) else packing_limit(problem.chi, float(np.real(p["num"])))
     if grid.method != "cheb":
         m = _to_chebyshev_matrix(grid)
         profiles = {k: m @ v for k, v in profiles.items()}

@@ -1,8 +1,9 @@
 """Scenes of granular plane Couette flow: ``contin trace pitchfork`` and ``contin trace jj-walls``.
 
 ``pitchfork`` (no-slip, adiabatic walls, no gravity; physics.md sections 3-4):
-  uniform shear is traced in H from H_max/20 to H_max (default 3.3 H_1^c), its BPs H_n^c are
-  detected (compared with n pi psi in ``extra``), and at the first ``modes`` (default 3) BPs both
+  uniform shear is traced in H from min(H_max/20, H_1^c/2) to H_max (default 3.3 H_1^c) with steps
+  of at most 0.4 pi psi, its BPs H_n^c are detected and named by mode (compared with n pi psi in the
+  notes and ``extra``; missing modes are named), and at the BPs of modes 1..``modes`` (default 3) both
   signs of the banded branch are followed to H_max (the second sign of a symmetry-breaking mode as
   the mirror image of the first).  Folds are marked.  Below the threshold density where psi stops
   being finite (e = 0.8: nu = 0.15614) uniform shear has no BP ("bifurcation from infinity"): the
@@ -52,7 +53,7 @@ from problems.couette.params import build_params
 
 PITCHFORK_DEFAULTS: dict[str, Any] = {
     "nu": 0.3, "e": 0.8, "H": "auto", "H_max": "auto", "modes": 3, "walls": "noslip", "chi": "jj",
-    "num": 0.65, "phi_w": 0.5, "ew": 0.9,
+    "num": 0.65, "phi_w": 0.5, "ew": 0.9, "dufour": 0,
 }
 JJ_DEFAULTS: dict[str, Any] = {**PITCHFORK_DEFAULTS, "walls": "jj"}
 #: ds_max of the JJ branches as a fraction of H_max: at nu = 0.3, e = 0.8 steps of ~4 in H jump
@@ -60,6 +61,9 @@ JJ_DEFAULTS: dict[str, Any] = {**PITCHFORK_DEFAULTS, "walls": "jj"}
 #: the n = 1 branch back onto the base branch (``pitchfork.retrace_on_jumps`` halves ds_max when
 #: that happens anyway).
 JJ_BASE_DS_MAX = 0.025
+
+#: ds_max of uniform shear as a fraction of H_1^c = pi psi, the spacing of its BPs (at most one BP per step).
+BASE_STEPS_PER_MODE_GAP = 0.4
 
 #: Density of the banded start state when uniform shear has no BP at the requested density.
 LOW_DENSITY_START = 0.2
@@ -107,6 +111,11 @@ def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) ->
     if modes != int(modes) or not 1 <= modes <= 6:
         raise SceneError(f"parameter modes = {values['modes']!r} is out of range; it must be an integer 1..6")
     out["modes"] = int(modes)
+    dufour = values["dufour"]
+    if dufour not in (0, 1, 0.0, 1.0, "on", "off"):
+        raise SceneError(f"parameter dufour = {dufour!r} must be 0 (off, the default) or 1 (the Dufour heat flux "
+                         f"-kappa_h grad(nu) on)")
+    out["dufour"] = dufour in (1, 1.0, "on")
     return p, out
 
 
@@ -114,13 +123,14 @@ def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, 
     """Rebuild the gravity-free problem of a stored run (``contin stability`` uses it)."""
     return CouetteProblem(str(discretization.get("method", "cheb")), int(discretization.get("intervals", 64)),
                           walls=str(parameters.get("walls", "noslip")), chi=str(parameters.get("chi", "jj")),
+                          dufour=bool(parameters.get("dufour", False)),
                           engine=rebuilt_engine(discretization.get("engine")))
 
 
-def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64) -> CouetteProblem:
+def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64, dufour: bool = False) -> CouetteProblem:
     try:
         return CouetteProblem(request.method or "cheb", request.grid or default_grid, walls=walls, chi=chi,
-                              engine=request.engine or "numpy")
+                              dufour=dufour, engine=request.engine or "numpy")
     except ValueError as exc:
         raise SceneError(str(exc)) from None
 
@@ -178,6 +188,11 @@ class _Run:
                 cached = self.kx_extra.get(src.id, {}).get(key)
                 data = cached if cached is not None else pf.growth_rates(pb, src, self.params, kx)
                 self.kx_extra.setdefault(branch.id, {})[key] = data
+                # Also as observable columns, as contin.stability.growth_columns gives every other
+                # scene: `contin diagram -y growth_rate_kx0.5` (nan where the eigenproblem failed).
+                counts = np.asarray(data["n_unstable"], dtype=float)
+                branch.observables[f"growth_rate_kx{key}"] = np.asarray(data["growth_rate"], dtype=float)
+                branch.observables[f"n_unstable_kx{key}"] = np.where(counts < 0, np.nan, counts)
         if branch.status == "MX" and not branch.message.startswith("mirror image"):
             self.notes.append(f"branch {branch.id} stopped (MX): {branch.message}")
         self.done.append(branch)
@@ -197,10 +212,10 @@ def _h_max(settings: Mapping[str, Any], hc1: float) -> float:
 def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK_DEFAULTS,
                   scene: str = "pitchfork") -> SceneResult:
     p, st = _settings(request, defaults, scene)
-    pb = _problem(request, st["walls"], st["chi"])
+    pb = _problem(request, st["walls"], st["chi"], dufour=st["dufour"])
     nu, e = p["nu"], p["e"]
     modes = st["modes"]
-    analytic = pf.analytic_critical_gaps(nu, e, modes, chi=st["chi"], num=p["num"])
+    analytic = pf.analytic_critical_gaps(nu, e, modes, chi=st["chi"], num=p["num"], dufour=st["dufour"])
     hc1 = analytic[0]
     H_max = _h_max(st, hc1)
     low_density = st["walls"] == "noslip" and not math.isfinite(hc1)
@@ -208,6 +223,10 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     if low_density and not H_fixed < H_max:
         raise SceneError(f"the density-continuation gap H = {H_fixed:g} must lie below H_max = {H_max:g}")
     H_lo = H_max / 20.0
+    if st["walls"] == "noslip" and math.isfinite(hc1):
+        # Uniform shear must start below H_1^c = pi psi, else the first BP found is a higher mode
+        # (H_max = 1000 started at 50 > H_3^c and called H_21^c "BP1").
+        H_lo = min(H_lo, 0.5 * hc1)
     H_start = st["H"] if (st["walls"] == "jj" and st["H"] is not None) else H_lo
     if not H_lo <= H_start <= H_max:
         raise SceneError(f"parameter H = {H_start:g} must lie between H_max/20 = {H_lo:g} and H_max = {H_max:g}")
@@ -215,6 +234,10 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     run = _Run(request, pb, p)
     jj = st["walls"] == "jj"
     base_ds_max = (JJ_BASE_DS_MAX if jj else 0.2) * H_max
+    if not jj and math.isfinite(hc1):
+        # Consecutive H_n^c are pi psi apart: a step over two of them sees no sign change of the
+        # BP test function and skips both (H_max = 200 skipped modes 4, 6, 7, ...).
+        base_ds_max = min(base_ds_max, BASE_STEPS_PER_MODE_GAP * hc1)
     base_opts = _options(request, H_lo, H_max, ds=min(0.05 * H_max, base_ds_max), ds_max=base_ds_max)
     band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=(JJ_BASE_DS_MAX if jj else 0.1) * H_max)
     extra: dict[str, Any] = {"H_max": H_max, "walls": st["walls"], "modes": modes}
@@ -226,9 +249,24 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     else:
         request.report(f"{scene}: tracing the base branch in H from {H_start:.4g} to {H_max:.4g}")
         base = pf.trace_base(pb, p, H_start, base_opts, progress=request.report)
+    if len(base) == 0:  # say the real cause in one line (it used to surface as "Error: phi")
+        raise SceneError(f"{scene}: the base branch could not start: {base.message}"
+                         + ("; phi_w = 0 (specular walls) transmits no shear, use phi_w > 0"
+                            if jj and p["phi_w"] == 0 else ""))
+    named = st["walls"] == "noslip" and math.isfinite(hc1)
+    if named:
+        pf.name_modes(base, hc1)
     run.finish(base)
     run.notes += [m for m in base.audit if " re-traced with " in m]
     bps = sorted(base.branch_points, key=lambda b: b.params["H"])
+    if named:
+        run.notes += pf.mode_notes(base, hc1, H_start, H_max)
+        # Switch at the BPs of modes 1..modes, named by mode, not by order: a skipped or spurious
+        # BP must not shift the names of the others.
+        by_mode = {pf.bp_mode(b.params["H"], hc1): b for b in reversed(bps)}
+        bp_list = [(n, by_mode[n]) for n in range(1, modes + 1) if n in by_mode]
+    else:
+        bp_list = list(enumerate(bps[:modes], start=1))
     if st["walls"] == "noslip":
         detected = [b.params["H"] for b in bps]
         rows = []
@@ -246,17 +284,20 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     # ---- banded branches
     banded: list[Branch] = []
     crit: list[dict[str, Any]] = []
-    for k, bp in enumerate(bps[:modes], start=1):
+    for k, bp in bp_list:
         ids = (f"n{k}.1", f"n{k}.2")
         pair = run.cached(*ids)
         if pair is None:
             request.report(f"{scene}: switching at {bp.name} (H = {bp.params['H']:.6g})")
+            first = run.cached(ids[0])  # resume reuses each finished branch, not only whole pairs
             try:
-                pair = pf.banded_branches(pb, base, bp, p, band_opts, prefix=f"n{k}")
+                pair = pf.banded_branches(pb, base, bp, p, band_opts, prefix=f"n{k}", first=first[0] if first else None)
             except ValueError as exc:
                 run.notes.append(f"switching at BP H = {bp.params['H']:.6g} failed: {exc}")
                 continue
             for b in pair:
+                if b.id in request.completed:
+                    continue
                 b.kind = f"banded n={k}" if st["walls"] == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
                 if b.message.startswith("mirror image"):
                     continue
@@ -296,7 +337,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         run.finish(pair[0])
         run.finish(pair[1], stability_from=pair[0])
         banded += pair
-    elif st["walls"] == "noslip" and len(bps) < min(modes, sum(h <= H_max for h in analytic)):
+    elif st["walls"] == "noslip" and not named and len(bps) < min(modes, sum(h <= H_max for h in analytic)):
         run.notes.append(f"only {len(bps)} BPs found on uniform shear below H_max = {H_max:.6g}")
     if jj:
         _jj_walls(run, base, bps, banded, base_opts, extra, H_lo, H_max, modes)
@@ -306,8 +347,8 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     if run.kx_extra:
         extra["stability_kx"] = run.kx_extra
     for row in crit:
-        if row["n"] == 1 and row["branch"].endswith(".1"):
-            run.notes.append(f"pitchfork at H = {bps[0].params['H']:.10g} is {row['kind']} "
+        if row["n"] == 1 and row["branch"].endswith(".1") and bp_list:
+            run.notes.append(f"pitchfork at H = {bp_list[0][1].params['H']:.10g} is {row['kind']} "
                              f"(H - H_c = a delta^2, a = {row['a']:.6g})")
     if st["walls"] == "noslip" and "H_c" in extra:
         for row in extra["H_c"]:
@@ -318,7 +359,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         branches=run.done,
         parameters={**{k: p[k] for k in ("nu", "e", "num")}, **({"phi_w": p["phi_w"], "ew": p["ew"]} if st["walls"] == "jj" else {}),
                     "H": H_fixed if low_density else H_start, "H_max": H_max, "modes": modes,
-                    "walls": st["walls"], "chi": st["chi"]},
+                    "walls": st["walls"], "chi": st["chi"], "dufour": int(st["dufour"])},
         discretization={"method": pb.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
         # States of any grid (adaptive runs) are carried onto the start grid, whose y the file stores.

@@ -272,10 +272,21 @@ class DiskCouetteProblem:
             return f"temperature not positive (min T = {np.min(T):.3g})"
         if np.min(nu) <= 0:
             return f"area fraction not positive (min nu = {np.min(nu):.3g})"
-        limit = self.closure.packing_limit(p)
+        limit = self.packing_limit(p)
         if np.max(nu) >= limit:
             return f"area fraction reached phi_inf = {limit:g} (max nu = {np.max(nu):.6g})"
         return None
+
+    def packing_limit(self, p) -> float:
+        """The area fraction where the closure ends (phi_inf)."""
+        return self.closure.packing_limit(p)
+
+    def under_resolved(self, x, p, tol: float) -> str | None:
+        """contin's resolution guard: the Chebyshev-tail estimate of problems.couette.resolution (the
+        tail of nu measured against the distance to phi_inf), shared with the 3-D problem."""
+        from problems.couette.resolution import under_resolved
+
+        return under_resolved(self, x, p, tol)
 
     def order_parameter(self, x, p=None) -> float:
         """Phi = nu(y = 1/2), the area fraction at the top wall."""

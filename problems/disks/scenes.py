@@ -105,7 +105,7 @@ def run_pitchfork(request: SceneRequest) -> SceneResult:
     pb = None
     for model in models:
         closure = DiskClosure(G=model)
-        pb = _problem(request, closure)
+        pb = _problem(request, closure, grid=64)  # cheb 32 under-resolves the n = 1 plugs from H ~ 1.8 H_1^c
         p = _params(pb, s)
         hcs = critical_gaps(p, closure, modes)
         if not math.isfinite(hcs[0]):
@@ -132,8 +132,8 @@ def run_pitchfork(request: SceneRequest) -> SceneResult:
                                  for b, h in zip(base.branch_points, hcs)))
         banded = _h_options(request, 0.3 * hcs[0], hi, ds=0.01, ds_max=0.05 * hcs[0],
                             max_steps=int(s["banded_steps"]), locate_tol=1e-9)
-        for bp in base.branch_points[:modes]:
-            prefix = f"{bid}.{bp.name}"
+        for j, bp in enumerate(base.branch_points[:modes], start=1):
+            prefix = f"{bid}.n{j}"
             ids = [f"{prefix}.1", f"{prefix}.2"]
             if all(i in request.completed for i in ids):
                 kids = [request.completed[i] for i in ids]
@@ -245,8 +245,12 @@ def run_savage(request: SceneRequest) -> SceneResult:
     s = _settings(request, SAVAGE_DEFAULTS, "savage-rheology")
     if s["corr"] not in G_MODELS:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
+    if not s["phi_c"] < s["nu_band"]:
+        raise SceneError(f"parameter nu_band = {s['nu_band']:g} <= phi_c = {s['phi_c']:g}: the dense (contact) closure "
+                         "has no contact part there; the banding question is asked above phi_c")
     closure = DiskClosure(G=s["corr"], contact=True, normalization="esi")
-    pb = _problem(request, closure, grid=32)
+    # cheb 96: the banded dense plug nears phi_inf within ~2 H_1^c (the resolution guard ends it there)
+    pb = _problem(request, closure, grid=96)
     p = _params(pb, {**s, "nu": s["nu_band"], "a0": s["a0_band"]})
     kn = kn_in_time_units(s["e"])  # k_n in units m / t_m^2
     a0_esi = s["a0_over_kn"] / kn  # a0 in units m / t_m^2 (the ESI's stress unit with upsilon = d^2)
@@ -316,13 +320,13 @@ def run_savage(request: SceneRequest) -> SceneResult:
                      f"{', '.join(f'{b.params[chr(72)]:.8g}' for b in base.branch_points) or 'none'}")
         if base.branch_points:
             bp = base.branch_points[0]
-            ids = [f"band.{bp.name}.1", f"band.{bp.name}.2"]
+            ids = ["band.n1.1", "band.n1.2"]
             if all(i in request.completed for i in ids):
                 kids = [request.completed[i] for i in ids]
             else:
                 kids = switch(pb, base, bp, _h_options(request, 0.3 * hcs[0], 2.5 * hcs[0], ds=0.01,
                                                        ds_max=0.05 * hcs[0], max_steps=60, locate_tol=1e-9),
-                              branch_id_prefix=f"band.{bp.name}")
+                              branch_id_prefix="band.n1")
             for kid in kids:
                 _emit(request, done, kid)
     else:

@@ -1,0 +1,101 @@
+"""User zeros and events (label UZ): AUTO-07p's UZR / UZSTOP, BifurcationKit's events.
+
+Two kinds of point test (``contin.pointtests``), each located along the branch like a fold
+(re-correction at intermediate arclengths, Anderson-Bjorck regula falsi, ``contin.locate``):
+
+- a parameter value, ``ContinuationOptions.user_zeros = {"H": (25, 30)}``: the test function
+  is g = p - value for the continuation parameter p (AUTO's UZR);
+- an event, ``ContinuationOptions.events = {"name": g}`` with ``g(u, params) -> float``: a UZ
+  wherever g changes sign (the note names the event).
+
+Each UZ stores its state, like every special point, and ``data['value']`` (the target value
+of a parameter zero, 0 for an event).  ``stop_at=("UZ1",)`` ends the run at the first one
+(AUTO's negative UZR / UZSTOP).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from contin.branch import SpecialPoint
+from contin.pointtests import Crossing
+from contin.problem import Array
+
+
+@dataclass(frozen=True)
+class ParameterZeros:
+    """UZ where the continuation parameter equals one of ``values``."""
+
+    parameter: str
+    values: tuple[float, ...]
+    kind: str = "UZ"
+
+    @property
+    def name(self) -> str:
+        return f"uz:{self.parameter}"
+
+    def value(self, system: Any, x: Array) -> float:
+        return float(x[-1])
+
+    def crossings(self, va: float, vb: float) -> list[Crossing]:
+        out: list[Crossing] = []
+        for target in self.values:
+            if (va - target) * (vb - target) < 0:
+                out.append((f"{self.parameter}={target:g}", lambda v, t=target: float(v) - t))
+        return out
+
+    def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
+        note = sp.note.split(";")[0]
+        target = float(note.split("=", 1)[1]) if "=" in note else math.nan
+        return replace(sp, data={**sp.data, "value": target})
+
+
+@dataclass(frozen=True)
+class Event:
+    """UZ where the user function g(u, params) changes sign."""
+
+    label: str
+    g: Callable[..., float]
+    kind: str = "UZ"
+
+    @property
+    def name(self) -> str:
+        return f"event:{self.label}"
+
+    def value(self, system: Any, x: Array) -> float:
+        v = float(self.g(x[:-1], system.params_at(x[-1])))
+        if math.isnan(v):
+            raise ValueError(f"event {self.label!r} returned NaN at {system.parameter}={x[-1]:g}")
+        return v
+
+    def crossings(self, va: float, vb: float) -> list[Crossing]:
+        if va == 0 or vb == 0 or (va > 0) == (vb > 0):
+            return []
+        return [(self.label, float)]
+
+    def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
+        return replace(sp, data={**sp.data, "value": 0.0})
+
+
+def user_tests(problem: Any, parameter: str, options: Any) -> list[Any]:
+    """The UZ point tests of one trace in ``parameter``; ValueError for an unknown name.
+
+    A value of a parameter other than the continuation one is never crossed on a
+    one-parameter branch, so it is accepted and ignored (the same options serve traces in
+    different parameters).
+    """
+    out: list[Any] = []
+    names = tuple(problem.parameter_names)
+    for name, values in options.user_zeros.items():
+        if name not in names:
+            raise ValueError(f"user_zeros given for unknown parameter {name!r}; the problem has {', '.join(names)}")
+        if name == parameter and values:
+            out.append(ParameterZeros(name, tuple(np.asarray(values, dtype=float).tolist())))
+    for label, g in options.events.items():
+        out.append(Event(str(label), g))
+    return out

@@ -1,0 +1,125 @@
+"""Invariants a contin run file must satisfy when it is read (``contin.io.load``).
+
+The writer refuses non-finite data (``contin.io.check_finite``) and writes every per-point
+column with one row per branch point; a file that breaks either was damaged or edited after it
+was written, and reading it on would give silent wrong answers (``contin info`` reported "7
+points" for a 4-row column; NaN states drew T < 0).  :func:`check_branch` and
+:func:`check_special_points` raise :class:`BadDataset` naming the dataset; ``contin.io.load``
+turns it into a ``FileFormatError``.
+
+Checked per branch (S = len(ds) points): every parameter, observable, ``newton_iterations``,
+``stable``, ``n_unstable`` column and the rows of ``tangents`` and ``eigenvalues`` have S rows;
+``states`` has S rows, or one per ``state_index`` entry (each in [0, S)); ``profile_index``
+entries lie in [0, S) and each profile has one row per entry.  Finite as the writer requires:
+states, tangents, ds, free parameters, observables that are not NaN everywhere, profiles;
+fixed parameters may be inf, not NaN.  Special points: index in [0, S) of their branch, free
+parameters and located states (up to ``state_size``) finite.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+
+class BadDataset(ValueError):
+    """A dataset that breaks an invariant of the format (message names it)."""
+
+
+def _bad_row(values: Any, allow_inf: bool = False) -> int | None:
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "fc" or arr.size == 0:
+        return None
+    bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
+    if arr.ndim > 1:
+        bad = bad.reshape(arr.shape[0], -1).any(axis=1)
+    hits = np.flatnonzero(bad)
+    return int(hits[0]) if hits.size else None
+
+
+def _rows(where: str, values: Any, n: int, what: str) -> None:
+    got = int(np.shape(values)[0]) if np.ndim(values) else -1
+    if got != n:
+        raise BadDataset(f"dataset {where} has {got} rows, {what} has {n}")
+
+
+def _finite(where: str, values: Any, *, allow_inf: bool = False) -> None:
+    row = _bad_row(values, allow_inf)
+    if row is not None:
+        kind = "NaN" if allow_inf else "a non-finite value"
+        raise BadDataset(f"dataset {where} holds {kind} at row {row} (the writer stores only finite values there)")
+
+
+def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, str]],
+                 profiles: Mapping[str, np.ndarray] | None = None) -> None:
+    """Raise :class:`BadDataset` if the branch read from ``group`` breaks an invariant (module docstring)."""
+    s = len(branch)
+    what = f"branch {branch.id!r} ({s} points by its ds column)"
+    free = set(branch.free) | {branch.parameter}
+    _finite(f"{group}/ds", branch.ds)
+    for kind, table in (("params", branch.params), ("observables", branch.observables)):
+        for name, values in table.items():
+            where = f"{group}/{datasets[kind][name]}"
+            _rows(where, values, s, what)
+            if kind == "params":
+                _finite(where, values, allow_inf=name not in free)
+            elif not (np.asarray(values).dtype.kind in "fc" and np.isnan(values).all()):
+                _finite(where, values)
+    for name in ("newton_iterations", "tangents", "stable", "n_unstable", "eigenvalues"):
+        value = getattr(branch, name, None)
+        if value is not None:
+            _rows(f"{group}/{name}", value, s, what)
+    sizes = getattr(branch, "sizes", None)
+    if sizes is None:
+        _finite(f"{group}/tangents", branch.tangents)
+    else:  # adaptive runs: rows NaN-padded beyond each point's size (the writer's layout)
+        _rows(f"{group}/sizes", sizes, s, what)
+        if s and not (0 < int(np.min(sizes)) and int(np.max(sizes)) <= branch.states.shape[1]):
+            raise BadDataset(f"dataset {group}/sizes holds a size outside 1..{branch.states.shape[1]}")
+        for i in range(s):
+            if _bad_row(branch.tangent(i)) is not None:
+                raise BadDataset(f"dataset {group}/tangents holds a non-finite value at row {i} "
+                                 f"(the writer stores only finite values there)")
+    grid = getattr(branch, "grid", None)
+    if grid is not None:
+        _rows(f"{group}/grid", grid, s, what)
+    index = getattr(branch, "state_index", None)
+    if index is None:
+        _rows(f"{group}/states", branch.states, s, what)
+    else:
+        _rows(f"{group}/states", branch.states, len(index), f"dataset {group}/state_index")
+        if len(index) and not (0 <= int(np.min(index)) and int(np.max(index)) < s):
+            raise BadDataset(f"dataset {group}/state_index points outside the branch's {s} points")
+    if sizes is None:
+        _finite(f"{group}/states", branch.states)
+    else:
+        rows = range(s) if index is None else [int(i) for i in index]
+        for k, i in enumerate(rows):
+            if _bad_row(branch.states[k, : int(sizes[i])]) is not None:
+                raise BadDataset(f"dataset {group}/states holds a non-finite value at row {k} "
+                                 f"(the writer stores only finite values there)")
+    if profiles:
+        idx = np.asarray(profiles["index"])
+        if idx.size and not (0 <= int(idx.min()) and int(idx.max()) < s):
+            raise BadDataset(f"dataset {group}/profile_index points outside the branch's {s} points")
+        for name, arr in profiles.items():
+            if name != "index":
+                _rows(f"{group}/profiles/{name}", arr, idx.size, f"dataset {group}/profile_index")
+                _finite(f"{group}/profiles/{name}", arr)
+
+
+def check_special_point(row: int, branch: Any, sp: Any) -> None:
+    """Raise :class:`BadDataset` if special-point row ``row`` (of ``branch``) breaks an invariant."""
+    if not 0 <= sp.index < max(len(branch), 1):
+        raise BadDataset(f"dataset special_points/index row {row} is {sp.index}, outside branch "
+                         f"{branch.id!r} ({len(branch)} points)")
+    for name in (set(branch.free) | {branch.parameter}) & set(sp.params):
+        v = sp.params[name]
+        if not isinstance(v, str) and not np.isfinite(v):
+            raise BadDataset(f"dataset special_points/params/{name} holds a non-finite value at row {row} "
+                             f"(the writer stores only finite values there)")
+    if sp.state is not None and _bad_row(np.ravel(sp.state)) is not None:
+        raise BadDataset(f"dataset special_points/states holds a non-finite value at row {row} "
+                         f"(the writer stores only finite values there)")

@@ -1,0 +1,416 @@
+"""Two-parameter continuation of Hopf points, with Bogdanov-Takens (BT) detection.
+
+A Hopf point of M u' = F(u, p1, p2) has a real two-dimensional invariant subspace of the
+pencil (J, M) on which it acts with eigenvalues +-i omega.  With kappa = omega^2 the curve of
+Hopf points is traced as the solutions of the standard augmented system (Govaerts,
+*Numerical Methods for Bifurcations of Dynamical Equilibria*, SIAM 2000, sec. 4.4.2; the
+"J^2 + kappa I" formulation of Roose & Hlavacek, SIAM J. Appl. Math. 45, 1985)
+
+    F(u, p1, p2) = 0,   J v - M w = 0,   J w + kappa M v = 0,   c . v - 1 = 0,   d . v = 0,
+
+unknowns U = (u, v, w, kappa, p2), continued in p1 by the ordinary pseudo-arclength tracer
+(c, d: fixed vectors, Re q and Im q of the start's eigenvector q made orthogonal, so that the
+two rows pick one v of the two-dimensional invariant subspace).  Both rows act on v: a row
+c . w = 0 on w = M^{-1} J v instead degenerates at BT, where J maps the whole subspace onto
+the kernel (the solution has w = 0 there and the augmented Jacobian is singular).  kappa > 0 on Hopf points
+(omega = sqrt(kappa)); the same equations with kappa < 0 describe neutral saddles (real
+eigenvalues +-sqrt(-kappa)), and at kappa = 0 (J v = M w, J w = 0: a Jordan block of the zero
+eigenvalue) the curve passes a Bogdanov-Takens point, where it meets a fold curve.  BT is the
+sign change of kappa, located like every test function by the tracer (``contin.locate``);
+the part of the curve with kappa < 0 is kept and marked by the column ``kappa``.
+
+On fold curves (``contin.foldcurve``: J phi = 0) a BT is where the left null vector psi of J
+becomes M-orthogonal to phi (the zero eigenvalue becomes double and non-semisimple): the test
+function psi^T M phi / (|psi| |phi|) changes sign there (Govaerts 2000, sec. 4.3).
+:func:`fold_bt_test` is the point test, passed with ``trace_fold_curve(..., bt=True)``.
+
+M is taken as constant (independent of u and p), as everywhere in contin's Hopf code.  The
+second derivatives the augmented Jacobian needs are central differences of the problem's
+Jacobian along v and w (as ``contin.foldcurve`` does along phi).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from contin.branch import Branch, SpecialPoint
+from contin.options import ContinuationOptions
+from contin.pointtests import Crossing
+from contin.problem import Array, has
+
+#: Relative step of the central differences of J and F_p along v, w.
+FD_EPS = 1e-6
+#: Augmented systems with at most this many unknowns get a dense Jacobian.
+DENSE_AUGMENTED = 300
+
+
+def _mass(problem: Any, u: Array, q: Mapping[str, float], n: int) -> sp.csr_matrix:
+    if has(problem, "mass_matrix"):
+        return sp.csr_matrix(problem.mass_matrix(u, q), dtype=float)
+    return sp.identity(n, format="csr")
+
+
+class HopfCurveProblem:
+    """The augmented Hopf system as a contin Problem (state U = [u, v, w, kappa, p2])."""
+
+    def __init__(self, problem: Any, second: str, normalisation: Array, phase: Array, eps: float = FD_EPS) -> None:
+        self.problem = problem
+        self.second = second
+        self.parameter_names = tuple(problem.parameter_names)
+        self.c = np.asarray(normalisation, float)
+        self.d = np.asarray(phase, float)
+        self.n = self.c.size
+        self.eps = eps
+        self._m: sp.csr_matrix | None = None
+
+    def split(self, state: Array, p: Mapping[str, float]) -> tuple[Array, Array, Array, float, dict[str, float]]:
+        n = self.n
+        q = dict(p)
+        q[self.second] = float(state[3 * n + 1])
+        return state[:n], state[n:2 * n], state[2 * n:3 * n], float(state[3 * n]), q
+
+    def mass(self, u: Array, q: Mapping[str, float]) -> sp.csr_matrix:
+        if self._m is None:
+            self._m = _mass(self.problem, u, q, self.n)
+        return self._m
+
+    def residual(self, state: Array, p: Mapping[str, float]) -> Array:
+        u, v, w, kappa, q = self.split(state, p)
+        jac = self.problem.jacobian(u, q)
+        m = self.mass(u, q)
+        return np.concatenate([self.problem.residual(u, q), jac @ v - m @ w, jac @ w + kappa * (m @ v),
+                               [self.c @ v - 1.0, self.d @ v]])
+
+    def _step(self, u: Array, d: Array) -> float:
+        return self.eps * max(1.0, float(np.max(np.abs(u)))) / max(float(np.max(np.abs(d))), 1e-300)
+
+    def _hessian(self, u: Array, d: Array, q: Mapping[str, float]) -> Any:
+        """d/du (J d) by a central difference of J along d (sparse or dense as J comes)."""
+        h = self._step(u, d)
+        plus, minus = self.problem.jacobian(u + h * d, q), self.problem.jacobian(u - h * d, q)
+        if sp.issparse(plus) or sp.issparse(minus):
+            return (sp.csr_matrix(plus) - sp.csr_matrix(minus)) / (2 * h)
+        return (np.asarray(plus) - np.asarray(minus)) / (2 * h)
+
+    def _mixed(self, u: Array, d: Array, q: Mapping[str, float], name: str) -> Array:
+        """d/dp (J d) = d/du(F_p) d, by a central difference along d."""
+        h = self._step(u, d)
+        fp = self.problem.dresidual_dp
+        return (fp(u + h * d, q, name) - fp(u - h * d, q, name)) / (2 * h)
+
+    def jacobian(self, state: Array, p: Mapping[str, float]) -> sp.csr_matrix | Array:
+        """The augmented Jacobian: dense below :data:`DENSE_AUGMENTED` unknowns (assembling
+        scipy.sparse blocks costs far more than the dense arithmetic there), else sparse."""
+        u, v, w, kappa, q = self.split(state, p)
+        if 3 * self.n + 2 <= DENSE_AUGMENTED:
+            return self._dense_jacobian(u, v, w, kappa, q)
+        jac = sp.csr_matrix(self.problem.jacobian(u, q))
+        m = self.mass(u, q)
+        col = lambda a: sp.csr_matrix(np.asarray(a, float)[:, None])  # noqa: E731
+        row = sp.csr_matrix(self.c[None, :])
+        row_d = sp.csr_matrix(self.d[None, :])
+        blocks = [
+            [jac, None, None, None, col(self.problem.dresidual_dp(u, q, self.second))],
+            [self._hessian(u, v, q), jac, -m, None, col(self._mixed(u, v, q, self.second))],
+            [self._hessian(u, w, q), kappa * m, jac, col(m @ v), col(self._mixed(u, w, q, self.second))],
+            [None, row, None, None, None],
+            [None, row_d, None, None, None],
+        ]
+        return sp.bmat(blocks, format="csr")
+
+    def _dense_jacobian(self, u: Array, v: Array, w: Array, kappa: float, q: Mapping[str, float]) -> Array:
+        n = self.n
+
+        def dense(a: Any) -> Array:
+            return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+
+        jac = dense(self.problem.jacobian(u, q))
+        m = dense(self.mass(u, q))
+        out = np.zeros((3 * n + 2, 3 * n + 2))
+        out[:n, :n] = jac
+        out[:n, -1] = self.problem.dresidual_dp(u, q, self.second)
+        out[n:2 * n, :n] = dense(self._hessian(u, v, q))
+        out[n:2 * n, n:2 * n] = jac
+        out[n:2 * n, 2 * n:3 * n] = -m
+        out[n:2 * n, -1] = self._mixed(u, v, q, self.second)
+        out[2 * n:3 * n, :n] = dense(self._hessian(u, w, q))
+        out[2 * n:3 * n, n:2 * n] = kappa * m
+        out[2 * n:3 * n, 2 * n:3 * n] = jac
+        out[2 * n:3 * n, 3 * n] = m @ v
+        out[2 * n:3 * n, -1] = self._mixed(u, w, q, self.second)
+        out[3 * n, n:2 * n] = self.c
+        out[3 * n + 1, n:2 * n] = self.d
+        return out
+
+    def dresidual_dp(self, state: Array, p: Mapping[str, float], name: str) -> Array:
+        u, v, w, _, q = self.split(state, p)
+        return np.concatenate([self.problem.dresidual_dp(u, q, name), self._mixed(u, v, q, name),
+                               self._mixed(u, w, q, name), [0.0, 0.0]])
+
+    def order_parameter(self, state: Array, p: Mapping[str, float]) -> float:
+        u, _, _, _, q = self.split(state, p)
+        if has(self.problem, "order_parameter"):
+            return float(self.problem.order_parameter(u, q))
+        return float(np.linalg.norm(u))
+
+    def observables(self, state: Array, p: Mapping[str, float]) -> dict[str, float]:
+        u, _, _, kappa, q = self.split(state, p)
+        out = dict(self.problem.observables(u, q)) if has(self.problem, "observables") else {}
+        out[self.second] = float(state[3 * self.n + 1])
+        out["kappa"] = kappa
+        out["omega"] = math.sqrt(kappa) if kappa > 0 else math.nan
+        return out
+
+    def admissible(self, state: Array, p: Mapping[str, float]) -> str | None:
+        u, _, _, _, q = self.split(state, p)
+        return self.problem.admissible(u, q) if has(self.problem, "admissible") else None
+
+    def under_resolved(self, state: Array, p: Mapping[str, float], tol: float) -> str | None:
+        if not has(self.problem, "under_resolved"):
+            return None
+        u, _, _, _, q = self.split(state, p)
+        reason = self.problem.under_resolved(u, q, tol)
+        return None if reason is None else f"{reason} (at {self.second} = {q[self.second]:.6g})"
+
+    def point_tests(self) -> list[Any]:
+        """BT: the sign change of kappa (module docstring)."""
+        return [KappaTest(self.n)]
+
+
+@dataclass(frozen=True)
+class KappaTest:
+    """Point test of a Hopf curve: kappa = omega^2 changes sign at a Bogdanov-Takens point."""
+
+    n: int
+    name: str = "bt"
+    kind: str = "BT"
+
+    def value(self, system: Any, x: Array) -> float:
+        return float(x[3 * self.n])
+
+    def crossings(self, va: float, vb: float) -> list[Crossing]:
+        if va == 0 or vb == 0 or (va > 0) == (vb > 0):
+            return []
+        return [("Bogdanov-Takens (kappa = omega^2 = 0)", float)]
+
+    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        return replace(sp_, data={**sp_.data, "kappa": float(x[3 * self.n])})
+
+
+def hopf_curve_start(problem: Any, point: SpecialPoint, second: str) -> tuple[HopfCurveProblem, Array]:
+    """The augmented problem and its start vector at a located Hopf ``point`` (type HB).
+
+    q (J q = i omega M q) is rotated by a phase so that Re q is orthogonal to Im q; then
+    v = Re q / |Re q| (J v = -omega M Im q / |Re q|, so w = -omega Im q / |Re q|), c = v and
+    d = Im q / |Im q| give c . v = 1, d . v = 0.
+    """
+    from contin.hopf import hopf_vectors
+
+    if point.type != "HB":
+        raise ValueError(f"a Hopf curve starts at an HB point, got {point.name} ({point.type})")
+    omega = point.data.get("omega", math.nan)
+    if not (math.isfinite(omega) and omega > 0):
+        raise ValueError(f"{point.name} has no positive omega")
+    u = np.asarray(point.state, float)
+    params = dict(point.params)
+    jac = problem.jacobian(u, params)
+    n = u.size
+    m = _mass(problem, u, params, n)
+    q, _ = hopf_vectors(jac, m, omega)
+    # phase with Re q . Im q = 0: q e^{i t}, tan 2t = 2 a.b / (|a|^2 - |b|^2) ... solved numerically
+    a, b = q.real, q.imag
+    t = 0.5 * math.atan2(-2 * float(a @ b), float(a @ a - b @ b))
+    q = q * complex(math.cos(t), math.sin(t))
+    v = q.real.copy()
+    w = -omega * q.imag
+    scale = float(v @ v)
+    v, w = v / math.sqrt(scale), w / math.sqrt(scale)
+    c = v.copy()  # c . v = 1
+    d = q.imag / np.linalg.norm(q.imag)  # d . v = 0 (Re q . Im q = 0)
+    curve = HopfCurveProblem(problem, second, c, d)
+    return curve, np.concatenate([u, v, w, [omega**2, params[second]]])
+
+
+def as_hopf_curve(branch: Branch, curve: HopfCurveProblem) -> Branch:
+    """A traced augmented branch as a Hopf curve: p2 as a parameter column, the base states,
+    ``kappa``/``omega`` observables; LP points are extrema of the first parameter."""
+    n = curve.n
+    params = dict(branch.params)
+    params[curve.second] = branch.states[:, 3 * n + 1].copy()
+    observables = {k: v for k, v in branch.observables.items() if k != curve.second}
+    out = replace(branch, free=(branch.parameter, curve.second), params=params, observables=observables,
+                  kind="hopf-curve")
+
+    def fix(s: SpecialPoint) -> SpecialPoint:
+        extra = {curve.second: float(s.state[3 * n + 1])}
+        note = s.note or (f"extremum of {branch.parameter}" if s.type == "LP" else "")
+        return replace(s, params={**s.params, **extra}, note=note)
+
+    out.special_points = [fix(s) for s in branch.special_points]
+    return out
+
+
+def trace_hopf_curve(
+    problem: Any,
+    point: SpecialPoint,
+    second: str,
+    options: ContinuationOptions,
+    *,
+    parameter: str,
+    both: bool = True,
+    branch_id: str = "hopf",
+) -> Branch:
+    """Continue the Hopf ``point`` in (parameter, second); both directions joined.
+
+    BT points (type ``BT``) are located where kappa = omega^2 changes sign; past a BT the curve
+    continues as a curve of neutral saddles (observable ``kappa`` < 0, ``omega`` NaN).  Bounds
+    in ``options.bounds`` on ``second`` end the run with EP on the bound (the tracer's bound
+    landing, through the state's p2 entry: see :func:`_second_bound_event`).  BP and Hopf
+    detection of the augmented system are off (its singularities are not the problem's).
+    """
+    from contin.continuation import join, trace
+
+    curve, start = hopf_curve_start(problem, point, second)
+    opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
+                   bounds={k: v for k, v in options.bounds.items() if k != second})
+    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
+    bounded = math.isfinite(lo) or math.isfinite(hi)
+    if bounded:
+        opts = replace(opts, events={**opts.events, **_second_bound_event(curve, second, lo, hi)})
+    meta = dict(branch_id=branch_id, kind="hopf-curve", parent=point.name)
+    halves = []
+    for direction in ((1, -1) if both else (1,)):
+        half = trace(curve, start, dict(point.params), parameter, opts, direction=direction, **meta)
+        halves.append(_cut_at_bound(half, curve, second) if bounded else half)
+    raw = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
+    return as_hopf_curve(raw, curve)
+
+
+def _cut_at_bound(branch: Branch, curve: Any, second: str, index: int | None = None) -> Branch:
+    """The branch up to its first crossing of a bound of ``second`` (the located UZ of
+    :func:`_second_bound_event`), ending there with EP "reached bound ...".  The tracer's own
+    bound landing works on the continuation parameter only; p2 is part of the state here, at
+    ``index`` (default: its place in the Hopf-curve state; ``contin.foldcurve`` passes its own)."""
+    from contin.extended import ExtendedSystem
+
+    tag = f"bound of {second}"
+    hits = [s for s in branch.special_points if s.type == "UZ" and s.note.startswith(tag)]
+    if not hits:
+        return branch
+    uz = min(hits, key=lambda s: s.index)
+    i = uz.index
+    n_keep = i + 1
+    system = ExtendedSystem(curve, {**uz.params}, branch.parameter)
+    x = system.pack(uz.state, uz.params[branch.parameter])
+    record = system.record(x)
+    p2 = float(uz.state[3 * curve.n + 1 if index is None else index])
+    end = SpecialPoint(type="EP", index=n_keep, params=dict(uz.params), order_parameter=uz.order_parameter,
+                       state=uz.state.copy(), tangent=None if uz.tangent is None else uz.tangent.copy(),
+                       bracket=uz.bracket, note=f"reached bound {second}={p2:g}")
+    keep = [s for s in branch.special_points
+            if s.type not in ("EP", "MX") and s is not uz and (s.index < i or (s.index == i and s.params.get(branch.parameter) is not None
+                                                                                and _before(branch, s, uz)))]
+    states = branch.states[:n_keep] if branch.state_index is None else branch.states[branch.state_index < n_keep]
+    state_index = None if branch.state_index is None else np.append(branch.state_index[branch.state_index < n_keep], n_keep)
+    cut = replace(
+        branch,
+        params={k: np.append(v[:n_keep], uz.params.get(k, v[-1])) for k, v in branch.params.items()},
+        observables={k: np.append(v[:n_keep], record.get(k, math.nan)) for k, v in branch.observables.items()},
+        states=np.vstack([states, uz.state[None, :]]),
+        tangents=np.vstack([branch.tangents[:n_keep], (branch.tangents[i] if uz.tangent is None else uz.tangent)[None, :]]),
+        ds=np.append(branch.ds[:n_keep], 0.0),
+        newton_iterations=np.append(branch.newton_iterations[:n_keep], 0),
+        special_points=keep + [end],
+        status="EP",
+        message=f"reached bound {second}={p2:g}",
+        state_index=state_index,
+    )
+    return cut
+
+
+def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:
+    """Whether s (in the same step as uz) lies before uz along the step."""
+    p = branch.parameter
+    a = branch.params[p][s.index]
+    return abs(s.params[p] - a) <= abs(uz.params[p] - a)
+
+
+def _second_bound_event(curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> dict[str, Any]:
+    """An event that vanishes on the bounds of the second parameter (p2 is part of the state,
+    so the tracer's bound landing does not see it): the run stops at the located crossing.
+    ``index``: p2's place in the state (default: the Hopf-curve state's)."""
+    index = 3 * curve.n + 1 if index is None else index
+
+    def g(state: Array, p: Mapping[str, float]) -> float:
+        p2 = float(state[index])
+        return min(p2 - lo, hi - p2)
+
+    return {f"bound of {second}": g}
+
+
+def fold_bt_test(problem: Any, n: int, c: Array, second: str) -> Any:
+    """The BT point test of a fold curve (``contin.foldcurve``: state [u, phi, p2], c . phi = 1)."""
+    return _FoldBT(problem, n, np.asarray(c, float), second)
+
+
+@dataclass
+class _FoldBT:
+    """tau = tr(adj(J) M), the coefficient of -lambda in det(J - lambda M), on a fold curve.
+
+    Where J has the simple null vectors phi (right) and psi (left), adj(J) = k phi psi^T with k
+    the product of the nonzero eigenvalues over psi^T phi, so tau = k psi^T M phi vanishes where
+    psi^T M phi does: the zero eigenvalue becomes double and non-semisimple (BT).  tau is a
+    polynomial in the entries of J, so it has no poles (psi^T M phi computed from a bordered
+    solve alone has one wherever the border becomes orthogonal to psi).  It is evaluated as
+    tau = -det A * (y^T M x), A = [[J, c], [c^T, 0]], A [x; .] = e, A^T [y; .] = e (Cramer),
+    kept as (sign, log|tau|) like the BP determinant.
+    """
+
+    problem: Any
+    n: int
+    c: Array
+    second: str
+    name: str = "bt"
+    kind: str = "BT"
+
+    def value(self, system: Any, x: Array) -> tuple[float, float]:
+        from contin.linalg import factorize_bordered
+
+        n = self.n
+        u = x[:n]
+        q = system.params_at(x[-1])
+        q[self.second] = float(x[2 * n])
+        jac = self.problem.jacobian(u, q)
+        m = _mass(self.problem, u, q, n)
+        fact = factorize_bordered(jac, self.c, np.concatenate([self.c, [0.0]]))
+        if fact is None:
+            return (0.0, -math.inf)
+        e = np.zeros(n + 1)
+        e[-1] = 1.0
+        xr = fact.solve(e)[:n]
+        yl = fact.solve(e, trans="T")[:n]
+        sign, logabs = fact.det_sign_log()
+        ymx = float(yl @ (m @ xr))
+        if ymx == 0 or sign == 0:
+            return (0.0, -math.inf)
+        return (-sign * math.copysign(1.0, ymx), logabs + math.log(abs(ymx)))
+
+    def crossings(self, va: tuple[float, float], vb: tuple[float, float]) -> list[Crossing]:
+        if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
+            return []
+        ref = max(va[1], vb[1])
+
+        def g(v: tuple[float, float]) -> float:
+            return v[0] * math.exp(min(v[1] - ref, 700.0))
+
+        return [("Bogdanov-Takens (psi^T M phi = 0)", g)]
+
+    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        return sp_

@@ -1,0 +1,16 @@
+"""Size and step limits of user input (command line and sweep files), checked before computing.
+
+Why: a grid of 1e9 intervals ate 330 MB/s and ignored SIGINT, ``ds = inf`` looped forever
+halving an infinite step, ``--kx 0:3:1000000000`` never ended (issue 16).  The limits are far
+above any useful run and are stated in ``--help``.
+"""
+
+#: largest number of grid intervals (dense eigenproblems of ~5 N unknowns)
+MAX_GRID = 4096
+#: largest number of continuation steps per branch
+MAX_STEPS = 1_000_000
+#: largest |k_x| accepted, and most wavenumbers in one list or range (``contin stability``)
+MAX_ABS_KX = 1e4
+MAX_KX = 10_000
+#: most extra wavenumbers of ``trace --kx`` / a sweep's ``kx`` (each one is a stability pass over every branch)
+MAX_TRACE_KX = 32

@@ -1,0 +1,54 @@
+"""Point tests: test functions beyond LP/BP that the tracer evaluates at every point.
+
+A point test computes a value at each corrected point x = (u, p) (any object: a number, an
+array of eigenvalues), says which zeros its values bracket between two neighbouring points
+(``crossings``: one real function g of the value per zero, with g(v_a) and g(v_b) of opposite
+sign), and completes the located special point (``finish``: e.g. omega and l1 of a Hopf point).
+The tracer (``contin.continuation``) locates each zero like a fold, by re-correcting at
+intermediate arclengths (``contin.locate``), so a point test inherits the fold's accuracy.
+
+Implemented: Hopf points (``contin.hopf``, label HB), user zeros / events (``contin.events``,
+label UZ), and Bogdanov-Takens points of fold and Hopf curves (``contin.hopfcurve``, label BT),
+which those augmented problems supply through an optional ``point_tests()`` method.
+:func:`point_tests` builds the list for one trace.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol
+
+from contin.branch import SpecialPoint
+from contin.problem import Array
+
+#: A located zero: (note, g) with g(value) -> float changing sign across it.
+Crossing = tuple[str, Callable[[Any], float]]
+
+
+class PointTest(Protocol):
+    """Interface of a point test (see the module docstring)."""
+
+    name: str  # key in TestValues.extra
+    kind: str  # AUTO label of its points ('HB', 'UZ')
+
+    def value(self, system: Any, x: Array) -> Any: ...
+
+    def crossings(self, va: Any, vb: Any) -> list[Crossing]: ...
+
+    def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint: ...
+
+
+def point_tests(problem: Any, system: Any, options: Any, n: int) -> list[PointTest]:
+    """The point tests of one trace: Hopf (``DetectionOptions.detect_hopf``) and user zeros
+    (``ContinuationOptions.user_zeros`` / ``events``)."""
+    from contin.events import user_tests
+    from contin.hopf import hopf_test
+
+    out: list[PointTest] = []
+    hb = hopf_test(problem, options.detection, n)
+    if hb is not None:
+        out.append(hb)
+    out.extend(user_tests(problem, system.parameter, options))
+    if callable(getattr(problem, "point_tests", None)):  # augmented systems bring their own (BT)
+        out.extend(problem.point_tests())
+    return out
