@@ -21,6 +21,10 @@ without being stored: a smaller step cannot help, the grid must be refined.  A s
 which a BP test function changes sign without a BP that its location confirms is checked by
 two half steps; if they end elsewhere, the step jumped onto a nearby branch and is retried
 with half the ds (``DetectionOptions.retry_unconfirmed_bp``; logged in ``Branch.audit``).
+With ``ContinuationOptions.adapt`` the grid is chosen and changed along the branch instead
+(``contin.adapt``: start grid, refinement of the last accepted point and a retried step,
+coarsening, relocation of under-resolved special points, MX only past ``max_grid``); every
+point records its grid (``Branch.grid``).
 """
 
 from __future__ import annotations

@@ -112,3 +112,22 @@ def test_stability_reads_points_on_their_own_grid(tmp_path):
     assert n1.grid is not None and n1.status == "EP"
     r = run("stability", out, "--branch", n1.id, "--point", len(n1) - 1, "--kx", "0,0.5", "--json")
     assert r.exit_code == 0, r.output
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("nu, H_max, fold", [(0.5, 40.0, None), (0.16, 100.0, 41.963)])
+def test_dense_plugs_need_no_grid_flag(tmp_path, nu, H_max, fold):
+    """Issue 14's cases that ended MX on the fixed default grid: the banded branch reaches H_max
+    with the default tol (3e-5), refining as the plug forms; at nu = 0.16 its fold agrees with
+    the solve_bvp baseline (41.963 +- 2e-3, benchmarks/baseline_solve_bvp.py)."""
+    out = tmp_path / "p.h5"
+    r = run("trace", "pitchfork", "-s", f"nu={nu}", "-s", "e=0.8", "-s", f"H_max={H_max}", "-s", "modes=1",
+            "--no-stability", "-o", out, "-q")
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    band = [b for b in branches if b.id == "n1.1"][0]
+    assert band.status == "EP" and band.message == f"reached bound H={H_max:g}"
+    assert band.grid[-1] >= 64 and len(band.grid_changes) >= 2
+    if fold is not None:
+        (lp,) = band.fold_points
+        assert lp.params["H"] == pytest.approx(fold, abs=2e-3)
