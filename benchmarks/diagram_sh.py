@@ -39,7 +39,7 @@ def options() -> ContinuationOptions:
 
 def hand_written(problem: Any, depth: int, opts: ContinuationOptions) -> list[Branch]:
     """The recursion a user writes by hand: every BP, both directions, every new branch."""
-    from contin.switching import switch
+    from contin.continuation import switch
 
     root = trace_both(problem, np.zeros(problem.N), START, "lam", opts, branch_id="0")
     out = [root]

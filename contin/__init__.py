@@ -23,6 +23,7 @@ _LAZY = {
     "StepOptions": "contin.options",
     "Problem": "contin.problem",
     "check_jacobian": "contin.problem",
+    "from_functions": "contin.fromfunctions",
     "DiagramSettings": "contin.diagram",
     "bifurcation_diagram": "contin.diagram",
 }
@@ -39,6 +40,7 @@ __all__ = [
     "__version__",
     "bifurcation_diagram",
     "check_jacobian",
+    "from_functions",
 ]
 
 

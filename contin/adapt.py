@@ -272,8 +272,8 @@ class Adaptor:
             return False
         saved = (tracer.system, tracer.anti, getattr(tracer, "point_tests", []))
         tracer.system, tracer.anti = new_sys, anti
-        if hasattr(tracer, "point_tests"):  # HB/UZ test functions are set up per grid (contin.pointtests)
-            from contin.pointtests import point_tests
+        if hasattr(tracer, "point_tests"):  # HB/UZ test functions are set up per grid (contin.pointtestset)
+            from contin.pointtestset import point_tests
 
             tracer.point_tests = point_tests(other, new_sys, tracer.options, new_sys.n)
         try:

@@ -42,7 +42,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from contin.branch import SpecialPoint
+from contin.branch import MAX_AUDIT, SpecialPoint
 from contin.problem import Array
 
 if TYPE_CHECKING:
@@ -163,8 +163,6 @@ def kernel_dimension(point: SpecialPoint) -> int | None:
 
 
 def _audit(tracer: _Tracer, line: str) -> None:
-    from contin.continuation import MAX_AUDIT
-
     if len(tracer.audit) < MAX_AUDIT:
         tracer.audit.append(line)
 

@@ -15,6 +15,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+#: Rejected-step diagnostics (and other audit lines) kept in Branch.audit by the tracer.
+MAX_AUDIT = 200
+
 PointType = Literal["BP", "LP", "EP", "MX", "UZ", "XT", "CP", "HB", "BT"]
 Status = Literal["running", "EP", "MX"]
 

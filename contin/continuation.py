@@ -5,7 +5,7 @@ Public entry points (the front door of contin's core):
 - :func:`newton` -- Newton at fixed parameters (re-exported from ``contin.newton``);
 - :func:`trace` -- one branch in one direction from a (possibly unconverged) start;
 - :func:`trace_both` -- both directions, joined into one branch through the start point;
-- :func:`switch` -- branch switching at a simple BP (re-exported from ``contin.switching``).
+- :func:`switch` -- branch switching at a simple BP (first points from ``contin.switching``).
 
 Algorithm of :func:`trace` (Keller 1977; Seydel 2010, ch. 4; AUTO-07p; BifurcationKit PALC):
 unknowns x = (u, p); predictor x_k + ds t_k (tangent) or along the secant; bordered Newton
@@ -38,27 +38,28 @@ from typing import Any
 import numpy as np
 
 from contin.blas import limited
-from contin.bpdetect import EigenCounter
-from contin.branch import Branch, SpecialPoint, pad_rows, relabel
+from contin.bpdetect import EigenCounter, kernel_dimension
+from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
 from contin.locate import Sample, locate_zero, outside_bracket
+from contin.ndbp import nd_departures
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
-from contin.pointtests import PointTest, point_tests
+from contin.pointtests import PointTest
+from contin.pointtestset import point_tests
 from contin.predictor import secant, tangent
-from contin.problem import Array, has
+from contin.problem import Array, has, require_protocol
 from contin.stepsize import angle, next_step, reduced_step
+from contin.switching import departures, first_step_options, prepend
 from contin.testfunctions import Antisymmetric, TestValues, bp_value, detrended
 
 __all__ = ["NewtonResult", "newton", "relabel", "switch", "trace", "trace_both"]
 
 log = logging.getLogger("contin")
 
-#: Rejected-step diagnostics kept in Branch.audit.
-MAX_AUDIT = 200
 
 #: Branch-jump protection (DetectionOptions.retry_unconfirmed_bp).  A located BP is confirmed
 #: when its test function, scaled to 1 at the larger end of the step, has fallen below
@@ -72,6 +73,9 @@ BP_VANISH = 1e-3
 OFF_SEGMENT = 0.5
 SAME_POINT = 1e-3
 
+
+#: Appended to a failure at the first point: a wrong Jacobian is the usual cause.
+JACOBIAN_HINT = "; check the Jacobian with contin.problem.check_jacobian"
 
 #: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
 Unconfirmed = tuple[SpecialPoint, str, str]
@@ -314,7 +318,7 @@ class _Tracer:
         else:
             states = np.array([self.points[i].x[:-1] for i in keep], dtype=float).reshape(len(keep), n)
             tangents = np.array([p.t for p in self.points], dtype=float).reshape(s, n + 1)
-        return Branch(
+        return _labelled(Branch(
             parameter=parameter,
             free=(parameter,),
             params=params,
@@ -330,7 +334,7 @@ class _Tracer:
             audit=self.audit,
             state_index=state_index,
             **meta,
-        )
+        ))
 
 
 def _symmetry(problem: Any, u: Array, symmetric: bool | None) -> Antisymmetric | None:
@@ -429,6 +433,7 @@ def trace(
     """
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
+    require_protocol(problem)
     sopt = options.step
     system = ExtendedSystem(problem, params, parameter, sopt.theta)
     u0 = np.array(u0, dtype=float).ravel()
@@ -470,7 +475,7 @@ def trace(
     tracer.audit.extend(grid_lines)
     tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
-        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}"
+        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{JACOBIAN_HINT}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
         say(msg)
         return tracer.build(parameter, "MX", msg, False, n, **meta)
@@ -545,6 +550,8 @@ def trace(
             if ds <= sopt.ds_min * (1 + 1e-12):
                 status = "MX"
                 message = f"step failed at {parameter}={cur.x[-1]:.10g} with ds at ds_min={sopt.ds_min:g}: {reason}"
+                if len(tracer.points) == 1:  # not one step from the start: most often a wrong Jacobian
+                    message += JACOBIAN_HINT
                 break
             ds = reduced_step(ds, sopt)
             continue
@@ -704,6 +711,14 @@ def _jump_retry(tracer: _Tracer, step: int, cur: _Point, new: _Point, direction:
     return retry, found
 
 
+def _labelled(branch: Branch) -> Branch:
+    """``branch`` with its special points numbered 1, 2, ... along it (AUTO-style names LP1,
+    BP2, ... without a call to :func:`contin.branch.relabel`; calling it on a whole run makes
+    the labels unique within the run)."""
+    relabel([branch])
+    return branch
+
+
 def _stop_label(special: list[SpecialPoint], stop_at: tuple[str, ...]) -> str | None:
     """The first label of ``stop_at`` (e.g. 'LP1') whose count of that type is reached, else None."""
     for label in stop_at:
@@ -755,7 +770,7 @@ def join(backward: Branch, forward: Branch) -> Branch:
         states = np.concatenate([r.states[keep], forward.states])
         state_index = np.concatenate([ri[keep], fi + off])
     status = "MX" if "MX" in (r.status, forward.status) else "EP"
-    return Branch(
+    return _labelled(Branch(
         parameter=forward.parameter,
         free=forward.free,
         params={k: cat(r.params[k], forward.params[k]) for k in forward.params},
@@ -775,7 +790,7 @@ def join(backward: Branch, forward: Branch) -> Branch:
         state_index=state_index,
         grid=grid,
         sizes=sizes,
-    )
+    ))
 
 
 def trace_both(
@@ -798,8 +813,68 @@ def trace_both(
     return join(backward, forward)
 
 
-def switch(*args: Any, **kwargs: Any) -> list[Branch]:
-    """Branch switching at a simple BP; see :func:`contin.switching.switch`."""
-    from contin.switching import switch as _switch
+def switch(
+    problem: Any,
+    branch: Branch,
+    point: SpecialPoint,
+    options: ContinuationOptions = ContinuationOptions(),
+    *,
+    directions: tuple[int, ...] = (+1, -1),
+    branch_id_prefix: str | None = None,
+    ds: float | None = None,
+    symmetric: bool | None = None,
+) -> list[Branch]:
+    """Trace the branches bifurcating at the BP ``point`` of ``branch``.
 
-    return _switch(*args, **kwargs)
+    The first point of each half-branch comes from the algebraic bifurcation equation
+    (:func:`contin.switching.departures`), or, at a BP whose kernel dimension d > 1 was recorded
+    (``contin.bpdetect``), from the reduced bifurcation equations in d amplitudes
+    (:func:`contin.ndbp.nd_departures`; one branch per root direction, ``directions`` and
+    ``symmetric`` ignored); each is traced on from there and starts with the BP.
+
+    Parameters
+    ----------
+    directions : signs of the new tangent to follow (both halves of the new branch by default).
+    branch_id_prefix : ids are f"{prefix}.{k}" (default prefix f"{branch.id}.{point.name}").
+    ds : length of the first step off the BP (default |options.step.ds|).
+
+    Returns
+    -------
+    list of Branch
+        kind='bifurcated', parent=f"{point.name}@{branch.id}", each starting at the BP.
+
+    Raises
+    ------
+    ValueError
+        If ``point`` is not a BP with a tangent, the BP is not simple (b = 0 in the ABE), or no
+        direction gives a new branch (the reason per direction; never an empty list).
+    """
+    if point.type != "BP" or point.tangent is None:
+        raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
+    param = branch.parameter
+    dim = kernel_dimension(point)
+    nd = dim is not None and dim > 1
+    if nd:
+        deps = nd_departures(problem, branch, point, options, dim, ds=ds)
+    else:
+        deps = departures(problem, branch, point, options, directions=directions, ds=ds)
+    prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
+    parent = f"{point.name}@{branch.id}"
+    out: list[Branch] = []
+    failed: list[str] = []
+    for k, dep in enumerate(deps, start=1):
+        if isinstance(dep, str):  # no accepted first step in this direction
+            failed.append(dep)
+            continue
+        system = dep.system  # on the BP's own grid (adaptive runs: contin.adapt.on_grid)
+        new = trace(system.problem, dep.start[:-1], system.params_at(dep.start[-1]), param,
+                    first_step_options(options, dep.step), tangent=dep.tangent, branch_id=f"{prefix}.{k}",
+                    kind="bifurcated", parent=parent, symmetric=None if nd else symmetric)
+        if nd:
+            new.audit.insert(0, f"switched at {point.name} (kernel dimension {dim}) along the reduced root {dep.note}")
+        out.append(prepend(system, new, dep.x0, dep.tangent))
+    if not out:  # never an empty list without a reason
+        where = f"{point.name} ({param} = {point.params[param]:.10g}" + (f", kernel dimension {dim})" if nd else ")")
+        raise ValueError(f"switching at {where} found no new branch: "
+                         + (f"none along any of the {len(deps)} reduced roots" if nd else "; ".join(failed)))
+    return out

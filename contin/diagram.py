@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint, relabel
+from contin.continuation import switch
 from contin.jumps import restep, trace_both_ways
 from contin.options import ContinuationOptions
 from contin.overlap import Coordinates, StateCoordinates, is_invariant, lies_on, mirror_branch, near, params_at
@@ -178,8 +179,6 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
                on_known: Callable[..., Branch | None], add: Callable[[Branch, int], None], level: int,
                progress: Callable[[str], None] | None) -> None:
     """Both directions of the BP ``bp`` of ``b``: probed, traced when new, added at level + 1."""
-    from contin.switching import switch
-
     where = f"{bp.name}@{b.id} ({b.parameter} = {bp.params[b.parameter]:.6g})"
     if not bp.converged and not settings.unconverged:
         out.skipped.append(f"{where}: location not converged")

@@ -21,6 +21,17 @@ from contin.linalg import dense_factorization
 from contin.problem import Array, has
 
 
+def l2_norm(u: Array) -> float:
+    """The default order parameter: the discrete L2 norm ||u||_2 / sqrt(n).
+
+    AUTO-07p plots the L2 norm of the solution when the user names no other measure; for a
+    state sampled on n points of a unit interval ||u||_2 / sqrt(n) approximates the integral
+    norm (for n = 1 it is |u|).
+    """
+    u = np.asarray(u, dtype=float)
+    return float(np.linalg.norm(u) / math.sqrt(max(u.size, 1)))
+
+
 def validate_params(problem: Any, params: Mapping[str, float], parameter: str | None = None) -> dict[str, float]:
     """A full, float-valued copy of ``params``; ValueError naming any unknown or missing name."""
     names = tuple(problem.parameter_names)
@@ -108,14 +119,14 @@ class ExtendedSystem:
         out: dict[str, float] = {}
         if has(self.problem, "observables"):
             out.update({k: float(v) for k, v in self.problem.observables(x[:-1], q).items()})
-        if has(self.problem, "order_parameter"):
-            out["phi"] = float(self.problem.order_parameter(x[:-1], q))
+        out["phi"] = self.order_parameter(x)
         return out
 
     def order_parameter(self, x: Array) -> float:
+        """The problem's ``order_parameter``, else the L2 norm :func:`l2_norm` (AUTO's default)."""
         if has(self.problem, "order_parameter"):
             return float(self.problem.order_parameter(x[:-1], self.params_at(x[-1])))
-        return float("nan")
+        return l2_norm(x[:-1])
 
     # --- weighted geometry -----------------------------------------------------------------
     def dot(self, a: Array, b: Array) -> float:

@@ -26,7 +26,9 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from contin.branch import Branch, SpecialPoint
+from contin.branch import Branch, SpecialPoint, relabel
+from contin.continuation import trace, trace_both
+from contin.extended import l2_norm
 from contin.normalform import null_vectors
 from contin.options import ContinuationOptions
 from contin.problem import Array, has
@@ -93,7 +95,7 @@ class FoldProblem:
         u, _, q = self.split(state, p)
         if has(self.problem, "order_parameter"):
             return float(self.problem.order_parameter(u, q))  # type: ignore[attr-defined]
-        return float(np.linalg.norm(u))
+        return l2_norm(u)  # the same default as along ordinary branches
 
     def observables(self, state: Array, p: Mapping[str, float]) -> dict[str, float]:
         u, _, q = self.split(state, p)
@@ -150,8 +152,6 @@ def _locate_extremum(fold: FoldProblem, branch: Branch, i: int, options: Continu
     continued in p2 with p1 carried in the state, so the tracer's own LP location (to its
     tolerance) does the work.
     """
-    from contin.continuation import trace  # local: continuation imports this module's users
-
     n = fold.n
     first = branch.parameter
     swapped = FoldProblem(fold.problem, first, fold.c, fold.eps)
@@ -222,6 +222,7 @@ def as_fold_curve(branch: Branch, fold: FoldProblem, options: ContinuationOption
     specials += _extrema(branch, fold, options or ContinuationOptions())
     specials.sort(key=lambda s: (s.index, s.type))
     out.special_points = specials
+    relabel([out])  # the XT points join the numbering (LP1, XT2, ...)
     return out
 
 

@@ -38,12 +38,12 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from contin.branch import Branch, SpecialPoint
 from contin.options import ContinuationOptions
 from contin.pointtests import Crossing
 from contin.problem import Array, has
+from contin.testfunctions import signed_value
 
 #: Relative step of the central differences of J and F_p along v, w.
 FD_EPS = 1e-6
@@ -164,8 +164,7 @@ class HopfCurveProblem:
         u, _, _, kappa, q = self.split(state, p)
         out = dict(self.problem.observables(u, q)) if has(self.problem, "observables") else {}
         out[self.second] = float(state[3 * self.n + 1])
-        out["kappa"] = kappa
-        out["omega"] = math.sqrt(kappa) if kappa > 0 else math.nan
+        out["kappa"] = kappa  # omega^2 on Hopf points, -lambda^2 on neutral saddles (finite: HDF5-safe)
         return out
 
     def admissible(self, state: Array, p: Mapping[str, float]) -> str | None:
@@ -240,7 +239,7 @@ def hopf_curve_start(problem: Any, point: SpecialPoint, second: str) -> tuple[Ho
 
 def as_hopf_curve(branch: Branch, curve: HopfCurveProblem) -> Branch:
     """A traced augmented branch as a Hopf curve: p2 as a parameter column, the base states,
-    ``kappa``/``omega`` observables; LP points are extrema of the first parameter."""
+    the ``kappa`` observable (omega^2); LP points are extrema of the first parameter."""
     n = curve.n
     params = dict(branch.params)
     params[curve.second] = branch.states[:, 3 * n + 1].copy()
@@ -270,7 +269,7 @@ def trace_hopf_curve(
     """Continue the Hopf ``point`` in (parameter, second); both directions joined.
 
     BT points (type ``BT``) are located where kappa = omega^2 changes sign; past a BT the curve
-    continues as a curve of neutral saddles (observable ``kappa`` < 0, ``omega`` NaN).  Bounds
+    continues as a curve of neutral saddles (observable ``kappa`` < 0).  Bounds
     in ``options.bounds`` on ``second`` end the run with EP on the bound (the tracer's bound
     landing, through the state's p2 entry: see :func:`_second_bound_event`).  BP and Hopf
     detection of the augmented system are off (its singularities are not the problem's).
@@ -408,7 +407,8 @@ class _FoldBT:
         ref = max(va[1], vb[1])
 
         def g(v: tuple[float, float]) -> float:
-            return v[0] * math.exp(min(v[1] - ref, 700.0))
+            # clamped both ways: an underflow to 0 would pass for a located zero (issue 14 sec. 3)
+            return signed_value(v, ref)
 
         return [("Bogdanov-Takens (psi^T M phi = 0)", g)]
 

@@ -110,6 +110,7 @@ __all__ = [
     "git_commit",
     "load",
     "options_from_dict",
+    "restart",
     "write",
 ]
 
@@ -652,7 +653,16 @@ class H5Writer:
 
 
 def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:
-    """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`."""
+    """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`.
+
+    Without ``parameters=`` the file records the problem's parameters as the branches carry
+    them: every parameter column of the first branch at its first point (the values a
+    restart or a rebuilt problem starts from).
+    """
+    branches = list(branches)
+    if not meta.get("parameters"):
+        first = next((b for b in branches if len(b)), None)
+        meta["parameters"] = {} if first is None else {k: float(v[0]) for k, v in first.params.items()}
     meta.setdefault("lock", False)  # one publish, atomic by itself; no run to protect
     w = H5Writer(path, **meta)
     w.set_branches(branches)
@@ -861,3 +871,17 @@ def profiles_at(
         if found is not None:
             out.append(found)
     return out
+
+
+def restart(path: str | os.PathLike[str], label: str, branch: str | None = None) -> Any:
+    """The labelled point ``label`` (e.g. 'BP2') of the run file ``path``, ready for a restart.
+
+    Returns a :class:`contin.restart.Restart`: unpacks as ``u, p, tangent = io.restart(f, 'BP2')``;
+    ``trace(problem, **r.trace_kwargs())`` continues from it in the branch's parameter.
+    ``branch`` picks the branch when the label occurs on several.  Raises ValueError (one
+    sentence) for an unknown or ambiguous label or a point without a stored state.
+    """
+    from contin.restart import restart_from
+
+    branches, meta = load(path)
+    return restart_from(branches, meta, label, branch)

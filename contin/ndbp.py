@@ -23,17 +23,16 @@ branch (``contin.switching``).  Dense linear algebra: n <= :data:`ND_DENSE_LIMIT
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import scipy.linalg as la
 
 from contin.branch import Branch, SpecialPoint
-from contin.corrector import correct
 from contin.extended import ExtendedSystem
 from contin.options import ContinuationOptions
 from contin.problem import Array
+from contin.switching import Departure, first_point
 
 #: Largest n for which the kernels are computed by a dense SVD.
 ND_DENSE_LIMIT = 2000
@@ -184,18 +183,15 @@ def directions(red: Reduced) -> list[tuple[Array, str]]:
     return out
 
 
-def switch_nd(problem: Any, branch: Branch, point: SpecialPoint, options: ContinuationOptions, dim: int, *,
-              branch_id_prefix: str | None = None, ds: float | None = None) -> list[Branch]:
-    """Trace the branches bifurcating at a BP of kernel dimension ``dim`` > 1 (module docstring).
+def nd_departures(problem: Any, branch: Branch, point: SpecialPoint, options: ContinuationOptions, dim: int, *,
+                  ds: float | None = None) -> list[Departure | str]:
+    """The first point along each root direction of the reduced equations at a BP of kernel
+    dimension ``dim`` > 1 (module docstring); a root without an accepted first step gives its
+    note (a str).  :func:`contin.continuation.switch` traces on from them.
 
-    One Branch per root direction of the reduced equations (kind 'bifurcated', the root in
-    ``note``-like form in ``parent``); ValueError with one clear sentence when the point is too
-    large for the dense reduction, the reduced equations are degenerate, or no root direction
-    gives a branch.
+    Raises ValueError with one clear sentence when the point is too large for the dense
+    reduction or the reduced equations have no nonzero root.
     """
-    from contin.continuation import trace
-    from contin.switching import MAX_START_HALVINGS, _FarFromPredictor, _prepend
-
     param = branch.parameter
     u0 = np.asarray(point.state, dtype=float)
     if u0.size > ND_DENSE_LIMIT:
@@ -210,29 +206,8 @@ def switch_nd(problem: Any, branch: Branch, point: SpecialPoint, options: Contin
     if not dirs:
         raise ValueError(f"the reduced equations at {point.name} ({param} = {x0[-1]:.10g}, kernel dimension {dim}) "
                          "have no nonzero root: no branch to switch to")
-    prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
-    out: list[Branch] = []
-    failed = []
-    for k, (tau, note) in enumerate(dirs, start=1):
-        step = abs(ds if ds is not None else options.step.ds)
-        start = None
-        for _ in range(MAX_START_HALVINGS):
-            x_pred = x0 + step * tau
-            corr = correct(system, x_pred, system.row(tau), options.newton, give_up=_FarFromPredictor(system, x_pred, 0.5 * step))
-            if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
-                start = corr.x
-                break
-            step *= 0.5
-        if start is None:
-            failed.append(note)
-            continue
-        sopt = options.step
-        first = replace(options, step=replace(sopt, ds=math.copysign(min(max(step, sopt.ds_min), sopt.ds_max), sopt.ds)))
-        new = trace(problem, start[:-1], system.params_at(start[-1]), param, first, tangent=tau,
-                    branch_id=f"{prefix}.{k}", kind="bifurcated", parent=f"{point.name}@{branch.id}")
-        new.audit.insert(0, f"switched at {point.name} (kernel dimension {dim}) along the reduced root {note}")
-        out.append(_prepend(system, new, x0, tau))
-    if not out:
-        raise ValueError(f"switching at {point.name} ({param} = {x0[-1]:.10g}, kernel dimension {dim}) found no new branch "
-                         f"along any of the {len(dirs)} reduced roots")
+    out: list[Departure | str] = []
+    for tau, note in dirs:
+        start, step, _ = first_point(system, x0, tau, abs(ds if ds is not None else options.step.ds), options)
+        out.append(Departure(system, x0, start, tau, step, +1, note) if start is not None else note)
     return out

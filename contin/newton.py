@@ -16,7 +16,7 @@ import numpy as np
 
 from contin.linalg import dense_factorization, factorize, inf_norm
 from contin.options import NewtonOptions
-from contin.problem import Array, has
+from contin.problem import Array, has, require_protocol
 
 #: Halvings of an update that lands outside the problem's domain before Newton gives up.
 MAX_BACKTRACKS = 12
@@ -93,6 +93,7 @@ def newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newton
 
 
 def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: NewtonOptions) -> NewtonResult:
+    require_protocol(problem)
     u = np.array(u0, dtype=float).ravel()
     p = dict(params)
 

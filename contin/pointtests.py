@@ -10,7 +10,8 @@ intermediate arclengths (``contin.locate``), so a point test inherits the fold's
 Implemented: Hopf points (``contin.hopf``, label HB), user zeros / events (``contin.events``,
 label UZ), and Bogdanov-Takens points of fold and Hopf curves (``contin.hopfcurve``, label BT),
 which those augmented problems supply through an optional ``point_tests()`` method.
-:func:`point_tests` builds the list for one trace.
+:func:`contin.pointtestset.point_tests` builds the list for one trace (a module of its own:
+the tests import :data:`Crossing` from here, so this module imports none of them).
 """
 
 from __future__ import annotations
@@ -36,19 +37,3 @@ class PointTest(Protocol):
     def crossings(self, va: Any, vb: Any) -> list[Crossing]: ...
 
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint: ...
-
-
-def point_tests(problem: Any, system: Any, options: Any, n: int) -> list[PointTest]:
-    """The point tests of one trace: Hopf (``DetectionOptions.detect_hopf``) and user zeros
-    (``ContinuationOptions.user_zeros`` / ``events``)."""
-    from contin.events import user_tests
-    from contin.hopf import hopf_test
-
-    out: list[PointTest] = []
-    hb = hopf_test(problem, options.detection, n)
-    if hb is not None:
-        out.append(hb)
-    out.extend(user_tests(problem, system.parameter, options))
-    if callable(getattr(problem, "point_tests", None)):  # augmented systems bring their own (BT)
-        out.extend(problem.point_tests())
-    return out

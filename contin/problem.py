@@ -108,6 +108,32 @@ class Problem(Protocol):
     def dresidual_dp(self, u: Array, p: Params, name: str) -> Array: ...
 
 
+#: The methods every problem must have (the attribute ``parameter_names`` too).
+REQUIRED = ("residual", "jacobian", "dresidual_dp")
+
+
+class ProtocolError(TypeError):
+    """A problem lacks a method of the :class:`Problem` protocol (one sentence naming it)."""
+
+
+def require_protocol(problem: Any) -> None:
+    """Raise :class:`ProtocolError` naming the first missing required method or attribute.
+
+    contin calls it where a run starts (``trace``, ``newton``), so a missing method is one
+    clear sentence instead of an AttributeError deep inside the corrector.
+    """
+    kind = type(problem).__name__
+    for method in REQUIRED:
+        if not callable(getattr(problem, method, None)):
+            raise ProtocolError(
+                f"the problem ({kind}) has no method {method}(...), which contin needs "
+                f"(required: {', '.join(m + '(u, p' + (', name)' if m == 'dresidual_dp' else ')') for m in REQUIRED)}"
+                " and parameter_names); contin.from_functions(F, u0, params) builds them from F(u, p) alone")
+    if not isinstance(getattr(problem, "parameter_names", None), tuple | list):
+        raise ProtocolError(f"the problem ({kind}) has no parameter_names (a tuple of the parameter names), "
+                            "which contin needs")
+
+
 def has(problem: Any, method: str) -> bool:
     """True if ``problem`` provides the optional ``method``."""
     return callable(getattr(problem, method, None))

@@ -39,6 +39,7 @@ SIAM J. Numer. Anal. 10 (1973) 241 (QZ).  R. B. Lehoucq, D. C. Sorensen & C. Yan
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -285,8 +286,14 @@ def stability_pass(
     kx: float = 0.0,
     kz: float = 0.0,
     dense_max: int = 600,
+    shift: complex | None = None,
 ) -> None:
     """Fill ``branch.stable``, ``branch.n_unstable`` and ``branch.eigenvalues`` (S x n_eigs).
+
+    ``shift`` is the shift sigma of the sparse (shift-invert) path (n > dense_max): the
+    eigenvalues nearest it are computed (default 0).  A problem with neither ``mass_matrix``
+    nor ``eigenproblem`` is solved with M = I, so its algebraic rows (boundary conditions such
+    as u_0 = 0) act as dynamic equations and may count as unstable: a UserWarning says so.
 
     The parameters at point i are ``params_fixed`` updated with ``branch.params[name][i]``
     for every name the branch records.  A point whose eigenproblem fails (singular shift,
@@ -303,6 +310,11 @@ def stability_pass(
     n_unstable = np.full(s, -1, dtype=np.int64)
     eigs = np.full((s, n_eigs), np.nan + 0j)
     base = dict(params_fixed or {})
+    if not has(problem, "mass_matrix") and not has(problem, "eigenproblem"):
+        warnings.warn(f"stability of branch {branch.id}: the problem has no mass_matrix (M du/dt = F), so M = I and "
+                      "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
+                      "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
+                      stacklevel=2)
     for i in range(s):
         p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
         try:
@@ -312,7 +324,7 @@ def stability_pass(
         try:
             # Each point on its own grid (adaptive runs, contin.adapt.point_problem).
             res = stability_of_state(point_problem(problem, branch, i), u, p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
-                                     dense_max=dense_max)
+                                     dense_max=dense_max, sigma=shift)
         except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
             continue
@@ -346,6 +358,11 @@ def growth_columns(
     growth = np.full(s, np.nan)
     count = np.full(s, np.nan)
     base = dict(params_fixed or {})
+    if not has(problem, "mass_matrix") and not has(problem, "eigenproblem"):
+        warnings.warn(f"stability of branch {branch.id}: the problem has no mass_matrix (M du/dt = F), so M = I and "
+                      "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
+                      "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
+                      stacklevel=2)
     for i in range(s):
         p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
         try:

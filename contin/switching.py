@@ -13,6 +13,10 @@ cancellation, is alpha / beta = c / q with q = -(b + sign(b) sqrt(b^2 - a c)) ~ 
 transcritical point has c != 0; at a pitchfork c = 0 and the new tangent is phi itself.
 G_xx[v, w] is the central difference of G_x v along w (two sparse Jacobians).
 
+This module finds the first point of each new branch (:func:`departures`); the tracer
+(``contin.continuation``) imports it and traces on (:func:`contin.continuation.switch`), so the
+two modules do not import each other.
+
 Null vectors come from the bordered matrix [[J, F_p], [<t1, .>]], whose kernel at the BP is
 phi (orthogonal to t1) and whose left kernel is (psi, 0), by inverse iteration on its sparse LU.
 At a symmetry-breaking BP (found by the antisymmetric test) they are the null vectors of J
@@ -23,13 +27,12 @@ mode exactly.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
-from contin.bpdetect import kernel_dimension
 from contin.branch import Branch, SpecialPoint
 from contin.corrector import correct
 from contin.extended import ExtendedSystem
@@ -42,13 +45,6 @@ from contin.testfunctions import Antisymmetric
 FD_STEP = 1e-5
 #: Halvings of the first step off the BP before a direction is given up.
 MAX_START_HALVINGS = 24
-
-
-def switch_nd(*args: Any, **kwargs: Any) -> list[Branch]:
-    """Switching at a BP of kernel dimension > 1; see :func:`contin.ndbp.switch_nd`."""
-    from contin.ndbp import switch_nd as _switch_nd
-
-    return _switch_nd(*args, **kwargs)
 
 
 def null_directions(system: ExtendedSystem, x0: Array, t1: Array, symmetry_breaking: bool) -> tuple[Array, Array]:
@@ -141,50 +137,73 @@ def new_tangent(system: ExtendedSystem, t1: Array, phi: Array, a: float, b: floa
     return system.unit((c / q) * t1 + phi)
 
 
-def switch(
+@dataclass(frozen=True)
+class Departure:
+    """The first point of one bifurcating half-branch (:func:`departures`,
+    :func:`contin.ndbp.nd_departures`).
+
+    x0 : the branch point (u, p); start : the converged first point off it; tangent : the
+    theta-unit tangent there (d * tau); step : the accepted length of the first step;
+    note : how the direction was found (the reduced root at a BP of kernel dimension > 1).
+    """
+
+    system: ExtendedSystem
+    x0: Array
+    start: Array
+    tangent: Array
+    step: float
+    direction: int
+    note: str = ""
+
+
+def first_point(system: ExtendedSystem, x0: Array, tau: Array, step: float,
+                options: ContinuationOptions) -> tuple[Array | None, float, str]:
+    """(start, step, reason): the corrector's solution from x0 + step * tau in the hyperplane
+    orthogonal to tau, the step halved (up to MAX_START_HALVINGS times) until the solution lies
+    near the predictor; start None (and the reason) when no step is accepted."""
+    corr = None
+    # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
+    # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
+    # the test below passes: halve up to MAX_START_HALVINGS times.
+    for _ in range(MAX_START_HALVINGS):
+        x_pred = x0 + step * tau
+        corr = correct(system, x_pred, system.row(tau), options.newton, give_up=_FarFromPredictor(system, x_pred, 0.5 * step))
+        # A good start lies near the predictor; a large correction means the predictor fell
+        # back onto the known branch or diverged.
+        if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
+            return corr.x, step, ""
+        step *= 0.5
+    why = "no corrected first step near the predictor" if corr is None or corr.converged else corr.message
+    return None, 2 * step, f"{why} (first step halved to {2 * step:.3g})"
+
+
+def departures(
     problem: Any,
     branch: Branch,
     point: SpecialPoint,
     options: ContinuationOptions = ContinuationOptions(),
     *,
     directions: tuple[int, ...] = (+1, -1),
-    branch_id_prefix: str | None = None,
     ds: float | None = None,
-    symmetric: bool | None = None,
-) -> list[Branch]:
-    """Trace the branches bifurcating at the simple BP ``point`` of ``branch``.
+) -> list[Departure | str]:
+    """The first point of each bifurcating half-branch at the simple BP ``point`` of ``branch``.
 
-    Parameters
-    ----------
-    directions : signs of the new tangent to follow (both halves of the new branch by default).
-    branch_id_prefix : ids are f"{prefix}.{k}" (default prefix f"{branch.id}.{point.name}").
-    ds : length of the first step off the BP (default |options.step.ds|).
-
-    Returns
-    -------
-    list of Branch
-        kind='bifurcated', parent=f"{point.name}@{branch.id}", each starting at the BP.
-
-    A BP whose kernel dimension d > 1 was recorded (``contin.bpdetect``) goes to
-    :func:`contin.ndbp.switch_nd` (reduced bifurcation equations in d amplitudes).
+    The tangent tau of the new branch solves the ABE (module docstring); the first point comes
+    from :func:`first_point`.  The list follows ``directions``; a direction without an accepted
+    first step gives the reason (a str).  Tracing the rest of the branch is
+    :func:`contin.continuation.switch` (this module does not import the tracer).
 
     Raises
     ------
     ValueError
-        If ``point`` is not a BP with a tangent, the BP is not simple (b = 0 in the ABE), or no
-        direction gives a new branch (the reason per direction; never an empty list).
+        If ``point`` is not a BP with a tangent, or the BP is not simple (b = 0 in the ABE).
     """
-    from contin.continuation import trace
-
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
     from contin.adapt import on_grid
 
     problem = on_grid(problem, point.grid)  # a BP of an adaptive run is a solution on its own grid
     param = branch.parameter
-    dim = kernel_dimension(point)
-    if dim is not None and dim > 1:
-        return switch_nd(problem, branch, point, options, dim, branch_id_prefix=branch_id_prefix, ds=ds)
     system = ExtendedSystem(problem, point.params, param, options.step.theta)
     u0 = np.asarray(point.state, dtype=float)
     system.n = u0.size
@@ -193,42 +212,21 @@ def switch(
     phi, psi = null_directions(system, x0, t1, "symmetry-breaking" in point.note)
     a, b, c = bifurcation_coefficients(system, x0, t1, phi, psi)
     tau = new_tangent(system, t1, phi, a, b, c)
-    prefix = branch_id_prefix if branch_id_prefix is not None else f"{branch.id}.{point.name}"
-    parent = f"{point.name}@{branch.id}"
-    out: list[Branch] = []
-    failed: list[str] = []
-    for k, d in enumerate(directions, start=1):
-        step = abs(ds if ds is not None else options.step.ds)
-        start = None
-        corr = None
-        # The correction of a pitchfork start grows like curvature * step^2 (H - H_c ~ a delta^2),
-        # so a strongly bent branch (gPCF at nu = 0.16: |a| ~ 1e5) needs steps far below ds before
-        # the test below passes: halve up to MAX_START_HALVINGS times.
-        for _ in range(MAX_START_HALVINGS):
-            x_pred = x0 + d * step * tau
-            corr = correct(system, x_pred, system.row(tau), options.newton, give_up=_FarFromPredictor(system, x_pred, 0.5 * step))
-            # A good start lies near the predictor; a large correction means the predictor fell
-            # back onto the known branch or diverged.
-            if corr.converged and system.norm(corr.x - x_pred) < 0.5 * step:
-                start = corr.x
-                break
-            step *= 0.5
-        if start is None:
-            why = "no corrected first step near the predictor" if corr is None or corr.converged else corr.message
-            failed.append(f"direction {d:+d}: {why} (first step halved to {step:.3g})")
-            continue
-        # The accepted first step measures the branch's scale near the BP: continue with it
-        # instead of restarting at options.step.ds, which the halvings above just rejected.
-        sopt = options.step
-        first = replace(options, step=replace(sopt, ds=math.copysign(min(max(step, sopt.ds_min), sopt.ds_max), sopt.ds)))
-        new = trace(problem, start[:-1], system.params_at(start[-1]), param, first,
-                    tangent=d * tau, branch_id=f"{prefix}.{k}", kind="bifurcated", parent=parent,
-                    symmetric=symmetric)
-        out.append(_prepend(system, new, x0, d * tau))
-    if not out:  # never an empty list without a reason
-        raise ValueError(f"switching at {point.name} ({param} = {point.params[param]:.10g}) found no new branch: "
-                         + "; ".join(failed))
+    out: list[Departure | str] = []
+    for d in directions:
+        start, step, why = first_point(system, x0, d * tau, abs(ds if ds is not None else options.step.ds), options)
+        out.append(Departure(system, x0, start, d * tau, step, d) if start is not None else f"direction {d:+d}: {why}")
     return out
+
+
+def first_step_options(options: ContinuationOptions, step: float) -> ContinuationOptions:
+    """``options`` with ds set to the accepted first step (clipped to [ds_min, ds_max], sign of ds).
+
+    The accepted first step measures the branch's scale near the BP: continuing with it
+    beats restarting at options.step.ds, which the halvings of :func:`departures` just rejected.
+    """
+    sopt = options.step
+    return replace(options, step=replace(sopt, ds=math.copysign(min(max(step, sopt.ds_min), sopt.ds_max), sopt.ds)))
 
 
 class _FarFromPredictor:
@@ -254,7 +252,7 @@ class _FarFromPredictor:
         return None
 
 
-def _prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
+def prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
     """Insert the branch point itself as point 0 of a bifurcated branch."""
     if len(br) == 0:
         return br

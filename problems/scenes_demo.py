@@ -19,8 +19,9 @@ import numpy as np
 
 from contin.adapt import on_grid
 from contin.branch import Branch, relabel
-from contin.continuation import switch, trace, trace_both
+from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
+from contin.resume import switch_reusing
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz
 
@@ -115,9 +116,9 @@ def run_allen_cahn(request: SceneRequest) -> SceneResult:
         ids = [f"{prefix}.1", f"{prefix}.2"]
         if all(i in request.completed for i in ids):
             children = [request.completed[i] for i in ids]
-        else:
+        else:  # each finished half is reused (a kill between the halves loses only the second)
             request.report(f"allen-cahn: switching at {bp.name} (lam = {bp.params['lam']:.6g})")
-            children = switch(pb, trivial, bp, options, branch_id_prefix=prefix)
+            children = switch_reusing(request.completed, pb, trivial, bp, options, branch_id_prefix=prefix)
         for child in children:
             _emit(request, done, child)
     return SceneResult(

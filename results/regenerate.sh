@@ -34,8 +34,15 @@ python results/sweeps/plot_criticality.py
 
 # ---- gravity (issue 5)
 mkdir -p results/gravity
-contin unfold --grid 96 -s H_max=70 --json -o results/gravity/phase_diagram_nu0.3.png > results/gravity/unfold_nu0.3.json
-contin fit --compute results/gravity/bp_unfolding.h5
+# fold curves in (H, G): the gravity-phase scene (numbers under "extra" of the JSON); the curves'
+# file is only needed for the figure (augmented states, ~MBs), so it goes to a temporary file
+phase_h5="$(mktemp -d)/phase_nu0.3.h5"
+contin trace gravity-phase --grid 96 -s H_max=70 --json -q -o "$phase_h5" > results/gravity/unfold_nu0.3.json
+python results/gravity/make_figures.py phase "$phase_h5"
+rm -f "$phase_h5"
+# normal form at the first pitchfork: branches near it at small G, then the generic fit at its label
+contin trace gravity-unfolding --no-stability -q -o results/gravity/bp_unfolding.h5
+contin fit results/gravity/bp_unfolding.h5 --at BP1
 python results/gravity/make_figures.py all
 
 # ---- nonlocal (issue 18; ~30 s): Dsouza-Nott non-local model, plane shear, cylinder, mu(I)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 from click.testing import CliRunner
 
 from contin import io
@@ -46,3 +48,27 @@ def test_stop_at_uz_and_bad_uz_input():
         res = run("trace", "lorenz", *bad)
         assert res.exit_code != 0
         assert "Error" in res.output and "Traceback" not in res.output
+
+
+def test_readme_hopf_section_examples_run():
+    """The python blocks of README's "Hopf points, user zeros, Hopf curves" section run as printed
+    and give the numbers their comments state."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    section = text[text.index("## Hopf points, user zeros, Hopf curves"):]
+    section = section[:section.index("\n## ", 5)]
+    code = "\n".join(re.findall(r"```python\n(.*?)\n```", section, flags=re.S))
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    assert abs(ns["hb"].params["rho"] - 470 / 19) <= 1e-10 * 470 / 19
+    uz = {sp.note: sp.params["rho"] for sp in ns["br"].points("UZ")}
+    assert math.isclose(uz["x=7"], 1 + 49 / (8 / 3), rel_tol=1e-11) and math.isclose(uz["rho=25"], 25.0, rel_tol=1e-11)
+    from tests.test_hopfcurve import co_bt_reference  # independent scipy solve of the BT system
+
+    bts = ns["curve"].points("BT")
+    assert len(bts) == 2
+    for bt in bts:
+        ref = co_bt_reference(np.concatenate([bt.state[:3], [bt.params["q2"], bt.params["k"]]]))
+        assert np.allclose([bt.params["q2"], bt.params["k"]], ref[3:], rtol=1e-9)

@@ -1,4 +1,5 @@
-"""``--resolution-tol FLOAT|off`` on ``contin trace``, ``contin unfold`` and ``contin accuracy``:
+"""``--resolution-tol FLOAT|off`` on ``contin trace`` (also of the gPCF ``gravity-phase`` scene, formerly
+``contin unfold``) and ``contin accuracy``:
 ContinuationOptions.resolution_tol for every trace of the run (contin.options.resolution_override),
 one ``Error:`` line (exit 1) for a bad value.
 
@@ -101,7 +102,7 @@ def one_error_line(result, expect: str) -> None:
 
 
 @pytest.mark.parametrize("value", BAD)
-@pytest.mark.parametrize("command", [["trace", "guarded"], ["unfold"], ["accuracy", "guarded"]])
+@pytest.mark.parametrize("command", [["trace", "guarded"], ["trace", "gravity-phase"], ["accuracy", "guarded"]])
 def test_bad_value_is_one_error_line(command, value):
     r = run(*command, "--resolution-tol", value)
     one_error_line(r, f"--resolution-tol must be a number > 0 (largest estimated relative discretization error "
@@ -121,7 +122,7 @@ def test_bad_value_in_a_subprocess():
 
 
 def test_help_names_the_option():
-    for command in ("trace", "unfold", "accuracy"):
+    for command in ("trace", "accuracy"):
         r = run(command, "--help")
         assert r.exit_code == 0 and "--resolution-tol FLOAT|off" in r.output
 
@@ -142,13 +143,17 @@ def test_override_is_scoped():
             pass
 
 
-def test_unfold_guard_off_on_a_resolved_run():
-    """gPCF fold curve of the first imperfect pitchfork (nu = 0.3, e = 0.8, cheb 24, H <= 20): every
-    state is resolved far below 3e-5, so switching the guard off changes nothing (Fr* = 254.12038,
-    the default run's value); the setting is in the JSON document."""
-    r = run("unfold", "--grid", "24", "-s", "H_max=20", "--json", "--resolution-tol", "off")
+def test_unfold_guard_off_on_a_resolved_run(tmp_path):
+    """gPCF fold curve of the first imperfect pitchfork (nu = 0.3, e = 0.8, cheb 24, H <= 20; scene
+    gravity-phase, formerly `contin unfold`): every state is resolved far below 3e-5, so switching
+    the guard off changes nothing (Fr* = 254.12038, the default run's value); the setting is in the
+    file's options."""
+    out = tmp_path / "phase.h5"
+    r = run("trace", "gravity-phase", "--grid", "24", "-s", "H_max=20", "--json", "--resolution-tol", "off",
+            "-q", "-o", str(out))
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
-    assert doc["resolution_tol"] is None
-    assert doc["fr_min_floating_plug"] == pytest.approx(254.1203789772, rel=1e-10)
-    assert [(c["id"], c["status"]) for c in doc["curves"]] == [("fold0", "EP")]
+    assert doc["extra"]["fr_min_floating_plug"] == pytest.approx(254.1203789772, rel=1e-10)
+    assert [(c["id"], c["status"]) for c in doc["branches"]] == [("fold0", "EP")]
+    _, meta = io.load(out)
+    assert meta["options"]["overrides"]["resolution_tol"] is None

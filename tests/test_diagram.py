@@ -92,6 +92,20 @@ def test_allen_cahn_depth_one_is_the_start_branch_only():
     assert [b.id for b in d.branches] == ["0"] and len(d.branch("0").branch_points) == 3
 
 
+def test_allen_cahn_max_branches_and_no_mirror():
+    """max_branches stops the switching (and says so); mirror=False traces both halves of each
+    pitchfork instead of reflecting (the -1 half is then new: -u is not yet known)."""
+    pb = AllenCahn("cheb", 32)
+    few = bifurcation_diagram(pb, pb.initial(), {"lam": 0.0}, "lam", AC_OPTS, DiagramSettings(depth=2, max_branches=3))
+    assert len(few.branches) == 3 and any("max_branches = 3 reached" in s for s in few.skipped)
+    plain = bifurcation_diagram(pb, pb.initial(), {"lam": 0.0}, "lam", AC_OPTS, DiagramSettings(depth=2, mirror=False))
+    assert len(plain.traced) == 7 and not plain.mirrors
+    assert not duplicated_pairs(plain.branches)
+    for b in plain.branches[1:]:
+        twin = next(t for t in plain.branches[1:] if t is not b and t.parent == b.parent)
+        assert np.max(np.abs(twin.states[-1] + b.states[-1])) < 1e-6  # the two halves are u and -u
+
+
 def test_diagram_settings_reject_bad_values():
     with pytest.raises(ValueError, match="depth"):
         DiagramSettings(depth=0)

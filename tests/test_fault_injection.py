@@ -392,3 +392,28 @@ def test_sigterm_on_any_command_is_one_error_line_and_exit_143(tmp_path):
     one_error(proc.returncode, stderr, "terminated by SIGTERM", exit_code=143)
     doc = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert doc["counts"]["pending"] == 1 and not (tmp_path / "out" / ".contin.lock").exists()
+
+
+def test_switch_reusing_keeps_each_finished_half_allen_cahn(monkeypatch):
+    """contin.resume.switch_reusing on a non-granular scene: a run killed between the two halves
+    of a switched branch retraces only the missing half, with the id and values it had."""
+    import contin.continuation as cont
+    from contin.scene import SceneRequest, get_scene
+
+    req = dict(params={"lam_max": 5.0}, stability=False)
+    full = {b.id: b for b in get_scene("allen-cahn").run(SceneRequest(**req)).branches}
+    halves = sorted(i for i in full if i.endswith((".1", ".2")))
+    assert halves == ["0.BP1.1", "0.BP1.2", "0.BP2.1", "0.BP2.2"]  # pitchforks at lam = 1, 4
+    calls = []
+    real = cont.switch
+
+    def counting(*args, directions=(1, -1), **kw):
+        calls.append(tuple(directions))
+        return real(*args, directions=directions, **kw)
+
+    monkeypatch.setattr(cont, "switch", counting)
+    done = {k: v for k, v in full.items() if k not in ("0.BP2.2",)}  # killed while tracing 0.BP2.2
+    again = {b.id: b for b in get_scene("allen-cahn").run(SceneRequest(**req, completed=done)).branches}
+    assert calls == [(-1,)]
+    assert all(again[k] is done[k] for k in done)
+    np.testing.assert_allclose(again["0.BP2.2"].observables["phi"], full["0.BP2.2"].observables["phi"], atol=1e-10)

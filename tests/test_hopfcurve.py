@@ -26,12 +26,16 @@ def bt_branch(param_start, bounds):
     return trace(BTNormalForm(), np.array([x, 0.0]), {"b1": param_start, "b2": -1.0}, "b1", opts)
 
 
-def test_bt_normal_form_hopf_curve_meets_bt_at_the_origin():
+def bt_hopf_curve():
     br = bt_branch(-0.5, {"b1": (-1.0, 0.2)})
     (hb,) = br.points("HB")
     assert abs(hb.params["b1"]) <= 1e-12 and hb.data["omega"] == pytest.approx(1.0, rel=1e-10)
     opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b2": (-2.0, 1.0)}, max_steps=200)
-    curve = trace_hopf_curve(BTNormalForm(), hb, "b2", opts, parameter="b1")
+    return trace_hopf_curve(BTNormalForm(), hb, "b2", opts, parameter="b1")
+
+
+def test_bt_normal_form_hopf_curve_meets_bt_at_the_origin():
+    curve = bt_hopf_curve()
     assert curve.kind == "hopf-curve" and curve.free == ("b1", "b2")
     (bt,) = curve.points("BT")
     assert bt.converged and abs(bt.params["b2"]) <= 1e-10 and abs(bt.params["b1"]) <= 1e-10
@@ -41,6 +45,17 @@ def test_bt_normal_form_hopf_curve_meets_bt_at_the_origin():
     assert np.allclose(kappa, -b2, atol=1e-9)  # omega^2 = -b2 (neutral saddles past BT)
     assert b2.min() == pytest.approx(-2.0, abs=1e-12) and b2.max() == pytest.approx(1.0, abs=1e-12)
     assert [s.type for s in curve.special_points if s.type == "EP"] == ["EP", "EP"]
+
+
+def test_hopf_curve_round_trips_through_hdf5(tmp_path):
+    from contin import io
+
+    curve = bt_hopf_curve()
+    (back,), _ = io.load(io.write(tmp_path / "hopf.h5", [curve]))
+    assert back.kind == "hopf-curve" and back.free == ("b1", "b2")
+    assert np.array_equal(back.params["b2"], curve.params["b2"])
+    (bt,) = back.points("BT")
+    assert bt.data["kappa"] == curve.points("BT")[0].data["kappa"]
 
 
 def test_bt_normal_form_fold_curve_bt():

@@ -120,6 +120,11 @@ class Progress:
                 self.stream.write(self._stamp(f"running: {self._last or 'started'}")[:300] + "\n")
                 self.stream.flush()
 
+    def note(self, message: str) -> None:
+        """Remember ``message`` for the heartbeat without printing it (the caller printed it)."""
+        with self._lock:
+            self._last = message
+
     def status(self, message: str) -> None:
         if not self.enabled:
             return

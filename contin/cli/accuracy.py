@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import click
@@ -84,10 +83,16 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
         from pathlib import Path
 
         Path(outdir).mkdir(parents=True, exist_ok=True)  # fail before computing
-    show = not quiet and sys.stderr.isatty()
-    with guard:
-        report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
-                              progress=(lambda m: echo_err(f"running {m}")) if show else None)
+    from contin.cli._runctl import Progress
+
+    # a line per run, and a heartbeat when stderr is not a terminal (long jobs show life in logs)
+    progress = Progress(enabled=not quiet)
+    try:
+        with guard:
+            report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
+                                  progress=None if quiet else (lambda m: progress.line(f"running {m}")))
+    finally:
+        progress.close()
     if not report.reference:
         raise ValueError(f"no key points: every run of scene {scene!r} failed or found no BP/LP "
                          f"({'; '.join(sorted({r.failed for r in report.runs if r.failed})) or 'no special points'})")
@@ -105,7 +110,8 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
         for r in report.runs:
             if r.failed:
                 echo_err(f"failed: {r.method} N={r.grid}: {r.failed}")
-        rec = [(f"{x['target']:.0e}", x["method"] or "-", x["grid"] or "-", fmt(x["cpu"], 3), fmt(x["worst_error"], 2))
+        rec = [(f"{x['target']:.0e}", x["method"] or "-", x["grid"] or "-",
+                fmt(x["cpu"], 3) if x["method"] else "-", fmt(x["worst_error"], 2) if x["method"] else "not reached")
                for x in recommend(report)]
         echo_err(table(rec, ("budget", "method", "N", "cpu s", "worst error")))
         for path in written:

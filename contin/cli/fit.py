@@ -1,151 +1,99 @@
-"""``contin fit FILE.h5``: fit the universal unfolding of the pitchfork to computed branches.
+"""``contin fit FILE.h5 --at BP1``: the normal form of a stored pitchfork, fitted to the file's
+branches around it and compared with the Lyapunov-Schmidt reduction (:mod:`contin.bpfit`).
 
-Design.  ``FILE.h5`` holds branches near one pitchfork at several gravities G = Fr^-2 (G = 0
-allowed): every branch with an 'H' parameter, a constant 'G' column and the nu_top,
-nu_bottom observables is used.  ``contin fit --compute FILE.h5 -s nu=0.3 -s e=0.8`` first
-computes such a file (gravity-free uniform shear, its first BP, every solution component in
-|H - H_c| <= window at G = 0 and at each G of ``--G``;
-problems.couette.unfolding.branches_near_bp) and then fits it.
-
-The fit (contin.fit.fit_graph) is the graph of the solution set in the odd order parameter
-delta = (nu(1/2) - nu(-1/2))/2, H - H_c = sum c[k, j] G^j delta^(2k - 3j) up to weight
-2 ``--order``; it gives the canonical unfolding
-
-    delta^3 - B(H) delta + alpha(G) + beta(G) delta^2 + q5 delta^5 = 0,
-    B = b1 (H - H_c) + b2 (H - H_c)^2,  alpha = alpha1 G,  beta = beta1 G,
-
-with errors (statistical and truncation), alpha(G), beta(G) fitted at each G separately
-(contin.fit.fit_imperfections), the comparison with the Lyapunov-Schmidt reduction at the BP
-in the same coordinate (problems.couette.unfolding.ls_unfolding; its error is the change
-when the stencil is halved), the fold points of the file's branches against the predicted
-fold H_LP(G), and where the hysteresis variety alpha = beta^3/27 lies.
+FILE holds the branch through the BP and branches near it at several fixed values of an
+imperfection parameter (any scene's run; e.g. ``contin trace gravity-unfolding`` for gPCF).
+``--imperfection`` and ``--delta`` (an observable odd under the symmetry) default to the file's
+``extra.normal_form`` entries, else the imperfection is the one parameter constant per branch
+that varies between branches and delta the diagram's y observable.
 """
 
 from __future__ import annotations
 
+import math
+
 import click
 
-from contin.cli._base import echo_err, echo_json, fmt, main, parse_settings, table
+from contin.cli._base import echo_err, echo_json, fail, fmt, main, table
 
-COMPARED = ("b1", "alpha1", "beta1", "b2", "q5")
+
+def _positive(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0):
+        fail(f"{name} must be a finite number > 0, got {value}")
 
 
 @main.command("fit")
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--compute", is_flag=True, help="Compute the branches first and write them to FILE.")
-@click.option("-s", "--set", "settings", multiple=True, metavar="NAME=VALUE", help="nu, e (with --compute).")
-@click.option("--G", "g_values", default="3e-8,1e-7,3e-7,1e-6", show_default=True,
-              help="Gravities G > 0 (with --compute; G = 0 is always added).")
-@click.option("--window", type=float, default=0.3, show_default=True, help="|H - H_c| window of branches and fit.")
+@click.option("--at", "label", required=True, metavar="LABEL", help="The branch point (BP1, ...).")
+@click.option("--branch", "branch_id", default=None, metavar="ID", help="Branch of the point (when the label is not unique).")
+@click.option("--imperfection", default=None, metavar="NAME", help="Imperfection parameter (constant per branch).")
+@click.option("--delta", default=None, metavar="OBS", help="Odd order-parameter observable.")
+@click.option("--window", type=float, default=0.3, show_default=True, help="|lambda - lambda_c| window of the fit.")
 @click.option("--delta-max", type=float, default=0.05, show_default=True, help="|delta| window of the fit.")
+@click.option("--delta-min", type=float, default=3e-3, show_default=True,
+              help="Points with |delta| below this are left out (the graph is singular at delta = 0).")
 @click.option("--order", type=click.IntRange(min=2, max=8), default=5, show_default=True,
               help="Highest weight / 2 of the fitted graph (2 = just the unfolding's terms).")
-@click.option("--grid", type=click.IntRange(min=8), default=32, show_default=True, help="Grid intervals (with --compute).")
+@click.option("--no-ls", is_flag=True, help="Skip the Lyapunov-Schmidt comparison (needs the problem rebuilt).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
-def fit_command(file: str, compute: bool, settings: tuple[str, ...], g_values: str, window: float,
-                delta_max: float, order: int, grid: int, as_json: bool) -> None:
-    """Fit delta^3 - B(H) delta + alpha(G) + beta(G) delta^2 = 0 near a pitchfork; compare with Lyapunov-Schmidt."""
-    import numpy as np
-
+def fit_command(file: str, label: str, branch_id: str | None, imperfection: str | None, delta: str | None,
+                window: float, delta_max: float, delta_min: float, order: int, no_ls: bool, as_json: bool) -> None:
+    """Fit delta^3 - B delta + alpha(mu) + beta(mu) delta^2 = 0 around the BP LABEL of FILE."""
     from contin import io
-    from contin.fit import fit_graph, fit_imperfections
-    from problems.couette.gravity import gravity_problem
-    from problems.couette.unfolding import (
-        branches_near_bp,
-        first_pitchfork,
-        ls_unfolding,
-        unfolding_data,
-    )
+    from contin.bpfit import fit_at_bp, guess_imperfection
+    from contin.restart import find_point, rebuild_problem
 
-    if not (window > 0 and delta_max > 0):
-        raise ValueError("--window and --delta-max must be positive")
-    if compute:
-        vals = {"nu": 0.3, "e": 0.8, **parse_settings(settings)}
-        try:
-            Gs = [float(g) for g in g_values.split(",") if g.strip()]
-        except ValueError:
-            raise click.BadParameter(f"expected comma-separated numbers, got {g_values!r}", param_hint="'--G'") from None
-        if not Gs or min(Gs) <= 0:
-            raise ValueError("--G needs positive gravities G = Fr^-2 (G = 0 is added by itself)")
-        pb = gravity_problem("cheb", grid)
-        base, bp = first_pitchfork(pb, vals["nu"], vals["e"])
-        branches = []
-        for G in [0.0, *Gs]:
-            branches += branches_near_bp(pb, base, bp, G, window)
-        io.write(file, branches, scene="gravity-unfolding", parameters={"nu": vals["nu"], "e": vals["e"]},
-                 discretization={"method": "cheb", "intervals": grid}, diagram_x="H")
+    for name, v in (("--window", window), ("--delta-max", delta_max), ("--delta-min", delta_min)):
+        _positive(name, v)
+    if delta_min >= delta_max:
+        fail(f"--delta-min ({delta_min:g}) must be below --delta-max ({delta_max:g})")
     branches, meta = io.load(file)
-    use = [b for b in branches if "H" in b.params and "G" in b.params and len(b) > 2
-           and np.ptp(b.params["G"]) == 0 and {"nu_top", "nu_bottom"} <= set(b.observables)]
-    if not any(b.params["G"][0] != 0 for b in use):
-        raise ValueError(f"{file!r} has no branches at constant G != 0 with an H column and nu_top, nu_bottom")
-    nu = float(meta["parameters"].get("nu", use[0].params["nu"][0]))
-    e = float(meta["parameters"].get("e", use[0].params["e"][0]))
-    n = int(meta["discretization"].get("intervals", grid))
-    pb = gravity_problem(meta["discretization"].get("method", "cheb"), n)
-    H_all = np.concatenate([b.params["H"] for b in use])
-    _, bp = first_pitchfork(pb, nu, e, H_max=float(H_all.max()) + 1.0)
-    Hc = float(bp.params["H"])
-    if not H_all.min() - window <= Hc <= H_all.max() + window:
-        raise ValueError(f"the first pitchfork (H_c = {Hc:.6g}) is not near the file's branches "
-                         f"(H in [{H_all.min():.6g}, {H_all.max():.6g}])")
-    lam, delta, mu = unfolding_data(use, Hc)
-    fit = fit_graph(lam, delta, mu, critical_value=Hc, order=order, window=window, delta_max=delta_max)
-    per_g = fit_imperfections(lam, delta, mu, fit, window=window, delta_max=delta_max)
-    ls = ls_unfolding(pb, bp, amplitude=1e-2)
-    ls_fine = ls_unfolding(pb, bp, amplitude=5e-3)
-    fu, lu, lf = fit.unfolding, ls.unfolding, ls_fine.unfolding
-    ferr = fit.errors()
-    coeffs = {}
-    for k in COMPARED:
-        f_v, l_v = getattr(fu, k), getattr(lf, k)
-        rel = abs(f_v - l_v) / abs(l_v)
-        coeffs[k] = {"fit": f_v, "fit_err": ferr[k], "fit_stat_err": fu.errors()[k], "fit_truncation": fit.systematic[k],
-                     "lyapunov_schmidt": l_v, "lyapunov_schmidt_err": abs(l_v - getattr(lu, k)),
-                     "relative_difference": rel, "agree_5pct": bool(rel <= 0.05)}
-    folds = []
-    for b in use:
-        for lp in b.fold_points:
-            G = float(lp.params["G"])
-            if not lp.converged or G == 0:
-                continue
-            pred = fu.fold(G)[0]
-            folds.append({"branch": b.id, "G": G, "H_minus_Hc": lp.params["H"] - Hc, "predicted": pred,
-                          "predicted_leading": fu.fold(G, leading=True)[0],
-                          "rel_error": pred / (lp.params["H"] - Hc) - 1})
-    hyst = lf.hysteresis()
-    m2 = 27 * lf.alpha1 / lf.beta1**3
-    formal = float(np.sqrt(abs(m2)))
-    hysteresis = {"exists": hyst is not None, "G": formal, "Fr": formal ** -0.5, "delta": abs(lf.beta1 * formal / 3),
-                  "note": ("alpha1 beta1 < 0: the line (alpha1 G, beta1 G) meets alpha = beta^3/27 only at G = 0; "
-                           "G, Fr, delta are where it would if beta1 changed sign" if hyst is None else
-                           "hysteresis point of the cubic truncation"),
-                  "perturbative": bool(abs(lf.beta1 * formal / 3) <= delta_max)}
-    doc = {"file": file, "nu": nu, "e": e, "critical_value": Hc,
-           "G": sorted({float(b.params["G"][0]) for b in use}), "branches": [b.id for b in use],
-           "B": {"b1": fu.b1, "b1_err": ferr["b1"], "b2": fu.b2, "b2_err": ferr["b2"],
-                 "formula": "B(H) = b1 (H - H_c) + b2 (H - H_c)^2"},
-           "alpha": [{"G": r.mu, "alpha": r.alpha, "alpha_err": r.alpha_err, "n_points": r.n_points} for r in per_g],
-           "beta": [{"G": r.mu, "beta": r.beta, "beta_err": r.beta_err, "n_points": r.n_points} for r in per_g],
-           "coefficients": coeffs,
-           "relative_difference": {k: coeffs[k]["relative_difference"] for k in ("b1", "alpha1", "beta1")},
-           "agree_5pct": {k: coeffs[k]["agree_5pct"] for k in ("b1", "alpha1", "beta1")},
-           "fit": fit.as_dict(),
-           "lyapunov_schmidt": {"unfolding": lf.as_dict(), "raw": ls_fine.coefficients, "stencil_residual": ls_fine.residual,
-                                "amplitudes": [ls.amplitude, ls_fine.amplitude]},
-           "folds": folds, "hysteresis": hysteresis,
-           "convention": "delta = (nu(1/2) - nu(-1/2))/2; delta^3 - B(H) delta + alpha(G) + beta(G) delta^2 + q5 delta^5 = 0"}
+    branch, bp = find_point(branches, label, branch_id, repr(file))
+    if bp.type != "BP":
+        fail(f"{bp.name} of {file} is a {bp.type}; `contin fit` needs a branch point")
+    parameter = branch.parameter
+    hints = dict((meta.get("extra") or {}).get("normal_form") or {})
+    imperfection = imperfection or hints.get("imperfection") or guess_imperfection(
+        [b for b in branches if parameter in b.params], parameter)
+    delta = delta or hints.get("delta") or meta.get("diagram_y") or "phi"
+    if imperfection == parameter:
+        fail(f"the imperfection must differ from the branch's parameter {parameter!r}")
+    if imperfection not in bp.params:
+        fail(f"{bp.name} has no value of {imperfection!r}")
+    problem, delta0 = None, 0.0
+    if not no_ls:
+        problem = rebuild_problem({**meta, "path": file})
+        delta0 = float(problem.observables(bp.state, bp.params)[delta])
+    else:  # the BP's delta interpolated along its branch
+        import numpy as np
+
+        if delta in branch.observables and len(branch) > 1:
+            i = min(max(bp.index, 0), len(branch) - 2)
+            x, y = branch.params[parameter][i:i + 2], branch.observables[delta][i:i + 2]
+            w = 0.0 if x[1] == x[0] else (bp.params[parameter] - x[0]) / (x[1] - x[0])
+            delta0 = float((1 - w) * y[0] + w * y[1]) if np.all(np.isfinite(y)) else 0.0
+    doc = fit_at_bp(branches, bp, parameter, imperfection=imperfection, delta=delta, problem=problem,
+                    delta_at_bp=delta0, window=window, delta_max=delta_max, delta_min=delta_min, order=order)
+    doc = {"file": file, "branch": branch.id, **doc}
     if as_json:
         echo_json(doc)
         return
-    rows = [(k, f"{fmt(c['fit'], 6)} +- {fmt(c['fit_err'], 2)}", f"{fmt(c['lyapunov_schmidt'], 6)} +- {fmt(c['lyapunov_schmidt_err'], 2)}",
-             f"{100 * c['relative_difference']:.3f} %") for k, c in coeffs.items()]
-    echo_err(f"pitchfork at H_c = {fmt(Hc)} (nu = {nu:g}, e = {e:g}); {fit.n_points} points, order {order}, "
-             f"rms {fit.rms_residual:.1e}")
-    echo_err(table(rows, ("coefficient", "fit", "Lyapunov-Schmidt", "difference")))
-    echo_err(table([(f"{r.mu:.3g}", f"{fmt(r.alpha, 6)} +- {fmt(r.alpha_err, 2)}", f"{fmt(r.beta, 6)} +- {fmt(r.beta_err, 2)}")
-                    for r in per_g], ("G", "alpha(G)", "beta(G)")))
-    for f in folds:
-        echo_err(f"fold {f['branch']}: G = {f['G']:.3g}, H_LP - H_c = {fmt(f['H_minus_Hc'], 8)}, "
+    fit = doc["fit"]
+    echo_err(f"{bp.name} at {parameter}_c = {fmt(doc['critical_value'])} ({imperfection} = {fmt(doc['imperfection_at_bp'])}); "
+             f"delta = {delta}; {fit['n_points']} points, order {order}, rms {fit['rms_residual']:.1e}")
+    coeffs = doc["coefficients"]
+    if problem is not None:
+        rows = [(k, f"{fmt(c['fit'], 6)} +- {fmt(c['fit_err'], 2)}",
+                 f"{fmt(c['lyapunov_schmidt'], 6)} +- {fmt(c['lyapunov_schmidt_err'], 2)}",
+                 f"{100 * c['relative_difference']:.3f} %") for k, c in coeffs.items()]
+        echo_err(table(rows, ("coefficient", "fit", "Lyapunov-Schmidt", "difference")))
+    else:
+        echo_err(table([(k, f"{fmt(c['fit'], 6)} +- {fmt(c['fit_err'], 2)}") for k, c in coeffs.items()],
+                       ("coefficient", "fit")))
+    echo_err(table([(f"{a['mu']:.3g}", f"{fmt(a['alpha'], 6)} +- {fmt(a['alpha_err'], 2)}",
+                     f"{fmt(b['beta'], 6)} +- {fmt(b['beta_err'], 2)}") for a, b in zip(doc["alpha"], doc["beta"])],
+                   ("mu", "alpha(mu)", "beta(mu)")))
+    for f in doc["folds"]:
+        echo_err(f"fold {f['branch']}: mu = {f['mu']:.3g}, {parameter}_LP - {parameter}_c = {fmt(f['lambda_minus_lc'], 8)}, "
                  f"predicted {fmt(f['predicted'], 8)} ({100 * f['rel_error']:+.3f} %)")
-    echo_err(f"hysteresis: {hysteresis['note']}")
+    echo_err(f"hysteresis: {doc['hysteresis']['note']}")

@@ -196,7 +196,7 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
     import numpy as np
 
     from contin import io
-    from contin.scene import get_scene
+    from contin.restart import rebuild_problem
     from contin.stability import count_unstable, eigenpairs, operator_pair
 
     if (point is None) == (at is None):
@@ -232,15 +232,10 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         state, params, where = resolve_point(branch, point, fixed, file)
 
     scene_name = meta.get("scene") or ""
-    if not scene_name:
-        fail(f"{file} does not name its scene, so its problem cannot be rebuilt")
     try:
-        scene = get_scene(scene_name)
+        problem = rebuild_problem({**meta, "path": file})
     except ValueError as exc:
-        fail(f"cannot rebuild the problem of {file}: {exc}")
-    if scene.problem_factory is None:
-        fail(f"cannot rebuild the problem of {file}: scene {scene_name!r} has no problem_factory")
-    problem = scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
+        fail(str(exc))
     if branch.grid is not None:  # an adaptive run: every point is a solution on its own grid
         from contin.adapt import on_grid
 

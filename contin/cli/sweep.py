@@ -32,19 +32,25 @@ def sweep_command(sweep_file: str, outdir: str, jobs: int | None, scheduler: str
     Example:
       contin sweep results/sweeps/demo_bratu.toml -o out/bratu -j 4
     """
+    from contin.cli._runctl import EXIT_TERMINATED, Progress, Terminated, sigterm_as_interrupt
     from contin.sweep import load_sweep, open_executor, run_sweep
 
-    from contin.cli._runctl import EXIT_TERMINATED, Terminated, sigterm_as_interrupt
-
     spec = load_sweep(sweep_file)
-    progress = None if quiet else echo_err
+    beat = Progress(enabled=not quiet)  # heartbeat between task lines on a non-terminal
+
+    def progress(line: str) -> None:
+        echo_err(line)
+        beat.note(line)
+
     try:
         with sigterm_as_interrupt(), open_executor(scheduler, jobs) as executor:
-            summary = run_sweep(spec, outdir, executor=executor, jobs=jobs, progress=progress,
+            summary = run_sweep(spec, outdir, executor=executor, jobs=jobs, progress=None if quiet else progress,
                                 retry_failed=retry_failed)
     except Terminated:  # like Ctrl-C: the summary of the finished tasks is written; rerun to resume
         echo_err(f"Error: terminated by SIGTERM; finished tasks are kept in {outdir} (rerun the same command to resume)")
         raise SystemExit(EXIT_TERMINATED) from None
+    finally:
+        beat.close()
     c = summary.counts()
     failed = c["MX"] + c["error"] + c["lost"]
     if not quiet:

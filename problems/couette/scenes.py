@@ -470,3 +470,7 @@ SCENES: dict[str, Scene] = {
 from problems.couette.gravity_scenes import GRAVITY_SCENES  # noqa: E402  (gravity scenes live in their own module)
 
 SCENES.update(GRAVITY_SCENES)
+# ---- gPCF jobs that were CLI commands (unfold, fit --compute): problems/couette/phase_scenes.py
+from problems.couette.phase_scenes import PHASE_SCENES  # noqa: E402
+
+SCENES.update(PHASE_SCENES)

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, relabel
-from contin.continuation import switch, trace
+from contin.continuation import trace
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
+from contin.resume import switch_reusing
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 from problems.disks.closures import (
     G_MODELS, DiskClosure, critical_gaps, homogeneous_stresses, kn_in_time_units, savage_contact_stresses,
@@ -140,7 +141,7 @@ def run_pitchfork(request: SceneRequest) -> SceneResult:
             else:
                 request.report(f"disks-pitchfork: G = {model}, switching at {bp.name} (H = {bp.params['H']:.6g})")
                 try:
-                    kids = switch(pb, base, bp, banded, branch_id_prefix=prefix)
+                    kids = switch_reusing(request.completed, pb, base, bp, banded, branch_id_prefix=prefix)
                 except ValueError as exc:
                     notes.append(f"G = {model}: switching at {bp.name} failed: {exc}")
                     continue
@@ -324,9 +325,10 @@ def run_savage(request: SceneRequest) -> SceneResult:
             if all(i in request.completed for i in ids):
                 kids = [request.completed[i] for i in ids]
             else:
-                kids = switch(pb, base, bp, _h_options(request, 0.3 * hcs[0], 2.5 * hcs[0], ds=0.01,
-                                                       ds_max=0.05 * hcs[0], max_steps=60, locate_tol=1e-9),
-                              branch_id_prefix="band.n1")
+                kids = switch_reusing(request.completed, pb, base, bp,
+                                      _h_options(request, 0.3 * hcs[0], 2.5 * hcs[0], ds=0.01,
+                                                 ds_max=0.05 * hcs[0], max_steps=60, locate_tol=1e-9),
+                                      branch_id_prefix="band.n1")
             for kid in kids:
                 _emit(request, done, kid)
     else:

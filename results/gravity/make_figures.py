@@ -2,6 +2,7 @@
 
 Usage: python results/gravity/make_figures.py [panels|profiles|growth|others|nu0.5|nu0.16|nu0.15] (default: all)
        python results/gravity/make_figures.py growth-figure   (redraws growth_H25.png from growth_H25.json)
+       python results/gravity/make_figures.py phase FILE.h5   (phase_diagram_nu0.3.png from a gravity-phase run)
 
 Each panel set also writes its numbers (branches, kinds, folds, routes, stops) to a JSON file
 next to the PNG.
@@ -340,8 +341,33 @@ def _profiles(pb, x):
     return nu, u, T
 
 
+def phase_figure(path: str, out: str = f"{OUT}/phase_diagram_nu0.3.png") -> None:
+    """Fold curves in (H, Fr) of a ``contin trace gravity-phase`` file, births (^) and deaths (v)."""
+    from contin import io
+
+    curves, meta = io.load(path)
+    p, extra = meta["parameters"], meta["extra"]
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for c in curves:
+        G = c.params["G"]
+        Fr = np.where(G > 0, np.abs(G) ** -0.5, np.nan)
+        ax.plot(c.params["H"], Fr, label=f"{c.id} ({c.parent})")
+    for r in extra["births"] + extra["deaths"]:
+        ax.plot(r["H"], r["Fr"], "v" if r["event"] == "death" else "^", color="k", ms=5)
+    ax.set_yscale("log")
+    ax.set_xlabel("H")
+    ax.set_ylabel("Fr")
+    ax.set_ylim(100, 1e4)
+    ax.set_title(f"fold curves, nu={p['nu']:g}, e={p['e']:g} (^ birth, v death)")
+    ax.legend(fontsize=7)
+    save_figure(fig, out)
+    plt.close(fig)
+
+
 if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else "all"
+    if what == "phase":
+        phase_figure(sys.argv[2])
     if what in ("panels", "all"):
         panels(0.3, [np.inf, 2000, 1000, 922, 750, 400, 300, 250], "phi_vs_H_nu0.3")
     if what in ("profiles", "all"):

@@ -2,7 +2,7 @@
 
 Helper script for results/gravity/isola_death/isola_death.md (issue 5).  For one variant (grid, chi, nu_m, Dufour,
 nu_bar, e) it runs problems.couette.gravity.phase_diagram -- the machinery of
-``contin unfold`` -- on a CouetteProblem built with those switches and prints one JSON line:
+``contin trace gravity-phase`` (formerly ``contin unfold``) -- on a CouetteProblem built with those switches and prints one JSON line:
 the critical gaps, Fr* (largest G on the first pitchfork's fold curve) and every G-extremum
 (birth/death) of the fold curves, resolved or not.
 
