@@ -270,12 +270,8 @@ class Adaptor:
         corr = correct(new_sys, x, new_sys.row(t), newton_options, anti.symmetrize if anti is not None else None)
         if not corr.converged or new_sys.admissible(corr.x) is not None or corr.factorization is None:
             return False
-        saved = (tracer.system, tracer.anti, getattr(tracer, "point_tests", []))
-        tracer.system, tracer.anti = new_sys, anti
-        if hasattr(tracer, "point_tests"):  # HB/UZ test functions are set up per grid (contin.pointtestset)
-            from contin.pointtestset import point_tests
-
-            tracer.point_tests = point_tests(other, new_sys, tracer.options, new_sys.n)
+        saved = (tracer.system, tracer.anti, tracer.point_tests)
+        tracer.use_system(new_sys, anti)  # also sets up the HB/UZ test functions on the new grid
         try:
             pt = tracer.finish_point(corr, t)
         except Exception:  # noqa: BLE001 -- keep the old grid if the new one cannot give a tangent

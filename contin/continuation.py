@@ -107,6 +107,12 @@ class _Tracer:
         self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)
         self.adaptive = False
 
+    def use_system(self, system: ExtendedSystem, anti: Antisymmetric | None) -> None:
+        """Continue on ``system`` (the problem on another grid, ``contin.adapt``): its symmetry
+        helper and its HB/UZ test functions, which are set up per grid."""
+        self.system, self.anti = system, anti
+        self.point_tests = point_tests(system.problem, system, self.options, system.n)
+
     @property
     def grid(self) -> int | None:
         """The grid size in force (None unless the run adapts its grid, ``contin.adapt``)."""
