@@ -192,9 +192,9 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
         bid = f"{b.id}.{bp.name}.{k}"
         try:
             probe = switch(problem, b, bp, probe_opts, directions=(d,), branch_id_prefix="probe")
-        except ValueError as exc:
-            out.skipped.append(f"{where}: cannot switch ({exc})")
-            return
+        except ValueError as exc:  # not a simple BP, or no start point in this direction: say why
+            out.skipped.append(f"{bid}: cannot switch ({exc})")
+            continue
         if not probe or len(probe[0]) < 2:
             out.skipped.append(f"{bid}: switching found no start point")
             continue

@@ -46,7 +46,7 @@ class ParameterZeros:
         out: list[Crossing] = []
         for target in self.values:
             if (va - target) * (vb - target) < 0:
-                out.append((f"{self.parameter}={target:g}", lambda v, t=target: float(v) - t))
+                out.append((f"{self.parameter}={_exact(target)}", lambda v, t=target: float(v) - t))
         return out
 
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
@@ -80,6 +80,12 @@ class Event:
 
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
         return replace(sp, data={**sp.data, "value": 0.0})
+
+
+def _exact(value: float) -> str:
+    """Short text of ``value`` that reads back as the same float (finish() parses the note)."""
+    text = f"{value:g}"
+    return text if float(text) == value else repr(value)
 
 
 def user_tests(problem: Any, parameter: str, options: Any) -> list[Any]:

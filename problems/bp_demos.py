@@ -5,11 +5,8 @@
   1/6, 1/6.5, 1/6.75, 1/6.875.  On x = 0 the Jacobian is diag(-1 + lam L_ii), singular at
   lam = 1/L_ii: branch points at lam = 1, 2, 3, 4, 5, 6, 6.5, 6.75, 6.875 with kernel dimensions
   1, 2, 3, 4, 5, 1, 1, 1, 1 (n = 19).
-- :class:`SwiftHohenberg1D`: BifurcationKit's 1-D Swift-Hohenberg tutorial (after pde2path),
-  -(I + D2)^2 u + lam u + nu u^3 - u^5 = 0 on N = 200 points of [-l, l), l = 6, D2 the Dirichlet
-  second-difference matrix (h = 2l/N).  The trivial branch u = 0 has J = -(I + D2)^2 + lam I,
-  singular where lam = (1 + mu_k)^2, mu_k = -(4/h^2) sin^2(k pi / (2(N+1))) the eigenvalues of D2:
-  :meth:`SwiftHohenberg1D.trivial_branch_points`.
+- BifurcationKit's 1-D Swift-Hohenberg tutorial lives in :mod:`problems.swift_hohenberg`
+  (:class:`~problems.swift_hohenberg.SwiftHohenberg`, with the closed-form BPs of u = 0).
 - :class:`Cusp`: AUTO-07p's ``cusp`` demo normal form x' = mu + lam x - x^3 (scalar).  Folds lie on
   mu = -2 (lam/3)^{3/2} ... i.e. 27 mu^2 = 4 lam^3, which has its cusp at (lam, mu) = (0, 0).
 """
@@ -49,39 +46,6 @@ class Diagonal:
 
     def order_parameter(self, x: Array, p: Mapping[str, float]) -> float:
         return float(np.linalg.norm(x))
-
-
-class SwiftHohenberg1D:
-    """-(I + D2)^2 u + lam u + nu u^3 - u^5 = 0 (BifurcationKit's 1-D Swift-Hohenberg tutorial)."""
-
-    parameter_names: tuple[str, ...] = ("lam", "nu")
-
-    def __init__(self, N: int = 200, half_length: float = 6.0) -> None:
-        self.N = N
-        self.h = 2 * half_length / N
-        self.x = -half_length + self.h * np.arange(N)
-        d2 = sp.diags([np.ones(N - 1), -2 * np.ones(N), np.ones(N - 1)], [-1, 0, 1]) / self.h**2
-        one = sp.identity(N) + d2
-        self.L1 = sp.csr_matrix(-(one @ one))
-
-    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
-        return self.L1 @ u + p["lam"] * u + p["nu"] * u**3 - u**5
-
-    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
-        return sp.csr_matrix(self.L1 + sp.diags(p["lam"] + 3 * p["nu"] * u**2 - 5 * u**4))
-
-    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
-        return u.copy() if name == "lam" else u**3
-
-    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
-        return float(np.linalg.norm(u))
-
-    def trivial_branch_points(self, lo: float, hi: float) -> list[float]:
-        """lam = (1 + mu_k)^2 in [lo, hi], mu_k the Dirichlet eigenvalues of D2 (closed form)."""
-        k = np.arange(1, self.N + 1)
-        mu = -(4 / self.h**2) * np.sin(k * np.pi / (2 * (self.N + 1))) ** 2
-        lam = (1 + mu) ** 2
-        return sorted(float(v) for v in lam if lo <= v <= hi)
 
 
 class Cusp:

@@ -324,6 +324,10 @@ class Lorenz:
 
     parameter_names = ("sigma", "rho", "beta")
 
+    def mass_matrix(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        """An ODE: every row is dynamic (M = I)."""
+        return sp.identity(3, format="csr")
+
     def residual(self, u: Array, p: Mapping[str, float]) -> Array:
         x, y, z = u
         return np.array([p["sigma"] * (y - x), p["rho"] * x - y - x * z, x * y - p["beta"] * z])
@@ -355,6 +359,10 @@ class COOxidation:
 
     parameter_names = ("q1", "q2", "q3", "q4", "q5", "q6", "k")
     PARAMS = dict(q1=2.5, q2=0.6, q3=10.0, q4=0.0675, q5=1.0, q6=0.1, k=0.4)
+
+    def mass_matrix(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        """An ODE: every row is dynamic (M = I)."""
+        return sp.identity(3, format="csr")
 
     def residual(self, u, p):
         x, y, s = u

@@ -14,7 +14,8 @@ import pytest
 from contin.bpdetect import Spectrum, crossings, kernel_dimension, kernel_dimension_of
 from contin.continuation import trace
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
-from problems.bp_demos import DIAGONAL_BPS, DIAGONAL_DIMS, Diagonal, SwiftHohenberg1D
+from problems.bp_demos import DIAGONAL_BPS, DIAGONAL_DIMS, Diagonal
+from problems.swift_hohenberg import SwiftHohenberg
 
 
 def diagonal_branch(k: int, **step: float) -> object:
@@ -56,12 +57,14 @@ def test_disagreement_at_ds_min_is_kept_and_said() -> None:
 
 
 def test_swift_hohenberg_all_five_bps_of_the_trivial_branch() -> None:
-    pb = SwiftHohenberg1D()
+    pb = SwiftHohenberg()
     ref = pb.trivial_branch_points(-1.0, 1.0)
     assert len(ref) == 5
     opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"lam": (-1.0, 1.0)},
                                detection=DetectionOptions(bp_eigenvalues=12), max_steps=400)
-    br = trace(pb, np.zeros(pb.N), {"lam": -0.7, "nu": 2.0}, "lam", opts)
+    # symmetric=False: this test is about the generic BP detector (the u -> -u symmetry of
+    # SwiftHohenberg would switch to the symmetry-breaking test; tests/test_diagram.py covers that)
+    br = trace(pb, np.zeros(pb.N), {"lam": -0.7, "nu": 2.0}, "lam", opts, symmetric=False)
     bps = br.branch_points
     assert [bp.params["lam"] for bp in bps] == pytest.approx(ref, abs=1e-9)
     assert [kernel_dimension(bp) for bp in bps] == [1] * 5

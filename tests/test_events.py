@@ -80,3 +80,10 @@ def test_hb_and_uz_columns_round_trip_through_hdf5_and_json(tmp_path):
     assert meta["options"]["events"] == ["x=4"] and meta["options"]["user_zeros"] == {"rho": [25.0]}
     doc = json.loads(dumps([special_point_summary(sp, br.id) for sp in br.special_points]))
     assert [d["data"] for d in doc if d["type"] == "HB"][0]["omega"] == pytest.approx(math.sqrt(1760 / 19), rel=1e-9)
+
+
+def test_user_zero_value_is_exact_for_values_with_many_digits():
+    target = 25.123456789012345
+    br = trace(Lorenz(), start(), P0, "rho", options(user_zeros={"rho": [target]}))
+    (uz,) = br.points("UZ")
+    assert uz.data["value"] == target and uz.params["rho"] == pytest.approx(target, rel=1e-11)

@@ -135,3 +135,23 @@ def test_progress_lines_on_a_non_terminal(tmp_path, monkeypatch):
     assert io.load(tmp_path / "x.h5")[1]["complete"]
     quiet = run("trace", "toy", "-s", "delay=0.6", "-q", "-o", str(tmp_path / "y.h5"))
     assert quiet.stderr == ""
+
+
+@pytest.mark.parametrize("args, expect", [
+    # `contin unfold -s Fr_start=-100` printed "smallest Fr ... nan": now the gravity-phase scene
+    (("gravity-phase", "-s", "Fr_start=-100"), "Fr_start (the Fr at which each fold is first found) must be > 0"),
+    (("gravity-phase", "-s", "H_min=inf"), "must be finite"),
+    # unknown -s names on `fit --compute` were ignored: now the gravity-unfolding scene
+    (("gravity-unfolding", "-s", "bogus=1"), "unknown parameter 'bogus' for scene 'gravity-unfolding'"),
+    (("gravity-unfolding", "-s", "G=1e-7,nan"), "G needs positive finite gravities"),
+    # outputs are checked before computing (unfold -o missing/u.png, fit --compute missing/fit.h5)
+    (("gravity-phase", "-o", "missing_dir_xyz/u.h5"), "directory 'missing_dir_xyz' does not exist"),
+    (("gravity-unfolding", "-o", "missing_dir_xyz/fit.h5"), "directory 'missing_dir_xyz' does not exist"),
+])
+def test_former_unfold_and_fit_compute_inputs_are_refused_before_computing(args, expect):
+    one_error(run("trace", *args), expect)
+
+
+def test_continue_refuses_a_figure_suffix_for_its_hdf5_output(toy_file, tmp_path):
+    one_error(run("continue", str(toy_file), "--from", "LP2", "--free", "a", "-o", str(tmp_path / "c.png")),
+              "has suffix '.png', but this command writes an HDF5")

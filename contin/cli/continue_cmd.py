@@ -64,6 +64,9 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         fail(f"--ds ({ds:g}) must not exceed --ds-max ({ds_max:g})")
     box = parse_bounds(bounds)
     if output is not None:  # checked before any computing
+        from contin.cli._runctl import check_hdf5_output
+
+        check_hdf5_output(output)  # -o x.png wrote HDF5 into a .png
         io.check_writable(output)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
