@@ -28,7 +28,9 @@ class BadDataset(ValueError):
     """A dataset that breaks an invariant of the format (message names it)."""
 
 
-def _bad_row(values: Any, allow_inf: bool = False) -> int | None:
+def first_bad_row(values: Any, allow_inf: bool = False) -> int | None:
+    """Index of the first row of ``values`` holding NaN (or, unless ``allow_inf``, inf), or None;
+    non-float data and empty arrays have none.  Also the writer's check (``contin.io.check_finite``)."""
     arr = np.asarray(values)
     if arr.dtype.kind not in "fc" or arr.size == 0:
         return None
@@ -46,7 +48,7 @@ def _rows(where: str, values: Any, n: int, what: str) -> None:
 
 
 def _finite(where: str, values: Any, *, allow_inf: bool = False) -> None:
-    row = _bad_row(values, allow_inf)
+    row = first_bad_row(values, allow_inf)
     if row is not None:
         kind = "NaN" if allow_inf else "a non-finite value"
         raise BadDataset(f"dataset {where} holds {kind} at row {row} (the writer stores only finite values there)")
@@ -79,7 +81,7 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
         if s and not (0 < int(np.min(sizes)) and int(np.max(sizes)) <= branch.states.shape[1]):
             raise BadDataset(f"dataset {group}/sizes holds a size outside 1..{branch.states.shape[1]}")
         for i in range(s):
-            if _bad_row(branch.tangent(i)) is not None:
+            if first_bad_row(branch.tangent(i)) is not None:
                 raise BadDataset(f"dataset {group}/tangents holds a non-finite value at row {i} "
                                  f"(the writer stores only finite values there)")
     grid = getattr(branch, "grid", None)
@@ -97,7 +99,7 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
     else:
         rows = range(s) if index is None else [int(i) for i in index]
         for k, i in enumerate(rows):
-            if _bad_row(branch.states[k, : int(sizes[i])]) is not None:
+            if first_bad_row(branch.states[k, : int(sizes[i])]) is not None:
                 raise BadDataset(f"dataset {group}/states holds a non-finite value at row {k} "
                                  f"(the writer stores only finite values there)")
     if profiles:
@@ -120,6 +122,6 @@ def check_special_point(row: int, branch: Any, sp: Any) -> None:
         if not isinstance(v, str) and not np.isfinite(v):
             raise BadDataset(f"dataset special_points/params/{name} holds a non-finite value at row {row} "
                              f"(the writer stores only finite values there)")
-    if sp.state is not None and _bad_row(np.ravel(sp.state)) is not None:
+    if sp.state is not None and first_bad_row(np.ravel(sp.state)) is not None:
         raise BadDataset(f"dataset special_points/states holds a non-finite value at row {row} "
                          f"(the writer stores only finite values there)")

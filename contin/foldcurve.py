@@ -253,7 +253,8 @@ def trace_fold_curve(
 
 
 def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second: str, index: int,
-                    options: ContinuationOptions, *, parameter: str, both: bool, branch_id: str, kind: str) -> Branch:
+                    options: ContinuationOptions, *, parameter: str, both: bool, branch_id: str, kind: str,
+                    mirror_start: bool = False) -> Branch:
     """Trace an augmented two-parameter system (fold or BP curve) whose state holds the second
     parameter at ``index``, in ``parameter``, both directions joined.
 
@@ -261,6 +262,10 @@ def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second
     Bounds on ``second`` in ``options.bounds`` are honoured: the tracer lands on bounds of the
     continuation parameter only, so each half is cut at the located crossing of the bound (a
     UZ event, as for Hopf curves: ``contin.hopfcurve``) and ends there with EP.
+
+    ``mirror_start``: the second half starts with minus the first half's start tangent instead of
+    the tracer's own choice from the sign of d parameter/ds (needed at a cusp, where the parameter
+    is extremal and that sign cannot tell the halves apart: :mod:`contin.twoparam`).
     """
     import math
 
@@ -278,9 +283,10 @@ def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second
         opts = replace(opts, events={**opts.events, **_second_bound_event(augmented, second, lo, hi, index=index)})
     halves = []
     for direction in ((1, -1) if both else (1,)):
-        half = trace(augmented, start, dict(point.params), parameter, opts, direction=direction,
+        tangent = halves[0].tangents[0] if mirror_start and halves else None
+        half = trace(augmented, start, dict(point.params), parameter, opts, direction=direction, tangent=tangent,
                      branch_id=branch_id, kind=kind, parent=f"{point.name}")
-        halves.append(_cut_at_bound(half, augmented, second, index=index) if bounded else half)
-        if half.closed:
+        halves.append(_cut_at_bound(half, augmented, second, lo, hi, index=index) if bounded else half)
+        if half.closed or (mirror_start and len(half) < 2):  # nothing to mirror: no second half
             break
     return halves[0] if len(halves) == 1 else join(halves[1], halves[0])

@@ -287,17 +287,23 @@ def trace_hopf_curve(
     halves = []
     for direction in ((1, -1) if both else (1,)):
         half = trace(curve, start, dict(point.params), parameter, opts, direction=direction, **meta)
-        halves.append(_cut_at_bound(half, curve, second) if bounded else half)
+        halves.append(_cut_at_bound(half, curve, second, lo, hi) if bounded else half)
     raw = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
     return as_hopf_curve(raw, curve)
 
 
-def _cut_at_bound(branch: Branch, curve: Any, second: str, index: int | None = None) -> Branch:
+def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> Branch:
     """The branch up to its first crossing of a bound of ``second`` (the located UZ of
     :func:`_second_bound_event`), ending there with EP "reached bound ...".  The tracer's own
     bound landing works on the continuation parameter only; p2 is part of the state here, at
-    ``index`` (default: its place in the Hopf-curve state; ``contin.foldcurve`` passes its own)."""
+    ``index`` (default: its place in the Hopf-curve state; ``contin.foldcurve`` passes its own).
+
+    The located UZ is then corrected onto the bound exactly: bordered Newton on
+    [F(x); p2 - bound] = 0 (the continuation parameter free), from the UZ with p2 set to the
+    bound; if that fails the UZ itself ends the branch."""
+    from contin.corrector import correct
     from contin.extended import ExtendedSystem
+    from contin.options import NewtonOptions
 
     tag = f"bound of {second}"
     hits = [s for s in branch.special_points if s.type == "UZ" and s.note.startswith(tag)]
@@ -306,15 +312,28 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, index: int | None = N
     uz = min(hits, key=lambda s: s.index)
     i = uz.index
     n_keep = i + 1
+    j = 3 * curve.n + 1 if index is None else index  # p2's place in the state
     system = ExtendedSystem(curve, {**uz.params}, branch.parameter)
     x = system.pack(uz.state, uz.params[branch.parameter])
+    bound = lo if abs(x[j] - lo) <= abs(x[j] - hi) else hi
+    x_pred = x.copy()
+    x_pred[j] = bound
+    row = np.zeros_like(x)
+    row[j] = 1.0
+    landed = correct(system, x_pred, row, NewtonOptions(max_iterations=20))
+    located = uz
+    if landed.converged and np.all(np.isfinite(landed.x)):
+        x = landed.x.copy()
+        x[j] = bound
+        uz = replace(uz, state=x[:-1].copy(), params={**uz.params, branch.parameter: float(x[-1])},
+                     order_parameter=system.order_parameter(x))
     record = system.record(x)
-    p2 = float(uz.state[3 * curve.n + 1 if index is None else index])
+    p2 = float(uz.state[j])
     end = SpecialPoint(type="EP", index=n_keep, params=dict(uz.params), order_parameter=uz.order_parameter,
                        state=uz.state.copy(), tangent=None if uz.tangent is None else uz.tangent.copy(),
                        bracket=uz.bracket, note=f"reached bound {second}={p2:g}")
     keep = [s for s in branch.special_points
-            if s.type not in ("EP", "MX") and s is not uz and (s.index < i or (s.index == i and s.params.get(branch.parameter) is not None
+            if s.type not in ("EP", "MX") and s is not located and (s.index < i or (s.index == i and s.params.get(branch.parameter) is not None
                                                                                 and _before(branch, s, uz)))]
     states = branch.states[:n_keep] if branch.state_index is None else branch.states[branch.state_index < n_keep]
     state_index = None if branch.state_index is None else np.append(branch.state_index[branch.state_index < n_keep], n_keep)

@@ -96,7 +96,7 @@ import numpy as np
 from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
-from contin.filecheck import BadDataset, check_branch, check_special_point
+from contin.filecheck import BadDataset, check_branch, check_special_point, first_bad_row
 from contin.jsonout import dumps as _json_dumps
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
@@ -143,17 +143,6 @@ class NonFiniteError(ValueError):
     """A branch holds NaN or inf where a stored value must be finite (see the module docstring)."""
 
 
-def _first_bad(values: Any, allow_inf: bool = False) -> int | None:
-    arr = np.asarray(values)
-    if arr.dtype.kind not in "fc" or arr.size == 0:
-        return None
-    bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
-    if arr.ndim > 1:
-        bad = bad.reshape(arr.shape[0], -1).any(axis=1)
-    hits = np.flatnonzero(bad)
-    return int(hits[0]) if hits.size else None
-
-
 def check_finite(branch: Branch) -> None:
     """Raise :class:`NonFiniteError` if ``branch`` holds NaN/inf where a file needs finite data.
 
@@ -174,22 +163,22 @@ def check_finite(branch: Branch) -> None:
         tangents = [tangents[i, : int(branch.sizes[i]) + len(branch.free)] for i in range(len(branch))]
     for what, values in (("the state", states), ("the tangent", tangents), ("the step ds", branch.ds)):
         row = (next((k for k, v in enumerate(values) if not np.all(np.isfinite(v))), None)
-               if isinstance(values, list) else _first_bad(values))
+               if isinstance(values, list) else first_bad_row(values))
         if row is not None:
             refuse(what, row)
     for name, values in branch.params.items():
-        row = _first_bad(values, allow_inf=name not in free)
+        row = first_bad_row(values, allow_inf=name not in free)
         if row is not None:
             refuse(f"parameter {name}", row)
     for name, values in branch.observables.items():
         arr = np.asarray(values)
         if arr.dtype.kind in "fc" and arr.size and np.isnan(arr).all():
             continue  # not defined by the problem
-        row = _first_bad(arr)
+        row = first_bad_row(arr)
         if row is not None:
             refuse(f"observable {name}", row)
     for sp in branch.special_points:
-        if sp.state is not None and _first_bad(np.ravel(sp.state)) is not None:
+        if sp.state is not None and first_bad_row(np.ravel(sp.state)) is not None:
             refuse(f"the located state of {sp.name}", sp.index)
         for name in free & set(sp.params):
             v = sp.params[name]

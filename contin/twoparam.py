@@ -18,13 +18,13 @@ free parameters, ``ICP=[p1, p2]``).
   located on it).
 
 Other point types are a clear error (:class:`NotAvailable`); :func:`register_curve` adds one.
-Bounds on the second parameter (``options.bounds[second]``) end the curve exactly on the bound:
-the last point is corrected onto it with the roles of the parameters swapped.
+Bounds on the second parameter (``options.bounds[second]``) end the curve on the bound: the
+located crossing of a bound event (:func:`contin.foldcurve.trace_augmented`, as for every
+fold, BP and Hopf curve).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
@@ -32,13 +32,11 @@ from typing import Any
 import numpy as np
 
 from contin.bpcurve import trace_bp_curve
-from contin.branch import Branch, SpecialPoint, relabel
-from contin.continuation import join, newton, trace
-from contin.extended import ExtendedSystem
-from contin.foldcurve import FoldProblem, as_fold_curve, fold_start
+from contin.branch import Branch, SpecialPoint
+from contin.foldcurve import as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
 from contin.hopfcurve import trace_hopf_curve
-from contin.options import ContinuationOptions, NewtonOptions
+from contin.options import ContinuationOptions
 
 #: curve(problem, point, second, options, parameter=..., branch_id=...) -> Branch
 CurveTracer = Callable[..., Branch]
@@ -64,17 +62,9 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
                              "so contin cannot continue it in two parameters")
         return trace_bp_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
     fold, start = fold_start(problem, point, second)
-    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
-    opts = replace(options, detection=replace(options.detection, detect_branch_points=False),
-                   bounds={k: v for k, v in options.bounds.items() if k != second})
-    common = dict(branch_id=branch_id, kind="fold-curve", parent=point.name)
-    forward = _cut_at_bound(trace(fold, start, dict(point.params), parameter, opts, direction=+1, **common),
-                            fold, second, lo, hi)
-    if forward.closed or len(forward) < 2:
-        return as_fold_curve(forward, fold, opts)
-    backward = _cut_at_bound(trace(fold, start, dict(point.params), parameter, opts, direction=-1,
-                                   tangent=forward.tangents[0], **common), fold, second, lo, hi)
-    return as_fold_curve(join(backward, forward), fold, opts)
+    raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=True,
+                          branch_id=branch_id, kind="fold-curve", mirror_start=True)
+    return as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
 
 
 #: psi . dF/dp2 below this fraction of |psi| |dF/dp2| means p2 does not unfold the BP
@@ -90,60 +80,6 @@ def _unfolds(problem: Any, point: SpecialPoint, second: str) -> bool:
     fp = np.asarray(problem.dresidual_dp(u, point.params, second), float)
     scale = float(np.linalg.norm(psi) * np.linalg.norm(fp))
     return scale > 0.0 and abs(float(psi @ fp)) > UNFOLD_TOL * scale
-
-
-def _cut_at_bound(half: Branch, fold: FoldProblem, second: str, lo: float, hi: float) -> Branch:
-    """``half`` (a traced augmented branch, state (u, phi, p2)) up to where p2 first leaves
-    [lo, hi], ending with a point exactly on the bound and EP "reached bound ...".
-
-    The tracer lands on bounds of its continuation parameter only; p2 is part of the state, so
-    the crossing is corrected here: Newton on the same fold system with p2 fixed at the bound
-    and the first parameter an unknown (FoldProblem with the roles swapped), from the linear
-    interpolation of the two points around the crossing.
-    """
-    n = fold.n
-    if half.state_index is not None or len(half) < 2:
-        return half
-    p2 = half.states[:, 2 * n]
-    out = np.nonzero((p2 < lo) | (p2 > hi))[0]
-    if out.size == 0 or out[0] == 0:
-        return half
-    i = int(out[0])
-    bound = hi if p2[i] > hi else lo
-    w = (bound - p2[i - 1]) / (p2[i] - p2[i - 1])
-    first = half.parameter
-    guess = (1 - w) * half.states[i - 1] + w * half.states[i]
-    p1 = (1 - w) * half.params[first][i - 1] + w * half.params[first][i]
-    params = {k: float(v[i - 1]) for k, v in half.params.items()}
-    params[second] = bound
-    swapped = FoldProblem(fold.problem, first, fold.c, fold.eps)
-    res = newton(swapped, np.concatenate([guess[: 2 * n], [p1]]), params, NewtonOptions(max_iterations=20))
-    keep = i
-    specials = [sp for sp in half.special_points if sp.index < keep - 1 or (sp.index == keep - 1 and sp.type not in ("EP", "MX"))]
-    cut = replace(half, params={k: v[:keep] for k, v in half.params.items()},
-                  observables={k: v[:keep] for k, v in half.observables.items()},
-                  states=half.states[:keep], tangents=half.tangents[:keep], ds=half.ds[:keep],
-                  newton_iterations=half.newton_iterations[:keep], special_points=specials, status="EP",
-                  message=f"reached bound {second}={bound:g}", closed=False)
-    if not res.converged:
-        cut.message += f" (landing on it failed: {res.message}; stopped before it)"
-        return cut
-    state = np.concatenate([res.u[: 2 * n], [bound]])
-    at = {**params, first: float(res.u[2 * n])}
-    system = ExtendedSystem(fold, at, first)
-    x = system.pack(state, at[first])
-    record = system.record(x)
-    cut.params = {k: np.append(v, at[k]) for k, v in cut.params.items()}
-    cut.observables = {k: np.append(v, record.get(k, np.nan)) for k, v in cut.observables.items()}
-    cut.states = np.vstack([cut.states, state])
-    cut.tangents = np.vstack([cut.tangents, cut.tangents[-1]])
-    cut.ds = np.append(cut.ds, system.norm(x - system.pack(cut.states[-2], cut.params[first][-2])))
-    cut.newton_iterations = np.append(cut.newton_iterations, res.iterations)
-    cut.special_points = [*cut.special_points, SpecialPoint(
-        type="EP", index=len(cut) - 1, params=dict(at), order_parameter=system.order_parameter(x), state=state,
-        tangent=cut.tangents[-1], note=cut.message)]
-    relabel([cut])
-    return cut
 
 
 def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationOptions, *,
