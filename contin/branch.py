@@ -48,6 +48,9 @@ class SpecialPoint:
         Running AUTO-style label, unique within a run.
     note : str
         Free text (e.g. the stop reason for EP/MX, 'closed loop', 'symmetry-breaking').
+    grid : int or None
+        Grid size the point was located on (adaptive runs, ``contin.adapt``; None: the
+        problem's own grid).
     data : dict[str, float]
         Named numbers of the point's type: ``omega`` (imaginary part of the critical
         eigenvalue) and ``l1`` (first Lyapunov coefficient) of an HB; ``value`` (the
@@ -64,6 +67,7 @@ class SpecialPoint:
     converged: bool = True
     label: int = 0
     note: str = ""
+    grid: int | None = None
     data: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -114,6 +118,13 @@ class Branch:
         Diagnostics of the run (rejected steps and why).
     state_index : ndarray of int or None
         Point indices of the rows of ``states`` (None: every point is stored).
+    grid : ndarray of int, shape (S,), or None
+        Grid size in force at each point (adaptive resolution, ``contin.adapt``); None: every
+        point is on the problem's own grid.  The grid changes are where this column changes.
+    sizes : ndarray of int, shape (S,), or None
+        State size n_i of each point when they differ (adaptive runs).  ``states`` and
+        ``tangents`` rows are then left-aligned and NaN-padded to the largest size
+        (:func:`pad_rows`); ``state(i)`` and ``tangent(i)`` return the unpadded vectors.
     """
 
     parameter: str
@@ -137,6 +148,8 @@ class Branch:
     audit: list[str] = field(default_factory=list)
     state_index: NDArray[np.int64] | None = None
     stability_k: tuple[float, float] | None = None
+    grid: NDArray[np.int64] | None = None
+    sizes: NDArray[np.int64] | None = None
 
     def __len__(self) -> int:
         return int(self.ds.shape[0])
@@ -145,11 +158,31 @@ class Branch:
         """The solution at point ``i`` (KeyError if ``save_every`` dropped it)."""
         i = range(len(self))[i]
         if self.state_index is None:
-            return self.states[i]
-        hit = np.flatnonzero(self.state_index == i)
-        if hit.size == 0:
-            raise KeyError(f"state of point {i} was not saved (save_every > 1)")
-        return self.states[int(hit[0])]
+            row = self.states[i]
+        else:
+            hit = np.flatnonzero(self.state_index == i)
+            if hit.size == 0:
+                raise KeyError(f"state of point {i} was not saved (save_every > 1)")
+            row = self.states[int(hit[0])]
+        return row if self.sizes is None else row[: int(self.sizes[i])]
+
+    def tangent(self, i: int) -> NDArray[np.float64]:
+        """The unit tangent at point ``i`` (unpadded)."""
+        i = range(len(self))[i]
+        row = self.tangents[i]
+        return row if self.sizes is None else row[: int(self.sizes[i]) + len(self.free)]
+
+    def grid_at(self, i: int) -> int | None:
+        """The grid size of point ``i`` (None: the problem's own grid)."""
+        return None if self.grid is None else int(self.grid[range(len(self))[i]])
+
+    @property
+    def grid_changes(self) -> list[tuple[int, int, int]]:
+        """(i, old, new) for every point i where the grid differs from point i - 1."""
+        if self.grid is None:
+            return []
+        g = np.asarray(self.grid)
+        return [(int(i), int(g[i - 1]), int(g[i])) for i in np.flatnonzero(np.diff(g)) + 1]
 
     @property
     def success(self) -> bool:
@@ -211,6 +244,8 @@ class Branch:
             observables={k: v[::-1].copy() for k, v in self.observables.items()},
             states=states,
             tangents=-self.tangents[::-1].copy(),
+            grid=None if self.grid is None else self.grid[::-1].copy(),
+            sizes=None if self.sizes is None else self.sizes[::-1].copy(),
             ds=step_column(self.ds),
             newton_iterations=step_column(self.newton_iterations),
             special_points=sps,
@@ -227,6 +262,17 @@ class Branch:
             state_index=state_index,
             stability_k=self.stability_k,
         )
+
+
+def pad_rows(rows: list[NDArray[np.float64]] | NDArray[np.float64], width: int | None = None) -> NDArray[np.float64]:
+    """Rows of different lengths as one array, left-aligned and NaN-padded to ``width``
+    (default: the longest row).  The storage of states of different grids (``Branch.sizes``)."""
+    rows = [np.asarray(r, dtype=float).ravel() for r in rows]
+    w = max((r.size for r in rows), default=0) if width is None else int(width)
+    out = np.full((len(rows), w), np.nan)
+    for k, r in enumerate(rows):
+        out[k, : r.size] = r
+    return out
 
 
 def first_crossing(values: np.ndarray, value: float) -> tuple[int, int, float, int] | None:

@@ -21,6 +21,10 @@ without being stored: a smaller step cannot help, the grid must be refined.  A s
 which a BP test function changes sign without a BP that its location confirms is checked by
 two half steps; if they end elsewhere, the step jumped onto a nearby branch and is retried
 with half the ds (``DetectionOptions.retry_unconfirmed_bp``; logged in ``Branch.audit``).
+With ``ContinuationOptions.adapt`` the grid is chosen and changed along the branch instead
+(``contin.adapt``: start grid, refinement of the last accepted point and a retried step,
+coarsening, relocation of under-resolved special points, MX only past ``max_grid``); every
+point records its grid (``Branch.grid``).
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ import numpy as np
 
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, kernel_dimension
-from contin.branch import MAX_AUDIT, Branch, SpecialPoint, relabel
+from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
@@ -100,6 +104,19 @@ class _Tracer:
         k = options.detection.bp_eigenvalues if options.detection.detect_branch_points else 0
         self.eigen = EigenCounter(k) if k else None
         self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
+        self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)
+        self.adaptive = False
+
+    def use_system(self, system: ExtendedSystem, anti: Antisymmetric | None) -> None:
+        """Continue on ``system`` (the problem on another grid, ``contin.adapt``): its symmetry
+        helper and its HB/UZ test functions, which are set up per grid."""
+        self.system, self.anti = system, anti
+        self.point_tests = point_tests(system.problem, system, self.options, system.n)
+
+    @property
+    def grid(self) -> int | None:
+        """The grid size in force (None unless the run adapts its grid, ``contin.adapt``)."""
+        return int(self.system.problem.grid_size) if self.adaptive else None
 
     # --- point construction ------------------------------------------------------------------
     def finish_point(self, corr: Correction, orient: Array) -> _Point:
@@ -214,6 +231,7 @@ class _Tracer:
                 bracket=(float(a.x[-1]), float(b.x[-1])),
                 converged=converged,
                 note=full_note,
+                grid=self.grid,
             )
             if point_test is not None:
                 sp = point_test.finish(sys, sp, best.x)
@@ -265,6 +283,7 @@ class _Tracer:
         self.ds.append(ds)
         self.iterations.append(iterations)
         self.records.append(self.system.record(pt.x))
+        self.grids.append(self.grid)
 
     def end_point(self, type_: str, note: str, x: Array | None = None, t: Array | None = None) -> SpecialPoint:
         sys = self.system
@@ -281,6 +300,7 @@ class _Tracer:
             bracket=(float(x[-1]), float(x[-1])),
             converged=type_ != "MX",
             note=note,
+            grid=self.grid,
         )
 
     def build(self, parameter: str, status: str, message: str, closed: bool, n: int, **meta: Any) -> Branch:
@@ -296,8 +316,14 @@ class _Tracer:
         if every > 1 and s:
             keep = np.unique(np.concatenate([np.arange(0, s, every), [s - 1]]))
             state_index = keep
-        states = np.array([self.points[i].x[:-1] for i in keep], dtype=float).reshape(len(keep), n)
-        tangents = np.array([p.t for p in self.points], dtype=float).reshape(s, n + 1)
+        if self.adaptive and s:  # states of several sizes: NaN-padded rows (contin.branch.pad_rows)
+            states = pad_rows([self.points[i].x[:-1] for i in keep])
+            tangents = pad_rows([p.t for p in self.points])
+            meta["grid"] = np.array(self.grids, dtype=np.int64)
+            meta["sizes"] = np.array([p.x.size - 1 for p in self.points], dtype=np.int64)
+        else:
+            states = np.array([self.points[i].x[:-1] for i in keep], dtype=float).reshape(len(keep), n)
+            tangents = np.array([p.t for p in self.points], dtype=float).reshape(s, n + 1)
         return _labelled(Branch(
             parameter=parameter,
             free=(parameter,),
@@ -434,8 +460,25 @@ def trace(
         if progress is not None:
             progress(msg)
 
+    adaptor, problem0, grid_lines = None, problem, []
+    if options.adapt is not None:  # adaptive resolution (contin.adapt): choose the start grid
+        from contin.adapt import Adaptor, start_grid
+
+        problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
+                                             coarsen=tangent is None)
+        if problem is not problem0:
+            system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
+            if tangent is not None:
+                tangent = np.asarray(tangent, dtype=float).ravel()
+                tangent = system.pack(problem0.transfer(tangent[:-1], problem), tangent[-1])
+        n = u0.size
+        system.n = n
+        adaptor = Adaptor(options.adapt)
+        problem0 = problem  # the grid x0 and the start tangent live on
     start = newton(problem, u0, system.params, options.newton)
     tracer = _Tracer(system, options, None)
+    tracer.adaptive = adaptor is not None
+    tracer.audit.extend(grid_lines)
     tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
         msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{JACOBIAN_HINT}"
@@ -445,8 +488,11 @@ def trace(
     anti = _symmetry(problem, start.u, symmetric)
     tracer.anti = anti
     x0 = system.pack(anti.symmetrize(start.u) if anti is not None else start.u, p0)
-    resolution_tol = effective_resolution_tol(options)
+    # With adaptive resolution its estimate replaces the fixed-grid guard.
+    resolution_tol = effective_resolution_tol(options) if adaptor is None else None
     coarse = _under_resolved(problem, system, x0, resolution_tol)
+    if adaptor is not None and (err0 := adaptor.too_coarse(system, x0)) is not None:
+        coarse = adaptor.at_max(system, x0, err0).removeprefix("under-resolved at ")
     if coarse is not None:
         msg = f"start point {coarse}"
         tracer.special.append(tracer.end_point("MX", msg, x=x0))
@@ -478,6 +524,7 @@ def trace(
     first = tracer.finish_point(Correction(x0, True, 0, fact, row), guess)
     tracer.append(first, 0.0, start.iterations)
 
+    x0c, t0c = x0, first.t  # the start point and tangent on the grid in force (for closure)
     ds = abs(sopt.ds)
     travelled = 0.0
     closing = False
@@ -515,10 +562,19 @@ def trace(
             ds = reduced_step(ds, sopt)
             continue
         assert new is not None
+        if adaptor is not None and (err := adaptor.too_coarse(system, new.x)) is not None:
+            # Not resolved: refine at the last accepted point and retry the step from there.
+            stop = adaptor.refine(tracer, err, "estimate above tol", options.newton)
+            if stop is not None:
+                status, message = "MX", stop
+                break
+            system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+            x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+            continue
         steps += 1
 
         if closing:
-            if landed(system, x0, new.x):
+            if landed(system, x0c, new.x):
                 tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1)[0])
                 status, message, closed = "EP", "closed loop: the branch returned to its start point", True
                 break
@@ -565,6 +621,24 @@ def trace(
             steps -= 1
             ds = reduced_step(ds, sopt)
             continue
+        if adaptor is not None and found:
+            # Special points are located on the grid in force; one that grid does not resolve
+            # (state, or the kernel fixing its position) is located again on a finer grid.
+            err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
+                      for sp in found)
+            if err <= options.adapt.tol:
+                adaptor.special_resolved()
+            elif adaptor.special_refinable(err):
+                kinds = "/".join(sorted({sp.type for sp in found}))
+                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton) is None:
+                    steps -= 1
+                    system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                    continue
+            if err > options.adapt.tol:
+                found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
+                                 f"kernel not resolved by refinement (estimate {err:.2g} > tol on grid "
+                                 f"{system.problem.grid_size}): a grid artefact or past max_grid") for sp in found]
         tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
@@ -577,9 +651,14 @@ def trace(
             say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
         ds = next_step(ds, corr.iterations, sopt)
         if options.detect_closed and len(tracer.points) > 3:
-            sigma = closing_distance(system, x0, first.t, new.x, new.t, 1.5 * ds, travelled)
+            sigma = closing_distance(system, x0c, t0c, new.x, new.t, 1.5 * ds, travelled)
             if sigma is not None:
                 closing, ds = True, sigma
+        if adaptor is not None and not closing:
+            adaptor.maybe_coarsen(tracer, options.newton)
+            if tracer.system is not system:
+                system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
 
     mark = "MX" if status == "MX" else "EP"
     note = message
@@ -668,6 +747,26 @@ def join(backward: Branch, forward: Branch) -> Branch:
     def cat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.concatenate([a[:-1], b])
 
+    sizes = grid = None
+    if r.grid is not None or forward.grid is not None or r.sizes is not None or forward.sizes is not None:
+        # Halves on different grids (adaptive runs): pad both to the wider one.
+        width = max(r.states.shape[1], forward.states.shape[1])
+        twidth = max(r.tangents.shape[1], forward.tangents.shape[1])
+
+        def widen(b: Branch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            n_b = b.sizes if b.sizes is not None else np.full(len(b), b.states.shape[1], dtype=np.int64)
+            st = pad_rows(list(b.states), width)
+            tg = pad_rows([b.tangents[i, : int(n_b[i]) + len(b.free)] for i in range(len(b))], twidth)
+            return st, tg, n_b
+
+        rs, rt, rn = widen(r)
+        fs, ft, fn = widen(forward)
+        r = replace(r, states=rs, tangents=rt)
+        forward = replace(forward, states=fs, tangents=ft)
+        sizes = cat(rn, fn)
+        if r.grid is not None and forward.grid is not None:
+            grid = cat(r.grid, forward.grid)
+
     if r.state_index is None and forward.state_index is None:
         states, state_index = cat(r.states, forward.states), None
     else:
@@ -695,6 +794,8 @@ def join(backward: Branch, forward: Branch) -> Branch:
         id=forward.id,
         audit=r.audit + forward.audit,
         state_index=state_index,
+        grid=grid,
+        sizes=sizes,
     ))
 
 
@@ -771,8 +872,8 @@ def switch(
         if isinstance(dep, str):  # no accepted first step in this direction
             failed.append(dep)
             continue
-        system = dep.system
-        new = trace(problem, dep.start[:-1], system.params_at(dep.start[-1]), param,
+        system = dep.system  # on the BP's own grid (adaptive runs: contin.adapt.on_grid)
+        new = trace(system.problem, dep.start[:-1], system.params_at(dep.start[-1]), param,
                     first_step_options(options, dep.step), tangent=dep.tangent, branch_id=f"{prefix}.{k}",
                     kind="bifurcated", parent=parent, symmetric=None if nd else symmetric)
         if nd:

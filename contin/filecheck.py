@@ -73,7 +73,20 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
         value = getattr(branch, name, None)
         if value is not None:
             _rows(f"{group}/{name}", value, s, what)
-    _finite(f"{group}/tangents", branch.tangents)
+    sizes = getattr(branch, "sizes", None)
+    if sizes is None:
+        _finite(f"{group}/tangents", branch.tangents)
+    else:  # adaptive runs: rows NaN-padded beyond each point's size (the writer's layout)
+        _rows(f"{group}/sizes", sizes, s, what)
+        if s and not (0 < int(np.min(sizes)) and int(np.max(sizes)) <= branch.states.shape[1]):
+            raise BadDataset(f"dataset {group}/sizes holds a size outside 1..{branch.states.shape[1]}")
+        for i in range(s):
+            if first_bad_row(branch.tangent(i)) is not None:
+                raise BadDataset(f"dataset {group}/tangents holds a non-finite value at row {i} "
+                                 f"(the writer stores only finite values there)")
+    grid = getattr(branch, "grid", None)
+    if grid is not None:
+        _rows(f"{group}/grid", grid, s, what)
     index = getattr(branch, "state_index", None)
     if index is None:
         _rows(f"{group}/states", branch.states, s, what)
@@ -81,7 +94,14 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
         _rows(f"{group}/states", branch.states, len(index), f"dataset {group}/state_index")
         if len(index) and not (0 <= int(np.min(index)) and int(np.max(index)) < s):
             raise BadDataset(f"dataset {group}/state_index points outside the branch's {s} points")
-    _finite(f"{group}/states", branch.states)
+    if sizes is None:
+        _finite(f"{group}/states", branch.states)
+    else:
+        rows = range(s) if index is None else [int(i) for i in index]
+        for k, i in enumerate(rows):
+            if first_bad_row(branch.states[k, : int(sizes[i])]) is not None:
+                raise BadDataset(f"dataset {group}/states holds a non-finite value at row {k} "
+                                 f"(the writer stores only finite values there)")
     if profiles:
         idx = np.asarray(profiles["index"])
         if idx.size and not (0 <= int(idx.min()) and int(idx.max()) < s):

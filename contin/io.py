@@ -1,10 +1,10 @@
 """HDF5 storage of continuation runs: one self-describing file per run, readable with h5py alone.
 
-Layout (format "contin", format_version 1)
-------------------------------------------
+Layout (format "contin", format_version 2; version 1 files are read too)
+-------------------------------------------------------------------------
 ::
 
-    /                         attrs: format="contin", format_version=1, contin_version,
+    /                         attrs: format="contin", format_version=2, contin_version,
                                      git_commit, created_utc, command (exact argv), scene,
                                      parameters, discretization, options, notes, extra (JSON
                                      text), diagram_x, diagram_y, complete (bool),
@@ -20,6 +20,12 @@ Layout (format "contin", format_version 1)
         states                (S, n)    or (M, n) with state_index (M,) when only every
                                         k-th state was kept (save_every)
         tangents              (S, n + len(free))
+        grid                  (S,) int  only for adaptive runs (version 2): the grid size of
+                                        each point (``Branch.grid``); the grid changes are
+                                        where it changes
+        sizes                 (S,) int  only when the points' state sizes differ (version 2):
+                                        states/tangents rows are then left-aligned and
+                                        NaN-padded to the widest (``Branch.sizes``)
         stable, n_unstable    (S,)      only when stability was computed (n_unstable = -1:
                                         the eigenproblem failed at that point)
         eigenvalues           (S, k)    complex, leading eigenvalues, only when computed
@@ -39,6 +45,8 @@ Layout (format "contin", format_version 1)
         data_present          (K, D) bool: which data each row has
         states                (K, n_max) located states (NaN-padded to state_size)
         tangents              (K, m_max) tangents (tangent_size = -1 when none)
+        grid                  (K,) int  grid size the point was located on (-1: the
+                                        problem's own grid; version 2)
         profiles/<name>       (K, N) profiles of the located states (optional)
 
 Parameters, observables and dataset names are stored under the quantity's own name; a name
@@ -107,7 +115,11 @@ __all__ = [
 ]
 
 FORMAT = "contin"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Versions :func:`load` reads.  Version 2 added the optional per-point ``grid`` and ``sizes``
+#: branch datasets and the special-point ``grid`` column (adaptive resolution); a version-1
+#: file is a version-2 file without them.
+READABLE_VERSIONS = (1, 2)
 
 _log = logging.getLogger("contin")
 
@@ -144,8 +156,14 @@ def check_finite(branch: Branch) -> None:
         raise NonFiniteError(f"branch {branch.id}: {what} is not finite at point {row}; "
                              f"refusing to write non-finite data (the solver produced an invalid state)")
 
-    for what, values in (("the state", branch.states), ("the tangent", branch.tangents), ("the step ds", branch.ds)):
-        row = first_bad_row(values)
+    states, tangents = branch.states, branch.tangents
+    if branch.sizes is not None:  # NaN padding of states of several sizes is not a bad value
+        index = np.arange(len(branch)) if branch.state_index is None else np.asarray(branch.state_index)
+        states = [states[r, : int(branch.sizes[i])] for r, i in enumerate(index)]
+        tangents = [tangents[i, : int(branch.sizes[i]) + len(branch.free)] for i in range(len(branch))]
+    for what, values in (("the state", states), ("the tangent", tangents), ("the step ds", branch.ds)):
+        row = (next((k for k, v in enumerate(values) if not np.all(np.isfinite(v))), None)
+               if isinstance(values, list) else first_bad_row(values))
         if row is not None:
             refuse(what, row)
     for name, values in branch.params.items():
@@ -295,7 +313,7 @@ def _write_branch(group: h5py.Group, branch: Branch, position: int,
     g.create_dataset("newton_iterations", data=np.asarray(branch.newton_iterations))
     g.create_dataset("states", data=np.asarray(branch.states))
     g.create_dataset("tangents", data=np.asarray(branch.tangents))
-    for name in ("stable", "n_unstable", "eigenvalues", "state_index"):
+    for name in ("stable", "n_unstable", "eigenvalues", "state_index", "grid", "sizes"):
         value = getattr(branch, name, None)
         if value is not None:
             g.create_dataset(name, data=np.asarray(value))
@@ -360,6 +378,7 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
                 sizes[i] = v.size
         g.create_dataset(col, data=table)
         g.create_dataset(col[:-1] + "_size", data=sizes)
+    g.create_dataset("grid", data=np.asarray([-1 if sp.grid is None else int(sp.grid) for _, sp in rows], dtype=np.int64))
     if sp_profiles:
         spg = g.create_group("profiles")
         for name, arr in sp_profiles.items():
@@ -554,7 +573,11 @@ class H5Writer:
         result: tuple[np.ndarray, dict[str, np.ndarray]] | None
         try:
             rows = _sample_rows(len(b.states), self.max_profiles)
-            samples = [self.profiles(b.states[i]) for i in rows]
+            if b.sizes is not None:  # states of several grids: unpadded (profiles() maps them onto y)
+                index = np.arange(len(b)) if b.state_index is None else np.asarray(b.state_index)
+                samples = [self.profiles(b.states[i, : int(b.sizes[index[i]])]) for i in rows]
+            else:
+                samples = [self.profiles(b.states[i]) for i in rows]
             names = list(samples[0]) if samples else []
             state_index = getattr(b, "state_index", None)
             points = rows if state_index is None else np.asarray(state_index)[rows]
@@ -679,6 +702,8 @@ def _read_branch(g: h5py.Group) -> Branch:
         audit=_text(g["audit"]) if g["audit"].size else [],
         stability_k=(float(a["stability_kx"]), float(a["stability_kz"])) if "stability_kx" in a else None,
         **({"state_index": g["state_index"][()] if "state_index" in g else None} if _HAS_STATE_INDEX else {}),
+        grid=g["grid"][()] if "grid" in g else None,
+        sizes=g["sizes"][()] if "sizes" in g else None,
     )
 
 
@@ -703,6 +728,7 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
     phi, lo, hi, conv = g["phi"][()], g["bracket_lo"][()], g["bracket_hi"][()], g["converged"][()]
     states, state_size = g["states"][()], g["state_size"][()]
     tangents, tangent_size = g["tangents"][()], g["tangent_size"][()]
+    grid = g["grid"][()] if "grid" in g else np.full(k, -1, dtype=np.int64)
     data = _read_special_data(g, k)
     out = []
     for i in range(k):
@@ -722,6 +748,7 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
             converged=bool(conv[i]),
             label=int(label[i]),
             note=note[i],
+            grid=None if grid[i] < 0 else int(grid[i]),
             data=data[i],
         )))
     return out
@@ -756,8 +783,9 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
             if a.get("format") != FORMAT:
                 raise FileFormatError(f"{str(p)!r} is an HDF5 file but not a contin run file (no format='contin' attribute)")
             version = int(a.get("format_version", -1))
-            if version != FORMAT_VERSION:
-                raise FileFormatError(f"{str(p)!r} has contin format version {version}; this contin reads version {FORMAT_VERSION}")
+            if version not in READABLE_VERSIONS:
+                raise FileFormatError(f"{str(p)!r} has contin format version {version}; this contin reads versions "
+                                      f"{', '.join(map(str, READABLE_VERSIONS))}")
             meta: dict[str, Any] = {
                 "path": str(p),
                 "format": FORMAT,

@@ -126,6 +126,43 @@ STOP_KINDS = ("LP", "BP", "UZ", "HB")
 
 
 @dataclass(frozen=True)
+class AdaptOptions:
+    """Adaptive resolution settings (``ContinuationOptions.adapt``).
+
+    tol : largest estimated relative discretization error of an accepted point (the problem's
+        ``error_estimate``); the grid is refined where it is exceeded.  Default 3e-5: the
+        fixed-grid guard's ``ContinuationOptions.resolution_tol``, so an adaptive run accepts no
+        point a fixed-grid run would have refused.
+    max_grid : largest grid size; an estimate above tol there ends the run with MX.
+    min_grid : smallest grid size coarsening may choose.
+    coarsen_below : coarsen where the estimate falls below coarsen_below * tol (None: never).
+    growth : factor between successive grid sizes (unless the problem suggests a grid).
+    multiple : grid sizes are rounded up to a multiple of this.
+    cooldown : accepted steps after a grid change before coarsening is tried again.
+    """
+
+    tol: float = 3e-5
+    max_grid: int = 512
+    min_grid: int = 8
+    coarsen_below: float | None = 1e-3
+    growth: float = 1.5
+    multiple: int = 4
+    cooldown: int = 5
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.tol) and self.tol > 0):
+            raise ValueError(f"AdaptOptions.tol must be a finite number > 0, got {self.tol}")
+        if not 1 <= self.min_grid <= self.max_grid:
+            raise ValueError(f"need 1 <= min_grid <= max_grid, got min_grid={self.min_grid}, max_grid={self.max_grid}")
+        if self.coarsen_below is not None and not 0 < self.coarsen_below < 1:
+            raise ValueError(f"coarsen_below must lie in (0, 1) or be None, got {self.coarsen_below}")
+        if not self.growth > 1:
+            raise ValueError(f"growth must be > 1, got {self.growth}")
+        if self.multiple < 1 or self.cooldown < 0:
+            raise ValueError(f"need multiple >= 1 and cooldown >= 0, got {self.multiple}, {self.cooldown}")
+
+
+@dataclass(frozen=True)
 class ContinuationOptions:
     """Everything a continuation run needs besides the problem and the start point.
 
@@ -143,6 +180,12 @@ class ContinuationOptions:
         3e-5 is calibrated on gPCF (``problems.couette.resolution``): above the 3e-7 of the
         densest results that are right (pitchfork scene at nu = 0.3 and 0.15, cheb 64) and
         below the 5e-5 where spurious unstable modes appear (nu = 0.5, H = 36.7, cheb 64).
+    adapt : :class:`contin.adapt.AdaptOptions` or None.  Adaptive resolution: the problem's
+        grid is chosen at the start and changed along the branch so that its a-posteriori
+        error estimate stays <= adapt.tol (refined above it, coarsened far below it), up to
+        adapt.max_grid, past which the run ends with MX.  Needs the problem's grid hooks
+        (``contin.problem``); the fixed-grid guard ``resolution_tol`` is then not used.
+        None (default): the problem's grid throughout.
     stop_at : AUTO's STOP: labels like ``"LP1"`` or ``"BP2"`` (type and count along this
         run); the run ends with EP right after the k-th point of that type is located,
         e.g. when only the first fold of a branch is wanted and what lies beyond it is not.
@@ -162,6 +205,7 @@ class ContinuationOptions:
     save_every: int = 1
     resolution_tol: float | None = 3e-5
     stop_at: tuple[str, ...] = ()
+    adapt: AdaptOptions | None = None
     user_zeros: dict[str, tuple[float, ...]] = field(default_factory=dict)
     events: dict[str, Callable[..., float]] = field(default_factory=dict)
 
@@ -192,7 +236,8 @@ class ContinuationOptions:
     def __hash__(self) -> int:  # bounds is a dict; hash its items so options stay usable as keys
         return hash((self.newton, self.step, self.detection, tuple(sorted(self.bounds.items())),
                      self.max_steps, self.detect_closed, self.save_every, self.resolution_tol, self.stop_at,
-                     tuple(sorted(self.user_zeros.items())), tuple(sorted(self.events.items(), key=lambda kv: kv[0]))))
+                     tuple(sorted(self.user_zeros.items())), tuple(sorted(self.events.items(), key=lambda kv: kv[0])),
+                     self.adapt))
 
 
 #: (tol,) while a :func:`resolution_override` block is active, else None.

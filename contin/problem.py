@@ -77,6 +77,26 @@ class Problem(Protocol):
         converged candidate point before accepting it; an under-resolved point ends the run
         with status MX and message "under-resolved at <parameter> = <value>: <reason>",
         without being stored (a smaller step cannot help; the grid must be refined).
+
+    Grid hooks (adaptive resolution, ``ContinuationOptions.adapt``; ``contin.adapt``)
+    --------------------------------------------------------------------------------
+    grid_size : int
+        Size of the grid in force (e.g. the number of intervals N); what adaptation changes.
+    error_estimate(u, p) -> float
+        A-posteriori estimate of the relative discretization error of the converged state u
+        (e.g. for Chebyshev collocation the relative size of the last coefficients, for finite
+        differences a defect/Richardson estimate).  The tracer keeps it <= adapt.tol.
+    with_grid(N) -> problem
+        The same problem on the grid of size N (same method and model settings).
+    transfer(u, other) -> (n_other,) array
+        u carried onto ``other``'s grid by interpolation; must be linear in u, since it also
+        carries the state part of tangents.
+    vector_error(v) -> float  (optional)
+        The estimate for a perturbation v (a null vector of J, a fold's tangent): a located BP
+        or LP is located again on a finer grid when it exceeds adapt.tol, because the kernel,
+        not only the state, fixes where the point lies.
+    suggest_grid(u, p, tol) -> int  (optional)
+        The grid size expected to bring the estimate below tol (refinement takes at least it).
     """
 
     parameter_names: tuple[str, ...]

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch
-from contin.options import ContinuationOptions
+from contin.options import AdaptOptions, ContinuationOptions
 
 
 #: Values of SceneRequest.engine (the CLI's --engine), see :mod:`contin.engines`.
@@ -68,7 +68,8 @@ class SceneRequest:
         'resolution_tol' (None: guard off)); scenes apply them with :meth:`options_for` so that
         their own defaults (bounds...) survive.  (The command line also sets resolution_tol for
         every trace of the run, ``contin.options.resolution_override``: scenes build options of
-        their own too.)
+        their own too.)  Adaptive resolution (``--tol``, ``--max-grid``; only for scenes with
+        ``Scene.adaptive``): keys 'tol' and 'max_grid' become ``ContinuationOptions.adapt``.
     """
 
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -101,6 +102,9 @@ class SceneRequest:
             kw["max_steps"] = int(ov["max_steps"])
         if "resolution_tol" in ov:
             kw["resolution_tol"] = ov["resolution_tol"]
+        if ov.get("tol") is not None:
+            adapt = AdaptOptions(tol=float(ov["tol"]))
+            kw["adapt"] = dataclasses.replace(adapt, max_grid=int(ov["max_grid"])) if ov.get("max_grid") else adapt
         if "user_zeros" in ov:  # --uz NAME=V1,V2 (AUTO's UZR), added to the scene's own
             kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}
         if "stop_at" in ov:  # --stop-at UZ1 (AUTO's UZSTOP) replaces the scene's
@@ -205,6 +209,14 @@ class Scene:
     problem of the scene's branches from ``SceneResult.parameters`` and
     ``SceneResult.discretization`` (module docstring); it enables ``contin stability`` on the
     scene's files and the CLI's post-run stability pass.
+
+    ``adaptive``: the scene takes ``--tol`` (adaptive resolution, ``contin.adapt``): its
+    problems have the grid hooks, its traces get their options from
+    :meth:`SceneRequest.options_for`, and whatever it does with stored points uses each point's
+    grid (``Branch.grid``; ``problem_factory`` builds the start grid, ``contin.adapt.on_grid``
+    the others).  Its profiles callable accepts states of any of its grids.  ``default_tol``:
+    the tol of a run without --grid and --tol, chosen per scene so that it keeps the accuracy of
+    the scene's former fixed default grid.
     """
 
     name: str
@@ -214,6 +226,8 @@ class Scene:
     x: str = ""  # default x-axis of its diagram (a parameter name)
     y: str = "phi"  # default y-axis (an observable name)
     problem_factory: Callable[[Mapping[str, Any], Mapping[str, Any]], Any] | None = None
+    adaptive: bool = False
+    default_tol: float = 3e-5
 
 
 def scene_params(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:

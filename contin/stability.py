@@ -300,6 +300,8 @@ def stability_pass(
     ARPACK not converging) is logged and marked ``n_unstable = -1``, ``stable = False``,
     eigenvalues nan; :func:`audit` reports such points instead of guessing.
     """
+    from contin.adapt import point_problem
+
     s = len(branch)
     for name, values in branch.params.items():
         if len(values) != s:
@@ -320,7 +322,8 @@ def stability_pass(
         except KeyError:  # save_every > 1 dropped this state: stability stays unknown
             continue
         try:
-            res = stability_of_state(problem, u, p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
+            # Each point on its own grid (adaptive runs, contin.adapt.point_problem).
+            res = stability_of_state(point_problem(problem, branch, i), u, p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
                                      dense_max=dense_max, sigma=shift)
         except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)

@@ -200,6 +200,9 @@ def departures(
     """
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
+    from contin.adapt import on_grid
+
+    problem = on_grid(problem, point.grid)  # a BP of an adaptive run is a solution on its own grid
     param = branch.parameter
     system = ExtendedSystem(problem, point.params, param, options.step.theta)
     u0 = np.asarray(point.state, dtype=float)
@@ -254,6 +257,8 @@ def prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
     if len(br) == 0:
         return br
     rec = system.record(x0)
+    if br.sizes is not None:  # an adaptive branch: its points may lie on other grids than the BP
+        return _prepend_regridded(system, br, x0, t0, rec)
     first_len = system.norm(system.pack(br.state(0), br.parameter_values[0]) - x0)
     br.params = {k: np.concatenate([[system.params_at(x0[-1])[k]], v]) for k, v in br.params.items()}
     br.observables = {k: np.concatenate([[rec.get(k, np.nan)], v]) for k, v in br.observables.items()}
@@ -261,6 +266,37 @@ def prepend(system: ExtendedSystem, br: Branch, x0: Array, t0: Array) -> Branch:
     if br.state_index is not None:
         br.state_index = np.concatenate([[0], br.state_index + 1])
     br.tangents = np.vstack([system.unit(t0)[None, :], br.tangents])
+    ds = br.ds.copy()
+    ds[0] = first_len
+    br.ds = np.concatenate([[0.0], ds])
+    br.newton_iterations = np.concatenate([[0], br.newton_iterations])
+    br.special_points = [replace(sp, index=sp.index + 1) for sp in br.special_points]
+    return br
+
+
+def _prepend_regridded(system: ExtendedSystem, br: Branch, x0: Array, t0: Array, rec: dict[str, float]) -> Branch:
+    """:func:`_prepend` for a branch of an adaptive run (``Branch.sizes``): rows padded, the BP's
+    grid in the grid column, the first step length measured on the BP's grid."""
+    from contin.adapt import on_grid
+    from contin.branch import pad_rows
+
+    pb = system.problem
+    first = br.state(0)
+    if first.size != x0.size - 1:
+        first = on_grid(pb, br.grid_at(0)).transfer(first, pb)
+    first_len = system.norm(system.pack(first, br.parameter_values[0]) - x0)
+    br.params = {k: np.concatenate([[system.params_at(x0[-1])[k]], v]) for k, v in br.params.items()}
+    br.observables = {k: np.concatenate([[rec.get(k, np.nan)], v]) for k, v in br.observables.items()}
+    width = max(br.states.shape[1], x0.size - 1)
+    br.states = pad_rows([x0[:-1], *br.states], width)
+    if br.state_index is not None:
+        br.state_index = np.concatenate([[0], br.state_index + 1])
+    nf = len(br.free)
+    tangents = [br.tangents[i, : int(br.sizes[i]) + nf] for i in range(len(br))]
+    br.tangents = pad_rows([system.unit(t0), *tangents], max(br.tangents.shape[1], x0.size))
+    br.sizes = np.concatenate([[x0.size - 1], br.sizes])
+    if br.grid is not None:
+        br.grid = np.concatenate([[int(pb.grid_size)], br.grid])
     ds = br.ds.copy()
     ds[0] = first_len
     br.ds = np.concatenate([[0.0], ds])

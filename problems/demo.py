@@ -29,7 +29,7 @@ from collections.abc import Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from problems.discretization import Grid, make_grid
+from problems.discretization import Grid, chebyshev_tail, make_grid
 
 Array = np.ndarray
 
@@ -39,8 +39,7 @@ BRATU_FOLD = 3.513830719125162
 
 def point_weights(grid: Grid, y0: float) -> Array:
     """w with w . f = interpolant of f at y0 (the grid's own interpolation, as a row vector)."""
-    eye = np.eye(grid.size)
-    return np.array([grid.interpolate(eye[j], np.array([y0]))[0] for j in range(grid.size)])
+    return grid.interpolate(np.eye(grid.size), np.array([y0]))[0]
 
 
 class _DirichletBVP:
@@ -100,6 +99,46 @@ class _DirichletBVP:
     def validate(self, p: Mapping[str, float]) -> None:
         if not np.isfinite(p["lam"]):
             raise ValueError(f"lam must be finite, got {p['lam']}")
+
+    # --- grid hooks (adaptive resolution, contin.adapt) ---------------------------------------
+    @property
+    def grid_size(self) -> int:
+        """Number of grid intervals N."""
+        return self.grid.intervals
+
+    def with_grid(self, intervals: int) -> _DirichletBVP:
+        """The same problem on the grid of the same method with ``intervals`` intervals."""
+        return type(self)(self.grid.method, int(intervals))
+
+    def transfer(self, u: Array, other: _DirichletBVP) -> Array:
+        """u carried onto ``other``'s nodes by this grid's interpolant (barycentric for Chebyshev,
+        local Lagrange of the scheme's order for FD); linear in u, exact at shared nodes (the walls)."""
+        return self.grid.interpolate(np.asarray(u, dtype=float), other.grid.y)
+
+    def error_estimate(self, u: Array, p: Mapping[str, float]) -> float:
+        """Estimated relative error of the discrete solution u.
+
+        Chebyshev: the relative coefficient tail (``problems.discretization.chebyshev_tail``).
+        FD of order q (fd2, fd4): the relative truncation error of the scheme at u, i.e.
+        max |(D2_q - D2_{q+2}) u| / max |D2_q u| with the order-(q+2) operator on the same nodes
+        as the reference (a defect estimate: the error of u is this defect carried through the
+        smooth inverse operator, the same size for these BVPs away from the fold).  fd6 has no
+        higher-order scheme here: ValueError.
+        """
+        return self.vector_error(u)
+
+    def vector_error(self, v: Array) -> float:
+        """The estimate of :meth:`error_estimate` for any grid function v (a tangent or null vector)."""
+        v = np.asarray(v, dtype=float)
+        g = self.grid
+        if g.method == "cheb":
+            return chebyshev_tail(v)
+        if g.method not in ("fd2", "fd4"):
+            raise ValueError(f"no error estimate for {g.method} (adaptive resolution supports cheb, fd2 and fd4)")
+        ref = make_grid(f"fd{int(g.order) + 2}", g.intervals)
+        d2u = g.d2 @ v
+        scale = float(np.max(np.abs(d2u[1:-1]))) if v.size > 2 else 0.0
+        return float(np.max(np.abs((g.d2 - ref.d2) @ v)[1:-1]) / scale) if scale > 0 else 0.0
 
 
 class Bratu(_DirichletBVP):

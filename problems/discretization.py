@@ -322,6 +322,8 @@ class Grid:
 
         Chebyshev: barycentric interpolation (Berrut & Trefethen, SIAM Rev. 46, 2004).
         Finite differences: local Lagrange interpolation of the scheme's order.
+        ``f`` may have trailing axes (columns interpolated together; e.g. the identity gives the
+        interpolation matrix).
         """
         y_new = np.atleast_1d(np.asarray(y_new, dtype=float))
         if self.method == "cheb":
@@ -333,12 +335,12 @@ class Grid:
             exact = np.isclose(diff, 0.0, atol=1e-15)
             diff[exact] = 1.0
             terms = wb / diff
-            out = (terms @ f) / terms.sum(axis=1)
+            out = (terms @ f) / terms.sum(axis=1).reshape((-1,) + (1,) * (np.ndim(f) - 1))
             hit_rows, hit_cols = np.nonzero(exact)
             out[hit_rows] = f[hit_cols]
             return out
         width = int(self.order) + 1
-        out = np.empty(len(y_new))
+        out = np.empty((len(y_new),) + np.shape(f)[1:], dtype=np.result_type(f, float))
         h = 1.0 / self.intervals
         for k, yk in enumerate(y_new):
             i = int(np.clip(np.floor((yk + 0.5) / h), 0, self.intervals))
@@ -374,6 +376,33 @@ class Grid:
     def reflection(self) -> NDArray[np.int64]:
         """Index permutation j -> N - j, i.e. y -> -y on this symmetric grid."""
         return np.arange(self.intervals, -1, -1)
+
+
+def chebyshev_coefficients(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a_0..a_N of the interpolant sum a_k T_k(2y) through values at ascending Gauss-Lobatto nodes.
+
+    DCT-I: a_k = (2/N) sum_j'' f(x_j) cos(pi j k / N) with x_j = cos(pi j / N) (descending, hence
+    the reversal), the first and last terms of the sum and a_0, a_N halved (Trefethen, *Spectral
+    Methods in MATLAB*, ch. 8).
+    """
+    import scipy.fft as sfft
+
+    f = np.asarray(values, dtype=float)[::-1]
+    n = f.size - 1
+    a = sfft.dct(f, type=1) / n
+    a[0] *= 0.5
+    a[-1] *= 0.5
+    return a
+
+
+def chebyshev_tail(values: NDArray[np.float64], modes: int = 4) -> float:
+    """Relative Chebyshev tail max_{k > N - modes} |a_k| / max_k |a_k| of nodal values on a
+    Chebyshev grid: the a-posteriori truncation-error estimate of a spectral interpolant (Boyd,
+    *Chebyshev and Fourier Spectral Methods*, 2nd ed., sec. 2.12).  0 for a zero vector.  The last
+    ``modes`` coefficients (4: both parities of a symmetric or antisymmetric profile count)."""
+    a = np.abs(chebyshev_coefficients(values))
+    scale = float(np.max(a)) if a.size else 0.0
+    return float(np.max(a[-modes:]) / scale) if scale > 0 else 0.0
 
 
 @lru_cache(maxsize=64)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.adapt import on_grid
 from contin.branch import Branch, relabel
 from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
@@ -38,6 +39,12 @@ def _problem(cls: type, request: SceneRequest) -> Any:
         return cls(request.method or "cheb", request.grid or 32)
     except ValueError as exc:
         raise SceneError(str(exc)) from None
+
+
+def _on_start_grid(pb: Any, state: Any) -> np.ndarray:
+    """A state of any grid of ``pb``'s method (adaptive runs) on ``pb``'s own nodes (the file's y)."""
+    u = np.asarray(state, dtype=float)
+    return u if u.size == pb.n else on_grid(pb, u.size - 1).transfer(u, pb)
 
 
 def _emit(request: SceneRequest, done: list[Branch], branch: Branch) -> None:
@@ -70,7 +77,7 @@ def run_bratu(request: SceneRequest) -> SceneResult:
         parameters=p,
         discretization={"method": pb.grid.method, "intervals": pb.grid.intervals},
         y=pb.x,
-        profiles=lambda state: {"u": np.asarray(state)},
+        profiles=lambda state: {"u": _on_start_grid(pb, state)},
         notes=notes,
     )
 
@@ -109,7 +116,7 @@ def run_allen_cahn(request: SceneRequest) -> SceneResult:
         parameters=p,
         discretization={"method": pb.grid.method, "intervals": pb.grid.intervals},
         y=pb.x,
-        profiles=lambda state: {"u": np.asarray(state)},
+        profiles=lambda state: {"u": _on_start_grid(pb, state)},
         notes=notes,
     )
 
@@ -148,6 +155,8 @@ SCENES = {
         run=run_bratu,
         x="lam",
         y="phi",
+        adaptive=True,
+        default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
     ),
     "allen-cahn": Scene(
         name="allen-cahn",
@@ -156,6 +165,8 @@ SCENES = {
         run=run_allen_cahn,
         x="lam",
         y="phi",
+        adaptive=True,
+        default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
     ),
     "lorenz": Scene(
         name="lorenz",

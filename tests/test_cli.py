@@ -304,7 +304,7 @@ def test_bratu_end_to_end_json_info_diagram(tmp_path):
     branches, meta = io.load(out)
     assert meta["complete"] and meta["scene"] == "bratu"
     lp = branches[0].fold_points[0]
-    assert lp.params["lam"] == lps[0]["params"]["lam"] and lp.state.size == branches[0].states.shape[1]
+    assert lp.params["lam"] == lps[0]["params"]["lam"] and lp.state.size == lp.grid + 1  # located on its own grid (adaptive default)
     r = subprocess_contin("info", str(out))
     assert r.returncode == 0 and "LP1" in r.stdout and "bratu" in r.stdout
     png = tmp_path / "bratu.png"

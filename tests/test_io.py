@@ -108,7 +108,7 @@ def test_layout_readable_with_h5py_alone(tmp_path):
     bs = rich_branches()
     io.write(tmp_path / "run.h5", bs, scene="toy", parameters={"a": 2.5}, y=Y, profiles=profiles)
     with h5py.File(tmp_path / "run.h5", "r") as f:
-        assert f.attrs["format"] == "contin" and f.attrs["format_version"] == 1
+        assert f.attrs["format"] == "contin" and f.attrs["format_version"] == io.FORMAT_VERSION == 2
         for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "parameters",
                     "discretization", "options"):
             assert key in f.attrs

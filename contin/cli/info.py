@@ -43,6 +43,10 @@ def info_command(file: str, as_json: bool) -> None:
     click.echo("")
     click.echo(special_points_table(branches))
     for b in branches:
+        if b.grid is not None:  # adaptive resolution: the grid column and where it changes
+            changes = ", ".join(f"{old}->{new} at {b.parameter}={fmt(float(b.parameter_values[i]))}"
+                                for i, old, new in b.grid_changes) or "none"
+            click.echo(f"\ngrid of branch {b.id}: {int(min(b.grid))}..{int(max(b.grid))}; changes: {changes}")
         if b.n_unstable is not None:
             kx, kz = b.stability_k or (0.0, 0.0)
             nu = [int(v) for v in b.n_unstable]

@@ -99,6 +99,14 @@ def resolve_point(branch: Any, point: str, fixed: dict[str, float], file: str) -
     return np.asarray(sp.state, dtype=float), {**fixed, **row, **_numeric(dict(sp.params))}, sp.name
 
 
+def first_crossing_of(branch: Any, name: str, value: float) -> int | None:
+    """Index of the first stored point of the step where ``name`` crosses ``value`` (None if none)."""
+    from contin.branch import first_crossing
+
+    crossing = first_crossing(branch.params[name], value) if name in branch.params else None
+    return None if crossing is None else crossing[0]
+
+
 def parse_at(text: str) -> tuple[str, float]:
     """``NAME=VALUE`` of ``--at`` (e.g. 'H=25')."""
     name, sep, value = text.partition("=")
@@ -130,6 +138,10 @@ def state_at(problem: Any, branch: Any, name: str, value: float, fixed: dict[str
     i, j, w, count = crossing
     try:
         xi, xj = branch.state(i), branch.state(j)
+        if branch.grid is not None and branch.grid_at(j) != branch.grid_at(i):  # a grid change in the step
+            from contin.adapt import on_grid
+
+            xj = on_grid(problem, branch.grid_at(j)).transfer(xj, problem)
     except KeyError:
         fail(f"the states around {name} = {value:g} on branch {branch.id} were not saved in {file} (save_every > 1)")
     row = {k: float(vals[i]) for k, vals in branch.params.items()}
@@ -224,6 +236,16 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         problem = rebuild_problem({**meta, "path": file})
     except ValueError as exc:
         fail(str(exc))
+    if branch.grid is not None:  # an adaptive run: every point is a solution on its own grid
+        from contin.adapt import on_grid
+
+        if at_spec is not None:
+            crossing = first_crossing_of(branch, at_spec[0], at_spec[1])
+            problem = on_grid(problem, branch.grid_at(crossing)) if crossing is not None else problem
+        elif isinstance(where, int):
+            problem = on_grid(problem, branch.grid_at(where))
+        else:
+            problem = on_grid(problem, next(sp.grid for sp in branch.special_points if sp.name == where))
     if at_spec is not None:
         state, params, where = state_at(problem, branch, *at_spec, fixed, file)
     size = getattr(problem, "size", None)

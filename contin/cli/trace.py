@@ -168,6 +168,13 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("--ds-max", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Largest arclength step (a finite number > 0).")
 @resolution_tol_option
+@click.option("--tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None, metavar="REL",
+              help="Adaptive resolution: largest estimated relative discretization error of a point; the grid is "
+                   "chosen and changed along each branch to meet it [default for adaptive scenes without --grid: "
+                   "the scene's (gPCF 3e-5, the resolution guard's; demos 1e-10); with --grid and no --tol the "
+                   "grid is fixed].")
+@click.option("--max-grid", type=click.IntRange(min=4), default=None,
+              help="Largest grid adaptive resolution may use [default 512]; past it a branch ends with MX.")
 @engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
@@ -182,12 +189,15 @@ def stability_messages(branch: Any) -> list[str]:
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resolution_tol: str | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
+                  resolution_tol: str | None, tol: float | None, max_grid: int | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
                   bp_eigs: int | None, resume: str | None, quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
     to stdout.  Exit code 3 when the run finished but a branch ended with MX.
+
+    Scenes marked adaptive choose their grid to meet --tol (the scene's default when no --grid
+    is given; --grid alone fixes the grid, --grid with --tol is the start grid).
     """
     import contin.scene as scene_mod
     from contin import io
@@ -213,6 +223,14 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     overrides = dict(step_overrides)
     if resolution_tol is not None:
         overrides["resolution_tol"] = rtol
+    if (tol is not None or max_grid is not None) and not sc.adaptive:
+        fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid); choose its grid with --grid")
+    if sc.adaptive and (tol is not None or grid is None):
+        overrides["tol"] = tol if tol is not None else sc.default_tol
+        if max_grid is not None:
+            if grid is not None and grid > max_grid:
+                fail(f"--grid {grid} exceeds --max-grid {max_grid}")
+            overrides["max_grid"] = max_grid
 
     completed: dict[str, Any] = {}
     if resume is not None:

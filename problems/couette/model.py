@@ -56,7 +56,7 @@ from contin.problem import complex_step_dp
 from problems.couette import compiled
 from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients, wall_prefactors
 from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
-from problems.discretization import cell_integration_matrix, make_grid
+from problems.discretization import cell_integration_matrix, chebyshev_coefficients, make_grid
 
 Array = NDArray[np.float64]
 WALLS = ("noslip", "jj")
@@ -780,6 +780,56 @@ class CouetteProblem:
         from problems.couette.resolution import under_resolved
 
         return under_resolved(self, x, p, tol)
+
+    # ------------------------------------------------------------------ grid hooks (contin.adapt)
+    @property
+    def grid_size(self) -> int:
+        """Number of grid intervals N (the size adaptive resolution changes)."""
+        return self.N
+
+    def with_grid(self, N: int) -> CouetteProblem:
+        """The same model (method, walls, chi, gravity, Dufour term) on N intervals; the same engine
+        where it can run that grid (the compiled engine stops at its dense-Jacobian size limit,
+        ``compiled.supports``: beyond it the numpy engine serves)."""
+        engine = "auto" if self.engine == "numba" else self.engine
+        return CouetteProblem(self.method, int(N), walls=self.walls, chi=self.chi, gravity=self.gravity,
+                              dufour=self.dufour, engine=engine)
+
+    def transfer(self, x: Array, other: CouetteProblem) -> Array:
+        """A state (or the state part of a tangent) carried onto ``other``'s grid: the profiles
+        nu, u, T (and M with gravity) by this grid's interpolant, P unchanged; linear in x."""
+        nu, u, T, P, M = self.unpack(np.asarray(x, dtype=float))
+        y = other.grid.y
+        moved = [self.grid.interpolate(f, y) for f in (nu, u, T)]
+        return other.pack(*moved, P, None if M is None else self.grid.interpolate(M, y))
+
+    def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
+        """Estimated relative error of x: the measure of :mod:`problems.couette.resolution`
+        (Chebyshev tails, nu's against the distance to packing) behind :meth:`under_resolved`."""
+        from problems.couette.resolution import resolution
+
+        return resolution(self, x, p).error
+
+    def vector_error(self, v: Array) -> float:
+        """Estimated relative error of a perturbation v (a null vector at a branch point): the
+        largest Chebyshev tail of its profiles nu, u, T relative to the largest profile
+        coefficient of v (FD profiles carried to the Chebyshev grid as in the resolution guard)."""
+        from problems.couette.resolution import FIELDS, _to_chebyshev_matrix, tail
+
+        nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
+        fields = dict(zip(FIELDS, (nu, u, T)))
+        if self.method != "cheb":
+            m = _to_chebyshev_matrix(self.grid)
+            fields = {k: m @ f for k, f in fields.items()}
+        coeffs = [chebyshev_coefficients(f) for f in fields.values()]
+        scale = max(float(np.max(np.abs(a))) for a in coeffs)
+        return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
+
+    def suggest_grid(self, x: Array, p: Mapping[str, Any], tol: float) -> int:
+        """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""
+        from problems.couette.resolution import resolution
+
+        return resolution(self, x, p, tol).suggested_N
 
 
 class _Layout:

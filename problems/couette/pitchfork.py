@@ -67,8 +67,9 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
+from contin.adapt import on_grid, point_problem
 from contin.blas import limited
-from contin.branch import Branch, SpecialPoint
+from contin.branch import Branch, SpecialPoint, pad_rows
 from contin.continuation import newton, switch, trace, trace_both
 from contin.jumps import retrace_on_jumps as _retrace_on_jumps
 from contin.options import ContinuationOptions, NewtonOptions
@@ -184,20 +185,33 @@ def interpolate_state(source: CouetteProblem, target: CouetteProblem, x: Array) 
     return target.pack(*(source.grid.interpolate(f, y) for f in (nu, u, T)), P)
 
 
+def state_on(problem: CouetteProblem, x: Array) -> Array:
+    """A state of any grid of ``problem``'s model (its size tells the grid: adaptive runs store
+    points of several grids) carried onto ``problem``'s grid."""
+    x = np.asarray(x, dtype=float)
+    if x.size == problem.size:
+        return x
+    fields = 4 if problem.gravity else 3
+    source = on_grid(problem, (x.size - 1) // fields - 1)
+    return source.transfer(x, problem)
+
+
 def newton_at(problem: Any, branch: Branch, values: Mapping[str, float], params: Mapping[str, float],
               options: NewtonOptions = NewtonOptions()) -> Array:
     """The state of ``branch`` at ``values`` (e.g. {'H': 12.5}) by Newton at fixed parameters.
 
     Starts from the stored point nearest in the branch's continuation parameter (no
-    interpolation of states).  Raises ValueError if Newton does not converge.
+    interpolation of states), solved on that point's grid (adaptive runs) and returned on
+    ``problem``'s grid.  Raises ValueError if Newton does not converge.
     """
     par = branch.parameter
     i = int(np.argmin(np.abs(branch.parameter_values - values[par])))
     p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}, **values}
-    res = newton(problem, branch.state(i), p, options)
+    source = point_problem(problem, branch, i)
+    res = newton(source, branch.state(i), p, options)
     if not res.converged:
         raise ValueError(f"Newton failed on branch {branch.id} at {values}: {res.message}")
-    return res.u
+    return res.u if source is problem else source.transfer(res.u, problem)
 
 
 def mirror_branch(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
@@ -206,13 +220,47 @@ def mirror_branch(problem: CouetteProblem, branch: Branch, params: Mapping[str, 
 
     Stability columns are copied: S maps the k_x = 0 eigenproblem at x onto that at S x.
     """
+    if branch.sizes is not None:  # points on several grids (adaptive runs)
+        return _mirror_regridded(problem, branch, params, branch_id)
     out = _mirror_branch(problem, branch, params, branch_id)
     out.message = branch.message
     return out
 
 
+def _mirror_regridded(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
+    """:func:`mirror_branch` for a branch whose points lie on several grids (adaptive runs)."""
+    states, tangents, obs = [], [], {}
+    for i in range(len(branch)):
+        pb = point_problem(problem, branch, i)
+        x = pb.symmetry(branch.state(i))
+        t = branch.tangent(i)
+        states.append(x)
+        tangents.append(np.concatenate([pb.symmetry(t[:-1]), t[-1:]]))
+        p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
+        for k, v in pb.observables(x, p).items():
+            obs.setdefault(k, []).append(v)
+
+    def mirrored(sp_: SpecialPoint) -> SpecialPoint:
+        pb = on_grid(problem, sp_.grid)
+        x = pb.symmetry(sp_.state)
+        tangent = None if sp_.tangent is None else np.concatenate([pb.symmetry(sp_.tangent[:-1]), sp_.tangent[-1:]])
+        return replace(sp_, state=x, order_parameter=pb.order_parameter(x), tangent=tangent)
+
+    return dataclasses.replace(
+        branch, observables={k: np.array(v) for k, v in obs.items()}, states=pad_rows(states, branch.states.shape[1]),
+        tangents=pad_rows(tangents, branch.tangents.shape[1]), special_points=[mirrored(s) for s in branch.special_points],
+        id=branch_id, kind=branch.kind, audit=list(branch.audit),
+        stable=None if branch.stable is None else branch.stable.copy(),
+        n_unstable=None if branch.n_unstable is None else branch.n_unstable.copy(),
+        eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())
+
+
 def _is_invariant(problem: CouetteProblem, branch: Branch, tol: float = 1e-6) -> bool:
     """True when the middle state of the branch is S-invariant (the branch maps to itself)."""
+    if branch.sizes is not None:  # points on several grids (adaptive runs)
+        x = branch.state(len(branch) // 2)
+        x = state_on(problem, x)
+        return float(np.max(np.abs(problem.symmetry(x) - x))) <= tol * max(1.0, float(np.max(np.abs(x))))
     return is_invariant(problem, branch, tol)
 
 
@@ -261,7 +309,7 @@ def first_point_on(problem: CouetteProblem, base: Branch, branch: Branch, params
     """
     for i in range(start, len(branch)):
         h = float(branch.parameter_values[i])
-        x = branch.state(i)
+        x = state_on(problem, branch.state(i))
         try:
             xb = newton_at(problem, base, {"H": h}, params)
         except ValueError:
@@ -393,12 +441,12 @@ def density_continuation(problem: CouetteProblem, params: Mapping[str, float], n
     x = band[0].state(len(band[0]) - 1)
     lo, hi = sorted((nu_to, nu_from))
     opts_nu = dataclasses.replace(options, bounds={"nu": (lo, hi + 1e-9)})
-    path = trace(problem, x, {**p0, "H": H_fixed}, "nu", opts_nu, direction=1 if nu_to > nu_from else -1,
+    path = trace(point_problem(problem, band[0], len(band[0]) - 1), x, {**p0, "H": H_fixed}, "nu", opts_nu, direction=1 if nu_to > nu_from else -1,
                  branch_id="aux.density", kind="density path", progress=progress)
     if abs(path.parameter_values[-1] - nu_to) > 1e-12:
         raise ValueError(f"continuation in nu at H = {H_fixed:g} stopped at nu = {path.parameter_values[-1]:.6g} "
                          f"before reaching nu = {nu_to:g} ({path.message})")
-    return path.state(len(path) - 1), [uni, band[0], path]
+    return state_on(problem, path.state(len(path) - 1)), [uni, band[0], path]
 
 
 # ----------------------------------------------------------------------------- analysis
@@ -443,8 +491,6 @@ def confirm_branch_points(problem: CouetteProblem, branch: Branch, params: Mappi
     bps = branch.branch_points
     if not bps:
         return []
-    fine = CouetteProblem(problem.method, int(round(factor * problem.N)), walls=problem.walls, chi=problem.chi,
-                          dufour=problem.dufour, engine=rebuilt_engine(problem.engine))
     messages = []
     new_points = []
     for sp_ in branch.special_points:
@@ -455,11 +501,14 @@ def confirm_branch_points(problem: CouetteProblem, branch: Branch, params: Mappi
         lo, hi = hb * (1 - 2 * tol), hb * (1 + 2 * tol)
         i0 = int(np.argmin(np.abs(branch.parameter_values - lo)))
         p = {**params, **{k: float(v[i0]) for k, v in branch.params.items()}}
-        x0 = interpolate_state(problem, fine, branch.state(i0))
+        source = on_grid(problem, sp_.grid)  # the grid the BP was located on (adaptive runs)
+        fine = CouetteProblem(problem.method, int(round(factor * source.N)), walls=problem.walls, chi=problem.chi,
+                              dufour=problem.dufour, engine=rebuilt_engine(problem.engine))
+        x0 = interpolate_state(source, fine, state_on(source, branch.state(i0)))
         p["H"] = float(np.clip(p["H"], lo, hi))
         step = dataclasses.replace(options.step, ds=min(abs(options.step.ds), 0.05 * hb * tol),
                                    ds_max=min(options.step.ds_max, hb * tol))
-        opts = dataclasses.replace(options, step=step, bounds={"H": (lo, hi)}, max_steps=60)
+        opts = dataclasses.replace(options, step=step, bounds={"H": (lo, hi)}, max_steps=60, adapt=None)
         direction = 1 if branch.parameter_values[min(i0 + 1, len(branch) - 1)] >= branch.parameter_values[i0] else -1
         ref = trace(fine, x0, p, "H", opts, direction=direction, branch_id="refine")
         twins = [b for b in ref.branch_points if abs(b.params["H"] - hb) <= tol * hb]
@@ -467,7 +516,7 @@ def confirm_branch_points(problem: CouetteProblem, branch: Branch, params: Mappi
             new_points.append(sp_)
             continue
         moved = ", ".join(f"{b.params['H']:.6g}" for b in ref.branch_points) or "none"
-        note = (f"unconfirmed BP at H = {hb:.6g} (N = {problem.N}): no BP within {100 * tol:g}% at N = {fine.N} "
+        note = (f"unconfirmed BP at H = {hb:.6g} (N = {source.N}): no BP within {100 * tol:g}% at N = {fine.N} "
                 f"(BPs there: {moved}); discretization artefact")
         messages.append(f"branch {branch.id}: {note}")
         new_points.append(replace(sp_, type="UZ", note=note))
@@ -554,8 +603,9 @@ def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx:
     eigs = np.full((s, n_eigs), np.nan + 0j)
     for i in range(s):
         p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
+        op_i = op if branch.grid is None else type(op)(point_problem(op.problem, branch, i))  # its own grid
         try:
-            w = op.spectrum(branch.states[i], p, kx=kx)
+            w = op_i.spectrum(branch.state(i), p, kx=kx)
         except (np.linalg.LinAlgError, ValueError) as exc:
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
             continue

@@ -55,11 +55,10 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-import scipy.fft as sfft
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from problems.discretization import Grid, chebyshev_nodes
+from problems.discretization import Grid, chebyshev_coefficients, chebyshev_nodes
 
 Array = NDArray[np.float64]
 
@@ -71,20 +70,6 @@ FD_WIDTH = 8
 
 #: Fields measured, in the order they are reported.
 FIELDS = ("nu", "T", "u")
-
-
-def chebyshev_coefficients(values: Array) -> Array:
-    """a_0..a_N of the interpolant sum a_k T_k(2y) through values at ascending Gauss-Lobatto nodes.
-
-    DCT-I: a_k = (2/N) sum_j'' f(x_j) cos(pi j k / N) with x_j = cos(pi j / N) (descending, hence
-    the reversal), the first and last terms of the sum and a_0, a_N halved.
-    """
-    f = np.asarray(values, dtype=float)[::-1]
-    n = f.size - 1
-    a = sfft.dct(f, type=1) / n
-    a[0] *= 0.5
-    a[-1] *= 0.5
-    return a
 
 
 def tail(coefficients: Array, modes: int = TAIL_MODES) -> float:

@@ -362,7 +362,8 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
                     "walls": st["walls"], "chi": st["chi"], "dufour": int(st["dufour"])},
         discretization={"method": pb.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
-        profiles=lambda state: {k: v for k, v in pb.profiles(np.asarray(state)).items() if k in ("nu", "u", "T")},
+        # States of any grid (adaptive runs) are carried onto the start grid, whose y the file stores.
+        profiles=lambda state: {k: v for k, v in pb.profiles(pf.state_on(pb, state)).items() if k in ("nu", "u", "T")},
         notes=run.notes,
         extra=extra,
     )
@@ -451,6 +452,7 @@ SCENES: dict[str, Scene] = {
         problem_factory=problem_factory,
         x="H",
         y="phi",
+        adaptive=True,
     ),
     "jj-walls": Scene(
         name="jj-walls",
@@ -460,6 +462,7 @@ SCENES: dict[str, Scene] = {
         problem_factory=problem_factory,
         x="H",
         y="phi",
+        adaptive=True,
     ),
 }
 

@@ -1,0 +1,374 @@
+"""Adaptive resolution: ask for an accuracy, not a grid.
+
+The tracer (``contin.continuation.trace``) calls into this module when
+``ContinuationOptions.adapt`` is an :class:`AdaptOptions`; the problem provides the grid hooks
+(documented in ``contin.problem``):
+
+    grid_size                 the size of the grid in force (an int, e.g. Chebyshev intervals N)
+    error_estimate(u, p)      a-posteriori relative discretization error of the state u
+    with_grid(N)              the same problem on the grid of size N
+    transfer(u, other)        u (a state, or the state part of a tangent) carried onto other's grid;
+                              linear in u
+    vector_error(v)           optional: relative error estimate of a perturbation v (a null vector):
+                              decides the grid of located branch points and folds, whose position
+                              depends on the kernel of J, not only on the state
+    suggest_grid(u, p, tol)   optional: the grid size expected to meet tol
+
+Policy (h-adaptivity in the grid size, as in AUTO-07p's mesh adaption but choosing the number
+of points instead of moving them; Boyd, *Chebyshev and Fourier Spectral Methods*, 2nd ed.,
+sec. 2.12 for the tail estimate the spectral problems use):
+
+- start: the start state is solved on the problem's grid and re-solved on finer grids (growth
+  factor ``growth``, or the problem's suggestion) until its estimate is <= tol; if it is below
+  ``coarsen_below * tol`` coarser grids are tried instead (from ``min_grid`` up), and the
+  coarsest whose estimate is <= ``COARSEN_MARGIN * tol`` is kept;
+- along the branch: a converged candidate point whose estimate exceeds tol is not accepted; the
+  last accepted point is carried onto a finer grid (state and tangent transferred, corrected on
+  the pseudo-arclength hyperplane of the transferred tangent, tangent re-solved) and the step is
+  retried from there.  The same happens when a located BP's null vector or an LP's tangent is
+  under-resolved (``vector_error``), so special points are located on a grid that resolves them;
+- an accepted point whose estimate fell below ``coarsen_below * tol`` is moved to a coarser grid
+  when the estimate there stays <= ``COARSEN_MARGIN * tol`` (at most once every ``cooldown``
+  steps, so the grid does not oscillate);
+- past ``max_grid`` the run ends with MX: "under-resolved at p = ...: estimated error ... >
+  tol on the maximum grid ...".
+
+Every point remembers its grid (``Branch.grid``); see ``contin.branch``.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from contin.options import AdaptOptions
+from contin.problem import Array, has
+
+__all__ = ["AdaptOptions", "Adaptor", "on_grid", "point_problem", "start_grid"]
+
+#: Hooks a problem needs for adaptive resolution.
+REQUIRED_HOOKS = ("error_estimate", "with_grid", "transfer")
+
+#: A coarser grid is taken only if its estimate is at most this fraction of tol (hysteresis
+#: against refining again at the next step).
+COARSEN_MARGIN = 0.1
+
+
+def missing_hooks(problem: Any) -> list[str]:
+    """The grid hooks ``problem`` lacks (empty: adaptive resolution is possible)."""
+    out = [h for h in REQUIRED_HOOKS if not has(problem, h)]
+    if getattr(problem, "grid_size", None) is None:
+        out.insert(0, "grid_size")
+    return out
+
+
+def check_problem(problem: Any) -> None:
+    """ValueError naming the missing hooks if ``problem`` cannot change its grid."""
+    missing = missing_hooks(problem)
+    if missing:
+        raise ValueError(f"adaptive resolution needs the problem hooks {', '.join(missing)} "
+                         f"({type(problem).__name__} lacks them); use a fixed grid (adapt=None)")
+
+
+def state_error(problem: Any, u: Array, p: Any) -> float:
+    """The problem's estimated relative error of state u (inf if it is not finite)."""
+    e = float(problem.error_estimate(np.asarray(u, dtype=float), p))
+    return e if math.isfinite(e) else math.inf
+
+
+def vector_error(problem: Any, v: Array) -> float:
+    """The problem's estimated relative error of a perturbation v (0 without the hook)."""
+    if not has(problem, "vector_error"):
+        return 0.0
+    e = float(problem.vector_error(np.asarray(v, dtype=float)))
+    return e if math.isfinite(e) else math.inf
+
+
+def _round(n: float, multiple: int) -> int:
+    return int(multiple * math.ceil(n / multiple - 1e-12))
+
+
+def finer(problem: Any, u: Array | None, p: Any, opts: AdaptOptions) -> int | None:
+    """The next grid size above the current one (None at max_grid)."""
+    n = int(problem.grid_size)
+    if n >= opts.max_grid:
+        return None
+    want = opts.growth * n
+    if u is not None and has(problem, "suggest_grid"):
+        want = max(want, float(problem.suggest_grid(u, p, opts.tol)))
+    return min(max(_round(want, opts.multiple), n + 1), opts.max_grid)
+
+
+def coarser(problem: Any, opts: AdaptOptions) -> int | None:
+    """The next grid size below the current one (None at min_grid)."""
+    n = int(problem.grid_size)
+    want = max(_round(n / opts.growth, opts.multiple), opts.min_grid)
+    return want if want < n else None
+
+
+def null_vector(jacobian: Any) -> Array:
+    """A unit vector spanning the (numerical) kernel of J at a located branch point (bordering,
+    ``contin.normalform.null_vectors``)."""
+    import scipy.sparse as sp
+
+    from contin.normalform import null_vectors
+
+    return null_vectors(sp.csc_matrix(jacobian)).phi
+
+
+@dataclass(frozen=True)
+class GridChange:
+    """One grid change along a branch (kept in ``Branch.audit`` as text)."""
+
+    parameter: str
+    value: float
+    old: int
+    new: int
+    error: float
+    why: str
+
+    def line(self) -> str:
+        kind = "refined" if self.new > self.old else "coarsened"
+        return (f"grid {kind} {self.old} -> {self.new} at {self.parameter}={self.value:.10g} "
+                f"({self.why}, estimate {self.error:.2g})")
+
+
+def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any, *,
+               coarsen: bool = True) -> tuple[Any, Array, list[str]]:
+    """The grid to start a branch on: (problem on it, start state on it (converged where
+    possible), audit lines).  Refines while the estimate of the solved start state exceeds tol;
+    coarsens while it is below coarsen_below * tol and the coarser grid keeps it <=
+    COARSEN_MARGIN * tol (unless ``coarsen`` is False: the tracer passes False for a start with a
+    given tangent, e.g. one step off a branch point, where a coarser grid moves the BP and the
+    small-amplitude branch next to it may not exist there).  A start state that fails to
+    converge is returned as given (the tracer then reports the failure)."""
+    from contin.newton import newton
+
+    check_problem(problem)
+    lines: list[str] = []
+    res = newton(problem, u0, params, newton_options)
+    if not res.converged:
+        return problem, np.asarray(u0, dtype=float), lines
+    u = res.u
+    err = state_error(problem, u, params)
+    while err > opts.tol:
+        n_new = finer(problem, u, params, opts)
+        if n_new is None:
+            break
+        other = problem.with_grid(n_new)
+        trial = newton(other, problem.transfer(u, other), params, newton_options)
+        if not trial.converged:
+            break
+        lines.append(f"start grid refined {problem.grid_size} -> {n_new} (estimate {err:.2g} > tol {opts.tol:.2g})")
+        problem, u = other, trial.u
+        err = state_error(problem, u, params)
+    else:
+        if coarsen and opts.coarsen_below is not None and err < opts.coarsen_below * opts.tol:
+            # The coarsest grid that keeps the estimate <= COARSEN_MARGIN tol: candidates from
+            # min_grid up by the growth factor, first fit taken (few solves, all on small grids).
+            n, sizes = opts.min_grid, []
+            while n < problem.grid_size:
+                sizes.append(n)
+                n = max(_round(opts.growth * n, opts.multiple), n + 1)
+            for n_new in sizes:
+                other = problem.with_grid(n_new)
+                trial = newton(other, problem.transfer(u, other), params, newton_options)
+                if not trial.converged:
+                    continue
+                e_new = state_error(other, trial.u, params)
+                if e_new <= COARSEN_MARGIN * opts.tol:
+                    lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
+                    problem, u = other, trial.u
+                    break
+    return problem, u, lines
+
+
+class Adaptor:
+    """The grid changes of one trace (``contin.continuation.trace`` holds one when
+    ``ContinuationOptions.adapt`` is set).  Works on the tracer's ``system`` (an
+    ``ExtendedSystem``), ``anti``, ``points``, ``records`` and ``grids``."""
+
+    def __init__(self, opts: AdaptOptions) -> None:
+        self.opts = opts
+        self.since_change = 0
+        self.lines: list[str] = []
+        self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
+        self._special: float | None = None  # estimate that triggered the last refinement for a special point
+
+    def special_refinable(self, err: float) -> bool:
+        """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
+        when the previous such refinement left a special point with more than a tenth of its
+        estimate.  A genuine BP's or LP's kernel converges with the grid (spectrally: 4e-3 -> 2e-8
+        from cheb 8 to 16 at gPCF's H_1^c); a kernel that does not is a grid-scale mode (a
+        discretization artefact that moves with the grid, which refinement would chase to
+        max_grid: 3e-2, 6e-3, 2e-3, 1e-3 on cheb 80..288 on gPCF's nu = 0.5 banded branch).
+        The memory is cleared by a special point that meets tol (:meth:`special_resolved`).
+        """
+        last = self._special
+        if last is not None and err > 0.1 * last:
+            return False
+        self._special = err
+        return True
+
+    def special_resolved(self) -> None:
+        self._special = None
+
+    # --- estimates -------------------------------------------------------------------------
+    def error(self, system: Any, x: Array) -> float:
+        return state_error(system.problem, x[:-1], system.params_at(x[-1]))
+
+    def special_error(self, system: Any, kind: str, x: Array, t: Array | None) -> float:
+        """Estimate for a located special point: its state, and the kernel direction that fixes
+        its position (an LP's tangent, a BP's null vector of J)."""
+        err = self.error(system, x)
+        if not has(system.problem, "vector_error"):
+            return err
+        if kind == "LP" and t is not None:
+            err = max(err, vector_error(system.problem, t[:-1]))
+        elif kind == "BP":
+            err = max(err, vector_error(system.problem, null_vector(system.state_jacobian(x))))
+        return err
+
+    def too_coarse(self, system: Any, x: Array) -> float | None:
+        """The estimate at x if it exceeds tol, else None."""
+        e = self.error(system, x)
+        return e if e > self.opts.tol else None
+
+    def at_max(self, system: Any, x: Array, err: float) -> str:
+        return (f"under-resolved at {system.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol "
+                f"{self.opts.tol:.2g} on the maximum grid {system.problem.grid_size} (AdaptOptions.max_grid = "
+                f"{self.opts.max_grid})")
+
+    # --- grid changes ----------------------------------------------------------------------
+    def regrid(self, tracer: Any, size: int, why: str, err: float, newton_options: Any) -> bool:
+        """Carry the tracer's last point onto the grid of ``size``: transfer state and tangent,
+        correct on the hyperplane through the transferred point normal to the transferred
+        tangent (regular at folds, unlike a correction at fixed parameter), re-solve the tangent
+        and the test functions there, and make the new system the tracer's.  False (nothing
+        changed) if the correction fails."""
+        from contin.corrector import correct
+        from contin.extended import ExtendedSystem
+        from contin.testfunctions import Antisymmetric
+
+        sys = tracer.system
+        old = sys.problem
+        cur = tracer.points[-1]
+        other = old.with_grid(int(size))
+        new_sys = ExtendedSystem(other, sys.params, sys.parameter, sys.theta)
+        x = new_sys.pack(old.transfer(cur.x[:-1], other), cur.x[-1])
+        new_sys.n = x.size - 1
+        t = new_sys.unit(new_sys.pack(old.transfer(cur.t[:-1], other), cur.t[-1]))
+        anti = None
+        if tracer.anti is not None:
+            anti = Antisymmetric.from_problem(other, new_sys.n)
+            if anti is not None:
+                x = new_sys.pack(anti.symmetrize(x[:-1]), x[-1])
+        corr = correct(new_sys, x, new_sys.row(t), newton_options, anti.symmetrize if anti is not None else None)
+        if not corr.converged or new_sys.admissible(corr.x) is not None or corr.factorization is None:
+            return False
+        saved = (tracer.system, tracer.anti, tracer.point_tests)
+        tracer.use_system(new_sys, anti)  # also sets up the HB/UZ test functions on the new grid
+        try:
+            pt = tracer.finish_point(corr, t)
+        except Exception:  # noqa: BLE001 -- keep the old grid if the new one cannot give a tangent
+            tracer.system, tracer.anti, tracer.point_tests = saved
+            return False
+        change = GridChange(sys.parameter, float(cur.x[-1]), int(old.grid_size), int(size), err, why)
+        tracer.points[-1] = pt
+        tracer.records[-1] = new_sys.record(pt.x)
+        tracer.grids[-1] = int(size)
+        self.lines.append(change.line())
+        tracer.audit.append(change.line())
+        self.since_change = 0
+        return True
+
+    def refine(self, tracer: Any, err: float, why: str, newton_options: Any) -> str | None:
+        """Refine at the tracer's last point; None on success, else why the run must end: at
+        max_grid, or when the previous refinement from the same point did not halve the estimate
+        (the estimate has reached a floor that finer grids cannot lower, e.g. the rounding of a
+        spectral tail measured against a tiny scale: tol is then below what the problem's
+        estimate can certify there)."""
+        sys = tracer.system
+        cur = tracer.points[-1]
+        count = len(tracer.points)
+        last = self._state_refine
+        self._state_refine = (count, err, int(sys.problem.grid_size))
+        if last is not None and last[0] == count and err > 0.5 * last[1]:
+            return (f"under-resolved at {sys.parameter} = {cur.x[-1]:.6g}: estimated relative error {err:.2g} > tol "
+                    f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "
+                    f"grid {sys.problem.grid_size}): the estimate's floor is above tol here")
+        size = finer(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), self.opts)
+        while size is not None:
+            if self.regrid(tracer, size, why, err, newton_options):
+                return None
+            size = finer(sys.problem.with_grid(size), None, None, self.opts)
+        return self.at_max(sys, cur.x, err)
+
+    def maybe_coarsen(self, tracer: Any, newton_options: Any) -> None:
+        """Move the last accepted point to a coarser grid if the estimate allows (module docstring)."""
+        self.since_change += 1
+        opts = self.opts
+        if opts.coarsen_below is None or self.since_change <= opts.cooldown:
+            return
+        sys = tracer.system
+        cur = tracer.points[-1]
+        err = self.error(sys, cur.x)
+        if err >= opts.coarsen_below * opts.tol:
+            return
+        size = coarser(sys.problem, opts)
+        if size is None:
+            return
+        other = sys.problem.with_grid(size)
+        trial = sys.problem.transfer(cur.x[:-1], other)
+        e_new = state_error(other, trial, sys.params_at(cur.x[-1]))
+        if e_new > COARSEN_MARGIN * opts.tol:
+            self.since_change = 0  # try again after the cooldown
+            return
+        keep = (tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1], len(tracer.audit),
+                tracer.point_tests)
+        if not self.regrid(tracer, size, f"estimate below {opts.coarsen_below:g} tol", err, newton_options):
+            return
+        if self.error(tracer.system, tracer.points[-1].x) > COARSEN_MARGIN * opts.tol:  # the corrected state says no
+            tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1] = keep[:5]
+            tracer.point_tests = keep[6]
+            del tracer.audit[keep[5]:]
+            self.lines.pop()
+            self.since_change = 0
+
+    def carry(self, old: Any, new_system: Any, x: Array) -> Array:
+        """A point x = (u, p) of the old problem carried onto the new system's grid."""
+        if x.size - 1 == new_system.n:
+            return x
+        return new_system.pack(old.transfer(x[:-1], new_system.problem), x[-1])
+
+
+#: problem -> {grid size: the problem on that grid}; weak keys, so problems are not kept alive.
+_ON_GRID: weakref.WeakKeyDictionary[Any, dict[int, Any]] = weakref.WeakKeyDictionary()
+
+
+def on_grid(problem: Any, grid: int | None) -> Any:
+    """``problem`` on the grid of size ``grid`` (``problem`` itself for None or its own grid).
+
+    For consumers of stored branches (stability, switching, profiles): a point of an adaptive
+    run is a solution of the problem on *its* grid (``Branch.grid``, ``SpecialPoint.grid``).
+    The rebuilt problems are cached per problem instance.
+    """
+    if grid is None or int(getattr(problem, "grid_size", -1)) == int(grid):
+        return problem
+    check_problem(problem)
+    try:
+        table = _ON_GRID.setdefault(problem, {})
+    except TypeError:  # not weak-referenceable: no cache
+        return problem.with_grid(int(grid))
+    if int(grid) not in table:
+        table[int(grid)] = problem.with_grid(int(grid))
+    return table[int(grid)]
+
+
+def point_problem(problem: Any, branch: Any, i: int) -> Any:
+    """The problem whose solution point ``i`` of ``branch`` is (its grid, see :func:`on_grid`)."""
+    return on_grid(problem, branch.grid_at(i))

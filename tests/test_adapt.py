@@ -1,0 +1,164 @@
+"""Adaptive resolution (contin.adapt): ask for an accuracy, not a grid.
+
+References are closed forms computed in the tests: the Bratu branch
+lam = theta^2 / (2 cosh^2(theta/4)), u(1/2) = 2 ln cosh(theta/4) and its fold lam* (Gel'fand
+1963, problems.demo.BRATU_FOLD); gPCF's H_1^c = pi psi (problems.couette.pitchfork).
+"""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from contin import io
+from contin.adapt import AdaptOptions, check_problem
+from contin.continuation import trace, trace_both
+from contin.options import ContinuationOptions, DetectionOptions, StepOptions
+from problems.demo import BRATU_FOLD, Bratu, ImperfectPitchfork
+
+
+def bratu_mid(lam: float) -> float:
+    """u(1/2) on the upper Bratu branch at lam (closed form, theta > theta*)."""
+    theta = brentq(lambda th: th**2 / (2 * math.cosh(th / 4) ** 2) - lam, 4.7987, 300.0, xtol=1e-15)
+    return 2 * math.log(math.cosh(theta / 4))
+
+
+def bratu_run(method: str, start: int, tol: float, lam_lo: float, **kw):
+    pb = Bratu(method, start)
+    o = ContinuationOptions(bounds={"lam": (lam_lo, 4.0)}, max_steps=400, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=tol, max_grid=kw.pop("max_grid", 512), min_grid=8))
+    return pb, trace(pb, pb.initial(), {"lam": max(lam_lo, 0.1)}, "lam", o, **kw)
+
+
+@pytest.mark.parametrize("tol", [1e-6, 1e-10])
+def test_bratu_chebyshev_refines_mid_branch_and_keeps_the_fold(tol):
+    """Lower branch, fold, upper branch to lam = 0.02 where u(1/2) = 9.35 (a steep, narrow profile):
+    the grid is refined along the branch without a restart, the fold is located to its closed form
+    and the last point meets tol against the closed form."""
+    pb, b = bratu_run("cheb", 8, tol, 0.02)
+    assert b.status == "EP" and b.message == "reached bound lam=0.02"
+    changes = b.grid_changes
+    assert len(changes) >= 2 and all(new > old for _, old, new in changes)  # refined mid-branch, more than once
+    assert b.grid[-1] > b.grid[0]
+    for i in range(len(b)):  # every point stored on its own grid
+        assert b.state(i).size == b.grid[i] + 1
+        assert b.tangent(i).size == b.grid[i] + 2
+    (lp,) = b.fold_points
+    assert lp.converged and lp.grid is not None
+    assert abs(lp.params["lam"] - BRATU_FOLD) <= tol * BRATU_FOLD
+    lam = b.params["lam"][-1]
+    mid = pb.with_grid(b.grid[-1]).order_parameter(b.state(-1), None)
+    assert abs(mid - bratu_mid(lam)) <= tol * bratu_mid(lam)
+
+
+def test_bratu_finite_differences_defect_estimate():
+    """fd2 with the defect estimate: refined several times; the fold within tol of lam*."""
+    pb, b = bratu_run("fd2", 16, 1e-4, 1.0)
+    assert b.status == "EP"
+    assert len(b.grid_changes) >= 2
+    (lp,) = b.fold_points
+    assert abs(lp.params["lam"] - BRATU_FOLD) <= 1e-4 * BRATU_FOLD
+
+
+def joined():
+    """Bratu traced both ways from lam = 1 on a needlessly fine start grid (cheb 96)."""
+    pb = Bratu("cheb", 96)
+    o = ContinuationOptions(bounds={"lam": (0.05, 4.0)}, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=1e-8, min_grid=8))
+    return trace_both(pb, pb.initial(), {"lam": 1.0}, "lam", o)
+
+
+def test_coarsening_and_both_directions_join():
+    """Started on a needlessly fine grid, the start grid is coarsened; trace_both joins halves
+    on different grids (padded storage, per-point grid column)."""
+    b = joined()
+    assert any("start grid coarsened 96" in a for a in b.audit)
+    assert b.grid.max() < 96 and len(set(b.grid.tolist())) >= 2
+    assert b.sizes is not None and np.array_equal(b.sizes, b.grid + 1)
+    (lp,) = b.fold_points
+    assert abs(lp.params["lam"] - BRATU_FOLD) <= 1e-8 * BRATU_FOLD
+    r = b.reversed()
+    assert np.array_equal(r.grid, b.grid[::-1]) and np.array_equal(r.state(0), b.state(-1))
+
+
+def test_hdf5_round_trip_and_version_1_files(tmp_path):
+    b = joined()
+    path = io.write(tmp_path / "a.h5", [b], scene="toy")
+    (c,), meta = io.load(path)
+    assert meta["format_version"] == 2
+    np.testing.assert_array_equal(c.grid, b.grid)
+    for i in (0, len(b) // 2, len(b) - 1):
+        np.testing.assert_array_equal(c.state(i), b.state(i))
+        np.testing.assert_array_equal(c.tangent(i), b.tangent(i))
+    assert [sp.grid for sp in c.special_points] == [sp.grid for sp in b.special_points]
+    # a fixed-grid branch written as version 1 (no grid columns) still loads
+    pb = Bratu("cheb", 16)
+    fixed = trace(pb, pb.initial(), {"lam": 1.0}, "lam", ContinuationOptions(bounds={"lam": (0.5, 4.0)}))
+    old = io.write(tmp_path / "old.h5", [fixed])
+    with h5py.File(old, "r+") as f:
+        f.attrs["format_version"] = 1
+        del f["special_points/grid"]
+    (d,), meta = io.load(old)
+    assert meta["format_version"] == 1 and d.grid is None and d.sizes is None
+    assert all(sp.grid is None for sp in d.special_points)
+    np.testing.assert_array_equal(d.states, fixed.states)
+
+
+def test_max_grid_ends_with_the_reason():
+    pb, b = bratu_run("cheb", 8, 1e-10, 0.02, max_grid=24)
+    assert b.status == "MX"
+    assert "on the maximum grid 24" in b.message and "max_grid" in b.message
+    assert b.points("MX")[0].note == b.message
+
+
+def test_options_and_hooks_are_checked():
+    with pytest.raises(ValueError, match="tol"):
+        AdaptOptions(tol=0.0)
+    with pytest.raises(ValueError, match="min_grid"):
+        AdaptOptions(min_grid=64, max_grid=32)
+    with pytest.raises(ValueError, match="coarsen_below"):
+        AdaptOptions(coarsen_below=2.0)
+    with pytest.raises(ValueError, match="grid_size"):
+        check_problem(ImperfectPitchfork())
+    o = ContinuationOptions(adapt=AdaptOptions(tol=1e-6))
+    with pytest.raises(ValueError, match="hooks"):
+        trace(ImperfectPitchfork(), np.array([1.0]), {"lam": 1.0, "alpha": 0.0, "beta": 0.0}, "lam", o)
+
+
+def test_grid_hooks_transfer_is_spectrally_accurate():
+    """transfer() carries the exact Bratu solution between Chebyshev grids to ~1e-13."""
+    lam = 1.0
+    theta = brentq(lambda th: th**2 / (2 * math.cosh(th / 4) ** 2) - lam, 0.1, 4.7987)
+
+    def exact(pb):
+        x = pb.x
+        return -2 * np.log(np.cosh((x - 0.5) * theta / 2) / np.cosh(theta / 4))
+
+    a, b = Bratu("cheb", 24), Bratu("cheb", 40)
+    np.testing.assert_allclose(a.transfer(exact(a), b), exact(b), atol=1e-12)
+    assert a.grid_size == 24 and a.with_grid(40).grid_size == 40
+
+
+@pytest.mark.parametrize("tol", [1e-4, 1e-6, 1e-8, 1e-10])
+def test_couette_critical_gap_meets_tol(tol):
+    """gPCF uniform shear at nu = 0.3, e = 0.8: started on cheb 64, the start grid is coarsened (the
+    uniform state is exact on any grid), the BP is located, its null vector is under-resolved on the
+    coarse grid, so it is located again on a finer one: |H_1^c - pi psi| / pi psi <= tol."""
+    from problems.couette import pitchfork as pf
+    from problems.couette.model import CouetteProblem
+
+    exact = pf.analytic_critical_gaps(0.3, 0.8, 1)[0]
+    pb = CouetteProblem("cheb", 64)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    o = ContinuationOptions(bounds={"H": (0.8 * exact, 1.2 * exact)},
+                            step=StepOptions(ds=0.1 * exact, ds_max=0.3 * exact),
+                            detection=DetectionOptions(locate_tol=1e-13), adapt=AdaptOptions(tol=tol, min_grid=4))
+    b = pf.trace_base(pb, p, 0.8 * exact, o)
+    (bp,) = b.branch_points
+    assert bp.grid < 64  # cheaper than the fixed default grid
+    assert abs(bp.params["H"] - exact) / exact <= tol
+    assert any("located BP under-resolved" in a for a in b.audit)
