@@ -626,7 +626,8 @@ def trace(
             # (state, or the kernel fixing its position) is located again on a finer grid.
             err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
                       for sp in found)
-            if err <= options.adapt.tol:
+            special_tol = min(options.adapt.tol, options.adapt.special_tol)
+            if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err):
                 kinds = "/".join(sorted({sp.type for sp in found}))
@@ -635,7 +636,7 @@ def trace(
                     system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
                     x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
                     continue
-            if err > options.adapt.tol:
+            if err > special_tol:
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
                                  f"kernel not resolved by refinement (estimate {err:.2g} > tol on grid "
                                  f"{system.problem.grid_size}): a grid artefact or past max_grid") for sp in found]

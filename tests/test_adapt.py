@@ -30,7 +30,8 @@ def bratu_mid(lam: float) -> float:
 def bratu_run(method: str, start: int, tol: float, lam_lo: float, **kw):
     pb = Bratu(method, start)
     o = ContinuationOptions(bounds={"lam": (lam_lo, 4.0)}, max_steps=400, step=StepOptions(ds=0.1, ds_max=0.5),
-                            adapt=AdaptOptions(tol=tol, max_grid=kw.pop("max_grid", 512), min_grid=8))
+                            adapt=AdaptOptions(tol=tol, max_grid=kw.pop("max_grid", 512), min_grid=8,
+                                               special_tol=kw.pop("special_tol", tol)))  # the fold's kernel at tol, as the states
     return pb, trace(pb, pb.initial(), {"lam": max(lam_lo, 0.1)}, "lam", o, **kw)
 
 
@@ -162,3 +163,25 @@ def test_couette_critical_gap_meets_tol(tol):
     assert bp.grid < 64  # cheaper than the fixed default grid
     assert abs(bp.params["H"] - exact) / exact <= tol
     assert any("located BP under-resolved" in a for a in b.audit)
+
+
+def test_couette_special_points_keep_fine_grid_accuracy_at_default_tol():
+    """At the default tol (3e-5, what the states need) the uniform branch runs on coarse grids,
+    but every BP is located on a grid whose kernel estimate meets AdaptOptions.special_tol
+    (1e-10): H_1^c..H_3^c to 1e-9 of n pi psi (at special_tol = tol = 3e-5 H_3^c was off by 1.3e-8)."""
+    from problems.couette import pitchfork as pf
+    from problems.couette.model import CouetteProblem
+
+    exact = pf.analytic_critical_gaps(0.3, 0.8, 3)
+    pb = CouetteProblem("cheb", 64)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    o = ContinuationOptions(bounds={"H": (0.5 * exact[0], 3.2 * exact[0])},
+                            step=StepOptions(ds=0.1 * exact[0], ds_max=0.4 * exact[0]), adapt=AdaptOptions())
+    b = pf.trace_base(pb, p, 0.5 * exact[0], o)
+    found = sorted(bp.params["H"] for bp in b.branch_points)
+    assert len(found) == 3
+    for h, ref in zip(found, exact):
+        assert abs(h - ref) / ref <= 1e-9
+    assert max(b.grid) < 64  # still cheaper than the fixed default grid
+    with pytest.raises(ValueError, match="special_tol"):
+        AdaptOptions(special_tol=0.0)
