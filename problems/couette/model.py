@@ -709,13 +709,7 @@ class CouetteProblem:
         A signed permutation and an involution with F(Sx, p') = S F(x, p), p' = p with
         G -> -G; hence a symmetry of F(., p) exactly when :meth:`symmetric` (G = 0).
         """
-        x = np.asarray(x)
-        r = self.grid.reflection()
-        nu, u, T, P, M = self.unpack(x)
-        parts = [nu[r], -u[r], T[r], np.atleast_1d(P)]
-        if self.gravity:
-            parts.append(-M[r])
-        return np.concatenate(parts)
+        return reflected(self, x)
 
     def symmetry_matrix(self) -> sp.csr_matrix:
         """Sparse matrix of :meth:`symmetry` (built once per instance; a copy is returned)."""
@@ -902,6 +896,18 @@ def _coo(op: sp.spmatrix, wall: bool) -> sp.coo_matrix:
     coo.eliminate_zeros()
     coo.wall = wall
     return coo
+
+
+def reflected(model: Any, x: Array) -> Array:
+    """The state x = (nu, u, T, P[, M]) of ``model`` (its ``unpack``, ``grid`` and ``gravity``)
+    reflected y -> -y: (nu, T)(y) -> (nu, T)(-y), u(y) -> -u(-y), P -> P, M(y) -> -M(-y).
+    Shared by every model with this state layout (:class:`CouetteProblem`, the disk model)."""
+    r = model.grid.reflection()
+    nu, u, T, P, M = model.unpack(np.asarray(x))
+    parts = [nu[r], -u[r], T[r], np.atleast_1d(P)]
+    if model.gravity:
+        parts.append(-M[r])
+    return np.concatenate(parts)
 
 
 def _mass_rows(cells: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:

@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contin.problem import complex_step_dp
-from problems.couette.model import _mass_rows
+from problems.couette.model import _mass_rows, reflected
 from problems.discretization import cell_integration_matrix, make_grid
 from problems.disks.closures import DiskClosure, check_closure_parameters, uniform_temperature
 
@@ -316,10 +316,4 @@ class DiskCouetteProblem:
         return p["G"] == 0
 
     def symmetry(self, x):
-        x = np.asarray(x)
-        r = self.grid.reflection()
-        nu, u, T, P, M = self.unpack(x)
-        parts = [nu[r], -u[r], T[r], np.atleast_1d(P)]
-        if self.gravity:
-            parts.append(-M[r])
-        return np.concatenate(parts)
+        return reflected(self, x)
