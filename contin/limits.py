@@ -5,8 +5,10 @@ halving an infinite step, ``--kx 0:3:1000000000`` never ended (issue 16).  The l
 above any useful run and are stated in ``--help``.
 """
 
-#: largest number of grid intervals (dense eigenproblems of ~5 N unknowns)
-MAX_GRID = 4096
+#: largest number of grid intervals: finite-difference grids are O(N) in time and memory (fd4
+#: N = 25600: 392 MiB peak for the whole pitchfork trace, issue 14), so ~1 GB here.  Dense
+#: (Chebyshev) grids have their own, lower limit in the problem (``problems.discretization``).
+MAX_GRID = 65536
 #: largest number of continuation steps per branch
 MAX_STEPS = 1_000_000
 #: largest |k_x| accepted, and most wavenumbers in one list or range (``contin stability``)

@@ -37,6 +37,8 @@ METHODS = ("cheb", "fd2", "fd4", "fd6")
 
 #: Smallest number of intervals N accepted by each method.
 MIN_INTERVALS = {"cheb": 4, "fd2": 4, "fd4": 8, "fd6": 12}
+#: Chebyshev grids are dense (N + 1)^2 matrices (several per grid, and 5N-unknown eigenproblems)
+MAX_CHEB_INTERVALS = 4096
 
 
 def _fornberg(z, x, m: int) -> list[list]:
@@ -418,6 +420,9 @@ def make_grid(method: str, intervals: int) -> Grid:
         raise ValueError(f"unknown discretization {method!r}; choose one of {', '.join(METHODS)}")
     if intervals < MIN_INTERVALS[method]:
         raise ValueError(f"grid too small: {method} needs at least {MIN_INTERVALS[method]} intervals, got {intervals}")
+    if method == "cheb" and intervals > MAX_CHEB_INTERVALS:
+        raise ValueError(f"grid too large: cheb has dense N x N differentiation matrices, at most "
+                         f"{MAX_CHEB_INTERVALS} intervals, got {intervals} (finite differences are O(N): use fd2/fd4/fd6)")
     if method == "cheb":
         y, d, w = chebyshev(intervals)
         d1 = sp.csr_matrix(d)

@@ -351,3 +351,13 @@ def make_grid_nodes(n):
     from problems.discretization import make_grid
 
     return make_grid("cheb", n).y
+
+
+def test_dense_chebyshev_grid_limit_is_one_clear_error():
+    """FD grids may be large (O(N)); a Chebyshev grid above MAX_CHEB_INTERVALS is refused before
+    any dense matrix is allocated (issue 16's --grid 1e9 without the O(N^2) memory)."""
+    from problems.discretization import MAX_CHEB_INTERVALS, make_grid
+
+    with pytest.raises(ValueError, match="grid too large: cheb .* at most 4096 intervals"):
+        make_grid("cheb", MAX_CHEB_INTERVALS + 1)
+    assert make_grid("fd2", 2 * MAX_CHEB_INTERVALS).size == 2 * MAX_CHEB_INTERVALS + 1
