@@ -121,8 +121,8 @@ def analyze(a: sp.csc_matrix) -> BandedStructure | None:
     # final positions: band rows/cols 0..m-1 in RCM order, then the border in original order
     rpos = np.empty(n, dtype=np.int64)
     cpos = np.empty(n, dtype=np.int64)
-    rpos[core_rows] = inv[np.arange(m)]
-    cpos[core_cols] = inv[np.arange(m)]
+    rpos[core_rows] = inv
+    cpos[core_cols] = inv
     rpos[dense_rows] = m + np.arange(k)
     cpos[dense_cols] = m + np.arange(k)
     i, j = rpos[a.indices], cpos[cols_of]

@@ -37,7 +37,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
 
-from contin.banded import factorize_banded, structure_of
+from contin.banded import BandedStructure, factorize_banded, structure_of
 from contin.problem import Array
 from contin.sparsity import as_csc, canonical_csc, permutation_parity
 
@@ -147,14 +147,22 @@ def structure(a: object) -> str:
     other matrices are 'dense' up to :data:`DENSE_LIMIT`, or up to :data:`DENSE_MAX` when at
     least :data:`DENSE_FILL` of their entries are nonzero (collocation), and 'sparse' above.
     """
+    return _classify(a)[0]
+
+
+def _classify(a: object) -> tuple[str, sp.csc_matrix | None, BandedStructure | None]:
+    """(:func:`structure` of ``a``, ``a`` as canonical CSC, its banded structure) -- the CSC
+    copy and the pattern analysis are done once and handed on to the factorization."""
     n = a.shape[0]  # type: ignore[attr-defined]
     if not sp.issparse(a) or n < BANDED_MIN:
-        return "dense"
-    if structure_of(canonical_csc(a)) is not None:
-        return "banded"
+        return "dense", None, None
+    csc = canonical_csc(a)
+    banded = structure_of(csc)
+    if banded is not None:
+        return "banded", csc, banded
     if n <= DENSE_LIMIT or (n <= DENSE_MAX and a.nnz >= DENSE_FILL * n * n):  # type: ignore[attr-defined]
-        return "dense"
-    return "sparse"
+        return "dense", csc, None
+    return "sparse", csc, None
 
 
 def dense_factorization(jac: object, bordered: bool = False) -> bool:
@@ -176,12 +184,12 @@ def factorize(a: object) -> Factorization | None:
     (``contin.banded``) for banded-plus-border matrices; SuperLU otherwise (also when the
     banded factorization's self-check fails).  All of them give the determinant's sign.
     """
-    kind = structure(a)
+    kind, csc, banded = _classify(a)
     if kind == "dense":
         return _dense_lu(a.toarray(order="F") if sp.issparse(a) else np.array(a, dtype=float, order="F"))  # type: ignore[attr-defined]
-    csc = canonical_csc(a)
-    if kind == "banded":
-        fact = factorize_banded(csc)
+    assert csc is not None
+    if banded is not None:
+        fact = factorize_banded(csc, banded)
         if fact is not None:
             return fact  # type: ignore[return-value]
     try:
