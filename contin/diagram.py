@@ -221,3 +221,45 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
         if progress is not None:
             progress(f"diagram: branch {bid} ({len(nb)} points, level {level + 1})")
         add(nb, level + 1)
+
+
+def explore(start: Any, request: Any, *, depth: int | None = None, max_branches: int | None = None) -> Any:
+    """A scene's automatic diagram: :func:`bifurcation_diagram` from ``start`` (a
+    :class:`contin.scene.DiagramStart`) as a :class:`contin.scene.SceneResult`
+    (``contin trace SCENE --depth D``).
+
+    ``depth`` / ``max_branches`` replace the start's settings.  Every branch (mirror images
+    included) gets the stability pass the request asks for and is handed to
+    ``request.finished``; the notes list the BP directions not traced and why (known crossing,
+    probe on a known branch, duplicate), then the scene's own notes on the diagram.
+    """
+    from contin.scene import SceneResult
+
+    settings = start.settings if start.settings is not None else DiagramSettings()
+    if depth is not None:
+        settings = replace(settings, depth=depth)
+    if max_branches is not None:
+        settings = replace(settings, max_branches=max_branches)
+    request.report(f"diagram to depth {settings.depth} in {start.parameter}")
+    d = bifurcation_diagram(start.problem, np.asarray(start.state, dtype=float), start.params, start.parameter,
+                            start.options, settings, coordinates=start.coordinates, seeds=start.seeds,
+                            progress=request.report)
+    notes = []
+    for b in d.branches:
+        source = d.mirrors.get(b.id)
+        if source is not None:
+            b.message = f"mirror image of branch {source} under the problem's symmetry"
+        for m in request.run_stability(start.problem, b, start.params):
+            notes.append(f"stability audit, branch {b.id}: {m}")
+        request.finished(b)
+    levels = ", ".join(f"{n} at level {lv}" for lv, n in sorted(
+        {lv: sum(1 for v in d.level.values() if v == lv) for lv in set(d.level.values())}.items()))
+    notes.insert(0, f"diagram to depth {settings.depth}: {len(d.branches)} branches ({levels}), "
+                    f"{len(d.mirrors)} of them mirror images")
+    notes += [f"not traced: {s}" for s in d.skipped]
+    if start.notes is not None:
+        notes += start.notes(d)
+    return SceneResult(branches=d.branches, parameters=dict(start.parameters), discretization=dict(start.discretization),
+                       y=start.y, profiles=start.profiles, notes=notes,
+                       extra={"diagram": {"depth": settings.depth, "level": dict(d.level), "mirrors": dict(d.mirrors),
+                                          "skipped": list(d.skipped)}})

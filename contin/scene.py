@@ -202,6 +202,35 @@ class SceneResult:
 
 
 @dataclass(frozen=True)
+class DiagramStart:
+    """Where a scene's automatic bifurcation diagram starts (``contin trace SCENE --depth D``).
+
+    problem, state, params, parameter, options : the arguments of
+        :func:`contin.diagram.bifurcation_diagram` (``params`` all the problem's parameters)
+    settings : a :class:`contin.diagram.DiagramSettings` (None = its defaults); the CLI's
+        ``--depth`` and ``--max-branches`` replace its depth and max_branches
+    coordinates, seeds : as in :func:`contin.diagram.bifurcation_diagram`
+    parameters, discretization, y, profiles : as in :class:`SceneResult` (what the HDF5 file stores)
+    notes : called with the finished :class:`contin.diagram.Diagram`; returns notes (e.g. the
+        special points against their closed forms)
+    """
+
+    problem: Any
+    state: np.ndarray
+    params: Mapping[str, float]
+    parameter: str
+    options: ContinuationOptions
+    settings: Any = None
+    coordinates: Any = None
+    seeds: tuple[Any, ...] = ()
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    discretization: Mapping[str, Any] = field(default_factory=dict)
+    y: np.ndarray | None = None
+    profiles: Callable[[np.ndarray], dict[str, np.ndarray]] | None = None
+    notes: Callable[[Any], list[str]] | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
     """A named job: ``run(request) -> SceneResult``; ``defaults`` documents its parameters.
 
@@ -217,6 +246,10 @@ class Scene:
     the others).  Its profiles callable accepts states of any of its grids.  ``default_tol``:
     the tol of a run without --grid and --tol, chosen per scene so that it keeps the accuracy of
     the scene's former fixed default grid.
+
+    ``start(request) -> DiagramStart`` (optional): the start point of the scene's automatic
+    bifurcation diagram; ``contin trace SCENE --depth D`` then runs
+    :func:`contin.diagram.explore` instead of ``run``.
     """
 
     name: str
@@ -228,6 +261,7 @@ class Scene:
     problem_factory: Callable[[Mapping[str, Any], Mapping[str, Any]], Any] | None = None
     adaptive: bool = False
     default_tol: float = 3e-5
+    start: Callable[[SceneRequest], DiagramStart] | None = None
 
 
 def scene_params(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:

@@ -5,6 +5,11 @@
 - ``allen-cahn``: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet; the trivial branch u = 0 for
   lam in [lam_min, lam_max], its branch points (lam = k^2) and both signs of every bifurcated
   branch.
+- ``swift-hohenberg``: -(I + Delta)^2 u + lam u + nu u^3 - u^5 = 0 (problems.swift_hohenberg,
+  BifurcationKit's automatic-diagram tutorial): u = 0 traced in lam, its BPs against
+  lam_k = (1 - m_k)^2.
+- bratu, allen-cahn and swift-hohenberg give a start point (``Scene.start``):
+  ``contin trace SCENE --depth D`` builds their whole diagram with ``contin.diagram.explore``.
 - ``lorenz``: the Lorenz equilibrium C+ for rho in [rho_min, rho_max] (sigma = 10, beta = 8/3 by
   default): a subcritical Hopf point (HB) at rho = 470/19 with omega and l1.
 """
@@ -22,7 +27,7 @@ from contin.branch import Branch, relabel
 from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
 from contin.resume import switch_reusing
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
+from contin.scene import DiagramStart, Scene, SceneError, SceneRequest, SceneResult, scene_numbers
 from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz
 
 
@@ -61,8 +66,7 @@ def run_bratu(request: SceneRequest) -> SceneResult:
     if p["lam_min"] >= BRATU_FOLD:
         raise SceneError(f"lam_min must lie below the fold lam*={BRATU_FOLD:.6f} (there are no solutions above it)")
     pb = _problem(Bratu, request)
-    options = request.options_for(ContinuationOptions(
-        bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=60, step=StepOptions(ds=0.05, ds_max=0.25)))
+    options = request.options_for(_bratu_options(p))
     done: list[Branch] = []
     if "0" in request.completed:
         branch = request.completed["0"]
@@ -82,14 +86,57 @@ def run_bratu(request: SceneRequest) -> SceneResult:
     )
 
 
+def _bratu_options(p: Mapping[str, float]) -> ContinuationOptions:
+    return ContinuationOptions(bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=60,
+                               step=StepOptions(ds=0.05, ds_max=0.25))
+
+
+def _dirichlet_discretization(pb: Any) -> dict[str, Any]:
+    return {"method": pb.grid.method, "intervals": pb.grid.intervals}
+
+
+def start_bratu(request: SceneRequest) -> DiagramStart:
+    """u = 0 at lam = lam_min; the diagram is the fold branch (no BPs): its LP against lam*."""
+    p = _numbers(request, BRATU_DEFAULTS, "bratu")
+    pb = _problem(Bratu, request)
+
+    def notes(d: Any) -> list[str]:
+        return [f"{lp.name}: lam = {lp.params['lam']:.15g} (exact {BRATU_FOLD}, error {lp.params['lam'] - BRATU_FOLD:.2g})"
+                for b in d.branches for lp in b.fold_points]
+
+    return DiagramStart(problem=pb, state=pb.initial(), params={"lam": p["lam_min"]}, parameter="lam",
+                        options=request.options_for(_bratu_options(p)), parameters=p,
+                        discretization=_dirichlet_discretization(pb), y=pb.x,
+                        profiles=lambda state: {"u": _on_start_grid(pb, state)}, notes=notes)
+
+
 ALLEN_CAHN_DEFAULTS = {"lam_min": 0.0, "lam_max": 10.0}
+
+
+def _allen_cahn_options(p: Mapping[str, float]) -> ContinuationOptions:
+    return ContinuationOptions(bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=200,
+                               step=StepOptions(ds=0.05, ds_max=0.25))
+
+
+def start_allen_cahn(request: SceneRequest) -> DiagramStart:
+    """u = 0 at lam = lam_min: BPs of the trivial branch at lam = k^2, named against k^2 in the notes."""
+    p = _numbers(request, ALLEN_CAHN_DEFAULTS, "allen-cahn")
+    pb = _problem(AllenCahn, request)
+
+    def notes(d: Any) -> list[str]:
+        return [f"{bp.name}: lam = {bp.params['lam']:.12g} (expected {round(math.sqrt(bp.params['lam'])) ** 2})"
+                for bp in d.branch("0").branch_points]
+
+    return DiagramStart(problem=pb, state=pb.initial(), params={"lam": p["lam_min"]}, parameter="lam",
+                        options=request.options_for(_allen_cahn_options(p)), parameters=p,
+                        discretization=_dirichlet_discretization(pb), y=pb.x,
+                        profiles=lambda state: {"u": _on_start_grid(pb, state)}, notes=notes)
 
 
 def run_allen_cahn(request: SceneRequest) -> SceneResult:
     p = _numbers(request, ALLEN_CAHN_DEFAULTS, "allen-cahn")
     pb = _problem(AllenCahn, request)
-    options = request.options_for(ContinuationOptions(
-        bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=200, step=StepOptions(ds=0.05, ds_max=0.25)))
+    options = request.options_for(_allen_cahn_options(p))
     done: list[Branch] = []
     if "0" in request.completed:
         trivial = request.completed["0"]
@@ -119,6 +166,77 @@ def run_allen_cahn(request: SceneRequest) -> SceneResult:
         profiles=lambda state: {"u": _on_start_grid(pb, state)},
         notes=notes,
     )
+
+
+SWIFT_HOHENBERG_DEFAULTS = {"lam": -0.7, "nu": 2.0, "l": 6.0, "lam_min": -1.0, "lam_max": 1.0}
+#: Grid points of the Swift-Hohenberg scene without --grid (BifurcationKit's tutorial).
+SWIFT_HOHENBERG_GRID = 200
+
+
+def _swift_hohenberg(request: SceneRequest) -> tuple[Any, dict[str, float], ContinuationOptions]:
+    """The problem, parameters and options of BifurcationKit's automatic-diagram tutorial:
+    ds_max = 0.02 (at 0.05 the BPs of u = 0 at lam = 0.484 and 0.531 fall in one step)."""
+    from problems.swift_hohenberg import SwiftHohenberg
+
+    p = scene_numbers(request, SWIFT_HOHENBERG_DEFAULTS, "swift-hohenberg")
+    if not p["lam_min"] <= p["lam"] <= p["lam_max"] or not p["lam_min"] < p["lam_max"]:
+        raise SceneError(f"need lam_min <= lam <= lam_max and lam_min < lam_max, got {p['lam_min']:g}, "
+                         f"{p['lam']:g}, {p['lam_max']:g}")
+    if request.method not in (None, "fd2"):
+        raise SceneError(f"scene 'swift-hohenberg' has one discretization (fd2, --grid N points), not {request.method!r}")
+    if not p["l"] > 0:
+        raise SceneError(f"the half length l must be > 0, got {p['l']:g}")
+    try:
+        pb = SwiftHohenberg(request.grid or SWIFT_HOHENBERG_GRID, p["l"])
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    options = request.options_for(ContinuationOptions(
+        bounds={"lam": (p["lam_min"], p["lam_max"])}, max_steps=1000,
+        step=StepOptions(ds=0.01, ds_max=0.02, max_angle=0.3)))
+    return pb, p, options
+
+
+def _swift_hohenberg_notes(pb: Any, trivial: Branch, lo: float, hi: float) -> list[str]:
+    """The BPs of u = 0 against lam_k = (1 - m_k)^2 (problems.swift_hohenberg), and any not found."""
+    exact = pb.trivial_branch_points(lo, hi)
+    notes = []
+    for bp in trivial.branch_points:
+        k = int(np.argmin(np.abs(exact - bp.params["lam"]))) if exact.size else -1
+        ref = f"closed form (1 - m_k)^2 = {exact[k]:.12g}, error {bp.params['lam'] - exact[k]:.2g}" if k >= 0 else "no closed form"
+        notes.append(f"{bp.name} of u = 0: lam = {bp.params['lam']:.12g} ({ref})")
+    if len(trivial.branch_points) != exact.size:
+        notes.append(f"u = 0 has {exact.size} BPs in ({lo:g}, {hi:g}) by the closed form, "
+                     f"{len(trivial.branch_points)} were detected")
+    return notes
+
+
+def _swift_hohenberg_result(pb: Any, p: Mapping[str, float]) -> dict[str, Any]:
+    return {"parameters": dict(p), "discretization": {"method": "fd2", "intervals": pb.N}, "y": pb.x,
+            "profiles": lambda state: {"u": np.asarray(state, dtype=float)}}
+
+
+def run_swift_hohenberg(request: SceneRequest) -> SceneResult:
+    """u = 0 traced both ways from lam; its BPs against the closed form (--depth: the whole diagram)."""
+    pb, p, options = _swift_hohenberg(request)
+    params = {"lam": p["lam"], "nu": p["nu"]}
+    done: list[Branch] = []
+    if "0" in request.completed:
+        trivial = request.completed["0"]
+    else:
+        request.report("swift-hohenberg: tracing u = 0")
+        trivial = trace_both(pb, np.zeros(pb.N), params, "lam", options, kind="trivial", progress=request.report)
+    request.run_stability(pb, trivial, params)
+    _emit(request, done, trivial)
+    return SceneResult(branches=done, notes=_swift_hohenberg_notes(pb, trivial, p["lam_min"], p["lam_max"]),
+                       **_swift_hohenberg_result(pb, p))
+
+
+def start_swift_hohenberg(request: SceneRequest) -> DiagramStart:
+    """u = 0 at lam (BifurcationKit's tutorial: -0.7), nu fixed; S u = -u gives the mirror images."""
+    pb, p, options = _swift_hohenberg(request)
+    return DiagramStart(problem=pb, state=np.zeros(pb.N), params={"lam": p["lam"], "nu": p["nu"]}, parameter="lam",
+                        options=options, **_swift_hohenberg_result(pb, p),
+                        notes=lambda d: _swift_hohenberg_notes(pb, d.branch("0"), p["lam_min"], p["lam_max"]))
 
 
 LORENZ_DEFAULTS = {"sigma": 10.0, "beta": 8.0 / 3.0, "rho_min": 1.5, "rho_max": 40.0}
@@ -157,6 +275,7 @@ SCENES = {
         y="phi",
         adaptive=True,
         default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
+        start=start_bratu,
     ),
     "allen-cahn": Scene(
         name="allen-cahn",
@@ -167,6 +286,17 @@ SCENES = {
         y="phi",
         adaptive=True,
         default_tol=1e-10,  # the fold to 1e-13, as on the former fixed default grid (cheb 32)
+        start=start_allen_cahn,
+    ),
+    "swift-hohenberg": Scene(
+        name="swift-hohenberg",
+        summary="1-D Swift-Hohenberg -(1+D^2)^2 u + lam u + nu u^3 - u^5 = 0 (BifurcationKit's automatic-diagram "
+                "tutorial): u = 0 with BPs at (1 - m_k)^2",
+        defaults=SWIFT_HOHENBERG_DEFAULTS,
+        run=run_swift_hohenberg,
+        x="lam",
+        y="phi",
+        start=start_swift_hohenberg,
     ),
     "lorenz": Scene(
         name="lorenz",

@@ -18,14 +18,14 @@ def scenes_command(as_json: bool) -> None:
     if as_json:
         echo_json({
             "scenes": [{"name": s.name, "summary": s.summary, "defaults": dict(s.defaults),
-                        "x": s.x, "y": s.y} for s in scenes.values()],
+                        "x": s.x, "y": s.y, "depth": s.start is not None} for s in scenes.values()],
             "load_errors": [{"source": src, "error": err} for src, err in errors],
         })
         return
     if not scenes:
         click.echo("no scenes registered")
     for name, s in scenes.items():
-        click.echo(f"{name}: {s.summary}")
+        click.echo(f"{name}: {s.summary}" + (" [--depth]" if s.start is not None else ""))
         if s.defaults:
             click.echo("    " + "  ".join(f"{k}={fmt(v)}" for k, v in s.defaults.items()))
     for src, err in errors:

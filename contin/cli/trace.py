@@ -182,15 +182,23 @@ def stability_messages(branch: Any) -> list[str]:
               help="User zeros (UZ): locate the points where parameter NAME takes these values (repeatable).")
 @click.option("--stop-at", "stop_at", default=None, metavar="LABELS",
               help="End each trace after the k-th point of a type, e.g. UZ1 or LP2,HB1 (AUTO's STOP/UZSTOP).")
-@click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=1), default=None, metavar="K",
+@click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=0), default=None, metavar="K",
               help="Second BP detector: count the K eigenvalues of J nearest zero crossing it, cross-checked "
-                   "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note).")
+                   "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note). "
+                   "Default: K = 12 for problems without their own stability eigenproblem; 0 switches it off.")
+@click.option("--depth", type=click.IntRange(min=1, max=20), default=None, metavar="D",
+              help="Automatic bifurcation diagram (contin.diagram.explore) from the scene's start point: trace, "
+                   "switch at every BP to depth D (1 = the start branch only), each branch once, mirror images "
+                   "stored by reflection; on the scene's fixed grid.")
+@click.option("--max-branches", type=click.IntRange(min=1, max=10000), default=None, metavar="N",
+              help="With --depth: stop switching once N branches are known [default 200].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no summary table.")
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
                   resolution_tol: str | None, tol: float | None, max_grid: int | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
-                  bp_eigs: int | None, resume: str | None, quiet: bool) -> None:
+                  bp_eigs: int | None, resume: str | None, depth: int | None, max_branches: int | None,
+                  quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
 
     Human output (progress, summary table) goes to stderr; --json prints one JSON document
@@ -198,6 +206,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     Scenes marked adaptive choose their grid to meet --tol (the scene's default when no --grid
     is given; --grid alone fixes the grid, --grid with --tol is the start grid).
+
+    --depth D replaces the scene's own run by the generic diagram builder from the scene's
+    start point (scenes that define one: ``contin scenes`` marks them).
     """
     import contin.scene as scene_mod
     from contin import io
@@ -223,6 +234,20 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     overrides = dict(step_overrides)
     if resolution_tol is not None:
         overrides["resolution_tol"] = rtol
+    if depth is None and max_branches is not None:
+        fail("--max-branches needs --depth")
+    if depth is not None:
+        if sc.start is None:
+            fail(f"scene {scene!r} gives no start point for --depth (it has its own run only)")
+        if resume is not None or tol is not None or max_grid is not None:
+            fail("--depth runs on a fixed grid and from scratch: drop --resume, --tol and --max-grid")
+        import dataclasses
+        from contin.diagram import explore
+
+        def run_diagram(request: Any, start: Any = sc.start) -> Any:
+            return explore(start(request), request, depth=depth, max_branches=max_branches)
+
+        sc = dataclasses.replace(sc, run=run_diagram, adaptive=False)
     if (tol is not None or max_grid is not None) and not sc.adaptive:
         fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid); choose its grid with --grid")
     if sc.adaptive and (tol is not None or grid is None):
