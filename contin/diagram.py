@@ -111,6 +111,8 @@ class DiagramHooks:
     on_branch(branch, source) : every stored branch as soon as it is known, ``source`` the traced
         branch it mirrors or None (checkpointing, stability)
     completed : branches of an interrupted run by id, reused instead of traced (``--resume``)
+    options(parent) -> ContinuationOptions : the options of the start branch (parent None) and of
+        the branches switched off ``parent`` (default: the ``options`` argument for every branch)
     """
 
     switch_at: Callable[[Branch, SpecialPoint], str | None] | None = None
@@ -119,6 +121,7 @@ class DiagramHooks:
     finish: Callable[[Branch], None] | None = None
     on_branch: Callable[[Branch, Branch | None], None] | None = None
     completed: Mapping[str, Branch] = field(default_factory=dict)
+    options: Callable[[Branch | None], ContinuationOptions] | None = None
 
 
 @dataclass
@@ -202,9 +205,10 @@ def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], pa
             return trace(problem, u, dict(p), parameter, o, direction=direction, branch_id=bid, kind=kind,
                          parent=parent, progress=progress)
 
+        opts = hooks.options(None) if hooks.options is not None else options
         if settings.retraces == 0:
-            return run(options)
-        return retrace_on_jumps(run, options, what=f"branch {bid}", retraces=settings.retraces)
+            return run(opts)
+        return retrace_on_jumps(run, opts, what=f"branch {bid}", retraces=settings.retraces)
 
     say(f"diagram: start branch in {parameter}")
     add(trace_from(u0, params, "0", "primary", "", settings.start_direction), 1)
@@ -254,6 +258,8 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
     if crossing is not None:
         out.skipped.append(f"{where}: branch {crossing.id} passes through it (crossing already known)")
         return
+    if hooks.options is not None:
+        options = hooks.options(b)
     probe_opts = replace(options, max_steps=max(settings.probe_steps, 1))
     first: Branch | None = None
     for k, d in enumerate((+1, -1), start=1):
