@@ -208,7 +208,8 @@ def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], pa
         opts = hooks.options(None) if hooks.options is not None else options
         if settings.retraces == 0:
             return run(opts)
-        return retrace_on_jumps(run, opts, what=f"branch {bid}", retraces=settings.retraces)
+        return retrace_on_jumps(run, opts, what="base branch" if bid == "0" else f"branch {bid}",
+                                retraces=settings.retraces)
 
     say(f"diagram: start branch in {parameter}")
     add(trace_from(u0, params, "0", "primary", "", settings.start_direction), 1)
