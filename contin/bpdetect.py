@@ -43,7 +43,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from contin.branch import MAX_AUDIT, SpecialPoint
-from contin.problem import Array
+from contin.options import BP_EIGS_AUTO, DetectionOptions
+from contin.problem import Array, has
 
 if TYPE_CHECKING:
     from contin.continuation import _Point, _Tracer
@@ -58,6 +59,18 @@ REAL_TOL = 1e-8
 KERNEL_GAP = 1e-4
 #: Halvings of ds on one step while the detectors disagree, before the step is kept as it is.
 MAX_HALVINGS = 8
+
+
+def bp_eigen_count(problem: Any, detection: DetectionOptions) -> int:
+    """k of the eigenvalue count on ``problem`` (0: off): ``detection.bp_eigenvalues`` if set,
+    else :data:`contin.options.BP_EIGS_AUTO` for problems without their own ``eigenproblem``
+    (whose stability pass is the second witness, ``contin.stability.audit``) that are no
+    augmented systems (``point_tests``: fold, BP and Hopf curves)."""
+    if detection.bp_eigenvalues is not None:
+        return int(detection.bp_eigenvalues)
+    if has(problem, "eigenproblem") or has(problem, "point_tests"):
+        return 0
+    return BP_EIGS_AUTO
 
 
 @dataclass(frozen=True)
@@ -141,12 +154,17 @@ def crossings(sa: Spectrum, sb: Spectrum, k: int = 12, moved: float = 0.0) -> tu
     return abs(up), False, detail
 
 
-def kernel_dimension_of(spec: Spectrum) -> int:
+def kernel_dimension_of(spec: Spectrum, scale: float = 0.0) -> int:
     """Size of the leading cluster of eigenvalues that is KERNEL_GAP below the next one (0 if
-    the smallest eigenvalue is not separated from the rest like that)."""
+    the smallest eigenvalue is not separated from the rest like that).  ``scale`` (the largest
+    eigenvalue magnitude at the step's ends) closes the list when every eigenvalue is in the
+    cluster: n = 1, or a kernel as large as the matrix, has no "next" eigenvalue of its own
+    (a scalar fold had kernel dimension 0 and the detectors disagreed at every fold)."""
     m = np.abs(spec.values)
     if math.isfinite(spec.radius):
         m = np.append(m, spec.radius)
+    if scale > 0:
+        m = np.append(m, scale)
     for j in range(m.size - 1):
         if m[j] < KERNEL_GAP * m[j + 1]:
             return j + 1
@@ -199,8 +217,8 @@ class EigenCounter:
         d = jb - ja
         return float(spla.norm(d) if sp.issparse(d) else np.linalg.norm(d))
 
-    def dimension_at(self, tracer: _Tracer, x: Array) -> int:
-        return kernel_dimension_of(spectrum(tracer.system.state_jacobian(x), self.k))
+    def dimension_at(self, tracer: _Tracer, x: Array, scale: float = 0.0) -> int:
+        return kernel_dimension_of(spectrum(tracer.system.state_jacobian(x), self.k), scale)
 
     def check(self, tracer: _Tracer, cur: _Point, new: _Point, found: list[SpecialPoint], ds: float,
               can_halve: bool) -> list[SpecialPoint] | None:
@@ -238,7 +256,8 @@ class EigenCounter:
         if c == 0 and n_det == 0:
             return found
         bps = [s for s in found if s.type in ("BP", "LP")]
-        dims = [self.dimension_at(tracer, sys.pack(s.state, s.params[sys.parameter])) for s in bps]
+        scale = float(max(np.max(np.abs(sa.values), initial=0.0), np.max(np.abs(sb.values), initial=0.0)))
+        dims = [self.dimension_at(tracer, sys.pack(s.state, s.params[sys.parameter]), scale) for s in bps]
         if n_det and sum(dims) == c and all(d >= 1 for d in dims):
             it = iter(dims)
             out = []
@@ -248,7 +267,7 @@ class EigenCounter:
                     # the determinant's locator stalls next to a kernel of dimension > 1 (the
                     # bordered matrix is singular to order d there); bisection on the count does not
                     located = self._locate_first(tracer, cur, evaluate, s_new)
-                    if located is not None and self.dimension_at(tracer, located[0]) == d:
+                    if located is not None and self.dimension_at(tracer, located[0], scale) == d:
                         x_bp, ok = located
                         s = replace(s, params=sys.params_at(x_bp[-1]), order_parameter=sys.order_parameter(x_bp),
                                     state=x_bp[:-1].copy(), converged=ok,
@@ -261,7 +280,7 @@ class EigenCounter:
             located = self._locate_first(tracer, cur, evaluate, s_new)
             if located is not None:
                 x_bp, bracket = located
-                dim = self.dimension_at(tracer, x_bp)
+                dim = self.dimension_at(tracer, x_bp, scale)
                 if dim == c:
                     sp_ = SpecialPoint(
                         type="BP", index=len(tracer.points) - 1, params=sys.params_at(x_bp[-1]),

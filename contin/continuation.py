@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from contin.blas import limited
-from contin.bpdetect import EigenCounter, kernel_dimension
+from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
@@ -101,7 +101,7 @@ class _Tracer:
         self.records: list[dict[str, float]] = []
         self.special: list[SpecialPoint] = []
         self.audit: list[str] = []
-        k = options.detection.bp_eigenvalues if options.detection.detect_branch_points else 0
+        k = bp_eigen_count(system.problem, options.detection) if options.detection.detect_branch_points else 0
         self.eigen = EigenCounter(k) if k else None
         self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
         self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)

@@ -84,11 +84,18 @@ class DetectionOptions:
         to ds_min, where it is kept with the BP marked unconfirmed); if they end at the same
         point the step is kept as it is.  Every such step is logged in ``Branch.audit``.
         False: no check (every corrected step is kept).
-    bp_eigenvalues : k > 0 switches on the second BP detector (``contin.bpdetect``): the k
-        eigenvalues of J nearest zero at every point, real ones crossing zero counted across
-        each step and cross-checked with the determinant tests (which miss kernels of even
-        dimension and two BPs in one step); a disagreement re-takes the step with half the ds.
-        Located BPs then carry ``kernel dimension d`` in their note.  0 (default): off.
+    bp_eigenvalues : the second BP detector (``contin.bpdetect``): the k eigenvalues of J
+        nearest zero at every point, real ones crossing zero counted across each step and
+        cross-checked with the determinant tests (which miss kernels of even dimension and two
+        BPs in one step); a disagreement re-takes the step with half the ds.  Located BPs then
+        carry ``kernel dimension d`` in their note.  k > 0 forces it on, 0 off; the default
+        None is on (k = :data:`BP_EIGS_AUTO`) for every problem without its own
+        ``eigenproblem`` and that is no augmented system (``point_tests``): problems with an
+        ``eigenproblem`` (gPCF, disks, nonlocal flows) get the second witness from their
+        stability pass instead, whose audit checks every change of ``n_unstable`` against the
+        located LPs/BPs at no extra cost (``contin.stability.audit``; the count of J's own
+        eigenvalues is not meaningful there: J is the steady residual's Jacobian with
+        algebraic rows, not the linearised dynamics).
     detect_hopf : Hopf points (HB, ``contin.hopf``): a complex pair of eigenvalues of
         J x = omega M x crossing the imaginary axis.  Needs eigenvalues at every point, so the
         default None means "on for n <= :data:`HOPF_AUTO_MAX` unknowns and problems without
@@ -105,7 +112,7 @@ class DetectionOptions:
     locate_tol: float = 1e-11
     max_bisections: int = 60
     retry_unconfirmed_bp: bool = True
-    bp_eigenvalues: int = 0
+    bp_eigenvalues: int | None = None
     detect_hopf: bool | None = None
     hopf_eigs: int = 12
     hopf_dense_max: int = 400
@@ -113,9 +120,12 @@ class DetectionOptions:
     def __post_init__(self) -> None:
         if self.hopf_eigs < 2 or self.hopf_dense_max < 2:
             raise ValueError(f"hopf_eigs and hopf_dense_max must be >= 2, got {self.hopf_eigs}, {self.hopf_dense_max}")
-        if self.bp_eigenvalues < 0:
+        if self.bp_eigenvalues is not None and self.bp_eigenvalues < 0:
             raise ValueError(f"bp_eigenvalues must be >= 0 (0 switches the eigenvalue count off), got {self.bp_eigenvalues}")
 
+
+#: k of the eigenvalue-count BP detector when DetectionOptions.bp_eigenvalues is None (auto).
+BP_EIGS_AUTO = 12
 
 #: DetectionOptions.detect_hopf=None detects Hopf points on problems with at most this many unknowns.
 HOPF_AUTO_MAX = 100

@@ -22,7 +22,7 @@ def test_trace_bp_eigs_reports_kernel_dimensions() -> None:
 
 
 def test_trace_bp_eigs_bad_value_is_a_usage_error() -> None:
-    out = run("trace", "allen-cahn", "--bp-eigs", "0")
+    out = run("trace", "allen-cahn", "--bp-eigs", "-1")
     assert out.returncode == 2 and "Traceback" not in out.stderr
 
 

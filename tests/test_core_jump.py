@@ -36,9 +36,12 @@ class Twin:
         return np.array([-2 * p["lam"] * (2 * (u[0] - p["lam"] ** 2) + EPS)])
 
 
-def run(ds=0.1, ds_min=1e-8, retry=True):
+def run(ds=0.1, ds_min=1e-8, retry=True, bp_eigenvalues=0):
+    """The determinant's protection alone (bp_eigenvalues=0: the default eigenvalue count,
+    contin.bpdetect, is a second protection, tested on its own below)."""
     opts = ContinuationOptions(step=StepOptions(ds=ds, ds_max=ds, ds_min=ds_min), bounds={"lam": (-1.0, 2.0)},
-                               max_steps=200, detection=DetectionOptions(retry_unconfirmed_bp=retry))
+                               max_steps=200, detection=DetectionOptions(retry_unconfirmed_bp=retry,
+                                                                         bp_eigenvalues=bp_eigenvalues))
     br = trace(Twin(), np.array([0.0]), {"lam": 0.0}, "lam", opts)
     off = br.states[:, 0] - br.params["lam"] ** 2  # 0 on the start curve, -eps on the other one
     return br, off
@@ -55,6 +58,15 @@ def test_a_long_step_jumps_without_the_protection():
     (bp,) = br.branch_points  # the jump shows up as a BP whose location fails
     assert not bp.converged and bp.note == "location did not converge" and 0 < bp.params["lam"] < 0.1
     assert jumps(br) == []
+
+
+def test_the_default_eigenvalue_count_also_stops_the_jump():
+    """Without the determinant's retry, the default eigenvalue count (bp_eigenvalues=None):
+    one eigenvalue crossed zero but the located point has no kernel, so the step is re-taken."""
+    br, off = run(retry=False, bp_eigenvalues=None)
+    assert br.status == "EP" and br.params["lam"][-1] == 2.0
+    assert np.max(np.abs(off)) < 1e-9 and br.branch_points == []
+    assert any("re-stepped with half ds" in a for a in br.audit)
 
 
 def test_the_protection_retries_the_step_and_stays_on_the_branch():
@@ -135,7 +147,8 @@ def test_a_continuous_step_with_an_unlocated_bp_is_kept():
     runs = []
     for retry in (True, False):
         opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.2), bounds={"lam": (0.0, 2.5)}, max_steps=400,
-                                   detection=DetectionOptions(max_bisections=2, retry_unconfirmed_bp=retry))
+                                   detection=DetectionOptions(max_bisections=2, retry_unconfirmed_bp=retry,
+                                                                     bp_eigenvalues=0))
         runs.append(trace(pb, np.zeros(pb.grid.size), {"lam": 0.5}, "lam", opts))
     on, off = runs
     (bp,) = on.branch_points

@@ -171,7 +171,8 @@ def co_hopf_reference(guess_u, guess_q2):
         return np.concatenate([model.residual(u, p), [a1 * a2 - a3]])
 
     z, _, ok, msg = fsolve(system, np.concatenate([guess_u, [guess_q2]]), xtol=1e-14, full_output=True)
-    assert ok == 1, msg
+    # ok == 3 ("xtol too small, no further improvement") at the rounding floor: the residual decides
+    assert ok == 1 or (ok == 3 and np.max(np.abs(system(z))) < 1e-13), msg
     p = {**par, "q2": z[3]}
     j = np.asarray(model.jacobian(z[:3], p))
     a2 = sum(np.linalg.det(j[np.ix_(ix, ix)]) for ix in ([0, 1], [0, 2], [1, 2]))

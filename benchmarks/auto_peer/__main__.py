@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout.flush()
     print(f"(wall-clock and CPU (user + system of the child processes) medians of {args.repeats} paired, interleaved "
           "runs; relative errors in parentheses; "
-          "AUTO-07p NTST 40, NCOL 4, EPSL = EPSU = 1e-5, EPSS = 1e-5; contin cheb 64)")
+          "AUTO-07p NTST 40, NCOL 4, EPSL = EPSU = 1e-5, EPSS = 1e-5; contin cheb 64 in jobs a, c, d; job b is the main command at its defaults, adaptive grid)")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
     return 0

@@ -182,9 +182,10 @@ def stability_messages(branch: Any) -> list[str]:
               help="User zeros (UZ): locate the points where parameter NAME takes these values (repeatable).")
 @click.option("--stop-at", "stop_at", default=None, metavar="LABELS",
               help="End each trace after the k-th point of a type, e.g. UZ1 or LP2,HB1 (AUTO's STOP/UZSTOP).")
-@click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=1), default=None, metavar="K",
+@click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=0), default=None, metavar="K",
               help="Second BP detector: count the K eigenvalues of J nearest zero crossing it, cross-checked "
-                   "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note).")
+                   "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note). "
+                   "Default: K = 12 for problems without their own stability eigenproblem; 0 switches it off.")
 @click.option("--depth", type=click.IntRange(min=1, max=20), default=None, metavar="D",
               help="Automatic bifurcation diagram (contin.diagram.explore) from the scene's start point: trace, "
                    "switch at every BP to depth D (1 = the start branch only), each branch once, mirror images "

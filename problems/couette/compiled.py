@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contin.linalg import DENSE_LIMIT
+from problems.couette import aot
 from problems.couette.closures import _constants, wall_prefactors
 
 #: chi models by kernel code (closures.radial_distribution)
@@ -52,9 +53,13 @@ def supports(problem) -> str | None:
 @lru_cache(maxsize=1)
 def available() -> bool:
     """True when numba (the ``fast`` extra) is installed and imports (a numba built for another
-    numpy fails at import: then the numpy engine serves, as without numba)."""
+    numpy fails at import: then the numpy engine serves, as without numba), or when the
+    ahead-of-time kernels (:mod:`.aot`) are built for this numba and numpy (checked without
+    importing numba: that is what the ahead-of-time module saves)."""
     if importlib.util.find_spec("numba") is None:
         return False
+    if aot.module_path() is not None and aot.enabled():
+        return True
     try:
         import numba  # noqa: F401
     except Exception:  # noqa: BLE001 -- any import failure means "not available", never a crash
@@ -64,14 +69,46 @@ def available() -> bool:
 
 @lru_cache(maxsize=1)
 def _kernels() -> tuple:
-    """(fields, residual, jacobian, residual_dh) compiled by numba (imported here, on first use,
-    so that the numpy engine never pays numba's import; compiled code is cached on disk)."""
+    """(fields, residual, jacobian, residual_dh): the ahead-of-time module (:mod:`.aot`) when it
+    is built, else numba's JIT kernels, after building that module once for the next processes
+    (numba is imported here, on first use, so that the numpy engine never pays its import)."""
+    mod = aot.load()
+    if mod is not None:
+        return tuple(getattr(mod, name) for name in aot.KERNELS)
+    kernels = _jit_kernels()
+    if aot.enabled() and aot.build(kernels, kernel_argtypes()) is not None:
+        mod = aot.load()
+        if mod is not None:
+            return tuple(getattr(mod, name) for name in aot.KERNELS)
+    return kernels
+
+
+@lru_cache(maxsize=1)
+def _jit_kernels() -> tuple:
+    """(fields, residual, jacobian, residual_dh) compiled by numba's JIT (cached on disk)."""
     import numba
 
     # error_model="numpy": x / 0 gives inf or nan as in the numpy engine (whose callers check
     # finiteness), not a ZeroDivisionError
     jit = numba.njit(cache=True, nogil=True, error_model="numpy")
     return jit(_fields), jit(_residual), jit(_jacobian), jit(_residual_dh)
+
+
+def kernel_argtypes() -> tuple:
+    """The numba argument types :class:`CompiledKernels` passes each kernel (one signature per
+    kernel: C-contiguous float64/int64 arrays, the read-only constant arrays, int64, float64,
+    bool), for the ahead-of-time build."""
+    from numba.core import types as nt
+
+    f1, f2 = nt.Array(nt.float64, 1, "C"), nt.Array(nt.float64, 2, "C")
+    i1, ro = nt.Array(nt.int64, 1, "C"), nt.Array(nt.float64, 1, "C", readonly=True)
+    i, r, b = nt.int64, nt.float64, nt.boolean
+    return (
+        (f1, i, f1, i1, i1, f1, f1, ro, i, r),                        # _fields
+        (f2, f1, i, i, r, r, r, f1, b, ro, f2, f2, b),                # _residual
+        (f2, f1, i, i, r, r, f1, i1, i1, f1, f1, b, ro, f2, f2, b),   # _jacobian
+        (f2, f1, i, i, r, r, ro, b, b),                               # _residual_dh
+    )
 
 
 def _fields(x, n, y, ptr, cols, w1s, w2s, consts, chi_code, nu_max):
