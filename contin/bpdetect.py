@@ -43,7 +43,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from contin.branch import MAX_AUDIT, SpecialPoint
-from contin.options import BP_EIGS_AUTO, DetectionOptions
+from contin.options import BP_AUTO_MAX, BP_EIGS_AUTO, DetectionOptions
 from contin.problem import Array, has
 
 if TYPE_CHECKING:
@@ -61,14 +61,18 @@ KERNEL_GAP = 1e-4
 MAX_HALVINGS = 8
 
 
-def bp_eigen_count(problem: Any, detection: DetectionOptions) -> int:
-    """k of the eigenvalue count on ``problem`` (0: off): ``detection.bp_eigenvalues`` if set,
-    else :data:`contin.options.BP_EIGS_AUTO` for problems without their own ``eigenproblem``
-    (whose stability pass is the second witness, ``contin.stability.audit``) that are no
-    augmented systems (``point_tests``: fold, BP and Hopf curves)."""
+def bp_eigen_count(problem: Any, detection: DetectionOptions, n: int) -> int:
+    """k of the eigenvalue count on ``problem`` with n unknowns (0: off):
+    ``detection.bp_eigenvalues`` if set, else :data:`contin.options.BP_EIGS_AUTO` for problems
+    with at most :data:`contin.options.BP_AUTO_MAX` unknowns, without their own
+    ``eigenproblem`` (whose stability pass is the second witness, ``contin.stability.audit``)
+    and that are no augmented systems (``point_tests``: fold, BP and Hopf curves) nor opt
+    out (``bp_eigen_auto = False``)."""
     if detection.bp_eigenvalues is not None:
         return int(detection.bp_eigenvalues)
-    if has(problem, "eigenproblem") or has(problem, "point_tests"):
+    if n > BP_AUTO_MAX or has(problem, "eigenproblem") or has(problem, "point_tests"):
+        return 0
+    if getattr(problem, "bp_eigen_auto", True) is False:  # the problem opts out (contin.problem)
         return 0
     return BP_EIGS_AUTO
 

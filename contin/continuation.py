@@ -101,7 +101,7 @@ class _Tracer:
         self.records: list[dict[str, float]] = []
         self.special: list[SpecialPoint] = []
         self.audit: list[str] = []
-        k = bp_eigen_count(system.problem, options.detection) if options.detection.detect_branch_points else 0
+        k = bp_eigen_count(system.problem, options.detection, system.n) if options.detection.detect_branch_points else 0
         self.eigen = EigenCounter(k) if k else None
         self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
         self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)

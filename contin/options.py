@@ -89,8 +89,11 @@ class DetectionOptions:
         cross-checked with the determinant tests (which miss kernels of even dimension and two
         BPs in one step); a disagreement re-takes the step with half the ds.  Located BPs then
         carry ``kernel dimension d`` in their note.  k > 0 forces it on, 0 off; the default
-        None is on (k = :data:`BP_EIGS_AUTO`) for every problem without its own
-        ``eigenproblem`` and that is no augmented system (``point_tests``): problems with an
+        None is on (k = :data:`BP_EIGS_AUTO`) for problems with at most :data:`BP_AUTO_MAX`
+        unknowns (dense eigenvalues there cost a few ms per point; at n = 200 .. 400 they cost
+        more than the continuation itself: Swift-Hohenberg N = 200 0.5 -> 3.2 s, disks tests
+        +10 s each), without their own ``eigenproblem`` and that are no augmented system
+        (``point_tests``): problems with an
         ``eigenproblem`` (gPCF, disks, nonlocal flows) get the second witness from their
         stability pass instead, whose audit checks every change of ``n_unstable`` against the
         located LPs/BPs at no extra cost (``contin.stability.audit``; the count of J's own
@@ -130,6 +133,8 @@ class DetectionOptions:
 
 #: k of the eigenvalue-count BP detector when DetectionOptions.bp_eigenvalues is None (auto).
 BP_EIGS_AUTO = 12
+#: DetectionOptions.bp_eigenvalues=None: the eigenvalue count is on up to this many unknowns.
+BP_AUTO_MAX = 100
 
 #: DetectionOptions.detect_hopf=None: Hopf detection with M = I (no mass_matrix) up to this many
 #: unknowns, and the size up to which its eigenvalues are dense (shift-invert ARPACK above).

@@ -54,6 +54,12 @@ class Problem(Protocol):
         stability (overrides jacobian/mass_matrix when the physical linearisation is not
         the Jacobian of the steady residual).  Rows of B that are zero give infinite
         eigenvalues, which contin discards.
+    bp_eigen_auto : bool attribute
+        False opts the problem out of the default eigenvalue-count BP detector
+        (``DetectionOptions.bp_eigenvalues=None``, ``contin.bpdetect.bp_eigen_count``): for
+        steady residuals with algebraic rows (boundary conditions, constraints) whose
+        eigenvalues pair up and cross zero spuriously, so that the count re-steps and bisects
+        on them (2-D disks: a steady-band trace 7.9 -> 18.3 s).  An explicit k still applies.
     order_parameter(u, p) -> float
         The scalar plotted on bifurcation diagrams (AUTO's L2-norm replacement).
     observables(u, p) -> dict[str, float]

@@ -244,3 +244,30 @@ def test_swift_hohenberg_secondary_branch_bps_are_located() -> None:
         assert np.max(np.abs(ref.x[:n] - u)) < 1e-5
         sv = la.svdvals(J)
         assert sv[-1] < 1e-6 * sv[-2]  # a kernel at the located state itself
+
+
+def test_default_policy_of_the_eigenvalue_count() -> None:
+    """bp_eigenvalues=None: on (k = 12) up to BP_AUTO_MAX unknowns for problems without their own
+    eigenproblem; off above, for problems with an eigenproblem (their stability pass is the
+    second witness), for augmented systems and for problems that opt out; k given: k."""
+    from contin.bpdetect import bp_eigen_count
+    from contin.options import BP_AUTO_MAX, BP_EIGS_AUTO
+    from problems.couette.pitchfork import CouetteProblem
+    from problems.disks.model import DiskCouetteProblem
+
+    auto, forced, off = DetectionOptions(), DetectionOptions(bp_eigenvalues=6), DetectionOptions(bp_eigenvalues=0)
+    diag = Diagonal()
+    assert diag.n <= BP_AUTO_MAX and bp_eigen_count(diag, auto, diag.n) == BP_EIGS_AUTO == 12
+    assert bp_eigen_count(diag, forced, diag.n) == 6 and bp_eigen_count(diag, off, diag.n) == 0
+    sh = SwiftHohenberg()
+    assert bp_eigen_count(sh, auto, sh.N) == 0 and bp_eigen_count(sh, forced, sh.N) == 6
+    gpcf = CouetteProblem("cheb", 8)
+    assert bp_eigen_count(gpcf, auto, 30) == 0 and bp_eigen_count(gpcf, forced, 30) == 6
+    disks = DiskCouetteProblem("cheb", 8)
+    assert bp_eigen_count(disks, auto, 30) == 0 and bp_eigen_count(disks, forced, 30) == 6
+
+    class Augmented(Diagonal):
+        def point_tests(self):
+            return []
+
+    assert bp_eigen_count(Augmented(), auto, diag.n) == 0

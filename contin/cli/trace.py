@@ -185,7 +185,8 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("--bp-eigs", "bp_eigs", type=click.IntRange(min=0), default=None, metavar="K",
               help="Second BP detector: count the K eigenvalues of J nearest zero crossing it, cross-checked "
                    "with the determinant (finds even kernels and BPs sharing a step; kernel dimension in the note). "
-                   "Default: K = 12 for problems without their own stability eigenproblem; 0 switches it off.")
+                   "Default: K = 12 for problems of at most 100 unknowns without their own stability "
+                   "eigenproblem; 0 switches it off.")
 @click.option("--depth", type=click.IntRange(min=1, max=20), default=None, metavar="D",
               help="Automatic bifurcation diagram (contin.diagram.explore) from the scene's start point: trace, "
                    "switch at every BP to depth D (1 = the start branch only), each branch once, mirror images "

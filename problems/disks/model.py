@@ -62,6 +62,10 @@ class DiskCouetteProblem:
 
     parameter_names = PARAMETER_NAMES
     symmetry_breaking_parameters = ("G",)
+    #: no default eigenvalue-count BP detector: J of the steady residual has algebraic rows
+    #: whose eigenvalues cross zero in pairs, and the count re-stepped and bisected on them
+    #: (steady band, cheb 32, H = 1 .. 40: 7.9 s -> 18.3 s; contin.problem, bp_eigen_auto)
+    bp_eigen_auto = False
 
     def __init__(self, method: str = "cheb", N: int = 48, *, walls: str = "noslip",
                  closure: DiskClosure | None = None, gravity: bool = False) -> None:
