@@ -11,6 +11,9 @@ branch.
 Defaults: Chebyshev N = 64 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
 under-resolved already at H ~ 30-40 (the continuation stops them with MX 'under-resolved'),
 and at nu = 0.3, Fr = 1000 the isola of the third pitchfork spans H = 41.90 .. 63.48.
+Without ``--grid`` a run where a branch stops under-resolved is repeated on the grid the
+resolution estimate asks for at the stop (``contin.adapt.retrace_finer``; Fr = 50 to H = 30:
+cheb 64 stops at H = 21.8, the rerun on cheb 144 reaches H = 30); ``--grid N`` fixes the grid.
 """
 
 from __future__ import annotations
