@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint, relabel
-from contin.continuation import switch
-from contin.jumps import restep, trace_both_ways
+from contin.continuation import switch, trace
+from contin.jumps import restep, retrace_on_jumps, trace_both_ways
 from contin.options import ContinuationOptions
 from contin.overlap import Coordinates, StateCoordinates, is_invariant, lies_on, mirror_branch, near, params_at
 from contin.seeds import Seed
@@ -63,6 +63,12 @@ class DiagramSettings:
         (:func:`contin.jumps.trim_self_overlap`); inf switches the jump repair off
     unconverged : also switch at BPs whose location did not converge (the switching start is
         then slightly off the BP; the probe and the duplicate test keep the result honest)
+    probe_steps = 0 : no probe (each direction is traced, then dropped if it lies on a known branch)
+    start_direction : 0 = the start branch both ways (:func:`contin.jumps.trace_both_ways`),
+        +1 / -1 = one way (:func:`contin.continuation.trace`; e.g. from a bound)
+    retraces : a trace that jumped between branches is repeated with ds_max halved, at most this
+        often (:func:`contin.jumps.retrace_on_jumps`): the start branch when a BP location did not
+        converge, a switched branch when ``DiagramHooks.jumped`` says so
     """
 
     depth: int = 3
@@ -73,14 +79,49 @@ class DiagramSettings:
     mirror: bool = True
     excursion: float = float("inf")
     unconverged: bool = True
+    start_direction: int = 0
+    retraces: int = 0
 
     def __post_init__(self) -> None:
         if self.depth < 1:
             raise ValueError(f"depth must be >= 1 (the start branch), got {self.depth}")
-        if self.probe_steps < 1:
-            raise ValueError(f"probe_steps must be >= 1, got {self.probe_steps}")
+        if self.probe_steps < 0:
+            raise ValueError(f"probe_steps must be >= 0, got {self.probe_steps}")
+        if self.start_direction not in (-1, 0, 1):
+            raise ValueError(f"start_direction must be -1, 0 or +1, got {self.start_direction}")
+        if self.retraces < 0:
+            raise ValueError(f"retraces must be >= 0, got {self.retraces}")
         if not self.tol > 0:
             raise ValueError(f"tol must be > 0, got {self.tol}")
+
+
+@dataclass(frozen=True)
+class DiagramHooks:
+    """What a problem family decides in :func:`bifurcation_diagram` (its physics); all optional.
+
+    switch_at(branch, bp) -> prefix | None : the ids of the branches switched at ``bp`` are
+        f"{prefix}.1" (direction +1) and f"{prefix}.2"; None = do not switch there (default:
+        every BP, prefix f"{branch.id}.{bp.name}")
+    mirror_id(branch_id) -> id : the id of a traced branch's image (default f"{branch_id}'"; a
+        scene naming the two signs of a pitchfork 'n1.1' / 'n1.2' maps one onto the other)
+    jumped(parent, child) -> reason | None : a switched branch that jumped (e.g. came back onto its
+        parent) is re-traced with ds_max halved (``DiagramSettings.retraces``)
+    finish(branch) : called on every traced branch before it is stored and mirrored (e.g. re-check
+        its BPs on a finer grid: what it changes reaches the image)
+    on_branch(branch, source) : every stored branch as soon as it is known, ``source`` the traced
+        branch it mirrors or None (checkpointing, stability)
+    completed : branches of an interrupted run by id, reused instead of traced (``--resume``)
+    options(parent) -> ContinuationOptions : the options of the start branch (parent None) and of
+        the branches switched off ``parent`` (default: the ``options`` argument for every branch)
+    """
+
+    switch_at: Callable[[Branch, SpecialPoint], str | None] | None = None
+    mirror_id: Callable[[str], str] | None = None
+    jumped: Callable[[Branch, Branch], str | None] | None = None
+    finish: Callable[[Branch], None] | None = None
+    on_branch: Callable[[Branch, Branch | None], None] | None = None
+    completed: Mapping[str, Branch] = field(default_factory=dict)
+    options: Callable[[Branch | None], ContinuationOptions] | None = None
 
 
 @dataclass
@@ -111,13 +152,14 @@ class Diagram:
 def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], parameter: str,
                         options: ContinuationOptions = ContinuationOptions(),
                         settings: DiagramSettings = DiagramSettings(), *, coordinates: Coordinates | None = None,
-                        seeds: Sequence[Seed] = (), progress: Callable[[str], None] | None = None) -> Diagram:
+                        seeds: Sequence[Seed] = (), progress: Callable[[str], None] | None = None,
+                        hooks: DiagramHooks = DiagramHooks()) -> Diagram:
     """The bifurcation diagram from (u0, params) in ``parameter`` (module docstring).
 
     ``options`` are used for every branch (bounds included); ``coordinates`` decide when two
     branches are the same (default :class:`contin.overlap.StateCoordinates`: the parameter and
     random projections of the state); ``seeds`` are traced after the start branch, each unless
-    it lies on a known branch.
+    it lies on a known branch; ``hooks`` carry the problem family's choices (:class:`DiagramHooks`).
     """
     coords = coordinates if coordinates is not None else StateCoordinates(parameter)
     say = progress or (lambda m: None)
@@ -125,30 +167,52 @@ def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], pa
     queue: deque[Branch] = deque()
     symmetric = settings.mirror and (callable(getattr(problem, "symmetry", None))
                                      or callable(getattr(problem, "symmetry_matrix", None)))
+    mirror_id = hooks.mirror_id or (lambda i: f"{i}'")
 
     def on_known(u: Array, p: Mapping[str, float], exclude: Branch | None = None) -> Branch | None:
         return next((k for k in out.branches if k is not exclude and near(problem, u, p, k, coords, settings.tol)), None)
 
     def add(b: Branch, level: int) -> None:
+        if hooks.finish is not None and b.id not in hooks.completed:
+            hooks.finish(b)
         out.branches.append(b)
         relabel(out.branches)  # AUTO-style labels, stable for the branches found before
         out.level[b.id] = level
         queue.append(b)
+        if hooks.on_branch is not None:
+            hooks.on_branch(b, None)
         if symmetric and len(b) > 0 and not is_invariant(problem, b):
-            m = mirror_branch(problem, b, params, f"{b.id}'")
+            mid = mirror_id(b.id)
+            m = hooks.completed.get(mid) or mirror_branch(problem, b, params, mid)
             twin = next((k for k in out.branches if lies_on(m, k, coords, settings.tol, settings.fraction)), None)
             if twin is None:
                 out.branches.append(m)
                 out.level[m.id] = level
                 out.mirrors[m.id] = b.id
                 relabel(out.branches)
+                if hooks.on_branch is not None:
+                    hooks.on_branch(m, b)
 
-    def trace_from(u: Array, p: Mapping[str, float], bid: str, kind: str, parent: str) -> Branch:
-        return trace_both_ways(problem, u, p, parameter, options, coordinates=coords, excursion=settings.excursion,
-                               restep="local", branch_id=bid, kind=kind, parent=parent, progress=progress)
+    def trace_from(u: Array, p: Mapping[str, float], bid: str, kind: str, parent: str,
+                   direction: int = 0) -> Branch:
+        if bid in hooks.completed:
+            return hooks.completed[bid]
+
+        def run(o: ContinuationOptions) -> Branch:
+            if direction == 0:
+                return trace_both_ways(problem, u, p, parameter, o, coordinates=coords, excursion=settings.excursion,
+                                       restep="local", branch_id=bid, kind=kind, parent=parent, progress=progress)
+            return trace(problem, u, dict(p), parameter, o, direction=direction, branch_id=bid, kind=kind,
+                         parent=parent, progress=progress)
+
+        opts = hooks.options(None) if hooks.options is not None else options
+        if settings.retraces == 0:
+            return run(opts)
+        return retrace_on_jumps(run, opts, what="base branch" if bid == "0" else f"branch {bid}",
+                                retraces=settings.retraces)
 
     say(f"diagram: start branch in {parameter}")
-    add(trace_from(u0, params, "0", "primary", ""), 1)
+    add(trace_from(u0, params, "0", "primary", "", settings.start_direction), 1)
     for k, seed in enumerate(seeds):
         twin = on_known(seed.state, seed.params)
         if twin is not None:
@@ -170,16 +234,24 @@ def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], pa
             if len(out.branches) >= settings.max_branches:
                 out.skipped.append(f"{bp.name}@{b.id}: max_branches = {settings.max_branches} reached")
                 break
-            _switch_at(problem, b, bp, params, options, settings, coords, out, on_known, add, level, progress)
+            _switch_at(problem, b, bp, params, options, settings, coords, out, on_known, add, level, progress, hooks)
     return out
 
 
 def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, float], options: ContinuationOptions,
                settings: DiagramSettings, coords: Coordinates, out: Diagram,
                on_known: Callable[..., Branch | None], add: Callable[[Branch, int], None], level: int,
-               progress: Callable[[str], None] | None) -> None:
-    """Both directions of the BP ``bp`` of ``b``: probed, traced when new, added at level + 1."""
+               progress: Callable[[str], None] | None, hooks: DiagramHooks) -> None:
+    """Both directions of the BP ``bp`` of ``b``: probed, traced when new, added at level + 1.
+
+    At a BP of an S-invariant branch whose first direction gave a branch that is not S-invariant
+    (a symmetry-breaking pitchfork), the second direction is that branch's image, already stored:
+    it is neither probed nor traced."""
     where = f"{bp.name}@{b.id} ({b.parameter} = {bp.params[b.parameter]:.6g})"
+    prefix = hooks.switch_at(b, bp) if hooks.switch_at is not None else f"{b.id}.{bp.name}"
+    if prefix is None:
+        out.skipped.append(f"{where}: not selected for switching")
+        return
     if not bp.converged and not settings.unconverged:
         out.skipped.append(f"{where}: location not converged")
         return
@@ -187,30 +259,50 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
     if crossing is not None:
         out.skipped.append(f"{where}: branch {crossing.id} passes through it (crossing already known)")
         return
-    probe_opts = replace(options, max_steps=settings.probe_steps)
+    if hooks.options is not None:
+        options = hooks.options(b)
+    probe_opts = replace(options, max_steps=max(settings.probe_steps, 1))
+    first: Branch | None = None
     for k, d in enumerate((+1, -1), start=1):
-        bid = f"{b.id}.{bp.name}.{k}"
+        bid = f"{prefix}.{k}"
+        if first is not None and first.id in out.mirrors.values() and is_invariant(problem, b):
+            image = next(m for m, t in out.mirrors.items() if t == first.id)
+            out.skipped.append(f"{bid}: the image {image} of {first.id} (symmetry-breaking BP of an invariant branch)")
+            continue
+        if bid in hooks.completed:
+            first = hooks.completed[bid]
+            add(first, level + 1)
+            continue
+        if settings.probe_steps > 0:
+            try:
+                probe = switch(problem, b, bp, probe_opts, directions=(d,), branch_id_prefix="probe")
+            except ValueError as exc:  # not a simple BP, or no start point in this direction: say why
+                out.skipped.append(f"{bid}: cannot switch ({exc})")
+                continue
+            if not probe or len(probe[0]) < 2:
+                out.skipped.append(f"{bid}: switching found no start point")
+                continue
+            pr = probe[0]
+            i = len(pr) - 1
+            twin = on_known(pr.state(i), params_at(pr, i))
+            if twin is not None:
+                out.skipped.append(f"{bid}: probe lies on branch {twin.id}")
+                continue
+
+        def run(o: ContinuationOptions, d: int = d, bid: str = bid) -> Branch:
+            nb = switch(problem, b, bp, o, directions=(d,), branch_id_prefix=prefix)[0]
+            nb.id = bid
+            return nb
+
         try:
-            probe = switch(problem, b, bp, probe_opts, directions=(d,), branch_id_prefix="probe")
-        except ValueError as exc:  # not a simple BP, or no start point in this direction: say why
-            out.skipped.append(f"{bid}: cannot switch ({exc})")
-            continue
-        if not probe or len(probe[0]) < 2:
-            out.skipped.append(f"{bid}: switching found no start point")
-            continue
-        pr = probe[0]
-        i = len(pr) - 1
-        twin = on_known(pr.state(i), params_at(pr, i))
-        if twin is not None:
-            out.skipped.append(f"{bid}: probe lies on branch {twin.id}")
-            continue
-        try:
-            new = switch(problem, b, bp, options, directions=(d,), branch_id_prefix=f"{b.id}.{bp.name}")
+            if hooks.jumped is not None and settings.retraces > 0:
+                nb = retrace_on_jumps(run, options, what=f"branch from {bp.name}", unconverged_bp=False,
+                                      jumped=lambda nb: hooks.jumped(b, nb), retraces=settings.retraces)
+            else:
+                nb = run(options)
         except ValueError as exc:  # switch says why it found no branch (it never returns [])
             out.skipped.append(f"{bid}: switching found no start point ({exc})")
             continue
-        nb = new[0]
-        nb.id = bid
         if np.isfinite(settings.excursion):
             nb = restep(problem, nb, params, options, coords, excursion=settings.excursion, branch_id=bid,
                         kind=nb.kind, parent=nb.parent)
@@ -220,6 +312,7 @@ def _switch_at(problem: Any, b: Branch, bp: SpecialPoint, params: Mapping[str, f
             continue
         if progress is not None:
             progress(f"diagram: branch {bid} ({len(nb)} points, level {level + 1})")
+        first = nb
         add(nb, level + 1)
 
 

@@ -190,11 +190,19 @@ def _symmetry_of(problem: Any) -> Any:
 
 
 def is_invariant(problem: Any, branch: Branch, tol: float = 1e-6) -> bool:
-    """True when the middle stored state of the branch is S-invariant (the branch maps to itself)."""
+    """True when the middle stored state of the branch is S-invariant (the branch maps to itself);
+    a point of an adaptive run is reflected on its own grid (``contin.adapt.point_problem``)."""
+    i = len(branch.states) // 2
+    if branch.sizes is not None:
+        from contin.adapt import point_problem
+
+        problem = point_problem(problem, branch, i)
+        x = branch.state(i)
+    else:
+        x = branch.states[i]
     s = _symmetry_of(problem)
     if s is None:
         return True
-    x = branch.states[len(branch.states) // 2]
     return float(np.max(np.abs(s(x) - x))) <= tol * max(1.0, float(np.max(np.abs(x))))
 
 
@@ -209,6 +217,8 @@ def mirror_branch(problem: Any, branch: Branch, params: Mapping[str, float], bra
         raise ValueError("mirror_branch needs a problem with symmetry or symmetry_matrix")
     if branch.state_index is not None:
         raise ValueError("mirror_branch needs every state of the branch (save_every = 1)")
+    if branch.sizes is not None:  # points on several grids (adaptive runs)
+        return _mirror_regridded(problem, branch, params, branch_id)
     states = np.array([s(x) for x in branch.states])
     has_obs = callable(getattr(problem, "observables", None))
     has_op = callable(getattr(problem, "order_parameter", None))
@@ -234,6 +244,46 @@ def mirror_branch(problem: Any, branch: Branch, params: Mapping[str, float], bra
         branch, observables={k: np.array(v) for k, v in obs.items()} if obs else dict(branch.observables),
         states=states, tangents=tang, special_points=[image(sp_) for sp_ in branch.special_points], id=branch_id,
         kind=branch.kind, audit=list(branch.audit), message=f"mirror image of branch {branch.id}",
+        stable=None if branch.stable is None else branch.stable.copy(),
+        n_unstable=None if branch.n_unstable is None else branch.n_unstable.copy(),
+        eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())
+
+
+def _mirror_regridded(problem: Any, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
+    """:func:`mirror_branch` for a branch whose points lie on several grids (adaptive runs): each
+    point reflected by the problem on its own grid (``contin.adapt.point_problem``)."""
+    from contin.adapt import on_grid, point_problem
+    from contin.branch import pad_rows
+
+    states, tangents, obs = [], [], {}
+    for i in range(len(branch)):
+        pb = point_problem(problem, branch, i)
+        s = _symmetry_of(pb)
+        x = s(branch.state(i))
+        t = branch.tangent(i)
+        states.append(x)
+        m = t.size - x.size
+        tangents.append(np.concatenate([s(t[:-m]), t[-m:]]))
+        p = {**params, **params_at(branch, i)}
+        row = {k: float(v) for k, v in pb.observables(x, p).items()} if callable(getattr(pb, "observables", None)) else {}
+        if callable(getattr(pb, "order_parameter", None)):
+            row.setdefault("phi", float(pb.order_parameter(x, p)))
+        for k, v in row.items():
+            obs.setdefault(k, []).append(v)
+
+    def image(sp_: Any) -> Any:
+        pb = on_grid(problem, sp_.grid)
+        s = _symmetry_of(pb)
+        x = s(sp_.state)
+        m = None if sp_.tangent is None else sp_.tangent.size - x.size
+        return replace(sp_, state=x, order_parameter=float(pb.order_parameter(x, {**params, **sp_.params})),
+                       tangent=None if sp_.tangent is None else np.concatenate([s(sp_.tangent[:-m]), sp_.tangent[-m:]]))
+
+    return dataclasses.replace(
+        branch, observables={k: np.array(v) for k, v in obs.items()} if obs else dict(branch.observables),
+        states=pad_rows(states, branch.states.shape[1]), tangents=pad_rows(tangents, branch.tangents.shape[1]),
+        special_points=[image(sp_) for sp_ in branch.special_points], id=branch_id, kind=branch.kind,
+        audit=list(branch.audit), message=f"mirror image of branch {branch.id}",
         stable=None if branch.stable is None else branch.stable.copy(),
         n_unstable=None if branch.n_unstable is None else branch.n_unstable.copy(),
         eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())

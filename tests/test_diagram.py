@@ -5,13 +5,14 @@ tutorial; BPs of u = 0 at (1 - m_k)^2), a detached isola with a closed form, Bra
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from contin.branch import Branch
 from contin.continuation import join, trace, trace_both
-from contin.diagram import DiagramSettings, bifurcation_diagram
+from contin.diagram import DiagramHooks, DiagramSettings, bifurcation_diagram
 from contin.foldcurve import trace_fold_curve
 from contin.jumps import halved, jumped, restep, retrace_on_jumps, trace_both_ways, trim_self_overlap
 from contin.options import ContinuationOptions, StepOptions
@@ -75,7 +76,9 @@ def test_allen_cahn_each_mode_traced_once_its_negative_mirrored(allen_cahn):
     assert [bp.params["lam"] for bp in root.branch_points] == pytest.approx([1.0, 4.0, 9.0], abs=1e-8)
     assert len(d.traced) == 4 and len(d.branches) == 7
     assert sorted(d.mirrors.values()) == sorted(b.id for b in d.traced if b.id != "0")
-    assert sum("probe lies on branch" in s and s.endswith("'") for s in d.skipped) == 3
+    # the second direction of each symmetry-breaking BP of u = 0 is the stored image: not even probed
+    assert sum("(symmetry-breaking BP of an invariant branch)" in s for s in d.skipped) == 3
+    assert not any("probe" in s for s in d.skipped)
     for mid, tid in d.mirrors.items():
         m, t = d.branch(mid), d.branch(tid)
         assert np.array_equal(m.states, -t.states) and np.array_equal(m.params["lam"], t.params["lam"])
@@ -360,3 +363,61 @@ def test_mirror_branch_needs_a_symmetry(bratu):
 
     with pytest.raises(ValueError, match="symmetry"):
         mirror_branch(NoSym(), a, {"lam": 0.0}, "m")
+
+
+def test_hooks_select_name_reuse_and_retrace_on_allen_cahn():
+    """DiagramHooks on Allen-Cahn (what the gPCF pitchfork scene uses): switch only at the BP
+    of mode 2 (lam = 4) under the name 'm2', its image named 'm2.2', the start branch one way from
+    the lower bound, no probe; finish() sees traced branches only, on_branch() every stored
+    branch with its source; a jumped() report re-traces with ds_max halved; a second run with
+    completed= reuses every branch (no trace: the same objects come back)."""
+    pb = AllenCahn("cheb", 24)
+    finished, stored, asked = [], [], []
+
+    def switch_at(b, bp):
+        return "m2" if b.id == "0" and abs(bp.params["lam"] - 4.0) < 0.1 else None
+
+    def jumped(parent, child):
+        asked.append(child.id)
+        return "test: first trace refused" if len(asked) == 1 else None
+
+    hooks = DiagramHooks(switch_at=switch_at, mirror_id=lambda i: i[:-2] + ".2" if i.endswith(".1") else i + "'",
+                         jumped=jumped, finish=lambda b: finished.append(b.id),
+                         on_branch=lambda b, src: stored.append((b.id, None if src is None else src.id)))
+    settings = DiagramSettings(depth=2, probe_steps=0, start_direction=1, retraces=2)
+    d = bifurcation_diagram(pb, pb.initial(), {"lam": 0.0}, "lam", AC_OPTS, settings, hooks=hooks)
+    assert [b.id for b in d.branches] == ["0", "m2.1", "m2.2"]
+    assert stored == [("0", None), ("m2.1", None), ("m2.2", "m2.1")] and finished == ["0", "m2.1"]
+    assert d.branch("0").params["lam"][0] == 0.0 and np.all(np.diff(d.branch("0").params["lam"]) > 0)
+    assert [bp.params["lam"] for bp in d.branch("0").branch_points] == pytest.approx([1.0, 4.0, 9.0], abs=1e-8)
+    m21 = d.branch("m2.1")
+    assert m21.params["lam"][0] == pytest.approx(4.0, abs=1e-6) and "@0" in m21.parent
+    assert any("re-traced with ds_max = 0.25" in a for a in m21.audit) and asked == ["m2.1", "m2.1"]
+    assert np.array_equal(d.branch("m2.2").states, -m21.states)
+    assert sum("not selected" in s for s in d.skipped) == 2
+    assert any("m2.2: the image m2.2 of m2.1" in s for s in d.skipped)
+    # resume: every branch given back, nothing traced (finish is not called on reused branches)
+    finished.clear()
+    again = bifurcation_diagram(pb, pb.initial(), {"lam": 0.0}, "lam", AC_OPTS, settings,
+                                hooks=replace(hooks, completed={b.id: b for b in d.branches}))
+    assert [b.id for b in again.branches] == ["0", "m2.1", "m2.2"] and finished == []
+    assert all(a is b for a, b in zip(again.branches, d.branches))
+
+
+def test_mirror_of_an_adaptive_branch_reflects_each_point_on_its_grid():
+    """contin.overlap.mirror_branch on a branch whose points lie on several grids (adaptive run)."""
+    from contin.options import AdaptOptions
+
+    pb = AllenCahn("cheb", 16)
+    opts = replace(AC_OPTS, adapt=AdaptOptions(tol=1e-10))
+    base = trace(pb, pb.initial(), {"lam": 0.0}, "lam", replace(opts, bounds={"lam": (0.0, 2.0)}))
+    from contin.continuation import switch
+
+    kid = switch(pb, base, base.branch_points[0], replace(opts, bounds={"lam": (0.0, 8.0)}), directions=(1,))[0]
+    if kid.sizes is None:
+        pytest.skip("the adaptive run kept one grid")
+    m = mirror_branch(pb, kid, {"lam": 0.0}, "img")
+    assert m.sizes is not None and np.array_equal(m.sizes, kid.sizes)
+    for i in (0, len(kid) // 2, len(kid) - 1):
+        assert np.array_equal(m.state(i), -kid.state(i))
+    assert m.observables["phi"] == pytest.approx(-kid.observables["phi"], abs=1e-14)

@@ -84,20 +84,20 @@ def test_pitchfork_H_max_1000_starts_below_H1c_and_says_which_modes_are_missing(
 
 def test_resume_reuses_each_finished_branch_not_only_pairs(monkeypatch):
     """A kill between n2.1 and n2.2 must not retrace n2.1 (README: at most the branch in progress is lost)."""
-    from problems.couette import pitchfork as pf
+    import contin.diagram as builder  # the scene switches through the core diagram builder
 
     req = dict(params={"nu": 0.3, "e": 0.8, "H_max": 30.0, "modes": 2}, grid=32, stability=False)
     full = get_scene("pitchfork").run(SceneRequest(**req))
     by_id = {b.id: b for b in full.branches}
     assert {"0", "n1.1", "n1.2", "n2.1", "n2.2"} <= set(by_id)
     calls = []
-    real = pf.switch
+    real = builder.switch
 
     def counting(problem, base, bp, options, directions=(1,), **kw):
         calls.append(tuple(directions))
         return real(problem, base, bp, options, directions=directions, **kw)
 
-    monkeypatch.setattr(pf, "switch", counting)
+    monkeypatch.setattr(builder, "switch", counting)
     done = {k: by_id[k] for k in ("0", "n1.1", "n1.2", "n2.1")}  # killed while tracing n2.2
     again = get_scene("pitchfork").run(SceneRequest(**req, completed=done))
     assert calls == [(-1,)]  # only n2.2 (mode 2 is S-invariant: its second sign is traced, not mirrored)

@@ -12,6 +12,9 @@ Reusable pieces of the ``pitchfork`` and ``jj-walls`` scenes (``problems.couette
   branch comes back onto the base branch;
 - :func:`banded_branches` -- switching at a BP onto both signs of the banded branch (the second
   sign as the mirror image S x of the first when the first is not S-invariant);
+  the ``pitchfork`` and ``jj-walls`` scenes build the same with ``contin.diagram`` (their
+  choices: :class:`WallCoordinates`, :func:`first_point_on` as the jump test), the gravity
+  scenes still call it;
 - :func:`mirror_branch` -- the image of a branch under the reflection symmetry;
 - :func:`density_continuation` -- a banded state at a density where uniform shear has no BP,
   reached by continuation in nu at fixed H from a density where the BP exists;
@@ -69,7 +72,7 @@ import scipy.sparse as sp
 
 from contin.adapt import on_grid, point_problem
 from contin.blas import limited
-from contin.branch import Branch, SpecialPoint, pad_rows
+from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, switch, trace, trace_both
 from contin.jumps import retrace_on_jumps as _retrace_on_jumps
 from contin.options import ContinuationOptions, NewtonOptions
@@ -215,53 +218,43 @@ def newton_at(problem: Any, branch: Branch, values: Mapping[str, float], params:
 
 
 def mirror_branch(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
-    """The image of ``branch`` under the reflection S (:func:`contin.overlap.mirror_branch`), with
-    recomputed observables and the original's message.
+    """The image of ``branch`` under the reflection S (:func:`contin.overlap.mirror_branch`, which
+    reflects points of adaptive runs on their own grids), with recomputed observables and the
+    original's message.
 
     Stability columns are copied: S maps the k_x = 0 eigenproblem at x onto that at S x.
     """
-    if branch.sizes is not None:  # points on several grids (adaptive runs)
-        return _mirror_regridded(problem, branch, params, branch_id)
     out = _mirror_branch(problem, branch, params, branch_id)
     out.message = branch.message
     return out
 
 
-def _mirror_regridded(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
-    """:func:`mirror_branch` for a branch whose points lie on several grids (adaptive runs)."""
-    states, tangents, obs = [], [], {}
-    for i in range(len(branch)):
-        pb = point_problem(problem, branch, i)
-        x = pb.symmetry(branch.state(i))
-        t = branch.tangent(i)
-        states.append(x)
-        tangents.append(np.concatenate([pb.symmetry(t[:-1]), t[-1:]]))
-        p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
-        for k, v in pb.observables(x, p).items():
-            obs.setdefault(k, []).append(v)
-
-    def mirrored(sp_: SpecialPoint) -> SpecialPoint:
-        pb = on_grid(problem, sp_.grid)
-        x = pb.symmetry(sp_.state)
-        tangent = None if sp_.tangent is None else np.concatenate([pb.symmetry(sp_.tangent[:-1]), sp_.tangent[-1:]])
-        return replace(sp_, state=x, order_parameter=pb.order_parameter(x), tangent=tangent)
-
-    return dataclasses.replace(
-        branch, observables={k: np.array(v) for k, v in obs.items()}, states=pad_rows(states, branch.states.shape[1]),
-        tangents=pad_rows(tangents, branch.tangents.shape[1]), special_points=[mirrored(s) for s in branch.special_points],
-        id=branch_id, kind=branch.kind, audit=list(branch.audit),
-        stable=None if branch.stable is None else branch.stable.copy(),
-        n_unstable=None if branch.n_unstable is None else branch.n_unstable.copy(),
-        eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())
-
-
 def _is_invariant(problem: CouetteProblem, branch: Branch, tol: float = 1e-6) -> bool:
-    """True when the middle state of the branch is S-invariant (the branch maps to itself)."""
-    if branch.sizes is not None:  # points on several grids (adaptive runs)
-        x = branch.state(len(branch) // 2)
-        x = state_on(problem, x)
-        return float(np.max(np.abs(problem.symmetry(x) - x))) <= tol * max(1.0, float(np.max(np.abs(x))))
+    """True when the middle state of the branch is S-invariant (:func:`contin.overlap.is_invariant`)."""
     return is_invariant(problem, branch, tol)
+
+
+# ----------------------------------------------------------------------------- diagram coordinates
+@dataclasses.dataclass(frozen=True)
+class WallCoordinates:
+    """(H / H_scale, nu at the top wall, nu at the bottom wall): the coordinates in which the
+    diagram builder (``contin.diagram``) compares gPCF states.  The reflection S (y -> -y) swaps
+    the two wall densities, so a banded state and its image differ; both are nodes of every grid,
+    so points of adaptive runs need no interpolation."""
+
+    problem: CouetteProblem
+    H_scale: float
+
+    def point(self, problem: Any, u: Array, p: Mapping[str, float]) -> Array:
+        x = np.asarray(u, dtype=float)
+        fields = 4 if self.problem.gravity else 3
+        pb = self.problem if x.size == self.problem.size else on_grid(self.problem, (x.size - 1) // fields - 1)
+        nu = pb.unpack(x)[0]
+        return np.array([p["H"] / self.H_scale, float(nu[-1]), float(nu[0])])
+
+    def branch(self, b: Branch) -> Array:
+        H = b.params["H"]
+        return np.array([self.point(None, b.state(i), {"H": float(H[i])}) for i in range(len(b))])
 
 
 # ----------------------------------------------------------------------------- branches

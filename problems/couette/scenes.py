@@ -29,6 +29,14 @@ banded-branch BPs re-checked on a 1.5x finer grid, extra wavenumbers (``--kx``) 
 omega at k_z = 0 per point).  ``extra`` also holds ``H_c`` (detected, analytic, relative error),
 ``criticality`` per banded branch and ``folds``.
 
+Both are built by the core diagram builder (``contin.diagram.bifurcation_diagram``, depth 2:
+the base branch from its start upwards in H, the banded branches at the selected BPs; its
+retraces with halved ds_max repair steps that jumped between branches); the scene keeps the
+physics: which BPs (modes 1..``modes`` named against n pi psi, or the first ``modes`` with JJ
+walls), the coordinates telling states apart (H and the two wall densities, swapped by the
+reflection), the jump test of a switched branch (back on the base branch, by Newton), the
+grid re-check of banded BPs.
+
 Branch ids are deterministic (``--resume`` reuses finished branches): '0' base, 'n<k>.1' / 'n<k>.2'
 the two signs of the branch from the k-th BP, 's1' the isolated symmetric JJ branch.
 """
@@ -58,7 +66,7 @@ PITCHFORK_DEFAULTS: dict[str, Any] = {
 JJ_DEFAULTS: dict[str, Any] = {**PITCHFORK_DEFAULTS, "walls": "jj"}
 #: ds_max of the JJ branches as a fraction of H_max: at nu = 0.3, e = 0.8 steps of ~4 in H jump
 #: from the steep part of the base branch onto the isolated symmetric branch next to it, and from
-#: the n = 1 branch back onto the base branch (``pitchfork.retrace_on_jumps`` halves ds_max when
+#: the n = 1 branch back onto the base branch (the diagram builder's retraces halve ds_max when
 #: that happens anyway).
 JJ_BASE_DS_MAX = 0.025
 
@@ -242,31 +250,21 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=(JJ_BASE_DS_MAX if jj else 0.1) * H_max)
     extra: dict[str, Any] = {"H_max": H_max, "walls": st["walls"], "modes": modes}
 
-    # ---- base branch
-    cached = run.cached("0")
-    if cached:
-        base = cached[0]
-    else:
-        request.report(f"{scene}: tracing the base branch in H from {H_start:.4g} to {H_max:.4g}")
-        base = pf.trace_base(pb, p, H_start, base_opts, progress=request.report)
+    # ---- the diagram: base branch and the banded branches at its BPs (contin.diagram builds it;
+    # the scene chooses the BPs and names them by mode, and re-checks banded BPs on a finer grid)
+    named = st["walls"] == "noslip" and math.isfinite(hc1)
+    request.report(f"{scene}: tracing the base branch in H from {H_start:.4g} to {H_max:.4g}")
+    d = _diagram(run, p, H_start, H_max, hc1, named, modes, base_opts, band_opts, jj)
+    base = d.branch("0")
     if len(base) == 0:  # say the real cause in one line (it used to surface as "Error: phi")
         raise SceneError(f"{scene}: the base branch could not start: {base.message}"
                          + ("; phi_w = 0 (specular walls) transmits no shear, use phi_w > 0"
                             if jj and p["phi_w"] == 0 else ""))
-    named = st["walls"] == "noslip" and math.isfinite(hc1)
-    if named:
-        pf.name_modes(base, hc1)
-    run.finish(base)
-    run.notes += [m for m in base.audit if " re-traced with " in m]
+    run.notes += [f"switching at {s_}" for s_ in d.skipped if "switching found no" in s_ or "cannot switch" in s_]
     bps = sorted(base.branch_points, key=lambda b: b.params["H"])
+    bp_list = _selected(base, hc1, named, modes)
     if named:
         run.notes += pf.mode_notes(base, hc1, H_start, H_max)
-        # Switch at the BPs of modes 1..modes, named by mode, not by order: a skipped or spurious
-        # BP must not shift the names of the others.
-        by_mode = {pf.bp_mode(b.params["H"], hc1): b for b in reversed(bps)}
-        bp_list = [(n, by_mode[n]) for n in range(1, modes + 1) if n in by_mode]
-    else:
-        bp_list = list(enumerate(bps[:modes], start=1))
     if st["walls"] == "noslip":
         detected = [b.params["H"] for b in bps]
         rows = []
@@ -281,35 +279,11 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         extra["H_c"] = [{"n": k, "detected": b.params["H"], "phi": b.order_parameter, "note": b.note,
                          "converged": b.converged} for k, b in enumerate(bps, start=1)]
 
-    # ---- banded branches
+    # ---- banded branches: criticality of both signs at each selected BP
     banded: list[Branch] = []
     crit: list[dict[str, Any]] = []
     for k, bp in bp_list:
-        ids = (f"n{k}.1", f"n{k}.2")
-        pair = run.cached(*ids)
-        if pair is None:
-            request.report(f"{scene}: switching at {bp.name} (H = {bp.params['H']:.6g})")
-            first = run.cached(ids[0])  # resume reuses each finished branch, not only whole pairs
-            try:
-                pair = pf.banded_branches(pb, base, bp, p, band_opts, prefix=f"n{k}", first=first[0] if first else None)
-            except ValueError as exc:
-                run.notes.append(f"switching at BP H = {bp.params['H']:.6g} failed: {exc}")
-                continue
-            for b in pair:
-                if b.id in request.completed:
-                    continue
-                b.kind = f"banded n={k}" if st["walls"] == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
-                if b.message.startswith("mirror image"):
-                    continue
-                run.notes += [f"branch {b.id}: {m}" for m in b.audit if " re-traced with " in m]
-                run.notes += pf.confirm_branch_points(pb, b, p, band_opts)
-            if pair[1].message.startswith("mirror image"):  # demoted points follow the source
-                pair[1].special_points = [dataclasses.replace(
-                    s2, type=s1.type, note=s1.note) for s1, s2 in zip(pair[0].special_points, pair[1].special_points)]
-        mirror = pair[1].message.startswith("mirror image")
-        run.finish(pair[0])
-        run.finish(pair[1], stability_from=pair[0] if mirror else None)
-        for b in pair:
+        for b in (x for x in d.branches if x.id in (f"n{k}.1", f"n{k}.2")):
             banded.append(b)
             crit.append({**pf.criticality(b, bp.params["H"], bp.order_parameter), "n": k})
 
@@ -367,6 +341,78 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         notes=run.notes,
         extra=extra,
     )
+
+
+def _selected(base: Branch, hc1: float, named: bool, modes: int) -> list[tuple[int, Any]]:
+    """(k, BP) of the base branch to switch at: with no-slip walls the BPs of modes 1..modes, named
+    by mode (H_n^c = n pi psi), not by order -- a skipped or spurious BP must not shift the names of
+    the others; otherwise the first ``modes`` BPs in H."""
+    bps = sorted(base.branch_points, key=lambda b: b.params["H"])
+    if named:
+        by_mode = {pf.bp_mode(b.params["H"], hc1): b for b in reversed(bps)}
+        return [(n, by_mode[n]) for n in range(1, modes + 1) if n in by_mode]
+    return list(enumerate(bps[:modes], start=1))
+
+
+def _diagram(run: _Run, p: dict[str, float], H_start: float, H_max: float, hc1: float, named: bool, modes: int,
+             base_opts: ContinuationOptions, band_opts: ContinuationOptions, jj: bool) -> Any:
+    """The base branch (from ``initial_guess`` at H_start upwards) and both signs of the banded
+    branch at each selected BP, by :func:`contin.diagram.bifurcation_diagram` to depth 2.
+
+    Physics kept here: which BPs (:func:`_selected`) and their names n<k>.1 / n<k>.2 (the second
+    sign of a symmetry-breaking mode is the mirror image of the first, of an S-invariant mode it is
+    traced), the coordinates (:class:`pitchfork.WallCoordinates`), a switched branch that comes
+    back onto the base branch counts as a jump (:func:`pitchfork.first_point_on`, Newton on the
+    base branch), the modes named on the base branch, banded BPs re-checked on a 1.5x finer grid
+    (:func:`pitchfork.confirm_branch_points`; the mirror image inherits the verdicts).
+    """
+    from contin.diagram import DiagramHooks, DiagramSettings, bifurcation_diagram
+
+    pb, request = run.problem, run.request
+    walls = "noslip" if not jj else "jj"
+    picked: dict[str, Any] = {}  # prefix n<k> -> the BP of the base branch it switches at
+
+    def finish(b: Branch) -> None:
+        if b.id == "0":
+            b.kind = "uniform shear" if walls == "noslip" else "base"
+            if named:
+                pf.name_modes(b, hc1)
+            return
+        bp = picked[b.id.rsplit(".", 1)[0]]
+        k = int(b.id[1:].split(".")[0])
+        b.kind = f"banded n={k}" if walls == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
+        run.notes.extend(f"branch {b.id}: {m}" for m in b.audit if " re-traced with " in m)
+        run.notes.extend(pf.confirm_branch_points(pb, b, p, band_opts))
+
+    def on_branch(b: Branch, source: Branch | None) -> None:
+        if len(b) == 0:  # a base branch that could not start: the scene says why
+            return
+        if source is not None:
+            b.message = f"mirror image of branch {source.id} (reflection y -> -y)"
+        run.finish(b, stability_from=source)
+        if b.id == "0":
+            run.notes.extend(m for m in b.audit if " re-traced with " in m)
+
+    def switch_at(parent: Branch, bp: Any) -> str | None:
+        if parent.id != "0":
+            return None
+        k = next((k for k, c in _selected(parent, hc1, named, modes) if c.index == bp.index), None)
+        if k is None:
+            return None
+        request.report(f"switching at {bp.name} (H = {bp.params['H']:.6g})")
+        picked[f"n{k}"] = bp
+        return f"n{k}"
+
+    hooks = DiagramHooks(
+        switch_at=switch_at, mirror_id=lambda i: i[:-2] + ".2" if i.endswith(".1") else i + "'",
+        # a new branch must not come back onto its parent (from point 2 on: points 0 and 1 are
+        # within one short step of the BP)
+        jumped=lambda parent, b: pf.first_point_on(pb, parent, b, p, start=2),
+        finish=finish, on_branch=on_branch, completed=request.completed,
+        options=lambda parent: base_opts if parent is None else band_opts)
+    settings = DiagramSettings(depth=2, probe_steps=0, start_direction=1, retraces=pf.BASE_RETRACES)
+    return bifurcation_diagram(pb, pb.initial_guess(p), p, "H", base_opts, settings,
+                               coordinates=pf.WallCoordinates(pb, H_max), progress=request.report, hooks=hooks)
 
 
 def _describe(branch: Branch, dep: np.ndarray | None = None) -> str:
