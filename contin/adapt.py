@@ -372,3 +372,43 @@ def on_grid(problem: Any, grid: int | None) -> Any:
 def point_problem(problem: Any, branch: Any, i: int) -> Any:
     """The problem whose solution point ``i`` of ``branch`` is (its grid, see :func:`on_grid`)."""
     return on_grid(problem, branch.grid_at(i))
+
+
+def under_resolved_stop(branch: Any) -> bool:
+    """Whether ``branch`` ended MX because its grid does not resolve it (the resolution guard's
+    or an adaptive run's 'under-resolved' stop), not for another reason."""
+    return getattr(branch, "status", None) == "MX" and "under-resolved" in str(getattr(branch, "message", ""))
+
+
+def retrace_finer(problem: Any, compute: Any, opts: AdaptOptions = AdaptOptions(),
+                  suggest: Any = None) -> tuple[Any, list[Any], list[int]]:
+    """Run ``compute(problem)`` (a list of branches) on finer grids until none of its branches
+    stops under-resolved (:func:`under_resolved_stop`) or the grid would exceed
+    ``opts.max_grid``.  Returns (the problem of the last run, its branches, the grid sizes
+    tried).
+
+    For computations the tracer cannot regrid point by point (augmented two-parameter systems
+    such as fold curves, whose state carries a null vector and whose branch bookkeeping assumes
+    one grid): the whole computation is repeated on the next grid (growth factor
+    ``opts.growth``, as :func:`finer`), which is what a user did by hand after the guard's
+    "refine the grid" message.  The growth is geometric, so the total cost is at most
+    1/(1 - 1/growth^a) times the last run's (a ~ 1-3, the cost's order in the grid size).
+    ``suggest(problem, stopped)`` (optional) returns a grid size for the stopped branches (e.g.
+    the problem's ``suggest_grid`` at their last states); the next grid is the larger of it and
+    the growth step, so one retrace can skip several growth steps.
+    """
+    check_problem(problem)
+    sizes = [int(problem.grid_size)]
+    while True:
+        branches = list(compute(problem))
+        if not any(under_resolved_stop(b) for b in branches):
+            return problem, branches, sizes
+        n_new = finer(problem, None, None, opts)
+        if n_new is None:
+            return problem, branches, sizes
+        if suggest is not None:
+            want = suggest(problem, [b for b in branches if under_resolved_stop(b)])
+            if want is not None:
+                n_new = min(max(n_new, _round(float(want), opts.multiple)), opts.max_grid)
+        problem = problem.with_grid(n_new)
+        sizes.append(n_new)

@@ -44,7 +44,7 @@ from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
-from contin.locate import Sample, locate_zero, outside_bracket
+from contin.locate import Sample, lagrange_state, locate_zero, outside_bracket
 from contin.ndbp import nd_departures
 from contin.newton import NewtonResult, newton
 from contin.options import ContinuationOptions, StepOptions, effective_resolution_tol
@@ -202,7 +202,13 @@ class _Tracer:
                     # a test function that cannot be evaluated there (NaN) counts as a failed trial
                     return Sample(s, g, pt) if math.isfinite(g) else None
 
-                res = locate_zero(evaluate, sa, sb, tol=tol, max_iterations=det.max_bisections)
+                def interpolate(samples: list[Sample[_Point]], s: float) -> _Point:
+                    # the branch is smooth through a BP (only the corrector fails next to it)
+                    x = lagrange_state(samples, s, lambda p: p.x)
+                    return _Point(x, a.t, a.tests)
+
+                res = locate_zero(evaluate, sa, sb, tol=tol, max_iterations=det.max_bisections,
+                                  interpolate=interpolate if point_test is None and kind == "BP" else None)
                 best, converged, s_best = res.best.point, res.converged, res.best.s
             else:
                 best, converged, s_best = b, False, s_b

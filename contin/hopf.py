@@ -63,11 +63,20 @@ FD_STEP_C = 1e-4
 def hopf_test(problem: Any, detection: DetectionOptions, n: int) -> HopfTest | None:
     """The HB point test for a problem with n unknowns, or None when detection is off."""
     on = detection.detect_hopf
+    dense_max = detection.hopf_dense_max
     if on is None:  # augmented systems (fold / Hopf curves: ``point_tests``) are not dynamics
-        on = n <= HOPF_AUTO_MAX and not has(problem, "eigenproblem") and not has(problem, "point_tests")
+        # every n for problems that state their dynamics (``mass_matrix``; M = I is assumed
+        # only up to HOPF_AUTO_MAX unknowns: a large discretization without a mass matrix has
+        # algebraic rows (boundary conditions) that M = I counts as dynamics -- disks-steady,
+        # n ~ 150..400, got a spurious HB with omega = 1e-5 and 29 -> 40 s); dense QZ up to
+        # HOPF_AUTO_MAX unknowns, the hopf_eigs eigenvalues nearest 0 by shift-invert above
+        # (Brusselator n = 400: 0.8 s instead of 17.5 s dense, the same two HBs)
+        on = (not has(problem, "eigenproblem") and not has(problem, "point_tests")
+              and (n <= HOPF_AUTO_MAX or has(problem, "mass_matrix")))
+        dense_max = min(dense_max, HOPF_AUTO_MAX)
     if not on:
         return None
-    return HopfTest(problem, detection.hopf_dense_max, detection.hopf_eigs)
+    return HopfTest(problem, dense_max, detection.hopf_eigs)
 
 
 def pencil(problem: Any, u: Array, params: dict[str, float]) -> tuple[Any, Any]:

@@ -50,11 +50,21 @@ def locate_zero(
     *,
     tol: float,
     max_iterations: int,
+    interpolate: Callable[[list[Sample[P]], float], P] | None = None,
 ) -> Located[P]:
     """Shrink the sign-change bracket [a, b] of g(s) until |s_b - s_a| <= tol.
 
     ``evaluate(s)`` returns the Sample at s or None if the point could not be computed.
     ``lo``/``hi`` of the result are the final bracket ends ordered by s.
+
+    ``interpolate(samples, s)`` (optional) builds a point at s from computed samples.  When no
+    trial inside the bracket can be computed (next to a branch point the corrector's update
+    stays at the rounding floor times the bordered matrix's condition ~ 1/distance, so Newton
+    cannot meet its step tolerance in a band around the zero: 1-D Swift-Hohenberg's secondary
+    branches, ~1e-5 wide), the zero is the inverse interpolation s(g = 0) through the computed
+    samples nearest the bracket: quadratic through 3, checked against cubic through 4, and
+    accepted (converged) when the two agree within max(tol, SINGULAR_FLOOR sqrt(tol)), the
+    floor a bracket that cannot be split is accepted at (:func:`_interpolated_zero`).
     """
     if a.g * b.g > 0:
         raise ValueError("locate_zero needs a sign change of the test function")
@@ -70,6 +80,7 @@ def locate_zero(
     it = 0
     converged = a.g == 0 or b.g == 0
     widths = [abs(b.s - a.s)]
+    samples = [a, b]
     while not converged and it < max_iterations:
         it += 1
         lo_s, hi_s = min(old.s, new.s), max(old.s, new.s)
@@ -93,7 +104,14 @@ def locate_zero(
             # The corrector cannot converge this close to a singular point: the bracket is
             # as narrow as the problem's conditioning allows.
             converged = width <= SINGULAR_FLOOR * max(tol, 1e-300) ** 0.5
+            if not converged and interpolate is not None:
+                zero = _interpolated_zero(samples, lo_s, hi_s, tol)
+                if zero is not None:
+                    point = interpolate(samples, zero)
+                    lo, hi = (old, new) if old.s <= new.s else (new, old)
+                    return Located(Sample(zero, 0.0, point), lo, hi, it, True)
             break
+        samples.append(trial)
         if trial.g == 0:
             old = new = trial
             converged = True
@@ -109,6 +127,56 @@ def locate_zero(
     lo, hi = (old, new) if old.s <= new.s else (new, old)
     best = lo if abs(lo.g) <= abs(hi.g) else hi
     return Located(best, lo, hi, it, converged)
+
+
+def nearest_samples(samples: list[Sample[Any]], s: float, k: int) -> list[Sample[Any]]:
+    """The k samples nearest s (distinct s)."""
+    uniq = {x.s: x for x in samples}
+    return sorted(uniq.values(), key=lambda x: abs(x.s - s))[:k]
+
+
+def _interpolated_zero(samples: list[Sample[Any]], lo_s: float, hi_s: float, tol: float) -> float | None:
+    """s(g = 0) by inverse polynomial interpolation through the samples nearest the bracket
+    [lo_s, hi_s]: the quadratic estimate (3 samples) if the cubic one (4 samples) agrees with
+    it within max(tol, SINGULAR_FLOOR sqrt(tol)) and it lies in the bracket, else None."""
+    mid = 0.5 * (lo_s + hi_s)
+    near = nearest_samples(samples, mid, 4)
+    if len(near) < 4 or len({x.g for x in near}) < 4:
+        return None
+    import numpy as np
+
+    def estimate(pts: list[Sample[Any]]) -> float:
+        g = np.array([x.g for x in pts])
+        sv = np.array([x.s for x in pts])
+        scale = float(np.max(np.abs(g)))  # Lagrange form of s(g) at g = 0
+        gn = g / scale
+        total = 0.0
+        for i in range(len(pts)):
+            w = 1.0
+            for j in range(len(pts)):
+                if j != i:
+                    w *= (0.0 - gn[j]) / (gn[i] - gn[j])
+            total += w * sv[i]
+        return float(total)
+
+    s2, s3 = estimate(near[:3]), estimate(near)
+    # the same floor as a bracket that cannot be split (SINGULAR_FLOOR * sqrt(tol))
+    if abs(s2 - s3) <= max(tol, SINGULAR_FLOOR * max(tol, 1e-300) ** 0.5) and lo_s <= s2 <= hi_s:
+        return s2
+    return None
+
+
+def lagrange_state(samples: list[Sample[Any]], s: float, state: Callable[[Any], Any], k: int = 4) -> Any:
+    """Interpolated state at s through the k samples nearest s (Lagrange in s)."""
+    near = nearest_samples(samples, s, k)
+    out = 0.0
+    for i, a in enumerate(near):
+        w = 1.0
+        for j, b in enumerate(near):
+            if j != i:
+                w *= (s - b.s) / (a.s - b.s)
+        out = out + w * state(a.point)
+    return out
 
 
 def outside_bracket(p: float, pa: float, pb: float, tol: float, bounds: tuple[float, float] | None = None) -> str | None:

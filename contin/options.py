@@ -97,11 +97,15 @@ class DetectionOptions:
         eigenvalues is not meaningful there: J is the steady residual's Jacobian with
         algebraic rows, not the linearised dynamics).
     detect_hopf : Hopf points (HB, ``contin.hopf``): a complex pair of eigenvalues of
-        J x = omega M x crossing the imaginary axis.  Needs eigenvalues at every point, so the
-        default None means "on for n <= :data:`HOPF_AUTO_MAX` unknowns and problems without
-        their own ``eigenproblem``" (whose stability is a family in kx, kz: locate their Hopf
-        points with ``contin.stability.locate_hopf``) and that are no augmented systems (fold
-        and Hopf curves, which have ``point_tests``); True / False force it.
+        J x = omega M x crossing the imaginary axis.  The default None means on for problems
+        without their own ``eigenproblem`` (whose stability is a family in kx, kz: locate
+        their Hopf points with ``contin.stability.locate_hopf`` / ``contin.hopfscan``) that
+        are no augmented systems (fold and Hopf curves, which have ``point_tests``), and that
+        have at most :data:`HOPF_AUTO_MAX` unknowns or a ``mass_matrix`` (above that size,
+        M = I would count a discretization's algebraic rows as dynamics); eigenvalues by dense
+        QZ up to HOPF_AUTO_MAX unknowns, else the ``hopf_eigs`` nearest 0 by shift-invert
+        ARPACK (a pair beyond the hopf_eigs-th eigenvalue magnitude is not seen).  True /
+        False force it (dense up to ``hopf_dense_max``).
     hopf_eigs : eigenvalues nearest 0 computed per point when n > ``hopf_dense_max`` (shift-
         invert ARPACK); all of them (dense QZ) below.
     """
@@ -127,7 +131,8 @@ class DetectionOptions:
 #: k of the eigenvalue-count BP detector when DetectionOptions.bp_eigenvalues is None (auto).
 BP_EIGS_AUTO = 12
 
-#: DetectionOptions.detect_hopf=None detects Hopf points on problems with at most this many unknowns.
+#: DetectionOptions.detect_hopf=None: Hopf detection with M = I (no mass_matrix) up to this many
+#: unknowns, and the size up to which its eigenvalues are dense (shift-invert ARPACK above).
 HOPF_AUTO_MAX = 100
 
 

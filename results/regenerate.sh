@@ -11,12 +11,12 @@ contin trace pitchfork -s nu=0.3 -s e=0.8 -q -o results/pitchfork.h5
 contin diagram results/pitchfork.h5 -o results/pitchfork.png
 contin profiles results/pitchfork.h5 --at H=25 --names nu,u,T -o results/profiles_H25.png
 contin profiles results/pitchfork.h5 --at H=30 --names nu,u,T -o results/profiles_H30.png
-# nu:H_max:grid -- at nu = 0.5 the n = 1 plug is within 4e-7 of packing by H = 40 and needs
-# cheb 96 (cheb 64 is stopped by the resolution guard at H = 36.7); at nu = 0.16 the n = 1 plug
-# at H = 100 is 0.02 below packing and cheb 64 does not resolve it either
-for spec in 0.5:40:96 0.16:100:96 0.15:100:64; do
-    IFS=: read -r nu hmax grid <<< "$spec"
-    contin trace pitchfork -s "nu=$nu" -s e=0.8 -s "H_max=$hmax" --grid "$grid" -q -o "results/pitchfork_nu$nu.h5"
+# nu:H_max -- no grid flag: the adaptive default (--tol 3e-5) refines where the plug nears
+# packing (at nu = 0.5 the n = 1 plug is within 4e-7 of packing by H = 40; at nu = 0.16 the
+# n = 1 plug at H = 100 is 0.02 below packing), which a fixed cheb 64 did not resolve
+for spec in 0.5:40 0.16:100 0.15:100; do
+    IFS=: read -r nu hmax <<< "$spec"
+    contin trace pitchfork -s "nu=$nu" -s e=0.8 -s "H_max=$hmax" -q -o "results/pitchfork_nu$nu.h5"
     contin diagram "results/pitchfork_nu$nu.h5" -o "results/pitchfork_nu$nu.png"
 done
 # jj-walls (issue 3; ~10 s): Johnson-Jackson walls at the scene defaults
@@ -35,9 +35,10 @@ python results/sweeps/plot_criticality.py
 # ---- gravity (issue 5)
 mkdir -p results/gravity
 # fold curves in (H, G): the gravity-phase scene (numbers under "extra" of the JSON); the curves'
-# file is only needed for the figure (augmented states, ~MBs), so it goes to a temporary file
+# file is only needed for the figure (augmented states, ~MBs), so it goes to a temporary file; no grid flag:
+# each fold curve stopped by the resolution guard is retraced on a finer grid (cheb 32 -> 96 here)
 phase_h5="$(mktemp -d)/phase_nu0.3.h5"
-contin trace gravity-phase --grid 96 -s H_max=70 --json -q -o "$phase_h5" > results/gravity/unfold_nu0.3.json
+contin trace gravity-phase -s H_max=70 --json -q -o "$phase_h5" > results/gravity/unfold_nu0.3.json
 python results/gravity/make_figures.py phase "$phase_h5"
 rm -f "$phase_h5"
 # normal form at the first pitchfork: branches near it at small G, then the generic fit at its label

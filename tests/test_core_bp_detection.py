@@ -202,3 +202,45 @@ def test_stability_audit_checks_kernel_dimensions() -> None:
     br.special_points = wrong
     (msg,) = audit(br)
     assert "n_unstable changes by 2" in msg and "add up to 1" in msg
+
+
+def test_swift_hohenberg_secondary_branch_bps_are_located() -> None:
+    """Issue 12 regression: the BPs of a secondary Swift-Hohenberg branch (switched at the
+    fourth BP of u = 0) ended "location did not converge": next to them the corrector's update
+    (rounding floor x condition ~ 1/distance) never met the step tolerance, in a band ~1e-5 wide
+    that the locator could not split.  Now located by inverse interpolation across that band
+    (contin.locate._interpolated_zero): converged, inside the bracket, and at the point where
+    an independent scipy solve (Levenberg-Marquardt) of F = 0, J v = 0, <v, v> = 1 puts them."""
+    import scipy.linalg as la
+    from scipy.optimize import least_squares
+
+    from contin.continuation import switch
+
+    pb = SwiftHohenberg()
+    step = StepOptions(ds=0.01, ds_max=0.02, max_angle=0.3)
+    root = trace(pb, np.zeros(pb.N), {"lam": 0.5, "nu": 2.0}, "lam",
+                 ContinuationOptions(bounds={"lam": (0.5, 0.56)}, step=step))
+    (start,) = root.branch_points
+    assert start.params["lam"] == pytest.approx(pb.trivial_branch_points(-1, 1)[3], abs=1e-8)
+    kid = switch(pb, root, start, ContinuationOptions(bounds={"lam": (-0.33, 0.6)}, max_steps=1000, step=step))[0]
+    bps = kid.branch_points
+    assert len(bps) == 2
+    n = pb.N
+    for bp in bps:
+        lam = bp.params["lam"]
+        assert bp.converged, bp.note
+        assert min(bp.bracket) <= lam <= max(bp.bracket)
+        u = bp.state
+        J = pb.jacobian(u, bp.params).toarray()
+        v = la.svd(J)[2][-1]
+
+        def g(z: np.ndarray) -> np.ndarray:
+            p = {"lam": z[n], "nu": 2.0}
+            return np.concatenate([pb.residual(z[:n], p), pb.jacobian(z[:n], p) @ z[n + 1:], [z[n + 1:] @ z[n + 1:] - 1]])
+
+        ref = least_squares(g, np.concatenate([u, [lam], v]), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        assert np.max(np.abs(g(ref.x))) < 1e-9  # the reference solves the augmented system
+        assert abs(ref.x[n] - lam) < 5e-9
+        assert np.max(np.abs(ref.x[:n] - u)) < 1e-5
+        sv = la.svdvals(J)
+        assert sv[-1] < 1e-6 * sv[-2]  # a kernel at the located state itself

@@ -231,3 +231,31 @@ def test_demo_models_have_exact_derivatives():
     model = CO()
     chk = check_jacobian(model, np.array([0.05, 0.3, 0.45]), {**CO.PARAMS, "q2": 1.05}, parameters=model.parameter_names)
     assert chk.relative_error < 1e-7 and max(chk.dp_errors.values()) < 1e-7
+
+
+def test_hopf_detection_is_on_by_default_for_large_n_with_a_mass_matrix():
+    """detect_hopf=None at n = 400 unknowns: on when the problem states its dynamics (mass_matrix,
+    here M = I), by shift-invert ARPACK (above HOPF_AUTO_MAX the auto mode is never dense); off
+    without a mass matrix (M = I assumed only up to HOPF_AUTO_MAX unknowns)."""
+    import scipy.sparse as sp
+
+    from contin.hopf import hopf_test
+    from contin.options import HOPF_AUTO_MAX
+
+    class WithMass(Brusselator1D):
+        def mass_matrix(self, u, p):
+            return sp.identity(2 * self.n, format="csr")
+
+    n = 200
+    par = Brusselator1D.PARAMS
+    model = WithMass(n)
+    ref = [l for l in brusselator_hopf_reference(n, par) if l < 1.2]
+    assert len(ref) == 2 and 2 * n > HOPF_AUTO_MAX
+    test = hopf_test(model, DetectionOptions(), 2 * n)
+    assert test is not None and test.dense_max == HOPF_AUTO_MAX
+    assert hopf_test(Brusselator1D(n), DetectionOptions(), 2 * n) is None
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"l": (0.3, 1.2)}, detection=DetectionOptions())
+    br = trace(model, model.trivial(par), par, "l", opts)
+    hb = br.points("HB")
+    assert [sp.params["l"] for sp in hb] == pytest.approx(ref, rel=1e-10)
+    assert all(sp.converged for sp in hb)

@@ -44,12 +44,14 @@ arclength weight of the parameter is theta = 1/G_target^2 (the homotopy is then 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from contin.adapt import on_grid, retrace_finer
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, trace_both
 from contin.foldcurve import trace_fold_curve
@@ -57,6 +59,7 @@ from contin.jumps import jumped, trace_both_ways
 from contin.jumps import trim_self_overlap as _trim_self_overlap
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
 from contin.options import (
+    AdaptOptions,
     ContinuationOptions,
     DetectionOptions,
     NewtonOptions,
@@ -558,7 +561,8 @@ class PhaseDiagram:
 
 def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], base: Branch, kids: Sequence[Branch],
                           *, H_range: tuple[float, float] = (1.0, 50.0), Fr_start: float = 2000.0,
-                          max_steps: int = 300, progress: Callable[[str], None] | None = None) -> list[Branch]:
+                          max_steps: int = 300, progress: Callable[[str], None] | None = None,
+                          refine: AdaptOptions | None = None) -> list[Branch]:
     """Fold curves in (H, G) through the imperfect symmetry-breaking pitchforks of ``base``
     (gravity-free uniform shear with its banded branches ``kids``, :func:`gravity_free_branches`).
 
@@ -570,39 +574,32 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     already at G = 0), the G = 0 fold of the banded branch is continued instead.  Without a BP
     (below the threshold density) the folds of the first gravity-free banded branch are
     continued in (H, G) instead.
+
+    ``refine`` (AdaptOptions; None: the fixed grid, a fold curve the resolution guard stops ends
+    MX): a pitchfork's fold curve that stops under-resolved is retraced on finer grids, up to
+    ``refine.max_grid`` (:func:`contin.adapt.retrace_finer`); such a curve's ``grid`` column
+    holds the grid it was traced on and its audit names the grids tried.
     """
     say = progress or (lambda m: None)
     bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
-    G0 = Fr_start ** -2.0
     curves: list[Branch] = []
     for k, bp in enumerate(bps):
-        Hc = bp.params["H"]
-        # dense-top half of the banded branch of this BP (ids g0.<mode>.1/2, both signs)
-        mode = base.branch_points.index(bp) + 1
-        tops = [b for b in kids if b.id.startswith(f"g0.{mode}.") and b.observables["phi"][-1] > params["nu"]]
-        if not tops:
-            continue
-        top = tops[0]
-        i = int(np.argmin(np.abs(top.params["H"] - (Hc + 3.0))))
-        p = _params_at(top, i)
-        x = homotopy_in_G(problem, top.state(i), p, G0)
-        lps = []
-        if x is not None:
-            local = GravitySettings(H_range=(max(H_range[0], Hc - 2.0), min(H_range[1], Hc + 4.0)), max_steps=400)
-            b = trace_in_H(problem, x, {**p, "G": G0}, local, branch_id=f"seed{k}")
-            lps = [lp for lp in b.fold_points if lp.converged and abs(lp.params["H"] - Hc) < 2.0]
-        if not lps:
-            # subcritical pitchfork: its fold is on the banded branch already at G = 0
-            for c in fold_curves(problem, [top], bounds={"H": H_range}, max_steps=max_steps):
-                c.id = f"fold{k}"
-                c.parent = f"fold of {top.id} at G=0 (BP at H={Hc:.6g})"
-                curves.append(c)
-            continue
-        say(f"gravity: fold curve from the pitchfork at H = {Hc:.6g}")
-        c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps)[0]
-        c.id = f"fold{k}"
-        c.parent = f"BP at H={Hc:.6g}"
-        curves.append(c)
+        # each pitchfork's fold curve on the grid that resolves it (the dense plugs at large H
+        # need more points than the gravity-free branches it starts from): retraced on finer
+        # grids while the resolution guard stops it (contin.adapt.retrace_finer)
+        def compute(pb: CouetteProblem, k: int = k, bp: SpecialPoint = bp) -> list[Branch]:
+            return _bp_fold_curves(pb, problem, params, base, kids, k, bp, H_range, Fr_start, max_steps, say)
+
+        if refine is None:
+            found, sizes = compute(problem), [int(problem.grid_size)]
+        else:
+            _, found, sizes = retrace_finer(problem, compute, refine, suggest=_suggest_for_curves)
+        for c in found:
+            c.grid = np.full(len(c), sizes[-1], dtype=np.int64) if sizes[-1] != int(problem.grid_size) else None
+            if len(sizes) > 1:
+                c.audit.append(f"fold curve retraced on grids {', '.join(map(str, sizes))}: under-resolved on the "
+                               f"coarser ones")
+        curves += found
     if not bps and kids:
         # below the threshold density: the folds of the gravity-free banded branch (no BP)
         for c in fold_curves(problem, kids[:1], bounds={"H": H_range}, max_steps=max_steps):
@@ -611,9 +608,72 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     return curves
 
 
+def suggest_grid_for(problem: CouetteProblem, stopped: Sequence[Branch], factor: float = 2.0) -> int:
+    """Grid for branches (or fold curves: their states start with the problem's state) that
+    stopped under-resolved: ``factor`` times what the resolution estimate asks for at their two
+    ends (the plug keeps densifying past the stop, up to H_max, so the grid that just meets tol
+    at the stop would stop again further on: cheb 48 at fold0's stop at nu = 0.3, 72 stops
+    again, 96 reaches H = 70).  For :func:`contin.adapt.retrace_finer`."""
+    n, want = problem.size, int(problem.grid_size)
+    for c in stopped:
+        for j in (0, len(c) - 1):
+            p = {k: float(v[j]) for k, v in c.params.items()}
+            asked = problem.suggest_grid(np.asarray(c.states[j][:n], float), p, RESOLUTION_TOL)
+            want = max(want, int(math.ceil(factor * asked)))
+    return want
+
+
+_suggest_for_curves = suggest_grid_for
+
+
+def _on(problem: CouetteProblem, source: CouetteProblem, branch: Branch) -> Branch:
+    """``branch`` with its fold points carried from ``source``'s grid onto ``problem``'s."""
+    if problem is source:
+        return branch
+    moved = [replace(s, state=source.transfer(np.asarray(s.state, float), problem)) for s in branch.fold_points]
+    return replace(branch, special_points=moved)
+
+
+def _bp_fold_curves(problem: CouetteProblem, source: CouetteProblem, params: Mapping[str, float], base: Branch,
+                    kids: Sequence[Branch], k: int, bp: SpecialPoint, H_range: tuple[float, float], Fr_start: float,
+                    max_steps: int, say: Callable[[str], None]) -> list[Branch]:
+    """The fold curve(s) of the k-th symmetry-breaking pitchfork ``bp`` on ``problem``'s grid
+    (``base`` and ``kids`` were traced on ``source``'s; their states are carried over)."""
+    G0 = Fr_start ** -2.0
+    Hc = bp.params["H"]
+    # dense-top half of the banded branch of this BP (ids g0.<mode>.1/2, both signs)
+    mode = base.branch_points.index(bp) + 1
+    tops = [b for b in kids if b.id.startswith(f"g0.{mode}.") and b.observables["phi"][-1] > params["nu"]]
+    if not tops:
+        return []
+    top = tops[0]
+    i = int(np.argmin(np.abs(top.params["H"] - (Hc + 3.0))))
+    p = _params_at(top, i)
+    u = top.state(i) if problem is source else source.transfer(np.asarray(top.state(i), float), problem)
+    x = homotopy_in_G(problem, u, p, G0)
+    lps = []
+    if x is not None:
+        local = GravitySettings(H_range=(max(H_range[0], Hc - 2.0), min(H_range[1], Hc + 4.0)), max_steps=400)
+        b = trace_in_H(problem, x, {**p, "G": G0}, local, branch_id=f"seed{k}")
+        lps = [lp for lp in b.fold_points if lp.converged and abs(lp.params["H"] - Hc) < 2.0]
+    out = []
+    if not lps:
+        # subcritical pitchfork: its fold is on the banded branch already at G = 0
+        for c in fold_curves(problem, [_on(problem, source, top)], bounds={"H": H_range}, max_steps=max_steps):
+            c.id = f"fold{k}"
+            c.parent = f"fold of {top.id} at G=0 (BP at H={Hc:.6g})"
+            out.append(c)
+        return out
+    say(f"gravity: fold curve from the pitchfork at H = {Hc:.6g} (cheb {problem.grid_size})")
+    c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps)[0]
+    c.id = f"fold{k}"
+    c.parent = f"BP at H={Hc:.6g}"
+    return [c]
+
+
 def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_range: tuple[float, float] = (1.0, 50.0),
                   Fr_start: float = 2000.0, max_steps: int = 300,
-                  progress: Callable[[str], None] | None = None) -> PhaseDiagram:
+                  progress: Callable[[str], None] | None = None, refine: AdaptOptions | None = None) -> PhaseDiagram:
     """Fold curves in (H, G) through the imperfect pitchforks (symmetry-breaking BPs of uniform
     shear inside ``H_range``, :func:`pitchfork_fold_curves`) and their G-extrema.
 
@@ -624,8 +684,9 @@ def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_ran
     settings = GravitySettings(H_range=H_range, modes=3)
     base, kids = gravity_free_branches(problem, {**params, "G": 0.0}, settings, progress)
     curves = pitchfork_fold_curves(problem, params, base, kids, H_range=H_range, Fr_start=Fr_start,
-                                   max_steps=max_steps, progress=progress)
-    ext = extrema(curves, problem=problem)
+                                   max_steps=max_steps, progress=progress, refine=refine)
+    # each curve's extrema checked on the grid it was traced on (pitchfork_fold_curves)
+    ext = [r for c in curves for r in extrema([c], problem=problem if c.grid is None else on_grid(problem, c.grid_at(0)))]
     ok = [r for r in ext if r["resolved"]]
     bad = [r for r in ext if not r["resolved"]]
     first = [r for r in ok if r["curve"] == "fold0" and r["extremum"] == "max"]

@@ -5,7 +5,8 @@
   (:func:`problems.couette.gravity.phase_diagram`); ``extra`` holds where fold pairs / isolas
   are born and die (extrema of G along the curves, XT points), the smallest Fr with a
   floating-plug state (``fr_min_floating_plug``) and the critical gaps.
-  ``contin trace gravity-phase --grid 96 -s H_max=70 --json -o phase.h5``.
+  ``contin trace gravity-phase -s H_max=70 --json -o phase.h5`` (without ``--grid`` a fold curve
+  the resolution guard stops is retraced on a finer grid: ``contin.adapt.retrace_finer``).
 - ``gravity-unfolding`` (was ``contin fit --compute``): uniform shear at G = 0 traced in H
   with its first pitchfork (labelled, e.g. BP1 on branch g0), both halves of the pitchfork, and
   every solution component in |H - H_c| <= window at each G of ``G`` (a comma list), each
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import relabel
+from contin.options import AdaptOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_number, scene_params
 from problems.couette.gravity import gravity_problem, phase_diagram
 from problems.couette.model import rebuilt_engine
@@ -66,8 +68,11 @@ def run_phase(request: SceneRequest) -> SceneResult:
     pb = _problem(request, PHASE_GRID)
     max_steps = int(request.overrides.get("max_steps", 300))
     params = pb.params({"nu": s["nu"], "e": s["e"]})
+    # no --grid: a fold curve the resolution guard stops is retraced on finer grids (the
+    # dense plugs at large H need more points than the start); --grid fixes the grid
+    refine = None if request.grid else AdaptOptions(max_grid=int(request.overrides.get("max_grid") or 512))
     d = phase_diagram(pb, params, H_range=(s["H_min"], s["H_max"]), Fr_start=s["Fr_start"], max_steps=max_steps,
-                      progress=request.report)
+                      progress=request.report, refine=refine)
     relabel(d.curves)
     for c in d.curves:
         request.finished(c)
