@@ -13,8 +13,8 @@ Reusable pieces of the ``pitchfork`` and ``jj-walls`` scenes (``problems.couette
 - :func:`banded_branches` -- switching at a BP onto both signs of the banded branch (the second
   sign as the mirror image S x of the first when the first is not S-invariant);
   the ``pitchfork`` and ``jj-walls`` scenes build the same with ``contin.diagram`` (their
-  choices: :class:`WallCoordinates`, :func:`first_point_on` as the jump test), the gravity
-  scenes still call it;
+  choices: :class:`WallCoordinates`, :func:`first_point_on` as the jump test; so does
+  gravity.gravity_free_branches through :func:`banded_diagram`);
 - :func:`mirror_branch` -- the image of a branch under the reflection symmetry;
 - :func:`density_continuation` -- a banded state at a density where uniform shear has no BP,
   reached by continuation in nu at fixed H from a density where the BP exists;
@@ -687,17 +687,8 @@ def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, floa
 
 
 def audit_branch(branch: Branch) -> list[str]:
-    """``contin.stability.audit`` of the branch, except at the start of a switched branch.
-
-    Point 0 of a branch from :func:`contin.continuation.switch` is the parent's BP itself: one
-    eigenvalue is exactly zero there and its computed sign is rounding noise, and the BP is a
-    special point of the parent, not of this branch.  The audit therefore sees point 0 with the
-    unstable count of point 1 (the stored columns keep the computed values).
-    """
-    n_unstable = branch.n_unstable
-    if "@" in branch.parent and n_unstable is not None and len(n_unstable) > 1:
-        view = dataclasses.replace(branch, n_unstable=np.concatenate([n_unstable[1:2], n_unstable[1:]]))
-        return audit(view)
+    """``contin.stability.audit`` of the branch (which counts point 0 of a switched branch, the
+    parent's BP with its exactly-zero eigenvalue, with the unstable count of point 1)."""
     return audit(branch)
 
 
