@@ -146,15 +146,21 @@ def g_options(G: float, max_steps: int = 80) -> ContinuationOptions:
 def gravity_free_branches(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings,
                           progress: Callable[[str], None] | None = None) -> tuple[Branch, list[Branch]]:
     """Uniform shear (G = 0) traced in H and both signs of the banded branches at its first
-    ``settings.modes`` branch points (problems.couette.pitchfork.banded_branches)."""
-    from problems.couette.pitchfork import banded_branches, trace_base
+    ``settings.modes`` branch points, ids g0 and g0.<k>.1 / g0.<k>.2, by the core diagram builder
+    (problems.couette.pitchfork.banded_diagram)."""
+    from problems.couette.pitchfork import banded_diagram
 
-    p = {**params, "G": 0.0}
+    p = {**params, "G": 0.0, "H": settings.H_range[0]}
     opts = settings.g0_options()
-    base = trace_base(problem, p, settings.H_range[0], opts, branch_id="g0", progress=progress)
-    kids: list[Branch] = []
-    for k, bp in enumerate(base.branch_points[: settings.modes], start=1):
-        kids += banded_branches(problem, base, bp, p, opts, prefix=f"g0.{k}")
+
+    def finish(b: Branch, bp: Any, k: int) -> None:
+        if bp is None:
+            b.kind = "uniform shear" if problem.walls == "noslip" else "base"
+
+    d = banded_diagram(problem, p, opts, opts, lambda base: list(enumerate(base.branch_points[: settings.modes], start=1)),
+                       H_scale=settings.H_range[1], base_id="g0", finish=finish, progress=progress)
+    base = d.branch("g0")
+    kids: list[Branch] = [b for b in d.branches if b.id != "g0"]
     if not base.branch_points and settings.modes >= 1:
         kids = low_density_banded(problem, p, settings, progress)
     return base, kids
