@@ -113,6 +113,7 @@ class DiagramHooks:
     completed : branches of an interrupted run by id, reused instead of traced (``--resume``)
     options(parent) -> ContinuationOptions : the options of the start branch (parent None) and of
         the branches switched off ``parent`` (default: the ``options`` argument for every branch)
+    start_id : the id of the start branch
     """
 
     switch_at: Callable[[Branch, SpecialPoint], str | None] | None = None
@@ -122,6 +123,7 @@ class DiagramHooks:
     on_branch: Callable[[Branch, Branch | None], None] | None = None
     completed: Mapping[str, Branch] = field(default_factory=dict)
     options: Callable[[Branch | None], ContinuationOptions] | None = None
+    start_id: str = "0"
 
 
 @dataclass
@@ -208,11 +210,11 @@ def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], pa
         opts = hooks.options(None) if hooks.options is not None else options
         if settings.retraces == 0:
             return run(opts)
-        return retrace_on_jumps(run, opts, what="base branch" if bid == "0" else f"branch {bid}",
+        return retrace_on_jumps(run, opts, what="base branch" if bid == hooks.start_id else f"branch {bid}",
                                 retraces=settings.retraces)
 
     say(f"diagram: start branch in {parameter}")
-    add(trace_from(u0, params, "0", "primary", "", settings.start_direction), 1)
+    add(trace_from(u0, params, hooks.start_id, "primary", "", settings.start_direction), 1)
     for k, seed in enumerate(seeds):
         twin = on_known(seed.state, seed.params)
         if twin is not None:

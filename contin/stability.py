@@ -410,6 +410,8 @@ def audit(branch: Branch) -> list[str]:
     :mod:`contin.continuation`, which start with ``"step "``, are kept in front).  An empty
     list means consistent.
 
+    Point 0 of a switched branch (its parent's BP) counts with point 1's ``n_unstable``.
+
     Raises
     ------
     ValueError
@@ -418,6 +420,12 @@ def audit(branch: Branch) -> list[str]:
     if branch.n_unstable is None:
         raise ValueError(f"branch {branch.id} has no stability data; run stability_pass first")
     nu = np.asarray(branch.n_unstable)
+    if "@" in branch.parent and len(nu) > 1 and nu[0] >= 0:
+        # Point 0 of a switched branch (contin.continuation.switch: parent "BPk@id") is the
+        # parent's BP itself: one eigenvalue is exactly zero there, its computed sign is rounding
+        # noise, and the BP is a special point of the parent, not of this branch; it is audited
+        # with the count of point 1 (the stored column keeps the computed value).
+        nu = np.concatenate([nu[1:2], nu[1:]])
     s = len(nu)
     par = branch.parameter
     pv = branch.params.get(par, np.full(s, np.nan))

@@ -345,3 +345,25 @@ def test_nu016_isola_at_Fr_2500_dies_at_2426(pbf):
     (iso,) = _isola_checks(d)
     assert sorted(s.params["H"] for s in iso.fold_points) == pytest.approx([51.433, 61.865], abs=2e-3)
     assert d.found_by[iso.id] == ["homotopy", "fold-curve"]
+
+
+@pytest.mark.slow
+def test_phase_diagram_retraces_a_stopped_fold_curve_on_a_finer_grid():
+    """Issue 14 sec. 1 (no --grid for gravity-phase): on cheb 16 the resolution guard stops the
+    first pitchfork's fold curve at H = 22.7 (Fr* then 254.1196, 3e-6 off); with ``refine`` the
+    curve is retraced on the grid twice the estimate's suggestion (cheb 64), reaches H = 30 and
+    gives Fr* = 254.12037995 (the cheb 96 value of results/gravity/unfold_nu0.3.json,
+    254.120379954, to 1e-10)."""
+    from contin.options import AdaptOptions
+    from problems.couette.gravity import phase_diagram
+
+    pb = gravity_problem("cheb", 16, engine="auto")
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    fixed = phase_diagram(pb, p, H_range=(1.0, 30.0))
+    assert [c.status for c in fixed.curves] == ["MX"] and "under-resolved" in fixed.curves[0].message
+    d = phase_diagram(pb, p, H_range=(1.0, 30.0), refine=AdaptOptions())
+    (c,) = d.curves
+    assert c.status == "EP" and c.grid_at(0) == c.grid_at(len(c) - 1) > 16
+    assert any("retraced on grids 16, " in line for line in c.audit)
+    assert d.fr_min_floating_plug == pytest.approx(254.120379954, rel=1e-10)
+    assert abs(fixed.fr_min_floating_plug - 254.120379954) > 1e-4  # the coarse grid's value is off

@@ -215,3 +215,20 @@ def test_stability_pass_failure_is_marked_and_audited():
     assert any("stability unknown at point 4" in m for m in msgs)
     with pytest.raises(ValueError, match="stability_pass"):
         audit(_branch(lam, np.zeros((5, 1))))
+
+
+def test_audit_counts_point0_of_a_switched_branch_with_point1():
+    """Point 0 of a switched branch is its parent's BP (a zero eigenvalue, its sign rounding
+    noise): a change of n_unstable between points 0 and 1 is no disagreement there, but is one
+    on a branch that does not start at a BP; the stored column is not altered."""
+    b = _branch([1.0, 1.1, 1.2], np.zeros((3, 1)))
+    b.n_unstable = np.array([0, 1, 1])
+    b.parent = "BP2@0"
+    assert audit(b) == [] and list(b.n_unstable) == [0, 1, 1]
+    b.parent = ""
+    (msg,) = audit(b)
+    assert "changes 0 -> 1 between points 0 and 1" in msg
+    b.parent = "BP2@0"
+    b.n_unstable = np.array([0, 1, 2])  # a change later on is still reported
+    (msg,) = audit(b)
+    assert "between points 1 and 2" in msg

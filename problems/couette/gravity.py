@@ -44,6 +44,7 @@ arclength weight of the parameter is theta = 1/G_target^2 (the homotopy is then 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -145,15 +146,21 @@ def g_options(G: float, max_steps: int = 80) -> ContinuationOptions:
 def gravity_free_branches(problem: CouetteProblem, params: Mapping[str, float], settings: GravitySettings,
                           progress: Callable[[str], None] | None = None) -> tuple[Branch, list[Branch]]:
     """Uniform shear (G = 0) traced in H and both signs of the banded branches at its first
-    ``settings.modes`` branch points (problems.couette.pitchfork.banded_branches)."""
-    from problems.couette.pitchfork import banded_branches, trace_base
+    ``settings.modes`` branch points, ids g0 and g0.<k>.1 / g0.<k>.2, by the core diagram builder
+    (problems.couette.pitchfork.banded_diagram)."""
+    from problems.couette.pitchfork import banded_diagram
 
-    p = {**params, "G": 0.0}
+    p = {**params, "G": 0.0, "H": settings.H_range[0]}
     opts = settings.g0_options()
-    base = trace_base(problem, p, settings.H_range[0], opts, branch_id="g0", progress=progress)
-    kids: list[Branch] = []
-    for k, bp in enumerate(base.branch_points[: settings.modes], start=1):
-        kids += banded_branches(problem, base, bp, p, opts, prefix=f"g0.{k}")
+
+    def finish(b: Branch, bp: Any, k: int) -> None:
+        if bp is None:
+            b.kind = "uniform shear" if problem.walls == "noslip" else "base"
+
+    d = banded_diagram(problem, p, opts, opts, lambda base: list(enumerate(base.branch_points[: settings.modes], start=1)),
+                       H_scale=settings.H_range[1], base_id="g0", finish=finish, progress=progress)
+    base = d.branch("g0")
+    kids: list[Branch] = [b for b in d.branches if b.id != "g0"]
     if not base.branch_points and settings.modes >= 1:
         kids = low_density_banded(problem, p, settings, progress)
     return base, kids
@@ -601,16 +608,22 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     return curves
 
 
-def _suggest_for_curves(problem: CouetteProblem, stopped: Sequence[Branch]) -> int:
-    """Grid for fold curves that stopped under-resolved: twice what the resolution estimate asks
-    for at their two ends (the plug keeps densifying past the stop, up to H_max, so the grid
-    that just meets tol at the stop would stop again further on)."""
+def suggest_grid_for(problem: CouetteProblem, stopped: Sequence[Branch], factor: float = 2.0) -> int:
+    """Grid for branches (or fold curves: their states start with the problem's state) that
+    stopped under-resolved: ``factor`` times what the resolution estimate asks for at their two
+    ends (the plug keeps densifying past the stop, up to H_max, so the grid that just meets tol
+    at the stop would stop again further on: cheb 48 at fold0's stop at nu = 0.3, 72 stops
+    again, 96 reaches H = 70).  For :func:`contin.adapt.retrace_finer`."""
     n, want = problem.size, int(problem.grid_size)
     for c in stopped:
         for j in (0, len(c) - 1):
             p = {k: float(v[j]) for k, v in c.params.items()}
-            want = max(want, 2 * int(problem.suggest_grid(np.asarray(c.states[j][:n], float), p, RESOLUTION_TOL)))
+            asked = problem.suggest_grid(np.asarray(c.states[j][:n], float), p, RESOLUTION_TOL)
+            want = max(want, int(math.ceil(factor * asked)))
     return want
+
+
+_suggest_for_curves = suggest_grid_for
 
 
 def _on(problem: CouetteProblem, source: CouetteProblem, branch: Branch) -> Branch:

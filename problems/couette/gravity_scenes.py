@@ -11,6 +11,9 @@ branch.
 Defaults: Chebyshev N = 64 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
 under-resolved already at H ~ 30-40 (the continuation stops them with MX 'under-resolved'),
 and at nu = 0.3, Fr = 1000 the isola of the third pitchfork spans H = 41.90 .. 63.48.
+Without ``--grid`` a run where a branch stops under-resolved is repeated on the grid the
+resolution estimate asks for at the stop (``contin.adapt.retrace_finer``; Fr = 50 to H = 30:
+cheb 64 stops at H = 21.8, the rerun on cheb 144 reaches H = 30); ``--grid N`` fixes the grid.
 """
 
 from __future__ import annotations
@@ -20,9 +23,11 @@ from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
+from contin.adapt import retrace_finer
 from contin.branch import relabel
+from contin.options import AdaptOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_params
-from problems.couette.gravity import GravitySettings, discover, gravity_problem
+from problems.couette.gravity import GravitySettings, discover, gravity_problem, suggest_grid_for
 from problems.couette.model import rebuilt_engine
 
 GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 70.0,
@@ -66,7 +71,22 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     settings = GravitySettings(H_range=(s["H_min"], s["H_max"]), modes=int(s["modes"]))
     o = request.options_for(settings.h_options())
     settings = replace(settings, ds=o.step.ds, ds_max=o.step.ds_max, max_steps=o.max_steps)
-    diagram = discover(pb, params, settings, progress=request.report)
+    if request.grid:
+        diagram = discover(pb, params, settings, progress=request.report)
+    else:
+        # no --grid: the whole discovery is retraced on a finer grid while a branch stops
+        # under-resolved (dense plugs at strong gravity: Fr = 50 stops at H = 21.8 on cheb 64)
+        def compute(problem: Any) -> list[Any]:
+            holder[:] = [discover(problem, params, settings, progress=request.report)]
+            return holder[0].branches
+
+        holder: list[Any] = []
+        opts = AdaptOptions(max_grid=int(request.overrides.get("max_grid") or 512))
+        pb, _, sizes = retrace_finer(pb, compute, opts, suggest=lambda problem, stopped: suggest_grid_for(
+            problem, stopped, factor=1.0))
+        diagram = holder[0]
+        if len(sizes) > 1:
+            request.report(f"gravity: retraced on grids {', '.join(map(str, sizes))}")
     branches = diagram.branches
     relabel(branches)
     if request.stability:
@@ -76,6 +96,8 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     for b in branches:
         request.finished(b)
     notes = [f"G = Fr^-2 = {params['G']:.6g}"]
+    if not request.grid and len(sizes) > 1:
+        notes.append(f"retraced on grids {', '.join(map(str, sizes))}: a branch stopped under-resolved on the coarser ones")
     notes += [f"branch {b.id}: {b.kind}, traced from a {diagram.routes[b.id]} seed, found by "
               f"{' + '.join(diagram.found_by[b.id])}, {len(b.fold_points)} folds"
               + (", closed" if b.closed else "") for b in branches]

@@ -13,8 +13,8 @@ Reusable pieces of the ``pitchfork`` and ``jj-walls`` scenes (``problems.couette
 - :func:`banded_branches` -- switching at a BP onto both signs of the banded branch (the second
   sign as the mirror image S x of the first when the first is not S-invariant);
   the ``pitchfork`` and ``jj-walls`` scenes build the same with ``contin.diagram`` (their
-  choices: :class:`WallCoordinates`, :func:`first_point_on` as the jump test), the gravity
-  scenes still call it;
+  choices: :class:`WallCoordinates`, :func:`first_point_on` as the jump test; so does
+  gravity.gravity_free_branches through :func:`banded_diagram`);
 - :func:`mirror_branch` -- the image of a branch under the reflection symmetry;
 - :func:`density_continuation` -- a banded state at a density where uniform shear has no BP,
   reached by continuation in nu at fixed H from a density where the BP exists;
@@ -404,6 +404,66 @@ def banded_branches(problem: CouetteProblem, base: Branch, bp: SpecialPoint, par
     return [b1, b2]
 
 
+def banded_diagram(problem: CouetteProblem, params: Mapping[str, float], base_options: ContinuationOptions,
+                   band_options: ContinuationOptions, select: Callable[[Branch], Sequence[tuple[int, SpecialPoint]]], *,
+                   H_scale: float, base_id: str = "0", finish: Callable[[Branch, SpecialPoint | None, int], None] | None = None,
+                   on_branch: Callable[[Branch, Branch | None], None] | None = None,
+                   completed: Mapping[str, Branch] | None = None,
+                   progress: Callable[[str], None] | None = None) -> Any:
+    """The base branch (``problem.initial_guess`` at params['H'], traced upwards in H) and both signs
+    of the banded branch at each BP that ``select(base)`` returns as (k, BP), ids
+    f"{base_id}" / "n<k>.1" / "n<k>.2" (base_id "0") or f"{base_id}.<k>.1/2", built by
+    :func:`contin.diagram.bifurcation_diagram` to depth 2.
+
+    What is gPCF here: the coordinates (:class:`WallCoordinates`), the jump test of a switched
+    branch (it comes back onto the base branch, by Newton: :func:`first_point_on`; re-traced with
+    ds_max halved, at most :data:`BASE_RETRACES` times, as the base branch when a BP location does
+    not converge), the second sign of a symmetry-breaking mode as the mirror image (reflection
+    y -> -y) of the first, of an S-invariant mode (mode 2) traced.  ``finish(branch, bp, k)`` is
+    called on every traced branch before it is stored and mirrored (bp None for the base branch),
+    ``on_branch(branch, source)`` on every stored branch (source: the branch it mirrors).
+    """
+    from contin.diagram import DiagramHooks, DiagramSettings, bifurcation_diagram
+
+    picked: dict[str, tuple[int, SpecialPoint]] = {}  # prefix -> (k, BP of the base branch)
+
+    def prefix_of(k: int) -> str:
+        return f"n{k}" if base_id == "0" else f"{base_id}.{k}"
+
+    def finishing(b: Branch) -> None:
+        if finish is not None:
+            k, bp = picked.get(b.id.rsplit(".", 1)[0], (0, None)) if b.id != base_id else (0, None)
+            finish(b, bp, k)
+
+    def stored(b: Branch, source: Branch | None) -> None:
+        if source is not None:
+            b.message = f"mirror image of branch {source.id} (reflection y -> -y)"
+        if on_branch is not None:
+            on_branch(b, source)
+
+    def switch_at(parent: Branch, bp: SpecialPoint) -> str | None:
+        if parent.id != base_id:
+            return None
+        k = next((k for k, c in select(parent) if c.index == bp.index), None)
+        if k is None:
+            return None
+        if progress is not None:
+            progress(f"switching at {bp.name} (H = {bp.params['H']:.6g})")
+        picked[prefix_of(k)] = (k, bp)
+        return prefix_of(k)
+
+    hooks = DiagramHooks(
+        switch_at=switch_at, mirror_id=lambda i: i[:-2] + ".2" if i.endswith(".1") else i + "'",
+        # a new branch must not come back onto its parent (from point 2 on: points 0 and 1 are
+        # within one short step of the BP)
+        jumped=lambda parent, b: first_point_on(problem, parent, b, params, start=2),
+        finish=finishing, on_branch=stored, completed=dict(completed or {}), start_id=base_id,
+        options=lambda parent: base_options if parent is None else band_options)
+    settings = DiagramSettings(depth=2, probe_steps=0, start_direction=1, retraces=BASE_RETRACES)
+    return bifurcation_diagram(problem, problem.initial_guess(params), params, "H", base_options, settings,
+                               coordinates=WallCoordinates(problem, H_scale), progress=progress, hooks=hooks)
+
+
 def density_continuation(problem: CouetteProblem, params: Mapping[str, float], nu_from: float, nu_to: float,
                          H_fixed: float, options: ContinuationOptions, *,
                          progress: Callable[[str], None] | None = None) -> tuple[Array, list[Branch]]:
@@ -627,17 +687,8 @@ def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, floa
 
 
 def audit_branch(branch: Branch) -> list[str]:
-    """``contin.stability.audit`` of the branch, except at the start of a switched branch.
-
-    Point 0 of a branch from :func:`contin.continuation.switch` is the parent's BP itself: one
-    eigenvalue is exactly zero there and its computed sign is rounding noise, and the BP is a
-    special point of the parent, not of this branch.  The audit therefore sees point 0 with the
-    unstable count of point 1 (the stored columns keep the computed values).
-    """
-    n_unstable = branch.n_unstable
-    if "@" in branch.parent and n_unstable is not None and len(n_unstable) > 1:
-        view = dataclasses.replace(branch, n_unstable=np.concatenate([n_unstable[1:2], n_unstable[1:]]))
-        return audit(view)
+    """``contin.stability.audit`` of the branch (which counts point 0 of a switched branch, the
+    parent's BP with its exactly-zero eigenvalue, with the unstable count of point 1)."""
     return audit(branch)
 
 

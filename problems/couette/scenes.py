@@ -356,63 +356,32 @@ def _selected(base: Branch, hc1: float, named: bool, modes: int) -> list[tuple[i
 
 def _diagram(run: _Run, p: dict[str, float], H_start: float, H_max: float, hc1: float, named: bool, modes: int,
              base_opts: ContinuationOptions, band_opts: ContinuationOptions, jj: bool) -> Any:
-    """The base branch (from ``initial_guess`` at H_start upwards) and both signs of the banded
-    branch at each selected BP, by :func:`contin.diagram.bifurcation_diagram` to depth 2.
-
-    Physics kept here: which BPs (:func:`_selected`) and their names n<k>.1 / n<k>.2 (the second
-    sign of a symmetry-breaking mode is the mirror image of the first, of an S-invariant mode it is
-    traced), the coordinates (:class:`pitchfork.WallCoordinates`), a switched branch that comes
-    back onto the base branch counts as a jump (:func:`pitchfork.first_point_on`, Newton on the
-    base branch), the modes named on the base branch, banded BPs re-checked on a 1.5x finer grid
-    (:func:`pitchfork.confirm_branch_points`; the mirror image inherits the verdicts).
-    """
-    from contin.diagram import DiagramHooks, DiagramSettings, bifurcation_diagram
-
+    """The base branch and both signs of the banded branch at each selected BP
+    (:func:`pitchfork.banded_diagram`); the scene's part: which BPs (:func:`_selected`), the kinds,
+    the grid re-check of banded BPs (:func:`pitchfork.confirm_branch_points`; the mirror image
+    inherits the verdicts), notes, stability and checkpointing (``_Run.finish``)."""
     pb, request = run.problem, run.request
-    walls = "noslip" if not jj else "jj"
-    picked: dict[str, Any] = {}  # prefix n<k> -> the BP of the base branch it switches at
 
-    def finish(b: Branch) -> None:
-        if b.id == "0":
-            b.kind = "uniform shear" if walls == "noslip" else "base"
+    def finish(b: Branch, bp: Any, k: int) -> None:
+        if bp is None:
+            b.kind = "base" if jj else "uniform shear"
             if named:
                 pf.name_modes(b, hc1)
             return
-        bp = picked[b.id.rsplit(".", 1)[0]]
-        k = int(b.id[1:].split(".")[0])
-        b.kind = f"banded n={k}" if walls == "noslip" else f"bifurcated from BP at H={bp.params['H']:.6g}"
+        b.kind = f"bifurcated from BP at H={bp.params['H']:.6g}" if jj else f"banded n={k}"
         run.notes.extend(f"branch {b.id}: {m}" for m in b.audit if " re-traced with " in m)
         run.notes.extend(pf.confirm_branch_points(pb, b, p, band_opts))
 
     def on_branch(b: Branch, source: Branch | None) -> None:
         if len(b) == 0:  # a base branch that could not start: the scene says why
             return
-        if source is not None:
-            b.message = f"mirror image of branch {source.id} (reflection y -> -y)"
         run.finish(b, stability_from=source)
         if b.id == "0":
             run.notes.extend(m for m in b.audit if " re-traced with " in m)
 
-    def switch_at(parent: Branch, bp: Any) -> str | None:
-        if parent.id != "0":
-            return None
-        k = next((k for k, c in _selected(parent, hc1, named, modes) if c.index == bp.index), None)
-        if k is None:
-            return None
-        request.report(f"switching at {bp.name} (H = {bp.params['H']:.6g})")
-        picked[f"n{k}"] = bp
-        return f"n{k}"
-
-    hooks = DiagramHooks(
-        switch_at=switch_at, mirror_id=lambda i: i[:-2] + ".2" if i.endswith(".1") else i + "'",
-        # a new branch must not come back onto its parent (from point 2 on: points 0 and 1 are
-        # within one short step of the BP)
-        jumped=lambda parent, b: pf.first_point_on(pb, parent, b, p, start=2),
-        finish=finish, on_branch=on_branch, completed=request.completed,
-        options=lambda parent: base_opts if parent is None else band_opts)
-    settings = DiagramSettings(depth=2, probe_steps=0, start_direction=1, retraces=pf.BASE_RETRACES)
-    return bifurcation_diagram(pb, pb.initial_guess(p), p, "H", base_opts, settings,
-                               coordinates=pf.WallCoordinates(pb, H_max), progress=request.report, hooks=hooks)
+    return pf.banded_diagram(pb, p, base_opts, band_opts, lambda base: _selected(base, hc1, named, modes),
+                             H_scale=H_max, finish=finish, on_branch=on_branch, completed=request.completed,
+                             progress=request.report)
 
 
 def _describe(branch: Branch, dep: np.ndarray | None = None) -> str:
