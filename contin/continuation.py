@@ -88,6 +88,15 @@ class _Point:
     tests: TestValues
 
 
+class _RefineFirst(Exception):
+    """Raised by :meth:`_Tracer.detect` when an LP/BP is bracketed on a grid that does not
+    resolve its kernel (adaptive runs): the tracer refines and retries the step before locating."""
+
+    def __init__(self, kind: str, error: float) -> None:
+        super().__init__(kind)
+        self.kind, self.error = kind, error
+
+
 class _Tracer:
     """State shared by the steps of one trace: system, options, symmetry and the records."""
 
@@ -106,6 +115,9 @@ class _Tracer:
         self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
         self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)
         self.adaptive = False
+        # Adaptive runs: (kind, a, b) -> estimate if the kernel of an LP/BP bracketed by a, b is
+        # under-resolved on the grid in force (contin.adapt.Adaptor.pre_locate), else None.
+        self.pre_locate: Callable[[str, _Point, _Point], float | None] | None = None
 
     def use_system(self, system: ExtendedSystem, anti: Antisymmetric | None) -> None:
         """Continue on ``system`` (the problem on another grid, ``contin.adapt``): its symmetry
@@ -187,6 +199,12 @@ class _Tracer:
             sa, sb = Sample(0.0, g_of(a.tests, 0.0), a), Sample(s_b, g_of(b.tests, s_b), b)
             det = self.options.detection
             tol = det.locate_tol * max(1.0, abs(b.x[-1]))
+            if det.locate and point_test is None and self.pre_locate is not None:
+                # Refine before locating rather than locating on a grid that does not resolve
+                # the point and again on the finer one (issue 14: 8 -> 16 at gPCF's H_1^c).
+                err = self.pre_locate(kind, a, b)
+                if err is not None:
+                    raise _RefineFirst(kind, err)
             if det.locate:
 
                 def evaluate(s: float, g_of: Any = g_of) -> Sample[_Point] | None:
@@ -531,6 +549,23 @@ def trace(
     tracer.append(first, 0.0, start.iterations)
 
     x0c, t0c = x0, first.t  # the start point and tangent on the grid in force (for closure)
+    if adaptor is not None:
+        special_tol = min(options.adapt.tol, options.adapt.special_tol)
+        tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(tracer.system, kind, a, b, special_tol)
+
+    def refine_first(why: _RefineFirst, cur: _Point, new: _Point, stepped: _Point,
+                     direction_vec: Array) -> list[SpecialPoint] | None:
+        """An LP/BP bracketed by the step cur -> new on a grid too coarse for its kernel:
+        refine at cur (None: retry the step there), or, if that fails, locate it on this grid
+        (the located point's own check then notes it)."""
+        assert adaptor is not None
+        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton) is None:
+            return None
+        hook, tracer.pre_locate = tracer.pre_locate, None
+        try:
+            return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
+        finally:
+            tracer.pre_locate = hook
     ds = abs(sopt.ds)
     travelled = 0.0
     closing = False
@@ -608,7 +643,15 @@ def trace(
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
             stepped, new = new, tracer.finish_point(land, cur.t)
-            found = _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
+            try:
+                found = _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
+            except _RefineFirst as why:
+                found = refine_first(why, cur, new, stepped, direction_vec)
+                if found is None:
+                    steps -= 1
+                    system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                    continue
             if found is None:  # the step jumped onto another branch
                 steps -= 1
                 ds = reduced_step(ds, sopt)
@@ -622,7 +665,15 @@ def trace(
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
             status, message = "MX", coarse
             break
-        found = _detect_checked(tracer, steps, cur, new, new, direction_vec, ds, sopt)
+        try:
+            found = _detect_checked(tracer, steps, cur, new, new, direction_vec, ds, sopt)
+        except _RefineFirst as why:
+            found = refine_first(why, cur, new, new, direction_vec)
+            if found is None:
+                steps -= 1
+                system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                continue
         if found is None:  # the step jumped onto another branch
             steps -= 1
             ds = reduced_step(ds, sopt)

@@ -147,8 +147,9 @@ def test_grid_hooks_transfer_is_spectrally_accurate():
 @pytest.mark.parametrize("tol", [1e-4, 1e-6, 1e-8, 1e-10])
 def test_couette_critical_gap_meets_tol(tol):
     """gPCF uniform shear at nu = 0.3, e = 0.8: started on cheb 64, the start grid is coarsened (the
-    uniform state is exact on any grid), the BP is located, its null vector is under-resolved on the
-    coarse grid, so it is located again on a finer one: |H_1^c - pi psi| / pi psi <= tol."""
+    uniform state is exact on any grid); the BP's bracket shows its null vector under-resolved on the
+    coarse grid, so the grid is refined before the BP is located, once, on the finer grid (not
+    located on the coarse grid and again: issue 14's cost): |H_1^c - pi psi| / pi psi <= tol."""
     from problems.couette import pitchfork as pf
     from problems.couette.model import CouetteProblem
 
@@ -162,7 +163,10 @@ def test_couette_critical_gap_meets_tol(tol):
     (bp,) = b.branch_points
     assert bp.grid < 64  # cheaper than the fixed default grid
     assert abs(bp.params["H"] - exact) / exact <= tol
-    assert any("located BP under-resolved" in a for a in b.audit)
+    refined = [a for a in b.audit if "BP bracketed, kernel under-resolved" in a]
+    assert len(refined) == 1 and "8 -> 16" in refined[0]
+    assert not any("located BP under-resolved" in a for a in b.audit)  # no second location
+    assert b.grid_at(-1) == bp.grid == 16
 
 
 def test_couette_special_points_keep_fine_grid_accuracy_at_default_tol():
