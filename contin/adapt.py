@@ -271,9 +271,13 @@ class Adaptor:
         up to O(distance) (gPCF cheb 8 at H_1^c: 3.9e-3 at the ends, 4e-3 located; cheb 32 at
         H_2^c: 6.1e-8 and 1.5e-8).  This only saves a location: the located
         point's own estimate is still checked (``trace``), so a kernel that the ends misjudge
-        as resolved is refined after the location as before.  ``special_refinable`` is
-        honoured (a grid-scale mode is not chased)."""
-        if kind not in ("LP", "BP") or not has(system.problem, "vector_error"):
+        as resolved is refined after the location as before.  Only the first refinement of a
+        chain is taken here (see below); ``special_refinable`` is honoured."""
+        if kind not in ("LP", "BP") or not has(system.problem, "vector_error") or self._special is not None:
+            # After a special-point refinement that has not yet produced a resolved point, the
+            # located point's estimate decides (special_refinable's test for a grid-scale mode
+            # compares located estimates; the ends' may be smaller and would chase the mode:
+            # gPCF nu = 0.3 branch n1.1, an artefact at H ~ 30 refined 32 -> 48 -> 80 -> 128).
             return None
         err = min(self.special_error(system, kind, pt.x, pt.t, near=True) for pt in (a, b))
         if err <= special_tol or not self.special_refinable(err):
