@@ -189,3 +189,23 @@ def test_couette_special_points_keep_fine_grid_accuracy_at_default_tol():
     assert max(b.grid) < 64  # still cheaper than the fixed default grid
     with pytest.raises(ValueError, match="special_tol"):
         AdaptOptions(special_tol=0.0)
+
+
+def test_fold_refined_before_it_is_located():
+    """Core behaviour on a non-granular problem (Bratu, Chebyshev, tol 1e-6 from cheb 32): the
+    fold's bracket shows its kernel (the tangent) under-resolved on cheb 20, so the grid is
+    refined before the fold is located (Adaptor.pre_locate) and the fold is located once, on
+    the finer grid, where its kernel meets special_tol; lam* to tol of the closed form."""
+    from problems.demo import BRATU_FOLD, Bratu
+
+    pb = Bratu("cheb", 32)
+    o = ContinuationOptions(bounds={"lam": (0.02, 4.0)}, max_steps=400, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=1e-6, min_grid=8))
+    b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
+    (fold,) = b.fold_points
+    first = [a for a in b.audit if "LP bracketed, kernel under-resolved" in a]
+    assert len(first) == 1 and "20 -> 32" in first[0]
+    assert not any("located LP under-resolved" in a for a in b.audit)  # located once
+    assert fold.grid == 32
+    assert pb.with_grid(32).vector_error(fold.tangent[:-1]) <= AdaptOptions().special_tol
+    assert abs(fold.params["lam"] - BRATU_FOLD) / BRATU_FOLD <= 1e-6
