@@ -110,14 +110,35 @@ def coarser(problem: Any, opts: AdaptOptions) -> int | None:
     return want if want < n else None
 
 
+#: Up to this size the kernel vectors of the grid decisions are computed densely (LAPACK):
+#: sparse bordering's set-up (bmat, splu) costs ~1-2 ms even at n = 30.
+DENSE_KERNEL_MAX = 400
+
+
 def null_vector(jacobian: Any) -> Array:
-    """A unit vector spanning the (numerical) kernel of J at a located branch point (bordering,
-    ``contin.normalform.null_vectors``)."""
+    """A unit vector spanning the (numerical) kernel of J at a located branch point: bordering
+    [[J, b], [c^T, 0]] [phi; s] = [0; 1] with random b, c (``contin.normalform.null_vectors``,
+    the same borders; dense LAPACK up to DENSE_KERNEL_MAX unknowns)."""
     import scipy.sparse as sp
 
     from contin.normalform import null_vectors
 
-    return null_vectors(sp.csc_matrix(jacobian)).phi
+    n = jacobian.shape[0]
+    if n > DENSE_KERNEL_MAX:
+        return null_vectors(sp.csc_matrix(jacobian)).phi
+    from scipy.linalg import lu_factor, lu_solve
+
+    rng = np.random.default_rng(0)
+    b = rng.standard_normal(n)
+    c = rng.standard_normal(n)
+    border = np.zeros((n + 1, n + 1))
+    border[:n, :n] = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
+    border[:n, n] = b
+    border[n, :n] = c
+    rhs = np.zeros(n + 1)
+    rhs[-1] = 1.0
+    phi = lu_solve(lu_factor(border, check_finite=False), rhs, check_finite=False)[:n]
+    return phi / np.linalg.norm(phi)
 
 
 def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
@@ -133,11 +154,20 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
 
     v = null_vector(jacobian)
     try:
-        lu = spla.splu(sp.csc_matrix(jacobian))
+        if jacobian.shape[0] <= DENSE_KERNEL_MAX:
+            from scipy.linalg import lu_factor, lu_solve
+
+            dense = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
+            factors = lu_factor(dense, check_finite=False)
+
+            def solve(r: Array) -> Array:
+                return lu_solve(factors, r, check_finite=False)
+        else:
+            solve = spla.splu(sp.csc_matrix(jacobian)).solve
     except RuntimeError:  # exactly singular: the bordered vector is the kernel
         return v
     for _ in range(iterations):
-        w = lu.solve(v)
+        w = solve(v)
         norm = float(np.linalg.norm(w))
         if not (math.isfinite(norm) and norm > 0):
             break

@@ -209,3 +209,28 @@ def test_fold_refined_before_it_is_located():
     assert fold.grid == 32
     assert pb.with_grid(32).vector_error(fold.tangent[:-1]) <= AdaptOptions().special_tol
     assert abs(fold.params["lam"] - BRATU_FOLD) / BRATU_FOLD <= 1e-6
+
+
+def test_kernel_vectors_of_the_grid_decisions():
+    """adapt.null_vector (dense LAPACK bordering up to DENSE_KERNEL_MAX) equals the sparse
+    bordering of contin.normalform.null_vectors; near_kernel recovers the smallest singular
+    direction of a regular J next to a singular one, where the bordered vector alone keeps the
+    other small directions: J = Q diag(1e-6, 1e-3, 1, ..., 1) Q^T."""
+    import scipy.sparse as sp
+
+    from contin.adapt import near_kernel, null_vector
+    from contin.normalform import null_vectors
+
+    rng = np.random.default_rng(3)
+    n = 40
+    q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    d = np.ones(n)
+    d[0], d[1] = 0.0, 1e-3
+    sing = sp.csr_matrix(q @ np.diag(d) @ q.T)
+    v, ref = null_vector(sing), null_vectors(sp.csc_matrix(sing)).phi
+    assert min(np.abs(v - ref).max(), np.abs(v + ref).max()) < 1e-10
+    d[0] = 1e-6
+    near = q @ np.diag(d) @ q.T
+    k = near_kernel(sp.csr_matrix(near))
+    assert 1 - abs(k @ q[:, 0]) < 1e-12
+    assert 1 - abs(null_vector(sp.csr_matrix(near)) @ q[:, 0]) > 1e-8  # what the iterations remove

@@ -530,3 +530,26 @@ def test_real_coefficients_equal_the_general_ones_bitwise(chi):
             assert a.shape == b.shape == nu.shape, name
             np.testing.assert_array_equal(a, b, err_msg=name)
     assert not np.any(real_coefficients(nu, 0.8, chi, 0.65).fh)
+
+
+def test_grid_setup_shared_per_grid_and_bounded():
+    """Issue 14: the per-grid set-up (operators, Jacobian layouts, reflection matrix) is built once
+    per process and grid and shared by instances (adaptive runs revisit grids; each branch of a
+    diagram has its own instance), without changing a number: residual and Jacobian of an
+    instance on a shared set-up equal those of one built from scratch; the cache stays bounded."""
+    import problems.couette.model as m
+
+    p = {**m.CouetteProblem("cheb", 12).params({"nu": 0.3, "e": 0.8}), "H": 11.0}
+    for method, N, gravity in [("cheb", 12, False), ("fd4", 40, True)]:
+        m._SETUPS.pop((method, N, gravity), None)
+        fresh = m.CouetteProblem(method, N, gravity=gravity)
+        x = fresh.initial_guess(p) * (1 + 0.01 * np.sin(np.arange(fresh.size)))
+        J0, F0, S0 = fresh.jacobian(x, p).toarray(), fresh.residual(x, p), fresh.symmetry_matrix().toarray()
+        again = m.CouetteProblem(method, N, gravity=gravity)
+        assert again._ops is fresh._ops  # shared, not rebuilt
+        np.testing.assert_array_equal(again.jacobian(x, p).toarray(), J0)
+        np.testing.assert_array_equal(again.residual(x, p), F0)
+        np.testing.assert_array_equal(again.symmetry_matrix().toarray(), S0)
+    for N in range(8, 8 + m._SETUPS_MAX + 5):
+        m.CouetteProblem("cheb", N)
+    assert len(m._SETUPS) == m._SETUPS_MAX

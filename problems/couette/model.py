@@ -165,31 +165,15 @@ class CouetteProblem:
         self.i_P = 3 * n
         self.i_M = slice(3 * n + 1, 4 * n + 1) if self.gravity else None
 
-        g = self.grid
-        self._d1 = sp.csr_matrix(g.d1)
-        self._d2 = sp.csr_matrix(g.d2)
-        # Derivatives of several fields in one product V @ D^T (V: one field per row).  Dense
-        # BLAS for dense (Chebyshev) or small operators: a sparse product costs ~6 us of call
-        # overhead each, more than the arithmetic at continuation sizes.
-        dense = n <= DENSE_DERIVATIVES or self._d1.nnz > 0.25 * n * n
-        self._d1t = np.ascontiguousarray(self._d1.T.toarray()) if dense else sp.csr_matrix(self._d1.T)
-        self._d2t = np.ascontiguousarray(self._d2.T.toarray()) if dense else sp.csr_matrix(self._d2.T)
+        setup = _grid_setup(method, int(N), self.gravity)
+        self._d1, self._d2, self._d1t, self._d2t = setup.d1, setup.d2, setup.d1t, setup.d2t
+        if self.gravity:
+            self._mass_M, self._mass_nu = setup.mass_M, setup.mass_nu
         self._walls_idx = np.array([0, n - 1])
         self._sigma = np.array([-1.0, 1.0])  # outward normal at bottom, top
         self._uw = 0.5 * self._sigma  # wall velocities
-        # Jacobian operators.  Interior rows ("...i": wall rows dropped) and wall rows ("...w":
-        # rows 0 and n-1 only, row factors of length 2, one per wall) are separate operators,
-        # so that no row factor has to be masked or scattered into a length-n vector.
-        eye = sp.eye(n, format="csr")
-        interior = sp.diags(np.r_[0.0, np.ones(n - 2), 0.0], format="csr")
-        at_walls = sp.diags(np.r_[1.0, np.zeros(n - 2), 1.0], format="csr")
-        ops = {"I": eye, "Ii": interior, "d1i": interior @ self._d1, "d2i": interior @ self._d2,
-               "Iw": at_walls, "d1w": at_walls @ self._d1, "d1w_sig": sp.diags(np.r_[-1.0, np.zeros(n - 2), 1.0]) @ self._d1,
-               "ones_col": sp.csr_matrix(-np.ones((n, 1))), "weights": sp.csr_matrix(self.grid.weights[None, :])}
-        if self.gravity:
-            self._mass_M, self._mass_nu = _mass_rows(cell_integration_matrix(g))
-            ops.update(mass_M=self._mass_M, mass_nu=-self._mass_nu)
-        self._ops = {name: _coo(op, wall=name in _WALL_OPS) for name, op in ops.items()}
+        self._ops = setup.ops
+        self._shared_layouts = setup.layouts
         self._layouts: dict[tuple, _Layout] = {}
         self._cache: tuple | None = None  # (x, (e, num), _Fields) of the last real evaluation
         self._mid_weights: Array | None = None
@@ -510,7 +494,11 @@ class CouetteProblem:
         if layout is None:
             terms = first + [(r0, c0, *t) for r0, c0, block in blocks for t in block] + last
             key = tuple((r0, c0, name, row is None, col is None) for r0, c0, name, row, col in terms)
-            layout = self._layouts[with_g] = _Layout(self.size, self._ops, key)
+            # shared by every instance on this grid with the same term structure (_grid_setup)
+            layout = self._shared_layouts.get(key)
+            if layout is None:
+                layout = self._shared_layouts[key] = _Layout(self.size, self._ops, key)
+            self._layouts[with_g] = layout
         return layout, rows, cols
 
     def dresidual_dp(self, x: Array, p: Mapping[str, Any], name: str) -> Array:
@@ -713,8 +701,10 @@ class CouetteProblem:
 
     def symmetry_matrix(self) -> sp.csr_matrix:
         """Sparse matrix of :meth:`symmetry` (built once per instance; a copy is returned)."""
-        if self._symmetry_matrix is None:
-            self._symmetry_matrix = self._build_symmetry_matrix()
+        if self._symmetry_matrix is None:  # shared by the instances on this grid (_grid_setup)
+            self._symmetry_matrix = self._shared_layouts.get("symmetry")
+            if self._symmetry_matrix is None:
+                self._symmetry_matrix = self._shared_layouts["symmetry"] = self._build_symmetry_matrix()
         return self._symmetry_matrix.copy()
 
     def _build_symmetry_matrix(self) -> sp.csr_matrix:
@@ -884,6 +874,69 @@ class _Layout:
 
 
 _ONE = np.ones(1)
+
+
+class _GridSetup(NamedTuple):
+    """What a :class:`CouetteProblem` builds per grid: differentiation matrices, the Jacobian
+    operators in COO form, and the Jacobian layouts built from them (by term structure) and the
+    reflection's matrix (key "symmetry"), filled on first use.  Read-only once built."""
+
+    d1: sp.csr_matrix
+    d2: sp.csr_matrix
+    d1t: Any
+    d2t: Any
+    mass_M: Any
+    mass_nu: Any
+    ops: dict[str, sp.coo_matrix]
+    layouts: dict[Any, Any]
+
+
+#: (method, N, gravity) -> _GridSetup, most recently used last; at most _SETUPS_MAX entries.
+_SETUPS: dict[tuple[str, int, bool], _GridSetup] = {}
+_SETUPS_MAX = 32
+
+
+def _grid_setup(method: str, N: int, gravity: bool) -> _GridSetup:
+    """The per-grid set-up, built once per process and grid (issue 14: adaptive runs rebuild the
+    problem on every grid they visit, and each trace of a diagram starts from its own instance;
+    the sparse constructions cost ~3-5 ms per grid, as much as a whole cheb 10 trace of H_1^c).
+    Bounded (least recently used dropped) so large grids are not kept forever."""
+    key = (method, int(N), bool(gravity))
+    hit = _SETUPS.pop(key, None)
+    if hit is None:
+        hit = _build_grid_setup(method, int(N), bool(gravity))
+        while len(_SETUPS) >= _SETUPS_MAX:
+            del _SETUPS[next(iter(_SETUPS))]
+    _SETUPS[key] = hit
+    return hit
+
+
+def _build_grid_setup(method: str, N: int, gravity: bool) -> _GridSetup:
+    g = make_grid(method, N)
+    n = g.size
+    d1 = sp.csr_matrix(g.d1)
+    d2 = sp.csr_matrix(g.d2)
+    # Derivatives of several fields in one product V @ D^T (V: one field per row).  Dense
+    # BLAS for dense (Chebyshev) or small operators: a sparse product costs ~6 us of call
+    # overhead each, more than the arithmetic at continuation sizes.
+    dense = n <= DENSE_DERIVATIVES or d1.nnz > 0.25 * n * n
+    d1t = np.ascontiguousarray(d1.T.toarray()) if dense else sp.csr_matrix(d1.T)
+    d2t = np.ascontiguousarray(d2.T.toarray()) if dense else sp.csr_matrix(d2.T)
+    # Jacobian operators.  Interior rows ("...i": wall rows dropped) and wall rows ("...w":
+    # rows 0 and n-1 only, row factors of length 2, one per wall) are separate operators,
+    # so that no row factor has to be masked or scattered into a length-n vector.
+    eye = sp.eye(n, format="csr")
+    interior = sp.diags(np.r_[0.0, np.ones(n - 2), 0.0], format="csr")
+    at_walls = sp.diags(np.r_[1.0, np.zeros(n - 2), 1.0], format="csr")
+    ops = {"I": eye, "Ii": interior, "d1i": interior @ d1, "d2i": interior @ d2,
+           "Iw": at_walls, "d1w": at_walls @ d1, "d1w_sig": sp.diags(np.r_[-1.0, np.zeros(n - 2), 1.0]) @ d1,
+           "ones_col": sp.csr_matrix(-np.ones((n, 1))), "weights": sp.csr_matrix(g.weights[None, :])}
+    mass_M = mass_nu = None
+    if gravity:
+        mass_M, mass_nu = _mass_rows(cell_integration_matrix(g))
+        ops.update(mass_M=mass_M, mass_nu=-mass_nu)
+    coo = {name: _coo(op, wall=name in _WALL_OPS) for name, op in ops.items()}
+    return _GridSetup(d1, d2, d1t, d2t, mass_M, mass_nu, coo, {})
 
 
 #: Jacobian operators that act on the two wall rows only (row factors of length 2).
