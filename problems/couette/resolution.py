@@ -51,6 +51,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from dataclasses import field as dc_field
 from functools import lru_cache
 from typing import Any
 
@@ -113,7 +114,8 @@ class Resolution:
     gap : nu_m - max nu (distance of the densest point from the packing limit)
     limit : the packing limit nu_m
     method, N : the grid
-    suggested_N : the grid the advice names for a given tol (see :func:`resolution`)
+    tol, coefficients : the tol of the advice and the Chebyshev coefficients of ``field``
+    suggested_N : the grid the advice names for tol (see :func:`resolution`)
     """
 
     error: float
@@ -124,7 +126,14 @@ class Resolution:
     limit: float
     method: str
     N: int
-    suggested_N: int
+    tol: float = 1e-5
+    coefficients: Array | None = dc_field(default=None, repr=False, compare=False)
+
+    @property
+    def suggested_N(self) -> int:
+        """The grid the advice names for ``tol`` (computed on demand: the adaptive error
+        estimate does not need it, and its envelope fit costs as much as the tails)."""
+        return _suggest(self.method, self.N, self.error, self.tol, self.coefficients)
 
     def reason(self, tol: float) -> str:
         """One line: what is under-resolved, by how much, near packing or not, and the grid to try."""
@@ -195,8 +204,7 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
         errors[name] = tails[name] / scale if scale > 0 else math.inf
     field = max(FIELDS, key=lambda k: errors[k])
     error = errors[field]
-    suggested = _suggest(grid.method, grid.intervals, error, tol, coeffs[field])
-    return Resolution(error, field, tails, scales, gap, limit, grid.method, grid.intervals, suggested)
+    return Resolution(error, field, tails, scales, gap, limit, grid.method, grid.intervals, tol, coeffs[field])
 
 
 def under_resolved(problem: Any, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
