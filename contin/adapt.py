@@ -27,6 +27,8 @@ sec. 2.12 for the tail estimate the spectral problems use):
   the pseudo-arclength hyperplane of the transferred tangent, tangent re-solved) and the step is
   retried from there.  The same happens when a located BP's null vector or an LP's tangent is
   under-resolved (``vector_error``), so special points are located on a grid that resolves them;
+  a step that brackets an LP/BP whose kernel the bracket's ends already show under-resolved
+  refines before the location (:meth:`Adaptor.pre_locate`: located once, not twice);
 - an accepted point whose estimate fell below ``coarsen_below * tol`` is moved to a coarser grid
   when the estimate there stays <= ``COARSEN_MARGIN * tol`` (at most once every ``cooldown``
   steps, so the grid does not oscillate);
