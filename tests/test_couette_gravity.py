@@ -367,3 +367,23 @@ def test_phase_diagram_retraces_a_stopped_fold_curve_on_a_finer_grid():
     assert any("retraced on grids 16, " in line for line in c.audit)
     assert d.fr_min_floating_plug == pytest.approx(254.120379954, rel=1e-10)
     assert abs(fixed.fr_min_floating_plug - 254.120379954) > 1e-4  # the coarse grid's value is off
+
+
+def test_gravity_scene_retraces_only_when_asked():
+    """The whole-discovery retrace on finer grids is opt-in (``-s max_grid=M``): by default the
+    scene keeps its grid (cheb 64) and says nothing of a retrace; a bad max_grid is one error."""
+    import json
+
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    r = CliRunner().invoke(main, ["trace", "gravity", "-s", "Fr=1000", "-s", "H_max=8", "-s", "modes=1",
+                                  "--no-stability", "--json", "-q"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["discretization"]["intervals"] == 64
+    assert not any("retrace" in note for note in doc["notes"])
+    r = CliRunner().invoke(main, ["trace", "gravity", "-s", "max_grid=-1", "-q"])
+    assert r.exit_code == 1
+    assert r.stderr.strip() == "Error: max_grid must be a non-negative integer (0: no retrace), got -1"

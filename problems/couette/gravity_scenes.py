@@ -11,9 +11,11 @@ branch.
 Defaults: Chebyshev N = 64 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
 under-resolved already at H ~ 30-40 (the continuation stops them with MX 'under-resolved'),
 and at nu = 0.3, Fr = 1000 the isola of the third pitchfork spans H = 41.90 .. 63.48.
-Without ``--grid`` a run where a branch stops under-resolved is repeated on the grid the
-resolution estimate asks for at the stop (``contin.adapt.retrace_finer``; Fr = 50 to H = 30:
-cheb 64 stops at H = 21.8, the rerun on cheb 144 reaches H = 30); ``--grid N`` fixes the grid.
+With ``-s max_grid=M`` (and no ``--grid``) a run where a branch stops under-resolved is repeated
+on the grid the resolution estimate asks for at the stop, up to M (``contin.adapt.retrace_finer``;
+Fr = 50 to H = 30: cheb 64 stops at H = 21.8, the rerun on cheb 144 reaches H = 30).  Without it
+the grid is fixed (cheb 64 unless ``--grid N``): retracing the whole discovery is opt-in, because
+at the default Fr = 1000 the dense plugs near H = 70 keep asking for finer grids.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from problems.couette.gravity import GravitySettings, discover, gravity_problem,
 from problems.couette.model import rebuilt_engine
 
 GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 70.0,
-                                    "walls": "noslip", "modes": 3}
+                                    "walls": "noslip", "modes": 3, "max_grid": 0}
 
 #: Default Chebyshev grid of the scene (see the module docstring).
 GRAVITY_GRID = 64
@@ -39,7 +41,7 @@ GRAVITY_GRID = 64
 
 def _settings(request: SceneRequest) -> dict[str, Any]:
     out = scene_params(request, GRAVITY_DEFAULTS, "gravity")
-    for name in ("nu", "e", "Fr", "H_min", "H_max", "modes"):
+    for name in ("nu", "e", "Fr", "H_min", "H_max", "modes", "max_grid"):
         try:
             out[name] = float(out[name])
         except (TypeError, ValueError):
@@ -50,6 +52,8 @@ def _settings(request: SceneRequest) -> dict[str, Any]:
         raise SceneError(f"need 0 < H_min < H_max, got H_min={out['H_min']:g}, H_max={out['H_max']:g}")
     if not (out["modes"] >= 1 and out["modes"] == int(out["modes"])):
         raise SceneError(f"modes must be a positive integer, got {out['modes']:g}")
+    if not (out["max_grid"] >= 0 and out["max_grid"] == int(out["max_grid"])):
+        raise SceneError(f"max_grid must be a non-negative integer (0: no retrace), got {out['max_grid']:g}")
     if out["walls"] not in ("noslip", "jj"):
         raise SceneError(f"walls must be 'noslip' or 'jj', got {out['walls']!r}")
     return out
@@ -71,17 +75,20 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     settings = GravitySettings(H_range=(s["H_min"], s["H_max"]), modes=int(s["modes"]))
     o = request.options_for(settings.h_options())
     settings = replace(settings, ds=o.step.ds, ds_max=o.step.ds_max, max_steps=o.max_steps)
-    if request.grid:
+    retrace = not request.grid and s["max_grid"] > 0
+    if not retrace:
         diagram = discover(pb, params, settings, progress=request.report)
     else:
-        # no --grid: the whole discovery is retraced on a finer grid while a branch stops
-        # under-resolved (dense plugs at strong gravity: Fr = 50 stops at H = 21.8 on cheb 64)
+        # -s max_grid=M without --grid: the whole discovery is retraced on a finer grid while a
+        # branch stops under-resolved (dense plugs at strong gravity: Fr = 50 stops at H = 21.8
+        # on cheb 64).  Opt-in: at the default Fr = 1000 the dense plugs near H = 70 ask for
+        # ever finer grids and the retraced discovery ran for more than 25 min (was minutes).
         def compute(problem: Any) -> list[Any]:
             holder[:] = [discover(problem, params, settings, progress=request.report)]
             return holder[0].branches
 
         holder: list[Any] = []
-        opts = AdaptOptions(max_grid=int(request.overrides.get("max_grid") or 512))
+        opts = AdaptOptions(max_grid=int(s["max_grid"]))
         pb, _, sizes = retrace_finer(pb, compute, opts, suggest=lambda problem, stopped: suggest_grid_for(
             problem, stopped, factor=1.0))
         diagram = holder[0]
@@ -96,7 +103,7 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     for b in branches:
         request.finished(b)
     notes = [f"G = Fr^-2 = {params['G']:.6g}"]
-    if not request.grid and len(sizes) > 1:
+    if retrace and len(sizes) > 1:
         notes.append(f"retraced on grids {', '.join(map(str, sizes))}: a branch stopped under-resolved on the coarser ones")
     notes += [f"branch {b.id}: {b.kind}, traced from a {diagram.routes[b.id]} seed, found by "
               f"{' + '.join(diagram.found_by[b.id])}, {len(b.fold_points)} folds"
