@@ -123,16 +123,14 @@ def null_vector(jacobian: Any) -> Array:
     the same borders; dense LAPACK up to DENSE_KERNEL_MAX unknowns)."""
     import scipy.sparse as sp
 
-    from contin.normalform import null_vectors
+    from contin.normalform import borders, null_vectors
 
     n = jacobian.shape[0]
     if n > DENSE_KERNEL_MAX:
         return null_vectors(sp.csc_matrix(jacobian)).phi
     from scipy.linalg import lu_factor, lu_solve
 
-    rng = np.random.default_rng(0)
-    b = rng.standard_normal(n)
-    c = rng.standard_normal(n)
+    b, c = borders(n)
     border = np.zeros((n + 1, n + 1))
     border[:n, :n] = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
     border[:n, n] = b

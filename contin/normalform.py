@@ -54,6 +54,13 @@ class NullVectors:
     residual: float  # max(|J phi|, |J^T psi|): small when J really is singular
 
 
+def borders(n: int, *, seed: int = 0) -> tuple[Array, Array]:
+    """The random borders b, c of [[J, b], [c^T, 0]] (:func:`null_vectors`; one seed, so every
+    bordering of the same J gives the same null vector)."""
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal(n), rng.standard_normal(n)
+
+
 def null_vectors(jacobian: sp.spmatrix, *, seed: int = 0) -> NullVectors:
     """Null vectors of a (numerically) singular sparse matrix by bordering.
 
@@ -62,9 +69,7 @@ def null_vectors(jacobian: sp.spmatrix, *, seed: int = 0) -> NullVectors:
     sec. 3.2); the bordered matrix is regular at a simple singular point.
     """
     n = jacobian.shape[0]
-    rng = np.random.default_rng(seed)
-    b = rng.standard_normal(n)
-    c = rng.standard_normal(n)
+    b, c = borders(n, seed=seed)
     border = sp.bmat([[sp.csc_matrix(jacobian), b[:, None]], [c[None, :], None]], format="csc")
     lu = spla.splu(border)
     rhs = np.zeros(n + 1)
