@@ -82,7 +82,7 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
     # 13 ms iteration at n = 605).  Not shared between calls: the caller keeps the last one.
     buffer: Array | None = None
     for it in range(1, options.max_iterations + 1):
-        jac, fp = system.jacobian(x)
+        jac, fp = system.jacobian(x, scratch=True)  # J is used in this iteration only
         fact = factorize_bordered(jac, fp, row, buffer)
         if buffer is None and isinstance(fact, DenseLU):
             buffer = fact.lu

@@ -185,6 +185,10 @@ def test_blockwise_dense_jacobian_on_a_large_chebyshev_grid():
     dense = problem.dense_jacobian(x, p)
     assert dense.tobytes() == scatter.tobytes() and dense.flags.f_contiguous
     assert np.array_equal(dense, problem.jacobian(x, p).toarray())
+    # into an earlier J (contin's scratch): overwritten, not merely added to
+    old = np.full((problem.size, problem.size), np.nan, order="F")
+    again = problem.dense_jacobian(x, p, out=old)
+    assert again is old and again.tobytes() == scatter.tobytes()
 
 
 def test_parameter_derivative_of_inactive_parameters_is_zero():
