@@ -46,7 +46,10 @@ class Problem(Protocol):
         The same J as ``jacobian``, dense.  contin factorizes small systems densely
         (n + 1 <= ``contin.linalg.DENSE_LIMIT``) and then calls this instead of ``jacobian``
         in its Newton loops, which skips building a sparse matrix only to copy it into a
-        dense one (at continuation sizes that construction costs more than the LU).
+        dense one (at continuation sizes that construction costs more than the LU).  It may
+        take a keyword ``out``: an earlier J (Fortran-ordered) that contin no longer needs and
+        the hook may overwrite instead of allocating a new array (contin uses the returned
+        array either way).
     mass_matrix(u, p) -> (n, n) sparse
         M in M du/dt = F(u, p); default eigenproblem is J x = omega M x.
     eigenproblem(u, p, **kwargs) -> (A, B)
