@@ -106,6 +106,10 @@ class Problem(Protocol):
         not only the state, fixes where the point lies.
     suggest_grid(u, p, tol) -> int  (optional)
         The grid size expected to bring the estimate below tol (refinement takes at least it).
+    rounding_error(u, p) -> float  (optional)
+        The part of error_estimate that no finer grid lowers (rounding of the computed state,
+        e.g. next to a singularity of a closure): where it exceeds adapt.tol the branch ends
+        at its precision limit (status EP, message "precision limit ...") instead of refining.
     """
 
     parameter_names: tuple[str, ...]

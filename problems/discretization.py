@@ -329,16 +329,8 @@ class Grid:
         """
         y_new = np.atleast_1d(np.asarray(y_new, dtype=float))
         if self.method == "cheb":
-            n = self.intervals
-            wb = (-1.0) ** np.arange(n + 1)
-            wb[0] *= 0.5
-            wb[-1] *= 0.5
-            diff = y_new[:, None] - self.y[None, :]
-            exact = np.isclose(diff, 0.0, atol=1e-15)
-            diff[exact] = 1.0
-            terms = wb / diff
-            out = (terms @ f) / terms.sum(axis=1).reshape((-1,) + (1,) * (np.ndim(f) - 1))
-            hit_rows, hit_cols = np.nonzero(exact)
+            terms, row_sums, hit_rows, hit_cols = _barycentric_setup(self.y.tobytes(), y_new.tobytes())
+            out = (terms @ f) / row_sums.reshape((-1,) + (1,) * (np.ndim(f) - 1))
             out[hit_rows] = f[hit_cols]
             return out
         width = int(self.order) + 1
@@ -405,6 +397,30 @@ def chebyshev_tail(values: NDArray[np.float64], modes: int = 4) -> float:
     a = np.abs(chebyshev_coefficients(values))
     scale = float(np.max(a)) if a.size else 0.0
     return float(np.max(a[-modes:]) / scale) if scale > 0 else 0.0
+
+
+@lru_cache(maxsize=32)
+def _barycentric_setup(y_bytes: bytes, y_new_bytes: bytes) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The point-dependent part of :meth:`Grid.interpolate` from the Chebyshev nodes y to y_new:
+    terms w_j / (y_k - y_j), their row sums and the rows that hit a node exactly.  Cached because
+    an adaptive run maps every stored state onto one reference grid (hundreds of calls with the
+    same points, each O(N m) divisions); the arithmetic is the same as computing it per call, so
+    results are bitwise unchanged.  Arrays are read-only (shared between calls)."""
+    y_new = np.frombuffer(y_new_bytes, dtype=float)
+    y = np.frombuffer(y_bytes, dtype=float)
+    n = len(y) - 1
+    wb = (-1.0) ** np.arange(n + 1)
+    wb[0] *= 0.5
+    wb[-1] *= 0.5
+    diff = y_new[:, None] - y[None, :]
+    exact = np.isclose(diff, 0.0, atol=1e-15)
+    diff[exact] = 1.0
+    terms = wb / diff
+    row_sums = terms.sum(axis=1)
+    hit_rows, hit_cols = np.nonzero(exact)
+    for a in (terms, row_sums, hit_rows, hit_cols):
+        a.flags.writeable = False
+    return terms, row_sums, hit_rows, hit_cols
 
 
 @lru_cache(maxsize=64)

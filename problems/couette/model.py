@@ -801,6 +801,13 @@ class CouetteProblem:
 
         return resolution(self, x, p).error
 
+    def rounding_error(self, x: Array, p: Mapping[str, Any]) -> float:
+        """The part of :meth:`error_estimate` no finer grid lowers: the rounding error of nu
+        against the distance to packing (``Resolution.rounding``, the precision limit)."""
+        from problems.couette.resolution import resolution
+
+        return resolution(self, x, p).rounding
+
     def vector_error(self, v: Array) -> float:
         """Estimated relative error of a perturbation v (a null vector at a branch point): the
         largest Chebyshev tail of its profiles nu, u, T relative to the largest profile
