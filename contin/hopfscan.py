@@ -25,6 +25,8 @@ between (Newton at fixed p would be ambiguous there: such intervals are reported
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -77,6 +79,7 @@ def locate_hopf(
     ``n_unstable_kx<k>`` observable); only intervals where they change (both ends known) are
     searched.  None searches every interval (one eigen-solve per stored point).
     """
+    from contin.adapt import point_problem
     from contin.hopf import _to_segment, crossing_pairs
     from contin.newton import newton as solve
 
@@ -109,7 +112,7 @@ def locate_hopf(
             u = state(i)
             if u is None:
                 return None
-            cache[i] = _complex_upper(problem, u, params_at(i), kx, kz, dense_max, k)
+            cache[i] = _complex_upper(point_problem(problem, branch, i), u, params_at(i), kx, kz, dense_max, k)
         return cache[i]
 
     where = f" at kx={kx:g}" + (f", kz={kz:g}" if kz else "")
@@ -129,10 +132,16 @@ def locate_hopf(
         if len(branch.free) != 1:
             out.reasons.append(f"{head}: complex pair crossing on a {len(branch.free)}-parameter curve; not located")
             continue
+        # Points of an adaptive run lie on their own grids (contin.adapt.point_problem): the
+        # location runs on point i's grid, with point i+1 carried onto it.
+        here, there = point_problem(problem, branch, i), point_problem(problem, branch, i + 1)
+        if there is not here:
+            ub = there.transfer(ub, here)
         for mu_a, mu_b in crossings:
-            sp, reason = _locate_one(problem, branch, i, params_at, ua, ub, complex(mu_a), complex(mu_b), kx, kz,
+            sp, reason = _locate_one(here, branch, i, params_at, ua, ub, complex(mu_a), complex(mu_b), kx, kz,
                                      dense_max, k, tol, newton, max_iterations, solve, _to_segment)
             if sp is not None:
+                sp = replace(sp, grid=branch.grid_at(i))
                 out.points.append(sp)
             if reason is not None:
                 out.reasons.append(f"{head}: {reason}")
