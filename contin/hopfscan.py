@@ -17,7 +17,12 @@ them after the fact, on a stored branch:
    exact to ``tol`` (relative), not an interpolation of eigenvalues;
 3. the result is an ``HB`` special point with ``data = {omega, kx, kz}`` (omega = Im of the
    critical eigenvalue: the travelling mode's frequency; its phase speed is omega / kx), or,
-   where a count changes without a complex crossing being located, a one-line reason.
+   where a count changes without a complex crossing being located, a one-line reason;
+4. count changes (or crossings) at most :data:`CHATTER_POINTS` stored points apart mean that
+   the sign of Re omega flips faster than the branch's points resolve: the eigenvalue is at the
+   noise level of the states (e.g. gPCF's travelling mode on plugs within 1e-9 of packing, where
+   it flips sign at every point) or the steps are too long.  Such HBs are kept but their note says
+   "doubtful", and a reason line names the stretch (:func:`doubtful_crossings`).
 
 Requires a branch in one parameter whose stored points bracket the crossing without a fold in
 between (Newton at fixed p would be ambiguous there: such intervals are reported, not guessed).
@@ -25,11 +30,9 @@ between (Newton at fixed p would be ambiguous there: such intervals are reported
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -40,6 +43,10 @@ from contin.problem import Array, has
 
 #: Default relative tolerance of the located parameter.
 DEFAULT_TOL = 1e-11
+
+#: Crossings of Re omega = 0 at most this many stored points apart are not resolved by the
+#: branch's points (:func:`doubtful_crossings`).
+CHATTER_POINTS = 2
 
 
 @dataclass
@@ -145,6 +152,29 @@ def locate_hopf(
                 out.points.append(sp)
             if reason is not None:
                 out.reasons.append(f"{head}: {reason}")
+    changed = intervals if counts is not None else sorted({sp.index for sp in out.points})
+    for lo, hi in doubtful_crossings(changed):
+        stretch = f"{par} = {pv[lo]:.6g} .. {pv[hi + 1]:.6g}{where}"
+        why = (f"doubtful: Re omega changes sign at most {CHATTER_POINTS} stored points apart in {stretch}, faster "
+               "than the branch's points resolve (eigenvalue at the noise level of the states, or steps too long)")
+        out.points = [replace(sp, note=f"{sp.note}; {why}") if lo <= sp.index <= hi else sp for sp in out.points]
+        out.reasons.append(f"{stretch}: {why}")
+    return out
+
+
+def doubtful_crossings(intervals: list[int], gap: int = CHATTER_POINTS) -> list[tuple[int, int]]:
+    """Stretches (first, last interval) of sign changes at most ``gap`` stored points apart
+    (interval i lies between points i and i+1); an isolated change is not in any."""
+    out: list[tuple[int, int]] = []
+    run: list[int] = []
+    for i in sorted(intervals):
+        if run and i - run[-1] > gap:
+            if len(run) > 1:
+                out.append((run[0], run[-1]))
+            run = []
+        run.append(i)
+    if len(run) > 1:
+        out.append((run[0], run[-1]))
     return out
 
 
