@@ -396,7 +396,7 @@ def test_gravity_scene_refines_only_branches_that_need_it():
 def test_strong_gravity_branch_refines_its_grid_instead_of_ending_mx():
     """Fr = 50: the bottom plug approaches packing exponentially in H.  On a fixed cheb 64 the
     resolution guard ends the primary branch MX at H = 21.84; with ``GravitySettings.refine``
-    the same trace refines 64 -> 96 where the estimate first exceeds tol (H = 21.62) and reaches
+    the same trace refines 64 -> 96 at the last point before the guard's stop (H = 21.62) and reaches
     H = 24, every point meeting tol on its own grid; below the change it is the fixed-grid run
     point for point; its end state equals an independent cheb 128 solve; past max_grid it ends
     MX with that reason."""
@@ -408,7 +408,7 @@ def test_strong_gravity_branch_refines_its_grid_instead_of_ending_mx():
     st = GravitySettings(H_range=(1.0, 24.0), modes=1)
     fixed = trace_in_H(pb64, pb64.initial_guess(p), p, st)
     assert fixed.status == "MX" and "under-resolved" in fixed.message
-    assert fixed.params["H"][-1] == pytest.approx(20.88, abs=0.01)  # last stored state (guard stop at 21.84)
+    assert fixed.params["H"][-1] == pytest.approx(21.62, abs=0.01)  # its last stored state
     refine = AdaptOptions(tol=3e-5, max_grid=256, coarsen_below=None, special_tol=3e-5)
     b = trace_in_H(pb64, pb64.initial_guess(p), p, replace(st, refine=refine))
     assert b.status == "EP" and b.params["H"][-1] == pytest.approx(24.0, abs=1e-12)
