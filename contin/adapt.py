@@ -112,6 +112,9 @@ def coarser(problem: Any, opts: AdaptOptions) -> int | None:
     return want if want < n else None
 
 
+#: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
+ESTIMATE_CACHE = 8
+
 #: Up to this size the kernel vectors of the grid decisions are computed densely (LAPACK):
 #: sparse bordering's set-up (bmat, splu) costs ~1-2 ms even at n = 30.
 DENSE_KERNEL_MAX = 400
@@ -193,23 +196,32 @@ class GridChange:
 
 
 def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any, *,
-               coarsen: bool = True) -> tuple[Any, Array, list[str]]:
+               coarsen: bool = True, estimate: Any = None) -> tuple[Any, Array, list[str]]:
     """The grid to start a branch on: (problem on it, start state on it (converged where
     possible), audit lines).  Refines while the estimate of the solved start state exceeds tol;
     coarsens while it is below coarsen_below * tol and the coarser grid keeps it <=
     COARSEN_MARGIN * tol (unless ``coarsen`` is False: the tracer passes False for a start with a
     given tangent, e.g. one step off a branch point, where a coarser grid moves the BP and the
     small-amplitude branch next to it may not exist there).  A start state that fails to
-    converge is returned as given (the tracer then reports the failure)."""
+    converge is returned as given (the tracer then reports the failure).
+
+    Coarsening jumps: the solved state is resampled onto the candidate grids (from min_grid up)
+    and only the first whose *resampled* state meets COARSEN_MARGIN * tol is solved on; it is
+    kept if its solution does too (else the next candidate).  One resample and estimate per
+    candidate that fails, one solve for the grid taken (issue 14: a start state exact on every
+    grid, gPCF uniform shear, was solved on cheb 4 and 8 on its way down from 64).
+    ``estimate(problem, u, params)``: the estimator (default :func:`state_error`; the tracer
+    passes its :class:`Adaptor`'s, which remembers the estimates for the first point)."""
     from contin.newton import newton
 
     check_problem(problem)
+    est = state_error if estimate is None else estimate
     lines: list[str] = []
     res = newton(problem, u0, params, newton_options)
     if not res.converged:
         return problem, np.asarray(u0, dtype=float), lines
     u = res.u
-    err = state_error(problem, u, params)
+    err = est(problem, u, params)
     while err > opts.tol:
         n_new = finer(problem, u, params, opts)
         if n_new is None:
@@ -220,22 +232,26 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
             break
         lines.append(f"start grid refined {problem.grid_size} -> {n_new} (estimate {err:.2g} > tol {opts.tol:.2g})")
         problem, u = other, trial.u
-        err = state_error(problem, u, params)
+        err = est(problem, u, params)
     else:
         if coarsen and opts.coarsen_below is not None and err < opts.coarsen_below * opts.tol:
             # The coarsest grid that keeps the estimate <= COARSEN_MARGIN tol: candidates from
-            # min_grid up by the growth factor, first fit taken (few solves, all on small grids).
+            # min_grid up by the growth factor, first fit taken (module docstring: one solve).
             n, sizes = opts.min_grid, []
             while n < problem.grid_size:
                 sizes.append(n)
                 n = max(_round(opts.growth * n, opts.multiple), n + 1)
+            margin = COARSEN_MARGIN * opts.tol
             for n_new in sizes:
                 other = problem.with_grid(n_new)
-                trial = newton(other, problem.transfer(u, other), params, newton_options)
+                guess = problem.transfer(u, other)
+                if est(other, guess, params) > margin:  # the grid cannot even carry the state
+                    continue
+                trial = newton(other, guess, params, newton_options)
                 if not trial.converged:
                     continue
-                e_new = state_error(other, trial.u, params)
-                if e_new <= COARSEN_MARGIN * opts.tol:
+                e_new = est(other, trial.u, params)
+                if e_new <= margin:
                     lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
                     problem, u = other, trial.u
                     break
@@ -253,6 +269,7 @@ class Adaptor:
         self.lines: list[str] = []
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
+        self._estimates: dict[tuple[Any, ...], tuple[Any, float]] = {}  # see estimate()
 
     def special_refinable(self, err: float) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
@@ -274,7 +291,29 @@ class Adaptor:
 
     # --- estimates -------------------------------------------------------------------------
     def error(self, system: Any, x: Array) -> float:
-        return state_error(system.problem, x[:-1], system.params_at(x[-1]))
+        """The problem's estimate of the state of x = (u, p) (:meth:`estimate`)."""
+        return self.estimate(system.problem, x[:-1], system.params_at(x[-1]))
+
+    def estimate(self, problem: Any, u: Array, params: Any) -> float:
+        """:func:`state_error`, computed once per (problem, u, params): the same state is
+        estimated when the start grid is chosen and as the first point, when a point is accepted
+        (``too_coarse``) and when coarsening is considered, and at the ends of a bracket
+        (``pre_locate``).  Keyed by the exact bytes of u (a changed state is a new key); the
+        problem is kept with its entry so that its id is not reused."""
+        u = np.asarray(u, dtype=float)
+        try:
+            key = (id(problem), u.tobytes(), tuple(sorted(params.items())))
+            hash(key)
+        except (TypeError, AttributeError):  # parameters that cannot be a key: no memory
+            return state_error(problem, u, params)
+        hit = self._estimates.get(key)
+        if hit is not None and hit[0] is problem:
+            return float(hit[1])
+        err = state_error(problem, u, params)
+        if len(self._estimates) >= ESTIMATE_CACHE:
+            self._estimates.pop(next(iter(self._estimates)))
+        self._estimates[key] = (problem, err)
+        return err
 
     def special_error(self, system: Any, kind: str, x: Array, t: Array | None, *, near: bool = False) -> float:
         """Estimate for a located special point: its state, and the kernel direction that fixes
@@ -309,7 +348,10 @@ class Adaptor:
             # compares located estimates; the ends' may be smaller and would chase the mode:
             # gPCF nu = 0.3 branch n1.1, an artefact at H ~ 30 refined 32 -> 48 -> 80 -> 128).
             return None
-        err = min(self.special_error(system, kind, pt.x, pt.t, near=True) for pt in (a, b))
+        # min over the ends: the second end is estimated only if the first does not meet tol
+        err = self.special_error(system, kind, b.x, b.t, near=True)
+        if err > special_tol:
+            err = min(err, self.special_error(system, kind, a.x, a.t, near=True))
         if err <= special_tol or not self.special_refinable(err):
             return None
         return err
