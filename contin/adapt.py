@@ -13,6 +13,7 @@ The tracer (``contin.continuation.trace``) calls into this module when
                               decides the grid of located branch points and folds, whose position
                               depends on the kernel of J, not only on the state
     suggest_grid(u, p, tol)   optional: the grid size expected to meet tol
+    suggest_vector_grid(v, tol)  optional: the same for a perturbation v (a kernel vector)
 
 Policy (h-adaptivity in the grid size, as in AUTO-07p's mesh adaption but choosing the number
 of points instead of moving them; Boyd, *Chebyshev and Fourier Spectral Methods*, 2nd ed.,
@@ -103,6 +104,17 @@ def finer(problem: Any, u: Array | None, p: Any, opts: AdaptOptions) -> int | No
     if u is not None and has(problem, "suggest_grid"):
         want = max(want, float(problem.suggest_grid(u, p, opts.tol)))
     return min(max(_round(want, opts.multiple), n + 1), opts.max_grid)
+
+
+def vector_grid(problem: Any, v: Array | None, tol: float, opts: AdaptOptions) -> int | None:
+    """The problem's grid for the perturbation v to meet tol (``suggest_vector_grid``), rounded to
+    ``multiple`` and capped at max_grid; None without the hook or a vector."""
+    if v is None or not has(problem, "suggest_vector_grid"):
+        return None
+    want = float(problem.suggest_vector_grid(np.asarray(v, dtype=float), tol))
+    if not math.isfinite(want):
+        return None
+    return min(_round(want, opts.multiple), opts.max_grid)
 
 
 def coarser(problem: Any, opts: AdaptOptions) -> int | None:
@@ -270,6 +282,8 @@ class Adaptor:
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
         self._estimates: dict[tuple[Any, ...], tuple[Any, float]] = {}  # see estimate()
+        #: (estimate, vector) of the kernel behind the last special_error (None: no kernel)
+        self.kernel: tuple[float, Array] | None = None
 
     def special_refinable(self, err: float) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
@@ -320,13 +334,19 @@ class Adaptor:
         its position (an LP's tangent, a BP's null vector of J; ``near``: x lies next to the BP,
         not on it, and the null vector is refined by inverse iteration, :func:`near_kernel`)."""
         err = self.error(system, x)
+        self.kernel = None
         if not has(system.problem, "vector_error"):
             return err
+        v = None
         if kind == "LP" and t is not None:
-            err = max(err, vector_error(system.problem, t[:-1]))
+            v = t[:-1]
         elif kind == "BP":
             jac = system.state_jacobian(x)
-            err = max(err, vector_error(system.problem, near_kernel(jac) if near else null_vector(jac)))
+            v = near_kernel(jac) if near else null_vector(jac)
+        if v is not None:
+            e_v = vector_error(system.problem, v)
+            self.kernel = (e_v, v)
+            err = max(err, e_v)
         return err
 
     def pre_locate(self, system: Any, kind: str, a: Any, b: Any, special_tol: float) -> float | None:
@@ -350,8 +370,12 @@ class Adaptor:
             return None
         # min over the ends: the second end is estimated only if the first does not meet tol
         err = self.special_error(system, kind, b.x, b.t, near=True)
+        kernel = self.kernel
         if err > special_tol:
-            err = min(err, self.special_error(system, kind, a.x, a.t, near=True))
+            e_a = self.special_error(system, kind, a.x, a.t, near=True)
+            if e_a < err:
+                err, kernel = e_a, self.kernel
+        self.kernel = kernel  # the refinement's grid (refine, ``vector``) follows the better resolved end
         if err <= special_tol or not self.special_refinable(err):
             return None
         return err
@@ -409,12 +433,16 @@ class Adaptor:
         self.since_change = 0
         return True
 
-    def refine(self, tracer: Any, err: float, why: str, newton_options: Any) -> str | None:
+    def refine(self, tracer: Any, err: float, why: str, newton_options: Any, *,
+               vector: tuple[Array, float] | None = None) -> str | None:
         """Refine at the tracer's last point; None on success, else why the run must end: at
         max_grid, or when the previous refinement from the same point did not halve the estimate
         (the estimate has reached a floor that finer grids cannot lower, e.g. the rounding of a
         spectral tail measured against a tiny scale: tol is then below what the problem's
-        estimate can certify there)."""
+        estimate can certify there).  ``vector``: (kernel vector, its tol) for a refinement
+        that a special point's kernel asks for; the grid is then at least the problem's
+        ``suggest_vector_grid`` (one jump: Bratu cheb 12 -> 32 at the fold for special_tol 1e-10,
+        where growth took 12 -> 20 -> 32 and located the fold on 20 too)."""
         sys = tracer.system
         cur = tracer.points[-1]
         count = len(tracer.points)
@@ -425,6 +453,10 @@ class Adaptor:
                     f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "
                     f"grid {sys.problem.grid_size}): the estimate's floor is above tol here")
         size = finer(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), self.opts)
+        if size is not None and vector is not None:
+            jump = vector_grid(sys.problem, vector[0], vector[1], self.opts)
+            if jump is not None:
+                size = max(size, jump)
         while size is not None:
             if self.regrid(tracer, size, why, err, newton_options):
                 return None

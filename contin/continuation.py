@@ -570,7 +570,9 @@ def trace(
         refine at cur (None: retry the step there), or, if that fails, locate it on this grid
         (the located point's own check then notes it)."""
         assert adaptor is not None
-        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton) is None:
+        kernel = adaptor.kernel  # the bracket end's kernel that pre_locate judged (its grid suggestion)
+        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton,
+                          vector=None if kernel is None else (kernel[1], special_tol)) is None:
             return None
         hook, tracer.pre_locate = tracer.pre_locate, None
         try:
@@ -692,14 +694,18 @@ def trace(
         if adaptor is not None and found:
             # Special points are located on the grid in force; one that grid does not resolve
             # (state, or the kernel fixing its position) is located again on a finer grid.
-            err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
-                      for sp in found)
+            err, kernel = -math.inf, None
+            for sp in found:
+                e_sp = adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
+                if e_sp > err:
+                    err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
             if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err):
                 kinds = "/".join(sorted({sp.type for sp in found}))
-                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton) is None:
+                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
+                                  vector=None if kernel is None else (kernel[1], special_tol)) is None:
                     steps -= 1
                     system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
                     closure_start.clear()  # carried onto the new grid when the closure test needs it

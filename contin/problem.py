@@ -103,6 +103,10 @@ class Problem(Protocol):
         not only the state, fixes where the point lies.
     suggest_grid(u, p, tol) -> int  (optional)
         The grid size expected to bring the estimate below tol (refinement takes at least it).
+    suggest_vector_grid(v, tol) -> int  (optional)
+        The same for a perturbation v (``vector_error``): a refinement for an under-resolved
+        BP's or LP's kernel takes at least it, so the point is located once on a grid that
+        resolves it instead of on every grid of a growth chain.
     """
 
     parameter_names: tuple[str, ...]
