@@ -163,29 +163,39 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     Next to a BP, J is regular; the bordered vector then keeps components along the other
     small singular directions (random borders), whose tails can exceed the kernel's by orders
     (gPCF cheb 32 next to H_2^c: 5e-4 against 2e-8 at the located BP).  Each inverse iteration
-    divides them by sigma_2 / sigma_1 (Golub & Van Loan, *Matrix Computations*, sec. 7.6.1)."""
+    divides them by sigma_2 / sigma_1 (Golub & Van Loan, *Matrix Computations*, sec. 7.6.1).
+
+    For a regular J the bordered solution [[J, b], [c^T, 0]] [phi; s] = [0; 1] is
+    phi = J^{-1} b / (c^T J^{-1} b), so the bordered vector is the first inverse-iteration
+    step from the border b: one LU of J serves all of them (up to sign, which no estimate
+    sees).  An exactly singular J (a zero pivot) falls back to the bordered solve."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    v = null_vector(jacobian)
+    from contin.normalform import borders
+
+    n = jacobian.shape[0]
     try:
-        if jacobian.shape[0] <= DENSE_KERNEL_MAX:
+        if n <= DENSE_KERNEL_MAX:
             from scipy.linalg import lu_factor, lu_solve
 
             dense = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
             factors = lu_factor(dense, check_finite=False)
+            if not np.all(np.diag(factors[0])):
+                raise RuntimeError("exactly singular")
 
             def solve(r: Array) -> Array:
                 return lu_solve(factors, r, check_finite=False)
         else:
             solve = spla.splu(sp.csc_matrix(jacobian)).solve
     except RuntimeError:  # exactly singular: the bordered vector is the kernel
-        return v
-    for _ in range(iterations):
+        return null_vector(jacobian)
+    v = borders(n)[0]
+    for k in range(iterations + 1):
         w = solve(v)
         norm = float(np.linalg.norm(w))
         if not (math.isfinite(norm) and norm > 0):
-            break
+            return null_vector(jacobian) if k == 0 else v
         v = w / norm
     return v
 
