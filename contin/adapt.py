@@ -34,7 +34,13 @@ sec. 2.12 for the tail estimate the spectral problems use):
   when the estimate there stays <= ``COARSEN_MARGIN * tol`` (at most once every ``cooldown``
   steps, so the grid does not oscillate);
 - past ``max_grid`` the run ends with MX: "under-resolved at p = ...: estimated error ... >
-  tol on the maximum grid ...".
+  tol on the maximum grid ...";
+- precision limit: where the problem's ``rounding_error`` (the part of the estimate that
+  refinement cannot lower, e.g. double-precision rounding next to a closure's singularity,
+  which grows with the grid) exceeds tol at a rejected candidate, or would at the last point
+  on the finer grid, no grid meets tol: the branch ends with status EP and a message starting
+  "precision limit" that states the last stored point's estimate (every stored point meets
+  tol), not MX with "refine the grid".
 
 Every point remembers its grid (``Branch.grid``); see ``contin.branch``.
 """
@@ -89,6 +95,28 @@ def vector_error(problem: Any, v: Array) -> float:
         return 0.0
     e = float(problem.vector_error(np.asarray(v, dtype=float)))
     return e if math.isfinite(e) else math.inf
+
+
+#: Messages of the precision-limit end start with this (the tracer ends such a branch EP).
+PRECISION_LIMIT = "precision limit"
+
+
+def rounding_error(problem: Any, u: Array, p: Any) -> float:
+    """The problem's estimated rounding error of u, the floor no grid lowers (0 without the hook)."""
+    if not has(problem, "rounding_error"):
+        return 0.0
+    e = float(problem.rounding_error(np.asarray(u, dtype=float), p))
+    return e if math.isfinite(e) else math.inf
+
+
+def coarsen_worth(problem: Any, u: Array, p: Any, err: float, opts: AdaptOptions) -> bool:
+    """Whether to try a coarser grid for a state with estimate ``err``: it is below
+    coarsen_below * tol, or rounding (``rounding_error``, which grows with the grid) sets it, so a
+    coarser grid can only lower it unless its truncation rises (the coarse grid's estimate then
+    decides, against COARSEN_MARGIN * tol)."""
+    if opts.coarsen_below is None:
+        return False
+    return err < opts.coarsen_below * opts.tol or (err > 0 and rounding_error(problem, u, p) >= err)
 
 
 def _round(n: float, multiple: int) -> int:
@@ -256,7 +284,7 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
         problem, u = other, trial.u
         err = est(problem, u, params)
     else:
-        if coarsen and opts.coarsen_below is not None and err < opts.coarsen_below * opts.tol:
+        if coarsen and coarsen_worth(problem, u, params, err, opts):
             # The coarsest grid that keeps the estimate <= COARSEN_MARGIN tol: candidates from
             # min_grid up by the growth factor, first fit taken (module docstring: one solve).
             n, sizes = opts.min_grid, []
@@ -395,6 +423,23 @@ class Adaptor:
         e = self.error(system, x)
         return e if e > self.opts.tol else None
 
+    def precision_limit(self, tracer: Any, x: Array) -> str | None:
+        """The precision-limit message if the rounding part of the estimate at the candidate x
+        (rejected: its estimate exceeds tol) exceeds tol, else None (refine as usual)."""
+        sys = tracer.system
+        rnd = rounding_error(sys.problem, x[:-1], sys.params_at(x[-1]))
+        if rnd <= self.opts.tol:
+            return None
+        return self._precision_message(tracer, x, rnd, int(sys.problem.grid_size))
+
+    def _precision_message(self, tracer: Any, x: Array, rnd: float, grid: int) -> str:
+        sys = tracer.system
+        cur = tracer.points[-1]
+        last = self.error(sys, cur.x)
+        return (f"{PRECISION_LIMIT} at {sys.parameter} = {x[-1]:.6g}: estimated rounding error {rnd:.2g} > tol "
+                f"{self.opts.tol:.2g} on grid {grid}, which no finer grid lowers; the branch is accurate to {last:.2g} up to {sys.parameter} = {cur.x[-1]:.6g} (its last point, "
+                f"grid {sys.problem.grid_size})")
+
     def at_max(self, system: Any, x: Array, err: float) -> str:
         return (f"under-resolved at {system.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                 f"{self.opts.tol:.2g} on the maximum grid {system.problem.grid_size} (AdaptOptions.max_grid = "
@@ -468,10 +513,30 @@ class Adaptor:
             if jump is not None:
                 size = max(size, jump)
         while size is not None:
+            keep = self._snapshot(tracer)
             if self.regrid(tracer, size, why, err, newton_options):
+                new = tracer.system
+                rnd = rounding_error(new.problem, tracer.points[-1].x[:-1], new.params_at(tracer.points[-1].x[-1]))
+                if rnd > self.opts.tol:
+                    # The finer grid's rounding exceeds tol at the (accepted) last point: keep
+                    # the point on its old grid, where it met tol, and end at the precision limit.
+                    self._restore(tracer, keep)
+                    return self._precision_message(tracer, tracer.points[-1].x, rnd, int(size))
                 return None
             size = finer(sys.problem.with_grid(size), None, None, self.opts)
         return self.at_max(sys, cur.x, err)
+
+    @staticmethod
+    def _snapshot(tracer: Any) -> tuple:
+        return (tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1],
+                len(tracer.audit), tracer.point_tests)
+
+    def _restore(self, tracer: Any, keep: tuple) -> None:
+        """Undo :meth:`regrid` (one grid change) from a :meth:`_snapshot`."""
+        tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1] = keep[:5]
+        tracer.point_tests = keep[6]
+        del tracer.audit[keep[5]:]
+        self.lines.pop()
 
     def maybe_coarsen(self, tracer: Any, newton_options: Any) -> None:
         """Move the last accepted point to a coarser grid if the estimate allows (module docstring)."""
@@ -482,7 +547,7 @@ class Adaptor:
         sys = tracer.system
         cur = tracer.points[-1]
         err = self.error(sys, cur.x)
-        if err >= opts.coarsen_below * opts.tol:
+        if not coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts):
             return
         size = coarser(sys.problem, opts)
         if size is None:
@@ -493,15 +558,11 @@ class Adaptor:
         if e_new > COARSEN_MARGIN * opts.tol:
             self.since_change = 0  # try again after the cooldown
             return
-        keep = (tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1], len(tracer.audit),
-                tracer.point_tests)
+        keep = self._snapshot(tracer)
         if not self.regrid(tracer, size, f"estimate below {opts.coarsen_below:g} tol", err, newton_options):
             return
         if self.error(tracer.system, tracer.points[-1].x) > COARSEN_MARGIN * opts.tol:  # the corrected state says no
-            tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1] = keep[:5]
-            tracer.point_tests = keep[6]
-            del tracer.audit[keep[5]:]
-            self.lines.pop()
+            self._restore(tracer, keep)
             self.since_change = 0
 
     def carry(self, old: Any, new_system: Any, x: Array) -> Array:

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.adapt import PRECISION_LIMIT
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
@@ -618,9 +619,11 @@ def trace(
         assert new is not None
         if adaptor is not None and (err := adaptor.too_coarse(system, new.x)) is not None:
             # Not resolved: refine at the last accepted point and retry the step from there.
-            stop = adaptor.refine(tracer, err, "estimate above tol", options.newton)
+            stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, "estimate above tol",
+                                                                             options.newton)
             if stop is not None:
-                status, message = "MX", stop
+                # precision limit: every stored point meets tol and no grid can go on (EP)
+                status, message = ("EP" if stop.startswith(PRECISION_LIMIT) else "MX"), stop
                 break
             system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
             closure_start.clear()  # carried onto the new grid when the closure test needs it

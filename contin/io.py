@@ -59,8 +59,14 @@ A file is never modified in place.  Every publish writes the whole run to ``FILE
 flushes and fsyncs it, then renames it over ``FILE`` (``os.replace`` is atomic on POSIX), so
 ``FILE`` is at every instant either absent or a complete, consistent file: a SIGKILL at any
 moment leaves the last published version (attr ``complete=False`` while the run is still going)
-and at worst a stale ``FILE.tmp``.  :class:`H5Writer` republishes after every finished branch;
+and at worst a stale ``FILE.tmp``.  :class:`H5Writer` republishes after finished branches;
 the runs are small (a few MB), so rewriting is cheap and far simpler than in-place appends.
+Cheap is not free (a publish of the main job's seven branches takes ~60 ms, a whole run's
+publishes grow with the square of its branch count), so a writer may be given a
+``checkpoint_ratio`` c: a finished branch is then published at once only when the time since
+the last publish ended is at least c times that publish's duration, else it waits for the next
+branch, an interrupt or the final publish.  The work a SIGKILL can lose is then bounded by c
+publishes' worth of computing time, and publishing takes at most 1/(1 + c) of the run.
 
 Non-finite data
 ---------------
@@ -82,10 +88,12 @@ import datetime as _dt
 import functools
 import json
 import logging
+import math
 import os
 import shlex
 import subprocess
 import sys
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -463,7 +471,9 @@ class H5Writer:
     notes, extra, diagram_x, diagram_y : stored as root attributes.
 
     Use as a context manager: :meth:`add_branch` after each finished branch (publishes at
-    once); leaving the block normally publishes the final file with ``complete=True``; leaving
+    once, or with ``checkpoint_ratio = c > 0`` once the time since the last publish is at least
+    c times its duration: see "Crash safety" above; :attr:`pending` says whether the published
+    file lags behind); leaving the block normally publishes the final file with ``complete=True``; leaving
     it with an exception keeps the last published (``complete=False``) file.
     """
 
@@ -486,7 +496,14 @@ class H5Writer:
         max_profiles: int = 40,
         lock: bool = True,
         attrs: Mapping[str, str] | None = None,
+        checkpoint_ratio: float = 0.0,
     ) -> None:
+        if not (math.isfinite(checkpoint_ratio) and checkpoint_ratio >= 0):
+            raise ValueError(f"checkpoint_ratio must be a finite number >= 0, got {checkpoint_ratio!r}")
+        self.checkpoint_ratio = float(checkpoint_ratio)
+        self.pending = False  # a branch was added after the last publish
+        self._last_publish_end = -math.inf
+        self._last_publish_duration = 0.0
         self.path = check_writable(path)
         # One writer per output, refused up front (two runs on one -o lost work silently).
         self._lock = OutputLock(self.path).acquire() if lock else None
@@ -531,9 +548,13 @@ class H5Writer:
         return list(self._branches.values())
 
     def add_branch(self, branch: Branch) -> None:
-        """Record a finished branch (replacing one with the same id) and publish the file."""
+        """Record a finished branch (replacing one with the same id) and publish the file
+        (at once, or under ``checkpoint_ratio`` when enough time has passed since the last)."""
         self._branches[str(branch.id)] = branch
-        self.publish()
+        self.pending = True
+        since = time.monotonic() - self._last_publish_end
+        if since >= self.checkpoint_ratio * self._last_publish_duration:
+            self.publish()
 
     def update(self, **meta: Any) -> None:
         """Change provenance/notes before the final publish (e.g. the scene's full parameters,
@@ -623,8 +644,12 @@ class H5Writer:
         if a branch holds non-finite data; the published file is then left as it was)."""
         for b in self._all_branches():
             check_finite(b)
+        start = time.monotonic()
         _publish(self.path, self._fill)
+        self._last_publish_end = time.monotonic()
+        self._last_publish_duration = self._last_publish_end - start
         self.publishes += 1
+        self.pending = False
 
     def close(self) -> None:
         """Final publish with ``complete=True``; releases the output lock."""

@@ -225,23 +225,35 @@ def bordered(jac: sp.spmatrix, column: Array, row: Array) -> sp.csc_matrix:
     return sp.csc_matrix((data, indices.astype(np.int32 if indices.size < 2**31 else np.int64), indptr), shape=(n + 1, n + 1))
 
 
-def bordered_dense(jac: object, column: Array, row: Array) -> Array:
-    """[[J, column], [row[:n], row[n]]] as a dense (Fortran-ordered, for getrf) array."""
+def bordered_dense(jac: object, column: Array, row: Array, out: Array | None = None) -> Array:
+    """[[J, column], [row[:n], row[n]]] as a dense (Fortran-ordered, for getrf) array.
+
+    ``out``: an (n+1) x (n+1) Fortran-ordered array to assemble into (returned), e.g. the
+    buffer of an earlier Newton iteration whose factorization is no longer needed.
+    """
     n = jac.shape[0]  # type: ignore[attr-defined]
-    a = np.empty((n + 1, n + 1), order="F")
+    if out is not None and out.shape == (n + 1, n + 1) and out.flags.f_contiguous and out.dtype == np.float64:
+        a = out
+    else:
+        a = np.empty((n + 1, n + 1), order="F")
     a[:n, :n] = jac.toarray() if sp.issparse(jac) else jac  # type: ignore[attr-defined]
     a[:n, n] = column
     a[n, :] = row
     return a
 
 
-def factorize_bordered(jac: object, column: Array, row: Array) -> Factorization | None:
+def factorize_bordered(jac: object, column: Array, row: Array, out: Array | None = None) -> Factorization | None:
     """:func:`factorize` of the bordered matrix of :func:`bordered` (built densely when J is dense).
 
-    ``jac`` itself is not modified (the dense path factorizes a bordered copy).
+    ``jac`` itself is not modified (the dense path factorizes a bordered copy).  ``out`` (dense
+    J only): an (n+1) x (n+1) Fortran-ordered buffer the bordered matrix is assembled into and
+    factorized in place (LAPACK overwrite), instead of a new array: a Newton loop passes the
+    buffer of its previous iteration, whose factorization it has discarded, and so saves one
+    fresh (n+1)^2 allocation per iteration -- on a large grid its page faults cost as much as
+    the copy itself (contin.corrector).  Any earlier factorization held in ``out`` is destroyed.
     """
     if not sp.issparse(jac):
-        return _dense_lu(bordered_dense(jac, column, row))
+        return _dense_lu(bordered_dense(jac, column, row, out))
     n = jac.shape[0]  # type: ignore[attr-defined]
     if n + 1 >= BANDED_MIN:
         csc = canonical_csc(jac)

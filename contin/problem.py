@@ -46,7 +46,10 @@ class Problem(Protocol):
         The same J as ``jacobian``, dense.  contin factorizes small systems densely
         (n + 1 <= ``contin.linalg.DENSE_LIMIT``) and then calls this instead of ``jacobian``
         in its Newton loops, which skips building a sparse matrix only to copy it into a
-        dense one (at continuation sizes that construction costs more than the LU).
+        dense one (at continuation sizes that construction costs more than the LU).  It may
+        take a keyword ``out``: an earlier J (Fortran-ordered) that contin no longer needs and
+        the hook may overwrite instead of allocating a new array (contin uses the returned
+        array either way).
     mass_matrix(u, p) -> (n, n) sparse
         M in M du/dt = F(u, p); default eigenproblem is J x = omega M x.
     eigenproblem(u, p, **kwargs) -> (A, B)
@@ -103,6 +106,10 @@ class Problem(Protocol):
         not only the state, fixes where the point lies.
     suggest_grid(u, p, tol) -> int  (optional)
         The grid size expected to bring the estimate below tol (refinement takes at least it).
+    rounding_error(u, p) -> float  (optional)
+        The part of error_estimate that no finer grid lowers (rounding of the computed state,
+        e.g. next to a singularity of a closure): where it exceeds adapt.tol the branch ends
+        at its precision limit (status EP, message "precision limit ...") instead of refining.
     suggest_vector_grid(v, tol) -> int  (optional)
         The same for a perturbation v (``vector_error``): a refinement for an under-resolved
         BP's or LP's kernel takes at least it, so the point is located once on a grid that

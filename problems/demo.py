@@ -114,7 +114,7 @@ class _DirichletBVP:
     def transfer(self, u: Array, other: _DirichletBVP) -> Array:
         """u carried onto ``other``'s nodes by this grid's interpolant (barycentric for Chebyshev,
         local Lagrange of the scheme's order for FD); linear in u, exact at shared nodes (the walls)."""
-        return self.grid.interpolation_matrix(other.grid.y) @ np.asarray(u, dtype=float)  # cached per pair of grids
+        return self.grid.interpolate(np.asarray(u, dtype=float), other.grid.y)
 
     def error_estimate(self, u: Array, p: Mapping[str, float]) -> float:
         """Estimated relative error of the discrete solution u.

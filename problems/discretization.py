@@ -25,11 +25,9 @@ whose h^p boundary term vanishes (see tests/test_couette_scenes.py, H_1^c orders
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache, lru_cache
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -331,16 +329,8 @@ class Grid:
         """
         y_new = np.atleast_1d(np.asarray(y_new, dtype=float))
         if self.method == "cheb":
-            n = self.intervals
-            wb = (-1.0) ** np.arange(n + 1)
-            wb[0] *= 0.5
-            wb[-1] *= 0.5
-            diff = y_new[:, None] - self.y[None, :]
-            exact = np.isclose(diff, 0.0, atol=1e-15)
-            diff[exact] = 1.0
-            terms = wb / diff
-            out = (terms @ f) / terms.sum(axis=1).reshape((-1,) + (1,) * (np.ndim(f) - 1))
-            hit_rows, hit_cols = np.nonzero(exact)
+            terms, row_sums, hit_rows, hit_cols = _barycentric_setup(self.y.tobytes(), y_new.tobytes())
+            out = (terms @ f) / row_sums.reshape((-1,) + (1,) * (np.ndim(f) - 1))
             out[hit_rows] = f[hit_cols]
             return out
         width = int(self.order) + 1
@@ -352,35 +342,6 @@ class Grid:
             idx = np.arange(start, start + width)
             out[k] = fornberg_weights(yk, self.y[idx], 0)[:, 0] @ f[idx]
         return out
-
-    def interpolation_matrix(self, y_new: NDArray[np.float64]) -> NDArray[np.float64] | sp.csr_matrix:
-        """The matrix P with P @ f = :meth:`interpolate` (f, y_new) up to rounding (the same
-        barycentric or local Lagrange weights, normalised once), cached per grid and targets:
-        carrying states between two grids (adaptive resolution's ``transfer``) is then one
-        product instead of a barycentric set-up per call (0.3 ms for three gPCF profiles, about a
-        Newton step on cheb 16).  Dense for Chebyshev, sparse (order + 1 entries a row) for FD;
-        shared, not to be modified."""
-        y_new = np.atleast_1d(np.asarray(y_new, dtype=float))
-        table = _INTERPOLATION.setdefault(self, {})
-        key = y_new.tobytes()
-        m = table.get(key)
-        if m is None:
-            if len(table) >= 16:
-                table.pop(next(iter(table)))
-            if self.method == "cheb":  # dense, as interpolate's own barycentric set-up
-                m = np.array([self.interpolation_weights(float(y)) for y in y_new]).reshape(y_new.size, self.size)
-                m.setflags(write=False)
-            else:  # local: order + 1 weights per row, O(len(y_new)) memory
-                width = int(self.order) + 1
-                h = 1.0 / self.intervals
-                i = np.clip(np.floor((y_new + 0.5) / h).astype(np.int64), 0, self.intervals)
-                start = np.minimum(np.maximum(i - width // 2 + 1, 0), self.size - width)
-                idx = start[:, None] + np.arange(width)[None, :]
-                w = np.array([fornberg_weights(y, self.y[j], 0)[:, 0] for y, j in zip(y_new, idx)])
-                m = sp.csr_matrix((w.ravel(), (np.repeat(np.arange(y_new.size), width), idx.ravel())),
-                                  shape=(y_new.size, self.size))
-            table[key] = m
-        return m
 
     def interpolation_weights(self, y0: float) -> NDArray[np.float64]:
         """Weights w (n,) with w . f = ``interpolate(f, [y0])[0]`` for every f, in O(n) time and
@@ -439,8 +400,28 @@ def chebyshev_tail(values: NDArray[np.float64], modes: int = 4) -> float:
     return float(np.max(a[-modes:]) / scale) if scale > 0 else 0.0
 
 
-#: Grid -> {target nodes (bytes): interpolation matrix} (Grid.interpolation_matrix); weak keys.
-_INTERPOLATION: weakref.WeakKeyDictionary[Grid, dict[bytes, Any]] = weakref.WeakKeyDictionary()
+@lru_cache(maxsize=32)
+def _barycentric_setup(y_bytes: bytes, y_new_bytes: bytes) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The point-dependent part of :meth:`Grid.interpolate` from the Chebyshev nodes y to y_new:
+    terms w_j / (y_k - y_j), their row sums and the rows that hit a node exactly.  Cached because
+    an adaptive run maps every stored state onto one reference grid (hundreds of calls with the
+    same points, each O(N m) divisions); the arithmetic is the same as computing it per call, so
+    results are bitwise unchanged.  Arrays are read-only (shared between calls)."""
+    y_new = np.frombuffer(y_new_bytes, dtype=float)
+    y = np.frombuffer(y_bytes, dtype=float)
+    n = len(y) - 1
+    wb = (-1.0) ** np.arange(n + 1)
+    wb[0] *= 0.5
+    wb[-1] *= 0.5
+    diff = y_new[:, None] - y[None, :]
+    exact = np.isclose(diff, 0.0, atol=1e-15)
+    diff[exact] = 1.0
+    terms = wb / diff
+    row_sums = terms.sum(axis=1)
+    hit_rows, hit_cols = np.nonzero(exact)
+    for a in (terms, row_sums, hit_rows, hit_cols):
+        a.flags.writeable = False
+    return terms, row_sums, hit_rows, hit_cols
 
 
 @lru_cache(maxsize=64)

@@ -84,6 +84,40 @@ def test_bordered_factorization_solves_and_matches_determinant(backend):
     assert (sign, logabs) == pytest.approx(np.linalg.slogdet(dense), abs=1e-10)
 
 
+@pytest.mark.parametrize("n", [5, 40, 200])
+def test_bordered_factorization_in_place_equals_a_fresh_one_and_scipy(n):
+    # the corrector assembles each iteration's bordered matrix into the previous iteration's
+    # buffer and factorizes it there: the same LU bit for bit as into a fresh array, scipy's
+    # lu_factor of the same matrix, and the determinant sign of numpy's slogdet
+    from scipy.linalg import lu_factor, lu_solve
+
+    rng = np.random.default_rng(n)
+    buffer = None
+    for _ in range(3):  # the buffer reused across "iterations" with different matrices
+        j = rng.standard_normal((n, n))
+        col, row = rng.standard_normal(n), rng.standard_normal(n + 1)
+        dense = np.block([[j, col[:, None]], [row[None, :]]])
+        j_before = j.copy()
+        fresh = factorize_bordered(j, col, row)
+        fact = factorize_bordered(j, col, row, buffer)
+        if buffer is not None:
+            assert fact.lu is buffer  # assembled and factorized in place
+        buffer = fact.lu
+        lu, piv = lu_factor(dense)
+        assert np.array_equal(fact.lu, fresh.lu) and np.array_equal(fact.piv, fresh.piv)
+        assert np.array_equal(fact.lu, lu) and np.array_equal(fact.piv, piv)
+        b = rng.standard_normal(n + 1)
+        assert np.array_equal(fact.solve(b), lu_solve((lu, piv), b))
+        assert np.linalg.norm(dense @ fact.solve(b) - b) < 1e-10 * np.linalg.norm(dense, 1) * np.linalg.norm(fact.solve(b))
+        sign, logabs = fact.det_sign_log()
+        ref_sign, ref_log = np.linalg.slogdet(dense)
+        assert sign == ref_sign and logabs == pytest.approx(ref_log, rel=1e-12)
+        assert np.array_equal(j, j_before)  # J itself untouched
+    # a buffer of the wrong shape is not used
+    other = factorize_bordered(j, col, row, np.empty((n, n), order="F"))
+    assert np.array_equal(other.lu, lu)
+
+
 def test_inf_norm_sparse_and_dense():
     a = np.array([[1.0, -2.0, 0.0], [0.0, 0.0, 0.0], [-4.0, 0.5, 0.25]])
     assert inf_norm(a) == 4.75

@@ -133,3 +133,52 @@ def test_corrector_give_up_hook_ends_an_unconverged_correction():
     stopped = correct(system, x0, e_p, NewtonOptions(), give_up=give_up)
     assert not stopped.converged and stopped.message == "enough" and stopped.iterations == 2
     assert stopped.factorization is not None and len(stopped.residual_history) == 3
+
+
+class BratuDenseOut(Bratu):
+    """Bratu with a dense_jacobian hook that takes ``out`` (contin.problem): it records the
+    arrays it was handed and overwrites them."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.handed = []
+
+    def dense_jacobian(self, u, p, out=None):
+        jac = self.jacobian(u, p).toarray()
+        self.handed.append(out)
+        if out is None:
+            return np.asfortranarray(jac)
+        out[...] = jac
+        return out
+
+
+def test_corrector_reuses_one_jacobian_and_one_bordered_buffer_with_the_same_result():
+    # the corrector's Newton loop hands the previous iteration's J to a dense_jacobian hook
+    # that takes out= (ExtendedSystem.jacobian scratch=True) and factorizes each bordered
+    # matrix in the previous one's buffer: the correction must be bitwise the one of a
+    # problem without the out= hook, whose every J and bordered matrix is a new array
+    from contin.corrector import correct
+    from contin.extended import ExtendedSystem
+
+    pb, plain = BratuDenseOut("cheb", 24), Bratu("cheb", 24)
+    plain.dense_jacobian = lambda u, p: np.asfortranarray(plain.jacobian(u, p).toarray())
+    x0 = np.concatenate([pb.initial(), [1.0]])
+    e_p = np.zeros(x0.size)
+    e_p[-1] = 1.0
+    system = ExtendedSystem(pb, {"lam": 1.0}, "lam")
+    reused = correct(system, x0, e_p, NewtonOptions())
+    fresh = correct(ExtendedSystem(plain, {"lam": 1.0}, "lam"), x0, e_p, NewtonOptions())
+    assert reused.converged and reused.iterations >= 3
+    assert reused.iterations == fresh.iterations and np.array_equal(reused.x, fresh.x)
+    assert reused.residual_history == fresh.residual_history
+    assert np.array_equal(reused.factorization.lu, fresh.factorization.lu)
+    assert reused.factorization.det_sign_log() == fresh.factorization.det_sign_log()
+    # one J array reused: the first call had none to give, every later one the first's array
+    outs = pb.handed[-reused.iterations:]
+    assert outs[1] is not None and all(o is outs[1] for o in outs[1:])
+    # the next correction on the same system goes on with that J array (the system keeps it);
+    # its factorization is a new array (the caller may still hold the previous one)
+    again = correct(system, x0, e_p, NewtonOptions())
+    assert all(o is outs[1] for o in pb.handed[-again.iterations:])
+    assert again.factorization.lu is not reused.factorization.lu
+    assert np.array_equal(again.x, reused.x) and np.array_equal(reused.factorization.lu, fresh.factorization.lu)

@@ -161,7 +161,34 @@ def test_dense_jacobian_is_the_sparse_one_bitwise(method, walls, gravity, dufour
     x = perturbed(problem, p)
     dense = problem.dense_jacobian(x, p)
     assert dense.flags.f_contiguous and dense.shape == (problem.size, problem.size)
+    sparse = problem.jacobian(x, p).toarray()
+    assert np.array_equal(dense, sparse)
+    # both assemblies of the dense J (one bincount scatter; term by term with dense operator
+    # blocks, the default on large Chebyshev grids) give it bit for bit
+    layout, rows, cols = problem._jacobian_terms(x, p)
+    for blockwise in (False, True):
+        d = layout.assemble_dense(rows, cols, blockwise=blockwise)
+        assert d.flags.f_contiguous and d.tobytes(order="F") == sparse.tobytes(order="F")
+
+
+def test_blockwise_dense_jacobian_on_a_large_chebyshev_grid():
+    # cheb 96: the operator blocks hold > BLOCKWISE_MIN entries, so dense_jacobian adds them
+    # term by term; same bits as the CSR Jacobian and as the one-scatter assembly
+    from problems.couette.model import BLOCKWISE_MIN
+
+    problem = CouetteProblem("cheb", 96)
+    p = problem.params({"H": 15.0, "nu": 0.35, "e": 0.7})
+    x = perturbed(problem, p)
+    layout, rows, cols = problem._jacobian_terms(x, p)
+    scatter = layout.assemble_dense(rows, cols, blockwise=False)
+    assert layout._dense_entries >= BLOCKWISE_MIN
+    dense = problem.dense_jacobian(x, p)
+    assert dense.tobytes() == scatter.tobytes() and dense.flags.f_contiguous
     assert np.array_equal(dense, problem.jacobian(x, p).toarray())
+    # into an earlier J (contin's scratch): overwritten, not merely added to
+    old = np.full((problem.size, problem.size), np.nan, order="F")
+    again = problem.dense_jacobian(x, p, out=old)
+    assert again is old and again.tobytes() == scatter.tobytes()
 
 
 def test_parameter_derivative_of_inactive_parameters_is_zero():

@@ -361,3 +361,25 @@ def test_dense_chebyshev_grid_limit_is_one_clear_error():
     with pytest.raises(ValueError, match="grid too large: cheb .* at most 4096 intervals"):
         make_grid("cheb", MAX_CHEB_INTERVALS + 1)
     assert make_grid("fd2", 2 * MAX_CHEB_INTERVALS).size == 2 * MAX_CHEB_INTERVALS + 1
+
+
+def test_cached_chebyshev_interpolation_is_bitwise_the_direct_formula():
+    """Grid.interpolate caches the point-dependent barycentric set-up; the values must be
+    bitwise those of the formula computed afresh (including a target that hits a node)."""
+    g = make_grid("cheb", 24)
+    rng = np.random.default_rng(3)
+    y_new = np.concatenate([rng.uniform(-0.5, 0.5, 9), [g.y[5], 0.5]])
+    n = g.intervals
+    wb = (-1.0) ** np.arange(n + 1)
+    wb[0] *= 0.5
+    wb[-1] *= 0.5
+    for f in (rng.standard_normal(n + 1), rng.standard_normal((n + 1, 3))):
+        diff = y_new[:, None] - g.y[None, :]
+        exact = np.isclose(diff, 0.0, atol=1e-15)
+        diff[exact] = 1.0
+        terms = wb / diff
+        ref = (terms @ f) / terms.sum(axis=1).reshape((-1,) + (1,) * (np.ndim(f) - 1))
+        rows, cols = np.nonzero(exact)
+        ref[rows] = f[cols]
+        for _ in range(2):  # the second call comes from the cache
+            assert np.array_equal(g.interpolate(f, y_new), ref)

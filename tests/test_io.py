@@ -208,6 +208,41 @@ def test_writer_publishes_each_branch_and_survives_a_crash_mid_publish(tmp_path,
     assert not (tmp_path / "run.h5.tmp").exists()
 
 
+def test_writer_checkpoint_ratio_bounds_unpublished_work(tmp_path, monkeypatch):
+    """checkpoint_ratio c: a branch is published at once only when the time since the last
+    publish is >= c times that publish's duration; the rest wait for the next publish."""
+    clock = [100.0]
+    monkeypatch.setattr(io.time, "monotonic", lambda: clock[0])
+    real = io._publish
+
+    def timed_publish(path, fill):  # every publish "takes" 0.5 s
+        real(path, fill)
+        clock[0] += 0.5
+
+    monkeypatch.setattr(io, "_publish", timed_publish)
+    path = tmp_path / "run.h5"
+    bs = toy_branches(n=4)
+    with io.H5Writer(path, scene="toy", checkpoint_ratio=4.0) as w:
+        w.add_branch(bs[0])  # the first branch: published at once
+        assert w.publishes == 1 and not w.pending
+        clock[0] += 1.9  # < 4 x 0.5 s since the last publish ended
+        w.add_branch(bs[1])
+        assert w.publishes == 1 and w.pending
+        assert [b.id for b in io.load(path)[0]] == ["0"]
+        clock[0] += 0.1  # now exactly 4 x 0.5 s
+        w.add_branch(bs[2])
+        assert w.publishes == 2 and not w.pending
+        assert [b.id for b in io.load(path)[0]] == ["0", "1", "2"]
+        w.add_branch(bs[3])
+        assert w.pending
+    loaded, meta = io.load(path)  # the final publish holds everything
+    assert [b.id for b in loaded] == ["0", "1", "2", "3"] and meta["complete"] is True
+    assert w.publishes == 3
+    for bad in (-1.0, math.inf, math.nan):
+        with pytest.raises(ValueError, match="checkpoint_ratio"):
+            io.H5Writer(tmp_path / "x.h5", checkpoint_ratio=bad)
+
+
 def test_writer_replaces_same_id_and_final_publish_is_complete(tmp_path):
     path = tmp_path / "run.h5"
     bs = toy_branches(n=2)

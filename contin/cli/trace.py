@@ -34,6 +34,11 @@ from contin.cli._runctl import (
     sigterm_as_interrupt,
 )
 
+#: a finished branch is published at once when the time since the last publish is at least
+#: this many times that publish's duration (contin.io, "Crash safety"): publishing then takes at
+#: most 1/5 of a run, and a SIGKILL loses at most ~4 publishes' worth of computing
+CHECKPOINT_RATIO = 4.0
+
 
 def _parse_kx(text: str | None) -> tuple[float, ...]:
     if not text:
@@ -286,7 +291,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         writer = io.H5Writer(output, scene=scene, parameters={**sc.defaults, **params},
                              discretization={k: v for k, v in (("method", method), ("grid", grid)) if v is not None},
                              options=overrides, branches=completed.values(),
-                             diagram_x=sc.x, diagram_y=sc.y)
+                             diagram_x=sc.x, diagram_y=sc.y, checkpoint_ratio=CHECKPOINT_RATIO)
     progress = Progress(enabled=not quiet)
 
     def on_branch(branch: Any) -> None:

@@ -30,6 +30,28 @@ the last state stored below the stop at H = 100 has a defect of 2.3e-4.  A tail(
 with the same tolerance would also end JJ-wall, gravity-isola (Fr = 1000) and coarse-grid
 branches that are right to the accuracy their tests check, so it is not part of the estimate.
 
+Rounding: the precision limit next to packing.  The state is solved in double precision, and
+Newton cannot push the residual below its rounding floor (eps ||J|| ||x||; ||J|| ~ 1e15-1e19 in
+a plug within 1e-8..1e-9 of nu_m, where the closures' derivatives are huge).  The computed nu
+then carries an absolute rounding error of a few hundred ulps of nu_m, which grows with the
+grid; measured against the extended-precision solution on the same grid
+(:mod:`problems.couette.extended_precision`, longdouble residual, iterative refinement) on the
+nu = 0.63 n = 1 branch (H = 83 .. 95, plug 2e-7 .. 1.2e-9 below nu_m, cheb 48 .. 192), the
+error of nu relative to the local distance nu_m - nu(y) is 0.014 .. 0.15 times
+eps N^2 nu_m / (nu_m - max nu) in all 20 cases (Don & Solomonoff, SIAM J. Sci. Comput. 16
+(1995): rounding of Chebyshev collocation grows like N^2 eps), so the estimate adds
+
+    rounding = ROUNDING_FACTOR eps N^2 nu_m / (nu_m - max nu)      (ROUNDING_FACTOR = 0.2)
+
+and reports error = max(truncation, rounding).  Unlike the tail, no finer grid lowers it (it
+grows like N^2), so a state whose rounding exceeds tol is at the *precision limit* of double
+precision: the reason says so instead of advising a finer grid, and an adaptive run ends there
+(``contin.adapt``: "precision limit").  The tail alone misses it: at H = 94.9 (cheb 80, plug
+1.2e-9 below nu_m) the tail estimate is 2.5e-5 while the state is only accurate to 3.9e-5
+against the extended-precision reference, and at H = 95.6 on cheb 192 the tail rises to 1.6e-3
+because it measures that rounding noise (its estimate 4.2e-5 on cheb 128 then "does not fall
+with refinement").
+
 Finite-difference grids.  The nodal profiles are carried to the Chebyshev grid with the same N
 by local Lagrange interpolation on FD_WIDTH = 8 nodes (degree 7, whatever the scheme's order)
 and measured there.  The error of an FD solution is itself a smooth function, so a high-order
@@ -68,6 +90,10 @@ TAIL_MODES = 4
 
 #: Nodes of the local interpolant that carries FD profiles to the Chebyshev grid.
 FD_WIDTH = 8
+
+#: rounding = ROUNDING_FACTOR eps N^2 nu_m / (nu_m - max nu) (module docstring: the measured
+#: rounding error of nu against nu_m - nu is 0.014 .. 0.15 times eps N^2 nu_m / gap).
+ROUNDING_FACTOR = 0.2
 
 #: Fields measured, in the order they are reported.
 FIELDS = ("nu", "T", "u")
@@ -116,6 +142,9 @@ class Resolution:
     method, N : the grid
     tol, coefficients : the tol of the advice and the Chebyshev coefficients of ``field``
     suggested_N : the grid the advice names for tol (see :func:`resolution`)
+    truncation : the tail estimate (``error`` without rounding)
+    rounding : the estimated rounding error of nu against the distance to packing (module
+        docstring); ``error`` = max(truncation, rounding)
     """
 
     error: float
@@ -128,15 +157,25 @@ class Resolution:
     N: int
     tol: float = 1e-5
     coefficients: Array | None = dc_field(default=None, repr=False, compare=False)
+    truncation: float = 0.0
+    rounding: float = 0.0
+
+    @property
+    def precision_limited(self) -> bool:
+        """Whether rounding, which no finer grid lowers, sets the error (module docstring)."""
+        return self.rounding >= self.truncation
 
     @property
     def suggested_N(self) -> int:
         """The grid the advice names for ``tol`` (computed on demand: the adaptive error
         estimate does not need it, and its envelope fit costs as much as the tails)."""
-        return _suggest(self.method, self.N, self.error, self.tol, self.coefficients)
+        return _suggest(self.method, self.N, self.truncation, self.tol, self.coefficients)
 
     def reason(self, tol: float) -> str:
-        """One line: what is under-resolved, by how much, near packing or not, and the grid to try."""
+        """One line: what is under-resolved, by how much, near packing or not, and the grid to try
+        (or, when rounding sets the error, that no grid meets tol in double precision)."""
+        if self.rounding > tol and self.precision_limited:
+            return precision_reason(self.rounding, self.gap, self.limit, tol, self.method, self.N)
         f = self.field
         if f == "nu" and self.scales["nu"] == self.gap:
             what = (f"Chebyshev tail of nu {self.tails['nu']:.2g} is {self.error:.2g} of the distance to packing "
@@ -172,6 +211,21 @@ def _suggest(method: str, n: int, error: float, tol: float, a: Array | None) -> 
     return int(16 * math.ceil(want / 16))
 
 
+def rounding_estimate(N: int, gap: float, limit: float) -> float:
+    """ROUNDING_FACTOR eps N^2 nu_m / gap: the rounding error of a computed state's nu relative to
+    its distance to packing (module docstring; inf at or past packing)."""
+    if not gap > 0:
+        return math.inf
+    return ROUNDING_FACTOR * float(np.finfo(float).eps) * N * N * limit / gap
+
+
+def precision_reason(rounding: float, gap: float, limit: float, tol: float, method: str, N: int) -> str:
+    """The precision-limit reason (one line, no grid advice: finer grids raise the rounding)."""
+    return (f"precision limit: plug within {gap:.2g} of the packing limit nu_m = {limit:g}, where double-precision "
+            f"rounding alone leaves nu an estimated relative error {rounding:.2g} of the distance to packing "
+            f"(> {tol:.2g}) on {method} {N}; finer grids only raise it (it grows like N^2)")
+
+
 def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
     """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem` (or of any
     problem on a ``grid`` with ``profiles`` nu, u, T and a ``packing_limit(p)`` method, e.g. problems.disks).
@@ -200,9 +254,10 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
     scales["nu"] = min(scales["nu"], gap)
     errors = {k: tails[k] / scales[k] if scales[k] > 0 else math.inf for k in FIELDS}
     field = max(FIELDS, key=lambda k: errors[k])
-    error = errors[field]
-    return Resolution(error, field, tails, scales, gap, limit, grid.method, grid.intervals, tol,
-                      coeffs[FIELDS.index(field)])
+    truncation = errors[field]
+    rounding = rounding_estimate(grid.intervals, gap, limit)
+    return Resolution(max(truncation, rounding), field, tails, scales, gap, limit, grid.method, grid.intervals, tol,
+                      coeffs[FIELDS.index(field)], truncation, rounding)
 
 
 def under_resolved(problem: Any, x: Array, p: Mapping[str, Any], tol: float) -> str | None:

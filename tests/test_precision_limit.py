@@ -1,0 +1,128 @@
+"""The precision limit of adaptive resolution (issue 14): where rounding, which no finer grid
+lowers, exceeds tol, a branch ends EP "precision limit ..." with every stored point meeting tol,
+instead of MX "refine the grid".
+
+References: gPCF's plug states against the same point solved with a longdouble residual and
+iterative refinement (problems.couette.extended_precision: rounding floor ~2000x lower), on the
+same grid (the rounding error) and on a 1.5x finer grid (truncation + rounding); the core logic
+on Bratu (problems.demo) with a synthetic rounding model that grows like N^2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from click.testing import CliRunner
+
+from contin import io
+from contin.adapt import AdaptOptions
+from contin.cli import main
+from contin.continuation import trace
+from contin.options import ContinuationOptions, StepOptions
+from problems.demo import Bratu
+
+
+class NoisyBratu(Bratu):
+    """Bratu whose state carries a rounding error K N^2 max|u| (grows with the grid, as
+    collocation rounding does): error_estimate = max(truncation, rounding)."""
+
+    K = 2e-10
+
+    def rounding_error(self, u, p):
+        return self.K * self.grid_size**2 * float(np.max(np.abs(u)))
+
+    def error_estimate(self, u, p):
+        return max(super().error_estimate(u, p), self.rounding_error(u, p))
+
+
+def noisy_run(K: float):
+    NoisyBratu.K = K
+    pb = NoisyBratu("cheb", 8)
+    o = ContinuationOptions(bounds={"lam": (0.02, 4.0)}, max_steps=400, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=1e-6, max_grid=512, min_grid=8, special_tol=1e-6))
+    return pb, trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
+
+
+@pytest.mark.parametrize("K, last_grid, named_grid", [(2e-10, 32, 32), (5e-10, 20, 32)])
+def test_core_precision_limit_ends_ep_with_every_point_within_tol(K, last_grid, named_grid):
+    """K = 2e-10: a candidate on cheb 32 whose rounding (1.1e-6) exceeds tol ends the branch;
+    K = 5e-10: refining 20 -> 32 would put the last point's rounding above tol, so the point stays on
+    cheb 20 (the grid change is undone) and the branch ends there.  Either way: EP, not MX; every
+    stored point (the last included) has its estimate <= tol; the message states that accuracy."""
+    pb, b = noisy_run(K)
+    assert b.status == "EP" and b.message.startswith("precision limit at lam = ")
+    assert f"> tol 1e-06 on grid {named_grid}, which no finer grid lowers" in b.message
+    errors = [pb.with_grid(b.grid[i]).error_estimate(b.state(i), None) for i in range(len(b))]
+    assert max(errors) <= 1e-6
+    assert b.grid[-1] == last_grid and b.grid_changes[-1][2] == last_grid
+    assert f"accurate to {errors[-1]:.2g} up to lam = {b.params['lam'][-1]:.6g}" in b.message
+    # the rounding at the named grid is what ends it: K N^2 max|u| > tol there
+    assert K * named_grid**2 * float(np.max(b.state(-1))) > 1e-6 * 0.5
+    assert b.special_points[-1].type == "EP"
+
+
+def _longdouble_solution(pb, x, p, iterations=5):
+    """x refined with the longdouble residual (Newton with the double Jacobian)."""
+    from problems.couette.extended_precision import LD, extended
+
+    ext = extended(pb)
+    pl = {k: LD(v) if isinstance(v, float) else v for k, v in p.items()}
+    X = np.asarray(x).astype(LD)
+    for _ in range(iterations):
+        lu = spla.splu(sp.csc_matrix(pb.jacobian(np.asarray(X, float), p)))
+        X = X - lu.solve(np.asarray(ext.residual(X, pl), float)).astype(LD)
+    return X
+
+
+def _nu_error(pb, x, X):
+    """max over the nodes of |nu - nu_ref| / (nu_m - nu_ref): the estimate's measure."""
+    from problems.couette.extended_precision import LD
+
+    n = pb.grid.size
+    gap = np.asarray(LD(0.65) - X[:n], float)
+    return float(np.max(np.abs(np.asarray(np.asarray(x).astype(LD) - X, float)[:n]) / gap))
+
+
+def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
+    """nu = 0.63, e = 0.8, n = 1 (issue 14 (1)): the band's plug reaches 6e-9 below nu_m = 0.65 near
+    H = 91.3 on cheb 80, where rounding (0.2 eps N^2 nu_m / gap = 2.9e-5) reaches tol 3e-5.  The
+    branch ends EP "precision limit" (exit 0), not MX.  Against the extended-precision solution the
+    last point's nu is accurate to 9.7e-6 of the distance to packing (estimate 2.9e-5 >= it); on cheb
+    192 the same point is *less* accurate (9.6e-5: rounding grows like N^2) -- no finer grid meets tol."""
+    from problems.couette.model import CouetteProblem
+    from problems.couette.resolution import resolution
+
+    out = tmp_path / "p.h5"
+    r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1",
+                                  "-s", "H_max=100", "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    band = next(b for b in branches if b.id == "n1.1")
+    assert band.status == "EP" and band.message.startswith("precision limit at H = ")
+    assert 90.0 < band.params["H"][-1] < 93.0 and band.grid[-1] == 80
+    pb0 = CouetteProblem("cheb", 64)
+
+    def at(i):
+        pb = pb0.with_grid(band.grid_at(i))
+        return pb, band.state(i), pb.params({"nu": 0.63, "e": 0.8, "H": float(band.params["H"][i])})
+
+    for i in range(len(band)):
+        pb, x, p = at(i)
+        assert resolution(pb, x, p).error <= 3e-5
+    pb, x, p = at(-1)
+    res = resolution(pb, x, p)
+    assert 5e-9 < res.gap < 8e-9 and res.precision_limited and 2e-5 < res.rounding <= 3e-5
+    rounding = _nu_error(pb, x, _longdouble_solution(pb, x, p))  # same grid: the rounding error
+    finer = pb0.with_grid(120)
+    total = _nu_error(finer, pb.transfer(x, finer), _longdouble_solution(finer, pb.transfer(x, finer), p))
+    assert 1e-7 < rounding <= res.error and 1e-7 < total <= res.error
+    # the same point on cheb 192: double-precision Newton, then its error against the ld solution there
+    from contin.newton import newton
+
+    fine = pb0.with_grid(192)
+    x192 = newton(fine, pb.transfer(x, fine), p).u
+    err192 = _nu_error(fine, x192, _longdouble_solution(fine, x192, p))
+    assert err192 > 3 * rounding
+    assert resolution(fine, x192, p).rounding > 3e-5
