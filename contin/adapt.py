@@ -48,6 +48,7 @@ Every point remembers its grid (``Branch.grid``); see ``contin.branch``.
 from __future__ import annotations
 
 import math
+import warnings
 import weakref
 from dataclasses import dataclass
 from typing import Any
@@ -205,10 +206,12 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     n = jacobian.shape[0]
     try:
         if n <= DENSE_KERNEL_MAX:
-            from scipy.linalg import lu_factor, lu_solve
+            from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 
             dense = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
-            factors = lu_factor(dense, check_finite=False)
+            with warnings.catch_warnings():  # a zero pivot is handled here, not warned about
+                warnings.simplefilter("ignore", LinAlgWarning)
+                factors = lu_factor(dense, check_finite=False)
             if not np.all(np.diag(factors[0])):
                 raise RuntimeError("exactly singular")
 
