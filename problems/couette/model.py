@@ -823,23 +823,6 @@ class CouetteProblem:
         scale = max(float(np.max(np.abs(a))) for a in coeffs)
         return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
 
-    def suggest_vector_grid(self, v: Array, tol: float) -> int:
-        """The grid at which :meth:`vector_error` of v is expected to meet tol: the advice of
-        :mod:`problems.couette.resolution` (geometric decay of the coefficient envelope over the
-        upper half of the spectrum) for the profile with the largest tail."""
-        from problems.couette.resolution import FIELDS, _suggest, _to_chebyshev_matrix, tail
-
-        nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
-        fields = dict(zip(FIELDS, (nu, u, T)))
-        if self.method != "cheb":
-            m = _to_chebyshev_matrix(self.grid)
-            fields = {k: m @ f for k, f in fields.items()}
-        coeffs = [chebyshev_coefficients(f) for f in fields.values()]
-        scale = max(float(np.max(np.abs(a))) for a in coeffs)
-        worst = max(coeffs, key=tail)
-        error = tail(worst) / scale if scale > 0 else 0.0
-        return _suggest(self.method, self.N, error, tol, worst if self.method == "cheb" else None)
-
     def suggest_grid(self, x: Array, p: Mapping[str, Any], tol: float) -> int:
         """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""
         from problems.couette.resolution import resolution
