@@ -136,13 +136,16 @@ def finer(problem: Any, u: Array | None, p: Any, opts: AdaptOptions) -> int | No
 
 
 def vector_grid(problem: Any, v: Array | None, tol: float, opts: AdaptOptions) -> int | None:
-    """The problem's grid for the perturbation v to meet tol (``suggest_vector_grid``), rounded to
-    ``multiple`` and capped at max_grid; None without the hook or a vector."""
+    """The problem's grid for the perturbation v to meet tol (``suggest_vector_grid``), at most two
+    growth steps above the grid in force (growth^2 N: the suggestion extrapolates a decay rate,
+    which a grid-scale mode or a short spectrum can make far too slow), rounded to ``multiple``,
+    capped at max_grid; None without the hook or a vector."""
     if v is None or not has(problem, "suggest_vector_grid"):
         return None
     want = float(problem.suggest_vector_grid(np.asarray(v, dtype=float), tol))
     if not math.isfinite(want):
         return None
+    want = min(want, opts.growth ** 2 * int(problem.grid_size))
     return min(_round(want, opts.multiple), opts.max_grid)
 
 

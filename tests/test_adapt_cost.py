@@ -68,8 +68,8 @@ def allen_cahn_run(start: int, min_grid: int):
 def test_exact_start_state_one_solve_on_the_coarse_grid(counts, monkeypatch):
     """u = 0 is exact on every grid: the start grid goes 64 -> min_grid (8) with one solve there
     and none on the grids in between; each state is estimated once; the BP's bracket refines
-    8 -> 16 (its kernel sin x: estimate 1.2e-3 on cheb 8) and the BP is located once, at lam = 1
-    to 1e-13."""
+    8 -> 16 in one jump (its kernel sin x: estimate 1.2e-3 on cheb 8; growth alone went 8 -> 12,
+    located it there at 9e-8 and again on 20) and the BP is located once, at lam = 1 to 1e-13."""
     estimates = count_estimates(monkeypatch, AllenCahn)
     b = allen_cahn_run(64, 8)
     assert {k: v for k, v in counts.items() if k != "locate"} == {("newton", 64): 1, ("newton", 8): 1}
@@ -79,6 +79,8 @@ def test_exact_start_state_one_solve_on_the_coarse_grid(counts, monkeypatch):
     assert counts["locate"] == 1 and bp.grid == 16
     assert abs(bp.params["lam"] - 1.0) <= 1e-13
     assert sorted(set(b.grid.tolist())) == [8, 16]
+    # one jump (AllenCahn.suggest_vector_grid), not growth 8 -> 12 -> 20 with a location on 12
+    assert [a.split(" at ")[0] for a in b.audit if a.startswith("grid ")] == ["grid refined 8 -> 16"]
 
 
 def test_start_grid_skips_grids_that_cannot_carry_the_state(counts):
@@ -137,6 +139,29 @@ def test_suggest_vector_grid_of_the_demo_problems():
     e16 = fd.vector_error(vf)
     want = fd.suggest_vector_grid(vf, e16 / 40)  # target e16 / 400: N^-2 -> 20x N
     assert want == pytest.approx(min(16 * 400 ** 0.5, 8 * 16), rel=1e-12)
+
+
+def test_vector_grid_jump_is_capped():
+    """contin.adapt.vector_grid: the problem's suggestion rounded up to ``multiple`` and held to
+    at most growth^2 N (an extrapolated decay rate can ask for far too much) and max_grid."""
+    from contin.adapt import vector_grid
+
+    class Asks:
+        grid_size = 12
+
+        def __init__(self, want):
+            self.want = want
+
+        def suggest_vector_grid(self, v, tol):
+            return self.want
+
+    opts = AdaptOptions(growth=1.5, multiple=4, max_grid=64)
+    v = np.ones(3)
+    assert vector_grid(Asks(25.0), v, 1e-10, opts) == 28
+    assert vector_grid(Asks(1000.0), v, 1e-10, opts) == 28  # 1.5^2 * 12 = 27 -> 28
+    assert vector_grid(Asks(1000.0), v, 1e-10, AdaptOptions(growth=3.0, multiple=4, max_grid=64)) == 64
+    assert vector_grid(Asks(float("nan")), v, 1e-10, opts) is None
+    assert vector_grid(Bratu("cheb", 12), None, 1e-10, opts) is None
 
 
 def test_near_kernel_is_inverse_iteration_from_the_border():
