@@ -63,6 +63,29 @@ def test_core_precision_limit_ends_ep_with_every_point_within_tol(K, last_grid, 
     assert b.special_points[-1].type == "EP"
 
 
+class SlowBratu(Bratu):
+    """Bratu whose estimate falls only like N^-1/2 with the grid and grows like exp(12 u_max): a
+    candidate far along the branch does not halve its estimate when refined, a nearer one meets tol."""
+
+    def error_estimate(self, u, p):
+        return max(super().error_estimate(u, p), 1e-9 * np.exp(12.0 * float(np.max(u))) * (8.0 / self.grid_size) ** 0.5)
+
+
+def test_core_stalled_refinement_retries_a_shorter_step_first():
+    """At lam = 2.756 refining 20 -> 32 does not halve the candidate's estimate (6.7e-6 -> 5.2e-6): the
+    tracer halves the step instead of ending there ("shortened" in the audit), goes on to lam = 2.999 and
+    ends MX only on the maximum grid (64); every stored point meets tol 1e-6."""
+    pb = SlowBratu("cheb", 8)
+    o = ContinuationOptions(bounds={"lam": (0.02, 4.0)}, max_steps=200, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=1e-6, max_grid=64, min_grid=8, special_tol=1e-6))
+    b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
+    shortened = [a for a in b.audit if "shortened" in a]
+    assert shortened and shortened[0].startswith("step 9: lam=2.755964807 ds=0.5 shortened: under-resolved")
+    assert b.status == "MX" and "on the maximum grid 64" in b.message
+    assert b.params["lam"][-1] > 2.99 and b.grid[-1] == 64
+    assert max(pb.with_grid(b.grid[i]).error_estimate(b.state(i), None) for i in range(len(b))) <= 1e-6
+
+
 def _longdouble_solution(pb, x, p, iterations=5):
     """x refined with the longdouble residual (Newton with the double Jacobian)."""
     from problems.couette.extended_precision import LD, extended
