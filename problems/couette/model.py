@@ -940,6 +940,7 @@ class _Layout:
         non-None factors in term order, as :meth:`_weights` stacks them.
         """
         steps: list[tuple] = []
+        blocks: dict[tuple, Array] = {}  # one dense copy per operator, shared by its terms
         n_rows = n_cols = 0
         self._dense_entries = 0
         for r0, c0, name, row_none, col_none in self._key:
@@ -953,8 +954,10 @@ class _Layout:
             if op.nnz and not wall and not repeated:
                 rlo, rhi, clo, chi = op.row.min(), op.row.max() + 1, op.col.min(), op.col.max() + 1
                 if op.nnz >= BLOCKWISE_FILL * (rhi - rlo) * (chi - clo):
-                    block = np.zeros((rhi - rlo, chi - clo), order="F")
-                    block[op.row - rlo, op.col - clo] = op.data
+                    block = blocks.get(name)
+                    if block is None:
+                        block = blocks[name] = np.zeros((rhi - rlo, chi - clo), order="F")
+                        block[op.row - rlo, op.col - clo] = op.data
                     steps.append((True, (slice(r0 + rlo, r0 + rhi), slice(c0 + clo, c0 + chi)), block,
                                   ri, slice(rlo, rhi), ci, slice(clo, chi)))
                     self._dense_entries += op.nnz
