@@ -328,6 +328,12 @@ class Adaptor:
         self._estimates: dict[tuple[Any, ...], tuple[Any, float]] = {}  # see estimate()
         #: (estimate, vector) of the kernel behind the last special_error (None: no kernel)
         self.kernel: tuple[float, Array] | None = None
+        #: set by :meth:`refine` when the estimate did not halve with the last refinement: the
+        #: tracer then retries a shorter step before ending the branch (a candidate far from the
+        #: resolved last point can sit where the tails are still pre-asymptotic: 2-D disks G_GF
+        #: band past H = 18.05, 4.7e-4 / 2.1e-4 / 1.8e-5 / 2.3e-6 on cheb 48 / 80 / 160 / 256 at
+        #: H = 18.8, 1.2e-12 on cheb 80 at H = 18.06)
+        self.stalled = False
 
     def special_refinable(self, err: float) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
@@ -510,6 +516,7 @@ class Adaptor:
         last = self._state_refine
         self._state_refine = (count, err, int(sys.problem.grid_size))
         if last is not None and last[0] == count and err > 0.5 * last[1]:
+            self.stalled = True  # the tracer first retries with a shorter step (see trace)
             return (f"under-resolved at {sys.parameter} = {cur.x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                     f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "
                     f"grid {sys.problem.grid_size}): the estimate's floor is above tol here")

@@ -621,6 +621,14 @@ def trace(
             # Not resolved: refine at the last accepted point and retry the step from there.
             stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, "estimate above tol",
                                                                              options.newton)
+            if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
+                # Refinement did not halve the candidate's estimate: try a candidate nearer the
+                # resolved last point before concluding that the estimate has a floor.
+                adaptor.stalled = False
+                if len(tracer.audit) < MAX_AUDIT:
+                    tracer.audit.append(f"step {steps + 1}: {parameter}={cur.x[-1]:.10g} ds={ds:.3g} shortened: {stop}")
+                ds = reduced_step(ds, sopt)
+                continue
             if stop is not None:
                 # precision limit: every stored point meets tol and no grid can go on (EP)
                 status, message = ("EP" if stop.startswith(PRECISION_LIMIT) else "MX"), stop

@@ -43,7 +43,11 @@ eps N^2 nu_m / (nu_m - max nu) in all 20 cases (Don & Solomonoff, SIAM J. Sci. C
 
     rounding = ROUNDING_FACTOR eps N^2 nu_m / (nu_m - max nu)      (ROUNDING_FACTOR = 0.2)
 
-and reports error = max(truncation, rounding).  Unlike the tail, no finer grid lowers it (it
+and reports error = max(truncation, rounding).  The factor depends on the closure: a problem
+may set its own ``rounding_factor`` (problems.disks.model: 4.0; the 2-D disks' plug is ~20x more
+sensitive to rounding: 1.3 .. 3.1 times eps N^2 phi_inf / gap in 6 cases of the G_CS n = 1 band
+at H = 28.8768, gap 1e-7 and 1.3e-8, cheb 48 .. 128, against the same point with a longdouble
+residual).  Unlike the tail, no finer grid lowers it (it
 grows like N^2), so a state whose rounding exceeds tol is at the *precision limit* of double
 precision: the reason says so instead of advising a finer grid, and an adaptive run ends there
 (``contin.adapt``: "precision limit").  The tail alone misses it: at H = 94.9 (cheb 80, plug
@@ -211,12 +215,12 @@ def _suggest(method: str, n: int, error: float, tol: float, a: Array | None) -> 
     return int(16 * math.ceil(want / 16))
 
 
-def rounding_estimate(N: int, gap: float, limit: float) -> float:
-    """ROUNDING_FACTOR eps N^2 nu_m / gap: the rounding error of a computed state's nu relative to
-    its distance to packing (module docstring; inf at or past packing)."""
+def rounding_estimate(N: int, gap: float, limit: float, factor: float = ROUNDING_FACTOR) -> float:
+    """factor eps N^2 nu_m / gap: the rounding error of a computed state's nu relative to its
+    distance to packing (module docstring; inf at or past packing)."""
     if not gap > 0:
         return math.inf
-    return ROUNDING_FACTOR * float(np.finfo(float).eps) * N * N * limit / gap
+    return factor * float(np.finfo(float).eps) * N * N * limit / gap
 
 
 def precision_reason(rounding: float, gap: float, limit: float, tol: float, method: str, N: int) -> str:
@@ -255,7 +259,8 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
     errors = {k: tails[k] / scales[k] if scales[k] > 0 else math.inf for k in FIELDS}
     field = max(FIELDS, key=lambda k: errors[k])
     truncation = errors[field]
-    rounding = rounding_estimate(grid.intervals, gap, limit)
+    # a problem with another closure states its own factor (problems.disks: 4.0, measured)
+    rounding = rounding_estimate(grid.intervals, gap, limit, float(getattr(problem, "rounding_factor", ROUNDING_FACTOR)))
     return Resolution(max(truncation, rounding), field, tails, scales, gap, limit, grid.method, grid.intervals, tol,
                       coeffs[FIELDS.index(field)], truncation, rounding)
 
