@@ -149,6 +149,14 @@ def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
     err192 = _nu_error(fine, x192, _longdouble_solution(fine, x192, p))
     assert err192 > 3 * rounding
     assert resolution(fine, x192, p).rounding > 3e-5
+    # finite differences: rounding grows like eps N / gap, not eps N^2 / gap (fd4 N = 200 here: the
+    # Chebyshev formula would overstate it ~500x); the estimate still bounds the measured error
+    fd = CouetteProblem("fd4", 200)
+    xfd = newton(fd, fd.pack(*(pb.grid.interpolate(f, fd.grid.y) for f in pb.unpack(x)[:3]), pb.unpack(x)[3]), p).u
+    rfd = resolution(fd, xfd, p)
+    err_fd = _nu_error(fd, xfd, _longdouble_solution(fd, xfd, p))
+    assert 1e-8 < err_fd <= rfd.rounding < 1e-4
+    assert rfd.rounding == pytest.approx(0.2 * np.finfo(float).eps * 5 * 200 * 0.65 / rfd.gap, rel=1e-9)
 
 
 # ----------------------------------------------------------------------------- 2-D disks (problems.disks)
