@@ -238,7 +238,7 @@ def precision_reason(rounding: float, gap: float, limit: float, tol: float, meth
     """The precision-limit reason (one line, no grid advice: finer grids raise the rounding)."""
     return (f"precision limit: plug within {gap:.2g} of the packing limit nu_m = {limit:g}, where double-precision "
             f"rounding alone leaves nu an estimated relative error {rounding:.2g} of the distance to packing "
-            f"(> {tol:.2g}) on {method} {N}; finer grids only raise it (it grows like N^2)")
+            f"(> {tol:.2g}) on {method} {N}; finer grids only raise it")
 
 
 def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
