@@ -497,8 +497,9 @@ def trace(
     if options.adapt is not None:  # adaptive resolution (contin.adapt): choose the start grid
         from contin.adapt import Adaptor, start_grid
 
+        adaptor = Adaptor(options.adapt)
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
-                                             coarsen=tangent is None)
+                                             coarsen=tangent is None, estimate=adaptor.estimate)
         if problem is not problem0:
             system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
             if tangent is not None:
@@ -506,7 +507,6 @@ def trace(
                 tangent = system.pack(problem0.transfer(tangent[:-1], problem), tangent[-1])
         n = u0.size
         system.n = n
-        adaptor = Adaptor(options.adapt)
         problem0 = problem  # the grid x0 and the start tangent live on
     start = newton(problem, u0, system.params, options.newton)
     tracer = _Tracer(system, options, None)
@@ -557,7 +557,18 @@ def trace(
     first = tracer.finish_point(Correction(x0, True, 0, fact, row), guess)
     tracer.append(first, 0.0, start.iterations)
 
-    x0c, t0c = x0, first.t  # the start point and tangent on the grid in force (for closure)
+    # The start point and tangent on the grid in force (for the closure test), carried onto a
+    # new grid only when the test first needs them there: two transfers per grid change saved on
+    # the many branches that never come near their start.
+    closure_start: dict[int, tuple[Array, Array]] = {}
+
+    def start_here() -> tuple[Array, Array]:
+        key = id(system)
+        if key not in closure_start:
+            closure_start.clear()
+            closure_start[key] = (x0, first.t) if adaptor is None else \
+                (adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t)))
+        return closure_start[key]
     if adaptor is not None:
         special_tol = min(options.adapt.tol, options.adapt.special_tol)
         tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(tracer.system, kind, a, b, special_tol)
@@ -568,7 +579,9 @@ def trace(
         refine at cur (None: retry the step there), or, if that fails, locate it on this grid
         (the located point's own check then notes it)."""
         assert adaptor is not None
-        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton) is None:
+        kernel = adaptor.kernel  # the bracket end's kernel that pre_locate judged (its grid suggestion)
+        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton,
+                          vector=None if kernel is None else (kernel[1], special_tol)) is None:
             return None
         hook, tracer.pre_locate = tracer.pre_locate, None
         try:
@@ -629,12 +642,12 @@ def trace(
                 status, message = ("EP" if stop.startswith(PRECISION_LIMIT) else "MX"), stop
                 break
             system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-            x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+            closure_start.clear()  # carried onto the new grid when the closure test needs it
             continue
         steps += 1
 
         if closing:
-            if landed(system, x0c, new.x):
+            if landed(system, start_here()[0], new.x):
                 tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1)[0])
                 status, message, closed = "EP", "closed loop: the branch returned to its start point", True
                 break
@@ -669,7 +682,7 @@ def trace(
                 if found is None:
                     steps -= 1
                     system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                    closure_start.clear()  # carried onto the new grid when the closure test needs it
                     continue
             if found is None:  # the step jumped onto another branch
                 steps -= 1
@@ -691,7 +704,7 @@ def trace(
             if found is None:
                 steps -= 1
                 system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                closure_start.clear()  # carried onto the new grid when the closure test needs it
                 continue
         if found is None:  # the step jumped onto another branch
             steps -= 1
@@ -700,17 +713,21 @@ def trace(
         if adaptor is not None and found:
             # Special points are located on the grid in force; one that grid does not resolve
             # (state, or the kernel fixing its position) is located again on a finer grid.
-            err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
-                      for sp in found)
+            err, kernel = -math.inf, None
+            for sp in found:
+                e_sp = adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
+                if e_sp > err:
+                    err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
             if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err):
                 kinds = "/".join(sorted({sp.type for sp in found}))
-                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton) is None:
+                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
+                                  vector=None if kernel is None else (kernel[1], special_tol)) is None:
                     steps -= 1
                     system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                    closure_start.clear()  # carried onto the new grid when the closure test needs it
                     continue
             if err > special_tol:
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
@@ -728,14 +745,14 @@ def trace(
             say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
         ds = next_step(ds, corr.iterations, sopt)
         if options.detect_closed and len(tracer.points) > 3:
-            sigma = closing_distance(system, x0c, t0c, new.x, new.t, 1.5 * ds, travelled)
+            sigma = closing_distance(system, *start_here(), new.x, new.t, 1.5 * ds, travelled)
             if sigma is not None:
                 closing, ds = True, sigma
         if adaptor is not None and not closing:
             adaptor.maybe_coarsen(tracer, options.newton)
             if tracer.system is not system:
                 system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                closure_start.clear()  # carried onto the new grid when the closure test needs it
 
     mark = "MX" if status == "MX" else "EP"
     note = message
