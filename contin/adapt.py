@@ -616,6 +616,7 @@ def point_problem(problem: Any, branch: Any, i: int) -> Any:
 def under_resolved_stop(branch: Any) -> bool:
     """Whether ``branch`` ended MX because its grid does not resolve it (the resolution guard's
     or an adaptive run's 'under-resolved' stop), not for another reason."""
+    # (a precision limit ends EP: a finer grid would only raise the rounding)
     return getattr(branch, "status", None) == "MX" and "under-resolved" in str(getattr(branch, "message", ""))
 
 

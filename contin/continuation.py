@@ -395,7 +395,15 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
     reason = problem.under_resolved(x[:-1], system.params_at(x[-1]), tol)
     if reason is None:
         return None
+    if reason.startswith(PRECISION_LIMIT + ": "):  # rounding, not the grid: a finer grid only raises it
+        return f"{PRECISION_LIMIT} at {system.parameter} = {x[-1]:.6g}: {reason[len(PRECISION_LIMIT) + 2:]}"
     return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
+
+
+def _guard_status(message: str) -> str:
+    """The status a fixed-grid guard stop ends a branch with: EP at a precision limit (every stored
+    point meets tol; a finer grid would only raise the rounding), MX when the grid does not resolve the branch."""
+    return "EP" if message.startswith(PRECISION_LIMIT) else "MX"
 
 
 def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0: float) -> tuple[float, float]:
@@ -663,7 +671,7 @@ def trace(
                 break
             coarse = _under_resolved(problem, system, land.x, resolution_tol)
             if coarse is not None:
-                status, message = "MX", coarse
+                status, message = _guard_status(coarse), coarse
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
             stepped, new = new, tracer.finish_point(land, cur.t)
@@ -687,7 +695,7 @@ def trace(
 
         coarse = _under_resolved(problem, system, new.x, resolution_tol)
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
-            status, message = "MX", coarse
+            status, message = _guard_status(coarse), coarse
             break
         try:
             found = _detect_checked(tracer, steps, cur, new, new, direction_vec, ds, sopt)

@@ -149,6 +149,14 @@ def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
     err192 = _nu_error(fine, x192, _longdouble_solution(fine, x192, p))
     assert err192 > 3 * rounding
     assert resolution(fine, x192, p).rounding > 3e-5
+    # finite differences: rounding grows like eps N / gap, not eps N^2 / gap (fd4 N = 200 here: the
+    # Chebyshev formula would overstate it ~500x); the estimate still bounds the measured error
+    fd = CouetteProblem("fd4", 200)
+    xfd = newton(fd, fd.pack(*(pb.grid.interpolate(f, fd.grid.y) for f in pb.unpack(x)[:3]), pb.unpack(x)[3]), p).u
+    rfd = resolution(fd, xfd, p)
+    err_fd = _nu_error(fd, xfd, _longdouble_solution(fd, xfd, p))
+    assert 1e-8 < err_fd <= rfd.rounding < 1e-4
+    assert rfd.rounding == pytest.approx(0.2 * np.finfo(float).eps * 5 * 200 * 0.65 / rfd.gap, rel=1e-9)
 
 
 # ----------------------------------------------------------------------------- 2-D disks (problems.disks)
@@ -230,3 +238,20 @@ def test_disks_grid_hooks_and_adaptive_band_to_the_precision_limit():
     a = point_problem(pb, band, i)
     there = a.transfer(band.state(i), pb.with_grid(96))
     np.testing.assert_allclose(pb.with_grid(96).transfer(there, a), band.state(i), atol=1e-12)
+
+
+def test_fixed_grid_guard_ends_ep_at_the_precision_limit(tmp_path):
+    """--grid 80 (no adaptation): the resolution guard's reason for the nu = 0.63 band near H = 91.6 is
+    rounding, not the grid, so the branch ends EP "precision limit at H = ..." (exit 0), and
+    contin.adapt.retrace_finer does not retrace it on finer grids (under_resolved_stop is False)."""
+    from contin.adapt import under_resolved_stop
+
+    out = tmp_path / "g.h5"
+    r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1", "-s", "H_max=100",
+                                  "--no-stability", "--grid", "80", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    band = next(b for b in branches if b.id == "n1.1")
+    assert band.status == "EP" and band.message.startswith("precision limit at H = 91.")
+    assert "of the packing limit nu_m = 0.65" in band.message and band.message.endswith("on cheb 80; finer grids only raise it")
+    assert 90.5 < band.params["H"][-1] < 91.6 and not under_resolved_stop(band)
