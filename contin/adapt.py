@@ -508,7 +508,7 @@ class Adaptor:
         spectral tail measured against a tiny scale: tol is then below what the problem's
         estimate can certify there).  ``vector``: (kernel vector, its tol) for a refinement
         that a special point's kernel asks for; the grid is then at least the problem's
-        ``suggest_vector_grid`` (one jump: Bratu cheb 12 -> 32 at the fold for special_tol 1e-10,
+        ``suggest_vector_grid`` (one jump: Bratu cheb 12 -> 28 at the fold for special_tol 1e-10,
         where growth took 12 -> 20 -> 32 and located the fold on 20 too)."""
         sys = tracer.system
         cur = tracer.points[-1]
