@@ -513,6 +513,7 @@ class Adaptor:
         sys = tracer.system
         cur = tracer.points[-1]
         count = len(tracer.points)
+        self.stalled = False  # only this refinement's outcome counts
         last = self._state_refine
         self._state_refine = (count, err, int(sys.problem.grid_size))
         if last is not None and last[0] == count and err > 0.5 * last[1]:
