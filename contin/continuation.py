@@ -588,6 +588,21 @@ def trace(
             return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
         finally:
             tracer.pre_locate = hook
+
+    def detect_or_refine(cur: _Point, new: _Point, stepped: _Point) -> tuple[list[SpecialPoint] | None, bool]:
+        """(found, regridded) for the step cur -> new: the located special points (None: the
+        step jumped onto another branch), or regridded = True when an LP/BP in the bracket
+        needed a finer grid first -- the tracer then continues on it and the step is retried."""
+        nonlocal system, problem, n
+        try:
+            return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt), False
+        except _RefineFirst as why:
+            found = refine_first(why, cur, new, stepped, direction_vec)
+            if found is not None:
+                return found, False
+        system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+        closure_start.clear()  # carried onto the new grid when the closure test needs it
+        return None, True
     ds = abs(sopt.ds)
     travelled = 0.0
     closing = False
@@ -675,15 +690,10 @@ def trace(
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
             stepped, new = new, tracer.finish_point(land, cur.t)
-            try:
-                found = _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
-            except _RefineFirst as why:
-                found = refine_first(why, cur, new, stepped, direction_vec)
-                if found is None:
-                    steps -= 1
-                    system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                    closure_start.clear()  # carried onto the new grid when the closure test needs it
-                    continue
+            found, regridded = detect_or_refine(cur, new, stepped)
+            if regridded:
+                steps -= 1
+                continue
             if found is None:  # the step jumped onto another branch
                 steps -= 1
                 ds = reduced_step(ds, sopt)
@@ -697,15 +707,10 @@ def trace(
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
             status, message = _guard_status(coarse), coarse
             break
-        try:
-            found = _detect_checked(tracer, steps, cur, new, new, direction_vec, ds, sopt)
-        except _RefineFirst as why:
-            found = refine_first(why, cur, new, new, direction_vec)
-            if found is None:
-                steps -= 1
-                system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                closure_start.clear()  # carried onto the new grid when the closure test needs it
-                continue
+        found, regridded = detect_or_refine(cur, new, new)
+        if regridded:
+            steps -= 1
+            continue
         if found is None:  # the step jumped onto another branch
             steps -= 1
             ds = reduced_step(ds, sopt)
