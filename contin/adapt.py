@@ -13,6 +13,7 @@ The tracer (``contin.continuation.trace``) calls into this module when
                               decides the grid of located branch points and folds, whose position
                               depends on the kernel of J, not only on the state
     suggest_grid(u, p, tol)   optional: the grid size expected to meet tol
+    suggest_vector_grid(v, tol)  optional: the same for a perturbation v (a kernel vector)
 
 Policy (h-adaptivity in the grid size, as in AUTO-07p's mesh adaption but choosing the number
 of points instead of moving them; Boyd, *Chebyshev and Fourier Spectral Methods*, 2nd ed.,
@@ -47,6 +48,7 @@ Every point remembers its grid (``Branch.grid``); see ``contin.branch``.
 from __future__ import annotations
 
 import math
+import warnings
 import weakref
 from dataclasses import dataclass
 from typing import Any
@@ -133,12 +135,29 @@ def finer(problem: Any, u: Array | None, p: Any, opts: AdaptOptions) -> int | No
     return min(max(_round(want, opts.multiple), n + 1), opts.max_grid)
 
 
+def vector_grid(problem: Any, v: Array | None, tol: float, opts: AdaptOptions) -> int | None:
+    """The problem's grid for the perturbation v to meet tol (``suggest_vector_grid``), at most two
+    growth steps above the grid in force (growth^2 N: the suggestion extrapolates a decay rate,
+    which a grid-scale mode or a short spectrum can make far too slow), rounded to ``multiple``,
+    capped at max_grid; None without the hook or a vector."""
+    if v is None or not has(problem, "suggest_vector_grid"):
+        return None
+    want = float(problem.suggest_vector_grid(np.asarray(v, dtype=float), tol))
+    if not math.isfinite(want):
+        return None
+    want = min(want, opts.growth ** 2 * int(problem.grid_size))
+    return min(_round(want, opts.multiple), opts.max_grid)
+
+
 def coarser(problem: Any, opts: AdaptOptions) -> int | None:
     """The next grid size below the current one (None at min_grid)."""
     n = int(problem.grid_size)
     want = max(_round(n / opts.growth, opts.multiple), opts.min_grid)
     return want if want < n else None
 
+
+#: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
+ESTIMATE_CACHE = 8
 
 #: Up to this size the kernel vectors of the grid decisions are computed densely (LAPACK):
 #: sparse bordering's set-up (bmat, splu) costs ~1-2 ms even at n = 30.
@@ -176,29 +195,41 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     Next to a BP, J is regular; the bordered vector then keeps components along the other
     small singular directions (random borders), whose tails can exceed the kernel's by orders
     (gPCF cheb 32 next to H_2^c: 5e-4 against 2e-8 at the located BP).  Each inverse iteration
-    divides them by sigma_2 / sigma_1 (Golub & Van Loan, *Matrix Computations*, sec. 7.6.1)."""
+    divides them by sigma_2 / sigma_1 (Golub & Van Loan, *Matrix Computations*, sec. 7.6.1).
+
+    For a regular J the bordered solution [[J, b], [c^T, 0]] [phi; s] = [0; 1] is
+    phi = J^{-1} b / (c^T J^{-1} b), so the bordered vector is the first inverse-iteration
+    step from the border b: one LU of J serves all of them (up to sign, which no estimate
+    sees).  An exactly singular J (a zero pivot) falls back to the bordered solve."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    v = null_vector(jacobian)
+    from contin.normalform import borders
+
+    n = jacobian.shape[0]
     try:
-        if jacobian.shape[0] <= DENSE_KERNEL_MAX:
-            from scipy.linalg import lu_factor, lu_solve
+        if n <= DENSE_KERNEL_MAX:
+            from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 
             dense = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
-            factors = lu_factor(dense, check_finite=False)
+            with warnings.catch_warnings():  # a zero pivot is handled here, not warned about
+                warnings.simplefilter("ignore", LinAlgWarning)
+                factors = lu_factor(dense, check_finite=False)
+            if not np.all(np.diag(factors[0])):
+                raise RuntimeError("exactly singular")
 
             def solve(r: Array) -> Array:
                 return lu_solve(factors, r, check_finite=False)
         else:
             solve = spla.splu(sp.csc_matrix(jacobian)).solve
     except RuntimeError:  # exactly singular: the bordered vector is the kernel
-        return v
-    for _ in range(iterations):
+        return null_vector(jacobian)
+    v = borders(n)[0]
+    for k in range(iterations + 1):
         w = solve(v)
         norm = float(np.linalg.norm(w))
         if not (math.isfinite(norm) and norm > 0):
-            break
+            return null_vector(jacobian) if k == 0 else v
         v = w / norm
     return v
 
@@ -221,23 +252,32 @@ class GridChange:
 
 
 def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any, *,
-               coarsen: bool = True) -> tuple[Any, Array, list[str]]:
+               coarsen: bool = True, estimate: Any = None) -> tuple[Any, Array, list[str]]:
     """The grid to start a branch on: (problem on it, start state on it (converged where
     possible), audit lines).  Refines while the estimate of the solved start state exceeds tol;
     coarsens while it is below coarsen_below * tol and the coarser grid keeps it <=
     COARSEN_MARGIN * tol (unless ``coarsen`` is False: the tracer passes False for a start with a
     given tangent, e.g. one step off a branch point, where a coarser grid moves the BP and the
     small-amplitude branch next to it may not exist there).  A start state that fails to
-    converge is returned as given (the tracer then reports the failure)."""
+    converge is returned as given (the tracer then reports the failure).
+
+    Coarsening jumps: the solved state is resampled onto the candidate grids (from min_grid up)
+    and only the first whose *resampled* state meets COARSEN_MARGIN * tol is solved on; it is
+    kept if its solution does too (else the next candidate).  One resample and estimate per
+    candidate that fails, one solve for the grid taken (issue 14: a start state exact on every
+    grid, gPCF uniform shear, was solved on cheb 4 and 8 on its way down from 64).
+    ``estimate(problem, u, params)``: the estimator (default :func:`state_error`; the tracer
+    passes its :class:`Adaptor`'s, which remembers the estimates for the first point)."""
     from contin.newton import newton
 
     check_problem(problem)
+    est = state_error if estimate is None else estimate
     lines: list[str] = []
     res = newton(problem, u0, params, newton_options)
     if not res.converged:
         return problem, np.asarray(u0, dtype=float), lines
     u = res.u
-    err = state_error(problem, u, params)
+    err = est(problem, u, params)
     while err > opts.tol:
         n_new = finer(problem, u, params, opts)
         if n_new is None:
@@ -248,22 +288,26 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
             break
         lines.append(f"start grid refined {problem.grid_size} -> {n_new} (estimate {err:.2g} > tol {opts.tol:.2g})")
         problem, u = other, trial.u
-        err = state_error(problem, u, params)
+        err = est(problem, u, params)
     else:
         if coarsen and coarsen_worth(problem, u, params, err, opts):
             # The coarsest grid that keeps the estimate <= COARSEN_MARGIN tol: candidates from
-            # min_grid up by the growth factor, first fit taken (few solves, all on small grids).
+            # min_grid up by the growth factor, first fit taken (module docstring: one solve).
             n, sizes = opts.min_grid, []
             while n < problem.grid_size:
                 sizes.append(n)
                 n = max(_round(opts.growth * n, opts.multiple), n + 1)
+            margin = COARSEN_MARGIN * opts.tol
             for n_new in sizes:
                 other = problem.with_grid(n_new)
-                trial = newton(other, problem.transfer(u, other), params, newton_options)
+                guess = problem.transfer(u, other)
+                if est(other, guess, params) > margin:  # the grid cannot even carry the state
+                    continue
+                trial = newton(other, guess, params, newton_options)
                 if not trial.converged:
                     continue
-                e_new = state_error(other, trial.u, params)
-                if e_new <= COARSEN_MARGIN * opts.tol:
+                e_new = est(other, trial.u, params)
+                if e_new <= margin:
                     lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
                     problem, u = other, trial.u
                     break
@@ -281,6 +325,15 @@ class Adaptor:
         self.lines: list[str] = []
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
+        self._estimates: dict[tuple[Any, ...], tuple[Any, float]] = {}  # see estimate()
+        #: (estimate, vector) of the kernel behind the last special_error (None: no kernel)
+        self.kernel: tuple[float, Array] | None = None
+        #: set by :meth:`refine` when the estimate did not halve with the last refinement: the
+        #: tracer then retries a shorter step before ending the branch (a candidate far from the
+        #: resolved last point can sit where the tails are still pre-asymptotic: 2-D disks G_GF
+        #: band past H = 18.05, 4.7e-4 / 2.1e-4 / 1.8e-5 / 2.3e-6 on cheb 48 / 80 / 160 / 256 at
+        #: H = 18.8, 1.2e-12 on cheb 80 at H = 18.06)
+        self.stalled = False
 
     def special_refinable(self, err: float) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
@@ -302,20 +355,48 @@ class Adaptor:
 
     # --- estimates -------------------------------------------------------------------------
     def error(self, system: Any, x: Array) -> float:
-        return state_error(system.problem, x[:-1], system.params_at(x[-1]))
+        """The problem's estimate of the state of x = (u, p) (:meth:`estimate`)."""
+        return self.estimate(system.problem, x[:-1], system.params_at(x[-1]))
+
+    def estimate(self, problem: Any, u: Array, params: Any) -> float:
+        """:func:`state_error`, computed once per (problem, u, params): the same state is
+        estimated when the start grid is chosen and as the first point, when a point is accepted
+        (``too_coarse``) and when coarsening is considered, and at the ends of a bracket
+        (``pre_locate``).  Keyed by the exact bytes of u (a changed state is a new key); the
+        problem is kept with its entry so that its id is not reused."""
+        u = np.asarray(u, dtype=float)
+        try:
+            key = (id(problem), u.tobytes(), tuple(sorted(params.items())))
+            hash(key)
+        except (TypeError, AttributeError):  # parameters that cannot be a key: no memory
+            return state_error(problem, u, params)
+        hit = self._estimates.get(key)
+        if hit is not None and hit[0] is problem:
+            return float(hit[1])
+        err = state_error(problem, u, params)
+        if len(self._estimates) >= ESTIMATE_CACHE:
+            self._estimates.pop(next(iter(self._estimates)))
+        self._estimates[key] = (problem, err)
+        return err
 
     def special_error(self, system: Any, kind: str, x: Array, t: Array | None, *, near: bool = False) -> float:
         """Estimate for a located special point: its state, and the kernel direction that fixes
         its position (an LP's tangent, a BP's null vector of J; ``near``: x lies next to the BP,
         not on it, and the null vector is refined by inverse iteration, :func:`near_kernel`)."""
         err = self.error(system, x)
+        self.kernel = None
         if not has(system.problem, "vector_error"):
             return err
+        v = None
         if kind == "LP" and t is not None:
-            err = max(err, vector_error(system.problem, t[:-1]))
+            v = t[:-1]
         elif kind == "BP":
             jac = system.state_jacobian(x)
-            err = max(err, vector_error(system.problem, near_kernel(jac) if near else null_vector(jac)))
+            v = near_kernel(jac) if near else null_vector(jac)
+        if v is not None:
+            e_v = vector_error(system.problem, v)
+            self.kernel = (e_v, v)
+            err = max(err, e_v)
         return err
 
     def pre_locate(self, system: Any, kind: str, a: Any, b: Any, special_tol: float) -> float | None:
@@ -337,7 +418,14 @@ class Adaptor:
             # compares located estimates; the ends' may be smaller and would chase the mode:
             # gPCF nu = 0.3 branch n1.1, an artefact at H ~ 30 refined 32 -> 48 -> 80 -> 128).
             return None
-        err = min(self.special_error(system, kind, pt.x, pt.t, near=True) for pt in (a, b))
+        # min over the ends: the second end is estimated only if the first does not meet tol
+        err = self.special_error(system, kind, b.x, b.t, near=True)
+        kernel = self.kernel
+        if err > special_tol:
+            e_a = self.special_error(system, kind, a.x, a.t, near=True)
+            if e_a < err:
+                err, kernel = e_a, self.kernel
+        self.kernel = kernel  # the refinement's grid (refine, ``vector``) follows the better resolved end
         if err <= special_tol or not self.special_refinable(err):
             return None
         return err
@@ -412,22 +500,32 @@ class Adaptor:
         self.since_change = 0
         return True
 
-    def refine(self, tracer: Any, err: float, why: str, newton_options: Any) -> str | None:
+    def refine(self, tracer: Any, err: float, why: str, newton_options: Any, *,
+               vector: tuple[Array, float] | None = None) -> str | None:
         """Refine at the tracer's last point; None on success, else why the run must end: at
         max_grid, or when the previous refinement from the same point did not halve the estimate
         (the estimate has reached a floor that finer grids cannot lower, e.g. the rounding of a
         spectral tail measured against a tiny scale: tol is then below what the problem's
-        estimate can certify there)."""
+        estimate can certify there).  ``vector``: (kernel vector, its tol) for a refinement
+        that a special point's kernel asks for; the grid is then at least the problem's
+        ``suggest_vector_grid`` (one jump: Bratu cheb 12 -> 28 at the fold for special_tol 1e-10,
+        where growth took 12 -> 20 -> 32 and located the fold on 20 too)."""
         sys = tracer.system
         cur = tracer.points[-1]
         count = len(tracer.points)
+        self.stalled = False  # only this refinement's outcome counts
         last = self._state_refine
         self._state_refine = (count, err, int(sys.problem.grid_size))
         if last is not None and last[0] == count and err > 0.5 * last[1]:
+            self.stalled = True  # the tracer first retries with a shorter step (see trace)
             return (f"under-resolved at {sys.parameter} = {cur.x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                     f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "
                     f"grid {sys.problem.grid_size}): the estimate's floor is above tol here")
         size = finer(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), self.opts)
+        if size is not None and vector is not None:
+            jump = vector_grid(sys.problem, vector[0], vector[1], self.opts)
+            if jump is not None:
+                size = max(size, jump)
         while size is not None:
             keep = self._snapshot(tracer)
             if self.regrid(tracer, size, why, err, newton_options):
@@ -519,6 +617,7 @@ def point_problem(problem: Any, branch: Any, i: int) -> Any:
 def under_resolved_stop(branch: Any) -> bool:
     """Whether ``branch`` ended MX because its grid does not resolve it (the resolution guard's
     or an adaptive run's 'under-resolved' stop), not for another reason."""
+    # (a precision limit ends EP: a finer grid would only raise the rounding)
     return getattr(branch, "status", None) == "MX" and "under-resolved" in str(getattr(branch, "message", ""))
 
 

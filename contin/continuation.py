@@ -395,7 +395,15 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
     reason = problem.under_resolved(x[:-1], system.params_at(x[-1]), tol)
     if reason is None:
         return None
+    if reason.startswith(PRECISION_LIMIT + ": "):  # rounding, not the grid: a finer grid only raises it
+        return f"{PRECISION_LIMIT} at {system.parameter} = {x[-1]:.6g}: {reason[len(PRECISION_LIMIT) + 2:]}"
     return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
+
+
+def _guard_status(message: str) -> str:
+    """The status a fixed-grid guard stop ends a branch with: EP at a precision limit (every stored
+    point meets tol; a finer grid would only raise the rounding), MX when the grid does not resolve the branch."""
+    return "EP" if message.startswith(PRECISION_LIMIT) else "MX"
 
 
 def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0: float) -> tuple[float, float]:
@@ -489,8 +497,9 @@ def trace(
     if options.adapt is not None:  # adaptive resolution (contin.adapt): choose the start grid
         from contin.adapt import Adaptor, start_grid
 
+        adaptor = Adaptor(options.adapt)
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
-                                             coarsen=tangent is None)
+                                             coarsen=tangent is None, estimate=adaptor.estimate)
         if problem is not problem0:
             system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
             if tangent is not None:
@@ -498,7 +507,6 @@ def trace(
                 tangent = system.pack(problem0.transfer(tangent[:-1], problem), tangent[-1])
         n = u0.size
         system.n = n
-        adaptor = Adaptor(options.adapt)
         problem0 = problem  # the grid x0 and the start tangent live on
     start = newton(problem, u0, system.params, options.newton)
     tracer = _Tracer(system, options, None)
@@ -549,7 +557,18 @@ def trace(
     first = tracer.finish_point(Correction(x0, True, 0, fact, row), guess)
     tracer.append(first, 0.0, start.iterations)
 
-    x0c, t0c = x0, first.t  # the start point and tangent on the grid in force (for closure)
+    # The start point and tangent on the grid in force (for the closure test), carried onto a
+    # new grid only when the test first needs them there: two transfers per grid change saved on
+    # the many branches that never come near their start.
+    closure_start: dict[int, tuple[Array, Array]] = {}
+
+    def start_here() -> tuple[Array, Array]:
+        key = id(system)
+        if key not in closure_start:
+            closure_start.clear()
+            closure_start[key] = (x0, first.t) if adaptor is None else \
+                (adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t)))
+        return closure_start[key]
     if adaptor is not None:
         special_tol = min(options.adapt.tol, options.adapt.special_tol)
         tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(tracer.system, kind, a, b, special_tol)
@@ -560,13 +579,30 @@ def trace(
         refine at cur (None: retry the step there), or, if that fails, locate it on this grid
         (the located point's own check then notes it)."""
         assert adaptor is not None
-        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton) is None:
+        kernel = adaptor.kernel  # the bracket end's kernel that pre_locate judged (its grid suggestion)
+        if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton,
+                          vector=None if kernel is None else (kernel[1], special_tol)) is None:
             return None
         hook, tracer.pre_locate = tracer.pre_locate, None
         try:
             return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
         finally:
             tracer.pre_locate = hook
+
+    def detect_or_refine(cur: _Point, new: _Point, stepped: _Point) -> tuple[list[SpecialPoint] | None, bool]:
+        """(found, regridded) for the step cur -> new: the located special points (None: the
+        step jumped onto another branch), or regridded = True when an LP/BP in the bracket
+        needed a finer grid first -- the tracer then continues on it and the step is retried."""
+        nonlocal system, problem, n
+        try:
+            return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt), False
+        except _RefineFirst as why:
+            found = refine_first(why, cur, new, stepped, direction_vec)
+            if found is not None:
+                return found, False
+        system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+        closure_start.clear()  # carried onto the new grid when the closure test needs it
+        return None, True
     ds = abs(sopt.ds)
     travelled = 0.0
     closing = False
@@ -608,17 +644,25 @@ def trace(
             # Not resolved: refine at the last accepted point and retry the step from there.
             stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, "estimate above tol",
                                                                              options.newton)
+            if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
+                # Refinement did not halve the candidate's estimate: try a candidate nearer the
+                # resolved last point before concluding that the estimate has a floor.
+                adaptor.stalled = False
+                if len(tracer.audit) < MAX_AUDIT:
+                    tracer.audit.append(f"step {steps + 1}: {parameter}={cur.x[-1]:.10g} ds={ds:.3g} shortened: {stop}")
+                ds = reduced_step(ds, sopt)
+                continue
             if stop is not None:
                 # precision limit: every stored point meets tol and no grid can go on (EP)
                 status, message = ("EP" if stop.startswith(PRECISION_LIMIT) else "MX"), stop
                 break
             system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-            x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+            closure_start.clear()  # carried onto the new grid when the closure test needs it
             continue
         steps += 1
 
         if closing:
-            if landed(system, x0c, new.x):
+            if landed(system, start_here()[0], new.x):
                 tracer.special.extend(tracer.detect(cur, new, len(tracer.points) - 1)[0])
                 status, message, closed = "EP", "closed loop: the branch returned to its start point", True
                 break
@@ -642,19 +686,14 @@ def trace(
                 break
             coarse = _under_resolved(problem, system, land.x, resolution_tol)
             if coarse is not None:
-                status, message = "MX", coarse
+                status, message = _guard_status(coarse), coarse
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
             stepped, new = new, tracer.finish_point(land, cur.t)
-            try:
-                found = _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
-            except _RefineFirst as why:
-                found = refine_first(why, cur, new, stepped, direction_vec)
-                if found is None:
-                    steps -= 1
-                    system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
-                    continue
+            found, regridded = detect_or_refine(cur, new, stepped)
+            if regridded:
+                steps -= 1
+                continue
             if found is None:  # the step jumped onto another branch
                 steps -= 1
                 ds = reduced_step(ds, sopt)
@@ -666,17 +705,12 @@ def trace(
 
         coarse = _under_resolved(problem, system, new.x, resolution_tol)
         if coarse is not None:  # a smaller step would not help: the branch has left the grid's reach
-            status, message = "MX", coarse
+            status, message = _guard_status(coarse), coarse
             break
-        try:
-            found = _detect_checked(tracer, steps, cur, new, new, direction_vec, ds, sopt)
-        except _RefineFirst as why:
-            found = refine_first(why, cur, new, new, direction_vec)
-            if found is None:
-                steps -= 1
-                system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
-                continue
+        found, regridded = detect_or_refine(cur, new, new)
+        if regridded:
+            steps -= 1
+            continue
         if found is None:  # the step jumped onto another branch
             steps -= 1
             ds = reduced_step(ds, sopt)
@@ -684,17 +718,21 @@ def trace(
         if adaptor is not None and found:
             # Special points are located on the grid in force; one that grid does not resolve
             # (state, or the kernel fixing its position) is located again on a finer grid.
-            err = max(adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
-                      for sp in found)
+            err, kernel = -math.inf, None
+            for sp in found:
+                e_sp = adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
+                if e_sp > err:
+                    err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
             if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err):
                 kinds = "/".join(sorted({sp.type for sp in found}))
-                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton) is None:
+                if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
+                                  vector=None if kernel is None else (kernel[1], special_tol)) is None:
                     steps -= 1
                     system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                    x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                    closure_start.clear()  # carried onto the new grid when the closure test needs it
                     continue
             if err > special_tol:
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
@@ -712,14 +750,14 @@ def trace(
             say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
         ds = next_step(ds, corr.iterations, sopt)
         if options.detect_closed and len(tracer.points) > 3:
-            sigma = closing_distance(system, x0c, t0c, new.x, new.t, 1.5 * ds, travelled)
+            sigma = closing_distance(system, *start_here(), new.x, new.t, 1.5 * ds, travelled)
             if sigma is not None:
                 closing, ds = True, sigma
         if adaptor is not None and not closing:
             adaptor.maybe_coarsen(tracer, options.newton)
             if tracer.system is not system:
                 system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                x0c, t0c = adaptor.carry(problem0, system, x0), system.unit(adaptor.carry(problem0, system, first.t))
+                closure_start.clear()  # carried onto the new grid when the closure test needs it
 
     mark = "MX" if status == "MX" else "EP"
     note = message

@@ -21,6 +21,10 @@ from contin.linalg import dense_factorization
 from contin.problem import Array, has
 
 
+#: Jacobians an ExtendedSystem remembers (ExtendedSystem.state_jacobian).
+JACOBIAN_MEMO = 3
+
+
 def l2_norm(u: Array) -> float:
     """The default order parameter: the discrete L2 norm ||u||_2 / sqrt(n).
 
@@ -125,9 +129,25 @@ class ExtendedSystem:
         return jac, fp
 
     def state_jacobian(self, x: Array, q: Mapping[str, float] | None = None) -> sp.spmatrix | Array:
-        """J = dF/du at x (no F_p); sparse as the problem returns it, dense input as a 2-D array."""
-        jac = self.problem.jacobian(x[:-1], self.params_at(x[-1]) if q is None else q)
-        return jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
+        """J = dF/du at x (no F_p); sparse as the problem returns it, dense input as a 2-D array.
+
+        The last JACOBIAN_MEMO Jacobians (by the bytes of x) are remembered: a point's J is asked
+        for by its test functions (the symmetry-breaking determinant) and again by adaptive
+        resolution's kernel estimates at the same point (``contin.adapt``).  Read-only for
+        callers (every consumer copies before factorizing)."""
+        if q is not None:
+            jac = self.problem.jacobian(x[:-1], q)
+            return jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
+        key = np.asarray(x, dtype=float).tobytes()
+        memo = self.__dict__.setdefault("_jacobians", {})
+        jac = memo.get(key)
+        if jac is None:
+            jac = self.problem.jacobian(x[:-1], self.params_at(x[-1]))
+            jac = jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
+            if len(memo) >= JACOBIAN_MEMO:
+                memo.pop(next(iter(memo)))
+            memo[key] = jac
+        return jac
 
     def admissible(self, x: Array) -> str | None:
         """None, or the problem's reason why x is outside its physical domain."""

@@ -237,21 +237,25 @@ def _antisymmetric_basis(s: sp.csc_matrix) -> sp.csc_matrix:
     """
     n = s.shape[0]
     coo = s.tocoo()
-    if coo.nnz == n and np.unique(coo.col).size == n and np.allclose(np.abs(coo.data), 1.0):
-        pi = np.empty(n, dtype=np.int64)
-        sg = np.empty(n)
+    pi = np.empty(n, dtype=np.int64)
+    sg = np.empty(n)
+    seen = np.zeros(n, dtype=bool)
+    seen[coo.col] = True
+    if coo.nnz == n and seen.all() and np.allclose(np.abs(coo.data), 1.0):
         pi[coo.col] = coo.row  # S e_col = data e_row
         sg[coo.col] = coo.data
         i = np.arange(n)
-        fixed = (pi == i) & (sg < 0)
-        pair = pi > i
-        cols_f = i[fixed]
-        cols_p = i[pair]
+        cols_f = i[(pi == i) & (sg < 0)]
+        cols_p = i[pi > i]
         m_f, m_p = cols_f.size, cols_p.size
-        rows = np.concatenate([cols_f, cols_p, pi[cols_p]])
-        cols = np.concatenate([np.arange(m_f), m_f + np.arange(m_p), m_f + np.arange(m_p)])
-        vals = np.concatenate([np.ones(m_f), np.full(m_p, 1 / math.sqrt(2)), -sg[cols_p] / math.sqrt(2)])
-        return sp.csc_matrix((vals, (rows, cols)), shape=(n, m_f + m_p))
+        # CSC directly (the columns' rows are ascending: i < pi(i) in a pair); the same
+        # matrix a COO (rows, cols, vals) assembly gives, without its conversion (~0.2 ms, paid
+        # on every grid of an adaptive run)
+        r = 1 / math.sqrt(2)
+        indptr = np.concatenate([np.arange(m_f + 1), m_f + 2 * np.arange(1, m_p + 1)])
+        indices = np.concatenate([cols_f, np.column_stack([cols_p, pi[cols_p]]).ravel()])
+        data = np.concatenate([np.ones(m_f), np.column_stack([np.full(m_p, r), -sg[cols_p] * r]).ravel()])
+        return sp.csc_matrix((data, indices.astype(np.int32), indptr.astype(np.int32)), shape=(n, m_f + m_p))
     proj = 0.5 * (np.eye(n) - s.toarray())
     u, sv, _ = np.linalg.svd(proj)
     return sp.csc_matrix(u[:, sv > 0.5])

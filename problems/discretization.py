@@ -373,7 +373,8 @@ class Grid:
 
 
 def chebyshev_coefficients(values: NDArray[np.float64]) -> NDArray[np.float64]:
-    """a_0..a_N of the interpolant sum a_k T_k(2y) through values at ascending Gauss-Lobatto nodes.
+    """a_0..a_N of the interpolant sum a_k T_k(2y) through values at ascending Gauss-Lobatto nodes
+    (along the last axis: a 2-D array transforms its rows together).
 
     DCT-I: a_k = (2/N) sum_j'' f(x_j) cos(pi j k / N) with x_j = cos(pi j / N) (descending, hence
     the reversal), the first and last terms of the sum and a_0, a_N halved (Trefethen, *Spectral
@@ -381,11 +382,11 @@ def chebyshev_coefficients(values: NDArray[np.float64]) -> NDArray[np.float64]:
     (f_0, ..., f_N, f_{N-1}, ..., f_1): numpy's FFT, because importing scipy.fft (and the
     scipy.special it pulls in) costs a process 0.1-0.3 s for this one transform.
     """
-    f = np.asarray(values, dtype=float)[::-1]
-    n = f.size - 1
-    a = np.fft.rfft(np.concatenate([f, f[-2:0:-1]])).real[: n + 1] / n
-    a[0] *= 0.5
-    a[-1] *= 0.5
+    f = np.asarray(values, dtype=float)[..., ::-1]
+    n = f.shape[-1] - 1
+    a = np.fft.rfft(np.concatenate([f, f[..., -2:0:-1]], axis=-1), axis=-1).real[..., : n + 1] / n
+    a[..., 0] *= 0.5
+    a[..., -1] *= 0.5
     return a
 
 

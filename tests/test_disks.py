@@ -399,3 +399,32 @@ def test_steady_band_convergence_order(method, grids, order):
     orders = [math.log2(errs[i] / errs[i + 1]) for i in range(len(errs) - 1)]
     assert all(order - 0.2 < q < order + 0.5 for q in orders[-1:]), orders
     assert all(q > order - 0.5 for q in orders), orders
+
+
+def test_disks_scenes_are_adaptive_steady_band_meets_the_reduced_equation(tmp_path):
+    """disks-steady without --grid: adaptive (tol 3e-5; cheb 8..32 instead of the former fixed cheb 64),
+    no Hopf points (spurious ones on coarse grids), and the band at H = 40 still solves Saitoh &
+    Hayakawa's reduced equation (scipy solve_bvp) to 1e-6."""
+    from click.testing import CliRunner
+
+    from contin import io
+    from contin.adapt import point_problem
+    from contin.cli import main
+    from contin.scene import get_scene
+
+    for name in ("disks-pitchfork", "savage-rheology", "disks-steady"):
+        assert get_scene(name).adaptive
+    out = tmp_path / "s.h5"
+    r = CliRunner().invoke(main, ["trace", "disks-steady", "-s", "H=40", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    (br,), _ = io.load(out)
+    assert br.status == "EP" and br.grid is not None and max(br.grid) < 64
+    assert not [s for s in br.special_points if s.type == "HB"]
+    pb0 = DiskCouetteProblem("cheb", 64, walls="bumpy", closure=DiskClosure("cs"))
+    pb = point_problem(pb0, br, -1)
+    x = br.state(-1)
+    nu, u, T, P, _ = pb.unpack(x)
+    q = pb.params({"nu": 0.24, "e": 0.85, "phi_w": 1.0, "ew": 0.5, "H": 40.0})
+    S = pb.shear_stress(x, q)
+    ref = _sh_reduced_solution((nu[0], nu[-1]), S[0] / P, 0.85, 40.0, 40.0 * pb.grid.y)
+    assert np.max(np.abs(ref - nu)) < 1e-6

@@ -63,6 +63,29 @@ def test_core_precision_limit_ends_ep_with_every_point_within_tol(K, last_grid, 
     assert b.special_points[-1].type == "EP"
 
 
+class SlowBratu(Bratu):
+    """Bratu whose estimate falls only like N^-1/2 with the grid and grows like exp(12 u_max): a
+    candidate far along the branch does not halve its estimate when refined, a nearer one meets tol."""
+
+    def error_estimate(self, u, p):
+        return max(super().error_estimate(u, p), 1e-9 * np.exp(12.0 * float(np.max(u))) * (8.0 / self.grid_size) ** 0.5)
+
+
+def test_core_stalled_refinement_retries_a_shorter_step_first():
+    """At lam = 2.756 refining 20 -> 32 does not halve the candidate's estimate (6.7e-6 -> 5.2e-6): the
+    tracer halves the step instead of ending there ("shortened" in the audit), goes on to lam = 2.999 and
+    ends MX only on the maximum grid (64); every stored point meets tol 1e-6."""
+    pb = SlowBratu("cheb", 8)
+    o = ContinuationOptions(bounds={"lam": (0.02, 4.0)}, max_steps=200, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=1e-6, max_grid=64, min_grid=8, special_tol=1e-6))
+    b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
+    shortened = [a for a in b.audit if "shortened" in a]
+    assert shortened and shortened[0].startswith("step 9: lam=2.755964807 ds=0.5 shortened: under-resolved")
+    assert b.status == "MX" and "on the maximum grid 64" in b.message
+    assert b.params["lam"][-1] > 2.99 and b.grid[-1] == 64
+    assert max(pb.with_grid(b.grid[i]).error_estimate(b.state(i), None) for i in range(len(b))) <= 1e-6
+
+
 def _longdouble_solution(pb, x, p, iterations=5):
     """x refined with the longdouble residual (Newton with the double Jacobian)."""
     from problems.couette.extended_precision import LD, extended
@@ -126,3 +149,109 @@ def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
     err192 = _nu_error(fine, x192, _longdouble_solution(fine, x192, p))
     assert err192 > 3 * rounding
     assert resolution(fine, x192, p).rounding > 3e-5
+    # finite differences: rounding grows like eps N / gap, not eps N^2 / gap (fd4 N = 200 here: the
+    # Chebyshev formula would overstate it ~500x); the estimate still bounds the measured error
+    fd = CouetteProblem("fd4", 200)
+    xfd = newton(fd, fd.pack(*(pb.grid.interpolate(f, fd.grid.y) for f in pb.unpack(x)[:3]), pb.unpack(x)[3]), p).u
+    rfd = resolution(fd, xfd, p)
+    err_fd = _nu_error(fd, xfd, _longdouble_solution(fd, xfd, p))
+    assert 1e-8 < err_fd <= rfd.rounding < 1e-4
+    assert rfd.rounding == pytest.approx(0.2 * np.finfo(float).eps * 5 * 200 * 0.65 / rfd.gap, rel=1e-9)
+
+
+# ----------------------------------------------------------------------------- 2-D disks (problems.disks)
+def _disks_longdouble_solution(pb, x, p, iterations=6):
+    """x refined with the disks residual in longdouble: the grid's operators, nodes and weights from
+    problems.discretization.extended_grid (dense longdouble products), the closure's numpy
+    formulas in longdouble; Newton steps with the double Jacobian."""
+    import copy
+
+    from problems.discretization import extended_grid
+
+    LD = np.longdouble
+    ext = copy.copy(pb)
+    g = extended_grid(pb.method, pb.N)
+    ext.grid = g
+
+    class Dense:
+        def __init__(self, m):
+            self.m = np.asarray(m.toarray(), dtype=LD)
+
+        def __matmul__(self, v):
+            return self.m @ v
+
+    ext._d1, ext._d2 = Dense(g.d1), Dense(g.d2)
+    pl = {k: LD(v) if isinstance(v, float) else v for k, v in p.items()}
+    X = np.asarray(x).astype(LD)
+    for _ in range(iterations):
+        r = ext.residual(X, pl)
+        assert r.dtype == LD
+        X = X - spla.spsolve(sp.csc_matrix(pb.jacobian(np.asarray(X, float), p)), np.asarray(r, float)).astype(LD)
+    return X
+
+
+def test_disks_grid_hooks_and_adaptive_band_to_the_precision_limit():
+    """G_CS disks, nu = 0.5, e = 0.8: the n = 1 band (issue 14 (2): MX on cheb 64 at H = 28.8768, plug
+    4.5e-10 below phi_inf = 0.9) traced adaptively from cheb 32 ends EP "precision limit" near
+    H = 28.8768 on cheb 80 with every stored point's estimate <= 3e-5; against the longdouble
+    solution the last point's nu is within its estimate (rounding, factor 4: 1.3 .. 3.1 x eps N^2
+    phi_inf / gap measured), and H_1^c is located to 1e-10 of n pi psi."""
+    from contin.adapt import missing_hooks, point_problem
+    from contin.continuation import switch
+    from contin.options import DetectionOptions
+    from problems.couette.resolution import resolution
+    from problems.disks.closures import DiskClosure, critical_gaps
+    from problems.disks.model import DiskCouetteProblem
+
+    cl = DiskClosure("cs")
+    pb = DiskCouetteProblem("cheb", 32, closure=cl)
+    assert missing_hooks(pb) == []
+    p = pb.params({"nu": 0.5, "e": 0.8})
+    hc = critical_gaps(p, cl, 1)[0]
+    p["H"] = 0.8 * hc
+    ad = AdaptOptions(tol=3e-5)
+    o = ContinuationOptions(bounds={"H": (0.8 * hc, 1.2 * hc)}, max_steps=50, step=StepOptions(ds=0.05 * hc, ds_max=0.1 * hc),
+                            detection=DetectionOptions(locate_tol=1e-12, detect_hopf=False), adapt=ad)
+    base = trace(pb, pb.uniform_state(p), p, "H", o)
+    (bp,) = base.branch_points
+    assert abs(bp.params["H"] - hc) < 1e-10 * hc
+    ob = ContinuationOptions(bounds={"H": (0.3 * hc, 2.2 * hc)}, max_steps=100,
+                             step=StepOptions(ds=0.01, ds_max=0.05 * hc, ds_min=1e-8, newton_target=6, grow=2.0),
+                             detection=DetectionOptions(locate_tol=1e-9, detect_hopf=False), adapt=ad)
+    band = switch(pb, base, bp, ob, directions=(+1,))[0]
+    assert band.status == "EP" and band.message.startswith("precision limit at H = 28.876")
+    assert band.grid[-1] == 80 and [c[2] for c in band.grid_changes] == [32, 48, 80]
+    res = [resolution(point_problem(pb, band, i), band.state(i), {**p, "H": float(band.params["H"][i])})
+           for i in range(len(band))]
+    assert max(r.error for r in res) <= 3e-5
+    last = res[-1]
+    assert 1e-7 < last.gap < 1e-6 and last.precision_limited
+    q = {**p, "H": float(band.params["H"][-1])}
+    pb80 = point_problem(pb, band, -1)
+    X = _disks_longdouble_solution(pb80, band.state(-1), q)
+    n = pb80.n
+    gap = np.asarray(np.longdouble(0.9) - X[:n], float)
+    err = float(np.max(np.abs(np.asarray(band.state(-1).astype(np.longdouble) - X, float)[:n]) / gap))
+    assert 1e-7 < err <= last.error
+    # transfer is spectrally accurate between grids (a smooth state: the band well before the plug)
+    i = len(band) // 3
+    a = point_problem(pb, band, i)
+    there = a.transfer(band.state(i), pb.with_grid(96))
+    np.testing.assert_allclose(pb.with_grid(96).transfer(there, a), band.state(i), atol=1e-12)
+
+
+def test_fixed_grid_guard_ends_ep_at_the_precision_limit(tmp_path):
+    """--grid 80 (no adaptation): the resolution guard's reason for the nu = 0.63 band near H = 91.6 is
+    rounding, not the grid, so the branch ends EP "precision limit at H = ..." (exit 0), and
+    contin.adapt.retrace_finer does not retrace it on finer grids (under_resolved_stop is False)."""
+    from contin.adapt import under_resolved_stop
+
+    out = tmp_path / "g.h5"
+    r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1", "-s", "H_max=100",
+                                  "--no-stability", "--grid", "80", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    band = next(b for b in branches if b.id == "n1.1")
+    assert band.status == "EP" and band.message.startswith("precision limit at H = 91.")
+    assert "of the packing limit nu_m = 0.65" in band.message and band.message.endswith("on cheb 80; finer grids only raise it")
+    assert 90.5 < band.params["H"][-1] < 91.6 and not under_resolved_stop(band)

@@ -43,7 +43,13 @@ eps N^2 nu_m / (nu_m - max nu) in all 20 cases (Don & Solomonoff, SIAM J. Sci. C
 
     rounding = ROUNDING_FACTOR eps N^2 nu_m / (nu_m - max nu)      (ROUNDING_FACTOR = 0.2)
 
-and reports error = max(truncation, rounding).  Unlike the tail, no finer grid lowers it (it
+(finite-difference grids: 5 N in place of N^2, see FD_ROUNDING)
+
+and reports error = max(truncation, rounding).  The factor depends on the closure: a problem
+may set its own ``rounding_factor`` (problems.disks.model: 4.0; the 2-D disks' plug is ~20x more
+sensitive to rounding: 1.3 .. 3.1 times eps N^2 phi_inf / gap in 6 cases of the G_CS n = 1 band
+at H = 28.8768, gap 1e-7 and 1.3e-8, cheb 48 .. 128, against the same point with a longdouble
+residual).  Unlike the tail, no finer grid lowers it (it
 grows like N^2), so a state whose rounding exceeds tol is at the *precision limit* of double
 precision: the reason says so instead of advising a finer grid, and an adaptive run ends there
 (``contin.adapt``: "precision limit").  The tail alone misses it: at H = 94.9 (cheb 80, plug
@@ -211,19 +217,28 @@ def _suggest(method: str, n: int, error: float, tol: float, a: Array | None) -> 
     return int(16 * math.ceil(want / 16))
 
 
-def rounding_estimate(N: int, gap: float, limit: float) -> float:
-    """ROUNDING_FACTOR eps N^2 nu_m / gap: the rounding error of a computed state's nu relative to
-    its distance to packing (module docstring; inf at or past packing)."""
+#: Finite-difference grids: rounding = factor eps FD_ROUNDING N nu_m / gap.  The rounding grows
+#: like 1/(smallest spacing): N^2 on Chebyshev nodes, N on uniform FD nodes.  Measured on the same
+#: nu = 0.63 states (H = 89.9, 93.5; fd4 N = 200, 400, fd6 300) against the longdouble solution:
+#: 0.06 .. 0.67 times eps N nu_m / gap (0.001 .. 0.002 of the Chebyshev formula eps N^2 ...).
+FD_ROUNDING = 5.0
+
+
+def rounding_estimate(N: int, gap: float, limit: float, factor: float = ROUNDING_FACTOR, method: str = "cheb") -> float:
+    """factor eps N^2 nu_m / gap (Chebyshev; FD: factor eps FD_ROUNDING N nu_m / gap): the rounding
+    error of a computed state's nu relative to its distance to packing (module docstring; inf at
+    or past packing)."""
     if not gap > 0:
         return math.inf
-    return ROUNDING_FACTOR * float(np.finfo(float).eps) * N * N * limit / gap
+    scale = N * N if method == "cheb" else FD_ROUNDING * N
+    return factor * float(np.finfo(float).eps) * scale * limit / gap
 
 
 def precision_reason(rounding: float, gap: float, limit: float, tol: float, method: str, N: int) -> str:
     """The precision-limit reason (one line, no grid advice: finer grids raise the rounding)."""
     return (f"precision limit: plug within {gap:.2g} of the packing limit nu_m = {limit:g}, where double-precision "
             f"rounding alone leaves nu an estimated relative error {rounding:.2g} of the distance to packing "
-            f"(> {tol:.2g}) on {method} {N}; finer grids only raise it (it grows like N^2)")
+            f"(> {tol:.2g}) on {method} {N}; finer grids only raise it")
 
 
 def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
@@ -242,25 +257,24 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
     if grid.method != "cheb":
         m = _to_chebyshev_matrix(grid)
         profiles = {k: m @ v for k, v in profiles.items()}
-    tails: dict[str, float] = {}
-    scales: dict[str, float] = {}
-    errors: dict[str, float] = {}
-    coeffs: dict[str, Array] = {}
     gap = float(limit - np.max(profiles["nu"]))
-    for name in FIELDS:
-        a = chebyshev_coefficients(profiles[name])
-        coeffs[name] = a
-        scale = float(np.max(np.abs(a)))
-        if name == "nu":
-            scale = min(scale, gap)
-        tails[name] = tail(a)
-        scales[name] = scale
-        errors[name] = tails[name] / scale if scale > 0 else math.inf
+    # the three profiles' coefficients in one transform (rows: FIELDS; the same DCT-I as
+    # chebyshev_coefficients, row by row): the adaptive tracer estimates every accepted point
+    coeffs = chebyshev_coefficients(np.stack([profiles[name] for name in FIELDS]))
+    absc = np.abs(coeffs)
+    tail_v = absc[:, -TAIL_MODES:].max(axis=1)
+    scale_v = absc.max(axis=1)
+    tails = dict(zip(FIELDS, tail_v.tolist()))
+    scales = dict(zip(FIELDS, scale_v.tolist()))
+    scales["nu"] = min(scales["nu"], gap)
+    errors = {k: tails[k] / scales[k] if scales[k] > 0 else math.inf for k in FIELDS}
     field = max(FIELDS, key=lambda k: errors[k])
     truncation = errors[field]
-    rounding = rounding_estimate(grid.intervals, gap, limit)
+    # a problem with another closure states its own factor (problems.disks: 4.0, measured)
+    rounding = rounding_estimate(grid.intervals, gap, limit, float(getattr(problem, "rounding_factor", ROUNDING_FACTOR)),
+                                 grid.method)
     return Resolution(max(truncation, rounding), field, tails, scales, gap, limit, grid.method, grid.intervals, tol,
-                      coeffs[field], truncation, rounding)
+                      coeffs[FIELDS.index(field)], truncation, rounding)
 
 
 def under_resolved(problem: Any, x: Array, p: Mapping[str, Any], tol: float) -> str | None:

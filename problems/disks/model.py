@@ -62,6 +62,11 @@ class DiskCouetteProblem:
 
     parameter_names = PARAMETER_NAMES
     symmetry_breaking_parameters = ("G",)
+    #: rounding = rounding_factor eps N^2 phi_inf / (phi_inf - max nu) in the resolution estimate
+    #: (problems.couette.resolution): measured against longdouble-residual solutions of the G_CS
+    #: n = 1 band near phi_inf (gap 1e-7, 1.3e-8; cheb 48, 80, 128) the error of nu relative to the
+    #: distance to phi_inf is 1.3 .. 3.1 times eps N^2 phi_inf / gap (gPCF: 0.014 .. 0.15, factor 0.2)
+    rounding_factor = 4.0
     #: no default eigenvalue-count BP detector: J of the steady residual has algebraic rows
     #: whose eigenvalues cross zero in pairs, and the count re-stepped and bisected on them
     #: (steady band, cheb 32, H = 1 .. 40: 7.9 s -> 18.3 s; contin.problem, bp_eigen_auto)
@@ -291,6 +296,70 @@ class DiskCouetteProblem:
         from problems.couette.resolution import under_resolved
 
         return under_resolved(self, x, p, tol)
+
+    # ------------------------------------------------------------------ grid hooks (contin.adapt)
+    # As problems.couette.model.CouetteProblem: the estimate is the shared resolution measure
+    # (Chebyshev tails, nu's against the distance to phi_inf, plus the rounding term that sets
+    # the precision limit next to packing), so disks scenes run adaptively like gPCF.
+    @property
+    def grid_size(self) -> int:
+        """Number of grid intervals N (the size adaptive resolution changes)."""
+        return self.N
+
+    def with_grid(self, N: int) -> DiskCouetteProblem:
+        """The same model (method, walls, closure, gravity) on N intervals."""
+        return DiskCouetteProblem(self.method, int(N), walls=self.walls, closure=self.closure, gravity=self.gravity)
+
+    def transfer(self, x, other: DiskCouetteProblem) -> np.ndarray:
+        """A state (or the state part of a tangent) on ``other``'s grid: nu, u, T (and M) by this
+        grid's interpolant, P unchanged; linear in x."""
+        nu, u, T, P, M = self.unpack(np.asarray(x, dtype=float))
+        y = other.grid.y
+        moved = [self.grid.interpolate(f, y) for f in (nu, u, T)]
+        return other.pack(*moved, P, None if M is None else self.grid.interpolate(M, y))
+
+    def state_on(self, x) -> np.ndarray:
+        """A state of any grid of this model (its size tells the grid) carried onto this grid."""
+        from contin.adapt import on_grid
+
+        x = np.asarray(x, dtype=float)
+        if x.size == self.size:
+            return x
+        fields = 4 if self.gravity else 3
+        return on_grid(self, (x.size - 1) // fields - 1).transfer(x, self)
+
+    def error_estimate(self, x, p) -> float:
+        """Estimated relative error of x (problems.couette.resolution, max of truncation and rounding)."""
+        from problems.couette.resolution import resolution
+
+        return resolution(self, x, p).error
+
+    def rounding_error(self, x, p) -> float:
+        """The part of the estimate no finer grid lowers (``Resolution.rounding``)."""
+        from problems.couette.resolution import resolution
+
+        return resolution(self, x, p).rounding
+
+    def vector_error(self, v) -> float:
+        """Largest Chebyshev tail of the profiles nu, u, T of a perturbation v relative to its largest
+        coefficient (FD profiles carried to the Chebyshev grid), as CouetteProblem.vector_error."""
+        from problems.couette.resolution import FIELDS, _to_chebyshev_matrix, tail
+        from problems.discretization import chebyshev_coefficients
+
+        nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
+        fields = dict(zip(FIELDS, (nu, u, T)))
+        if self.method != "cheb":
+            m = _to_chebyshev_matrix(self.grid)
+            fields = {k: m @ f for k, f in fields.items()}
+        coeffs = [chebyshev_coefficients(f) for f in fields.values()]
+        scale = max(float(np.max(np.abs(a))) for a in coeffs)
+        return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
+
+    def suggest_grid(self, x, p, tol: float) -> int:
+        """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""
+        from problems.couette.resolution import resolution
+
+        return resolution(self, x, p, tol).suggested_N
 
     def order_parameter(self, x, p=None) -> float:
         """Phi = nu(y = 1/2), the area fraction at the top wall."""
