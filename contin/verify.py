@@ -59,6 +59,11 @@ class PointCheck:
     error : achieved relative error against the fine solve (NaN when not checked)
     observable_error : |order parameter - fine order parameter| (NaN without the hook)
     message : why the point was not checked ('' when it was)
+    singular : the point is a branch or limit point itself (the start of a branch switched at a
+        BP, or a BP/LP stored on the branch) and the fine solve at its fixed parameters failed:
+        J is singular there, so the plain Newton solve is ill-posed; such points are located by
+        their own test functions to ``AdaptOptions.special_tol`` and checked directly
+        (``contin accuracy``), and are listed apart instead of failing the check
     """
 
     index: int
@@ -69,6 +74,7 @@ class PointCheck:
     error: float
     observable_error: float
     message: str = ""
+    singular: bool = False
 
     @property
     def checked(self) -> bool:
@@ -95,8 +101,14 @@ class BranchCheck:
 
     @property
     def unchecked(self) -> tuple[PointCheck, ...]:
-        """Points whose fine solve failed or that could not be refined (reported, not dropped)."""
-        return tuple(p for p in self.points if not p.checked)
+        """Points whose fine solve failed or that could not be refined (reported, not dropped);
+        singular points (:attr:`PointCheck.singular`) are listed in :attr:`singular` instead."""
+        return tuple(p for p in self.points if not p.checked and not p.singular)
+
+    @property
+    def singular(self) -> tuple[PointCheck, ...]:
+        """Branch or limit points whose fixed-parameter fine solve failed (J singular there)."""
+        return tuple(p for p in self.points if p.singular)
 
     @property
     def exceeding(self) -> tuple[PointCheck, ...]:
@@ -144,6 +156,19 @@ def _observable(problem: Any, u: Any, p: Mapping[str, Any]) -> float:
         return float(problem.order_parameter(u, p))
     except Exception:  # noqa: BLE001 -- an optional column; the state error decides
         return math.nan
+
+
+def _special_at(branch: Any, i: int) -> str:
+    """'' unless point i is a BP/LP: the start of a branch switched at a BP (its parent), or a BP
+    or LP stored at row i."""
+    for sp in getattr(branch, "special_points", ()):
+        kind = str(getattr(sp, "type", ""))
+        if kind in ("BP", "LP") and int(getattr(sp, "index", -1)) == i:
+            return f"{sp.name} ({kind})"
+    parent = getattr(branch, "parent", None)
+    if i == 0 and parent and str(parent).upper().startswith(("BP", "LP")):
+        return f"the start of a branch switched at {parent}"
+    return ""
 
 
 def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, factor: float = 2.0,
@@ -202,8 +227,11 @@ def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, facto
         moved = np.asarray(coarse.transfer(u, fine), dtype=float)
         res = newton(fine, moved, p, opts)
         if not res.converged:
-            out.append(PointCheck(i, p, n, n_f, estimate, math.nan, math.nan,
-                                  f"the Newton solve on grid {n_f} failed: {res.message}"))
+            special = _special_at(branch, i)
+            why = f"the Newton solve on grid {n_f} failed: {res.message}"
+            if special:
+                why = f"{special}: J is singular at fixed parameters ({why})"
+            out.append(PointCheck(i, p, n, n_f, estimate, math.nan, math.nan, why, singular=bool(special)))
             continue
         err = solution_error(fine, moved, res.u, p)
         obs = abs(_observable(coarse, u, p) - _observable(fine, res.u, p))

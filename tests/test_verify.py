@@ -8,6 +8,7 @@ estimate 4.7e-7, relative error 7.4e-5 and phi off by 1.8e-6 against cheb 160).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -111,6 +112,11 @@ def test_bratu_cheb_errors_equal_the_closed_form_and_failures_are_reported():
     failing = verify_branch(_NoSolution("cheb", 16), branch, {}, indices=[5, 10])
     assert [p.index for p in failing.unchecked] == [5, 10] and not failing.ok
     assert all("Newton" in p.message for p in failing.unchecked)
+    # the first point of a branch switched at a BP: J singular there, listed apart (not a failure)
+    switched = dataclasses.replace(branch, parent="BP1@0")
+    at_bp = verify_branch(_NoSolution("cheb", 16), switched, {}, indices=[0, 5])
+    assert [p.index for p in at_bp.singular] == [0] and [p.index for p in at_bp.unchecked] == [5]
+    assert "BP1@0" in at_bp.singular[0].message
 
 
 def test_gpcf_audit_point_flagged_and_uniform_shear_exact(tmp_path):

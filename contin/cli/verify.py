@@ -101,15 +101,16 @@ def verify_command(file: str, branch_id: str | None, factor: float, tol: float |
         echo_json({"file": file, "tol": tol, "factor": factor, "ok": not bad, "branches": [
             {"branch": r.branch, "checked": len(r.checked), "exceeding": [p.index for p in r.exceeding],
              "unchecked": [{"index": p.index, "reason": p.message} for p in r.unchecked],
+             "singular": [{"index": p.index, "reason": p.message} for p in r.singular],
              "max_error": r.max_error, "points": [
                  {"index": p.index, "params": dict(p.params), "grid": p.grid, "fine_grid": p.fine_grid,
                   "estimate": p.estimate, "error": p.error, "observable_error": p.observable_error}
                  for p in r.points]} for r in results]})
     else:
         rows = [(r.branch, len(r.points), len(r.checked), fmt(r.max_error, 3), len(r.exceeding), len(r.unchecked),
-                 "ok" if r.ok else "FAIL") for r in results]
+                 len(r.singular), "ok" if r.ok else "FAIL") for r in results]
         click.echo(f"{file}: stored points re-solved on {fmt(factor, 3)}x finer grids, tol {fmt(tol, 3)}")
-        click.echo(table(rows, ("branch", "points", "checked", "max error", "> tol", "unchecked", "")))
+        click.echo(table(rows, ("branch", "points", "checked", "max error", "> tol", "unchecked", "singular", "")))
         if not quiet:
             worst = [(r.branch, p.index, *(fmt(v, 6) for k, v in p.params.items() if k in (_free(r, todo))),
                       p.grid, p.fine_grid, fmt(p.estimate, 2), fmt(p.error, 2), fmt(p.observable_error, 2))
@@ -118,6 +119,11 @@ def verify_command(file: str, branch_id: str | None, factor: float, tol: float |
                 click.echo("worst points:")
                 click.echo(table(worst, ("branch", "index", "at", "grid", "fine grid", "estimate", "error",
                                          "order-parameter error")))
+    if not quiet and not as_json:
+        for r in results:
+            for p in r.singular:
+                echo_err(f"note: branch {r.branch} point {p.index}: {p.message}; its position is checked by "
+                         "the locator (special_tol), not here")
     for r in bad:
         parts = []
         if r.exceeding:
