@@ -17,7 +17,12 @@ them after the fact, on a stored branch:
    exact to ``tol`` (relative), not an interpolation of eigenvalues;
 3. the result is an ``HB`` special point with ``data = {omega, kx, kz}`` (omega = Im of the
    critical eigenvalue: the travelling mode's frequency; its phase speed is omega / kx), or,
-   where a count changes without a complex crossing being located, a one-line reason.
+   where a count changes without a complex crossing being located, a one-line reason;
+4. count changes (or crossings) at most :data:`CHATTER_POINTS` stored points apart mean that
+   the sign of Re omega flips faster than the branch's points resolve: the eigenvalue is at the
+   noise level of the states (e.g. gPCF's travelling mode on plugs within 1e-9 of packing, where
+   it flips sign at every point) or the steps are too long.  Such HBs are kept but their note says
+   "doubtful", and a reason line names the stretch (:func:`doubtful_crossings`).
 
 Requires a branch in one parameter whose stored points bracket the crossing without a fold in
 between (Newton at fixed p would be ambiguous there: such intervals are reported, not guessed).
@@ -27,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -38,6 +43,10 @@ from contin.problem import Array, has
 
 #: Default relative tolerance of the located parameter.
 DEFAULT_TOL = 1e-11
+
+#: Crossings of Re omega = 0 at most this many stored points apart are not resolved by the
+#: branch's points (:func:`doubtful_crossings`).
+CHATTER_POINTS = 2
 
 
 @dataclass
@@ -77,6 +86,7 @@ def locate_hopf(
     ``n_unstable_kx<k>`` observable); only intervals where they change (both ends known) are
     searched.  None searches every interval (one eigen-solve per stored point).
     """
+    from contin.adapt import point_problem
     from contin.hopf import _to_segment, crossing_pairs
     from contin.newton import newton as solve
 
@@ -109,7 +119,7 @@ def locate_hopf(
             u = state(i)
             if u is None:
                 return None
-            cache[i] = _complex_upper(problem, u, params_at(i), kx, kz, dense_max, k)
+            cache[i] = _complex_upper(point_problem(problem, branch, i), u, params_at(i), kx, kz, dense_max, k)
         return cache[i]
 
     where = f" at kx={kx:g}" + (f", kz={kz:g}" if kz else "")
@@ -129,13 +139,42 @@ def locate_hopf(
         if len(branch.free) != 1:
             out.reasons.append(f"{head}: complex pair crossing on a {len(branch.free)}-parameter curve; not located")
             continue
+        # Points of an adaptive run lie on their own grids (contin.adapt.point_problem): the
+        # location runs on point i's grid, with point i+1 carried onto it.
+        here, there = point_problem(problem, branch, i), point_problem(problem, branch, i + 1)
+        if there is not here:
+            ub = there.transfer(ub, here)
         for mu_a, mu_b in crossings:
-            sp, reason = _locate_one(problem, branch, i, params_at, ua, ub, complex(mu_a), complex(mu_b), kx, kz,
+            sp, reason = _locate_one(here, branch, i, params_at, ua, ub, complex(mu_a), complex(mu_b), kx, kz,
                                      dense_max, k, tol, newton, max_iterations, solve, _to_segment)
             if sp is not None:
+                sp = replace(sp, grid=branch.grid_at(i))
                 out.points.append(sp)
             if reason is not None:
                 out.reasons.append(f"{head}: {reason}")
+    changed = intervals if counts is not None else sorted({sp.index for sp in out.points})
+    for lo, hi in doubtful_crossings(changed):
+        stretch = f"{par} = {pv[lo]:.6g} .. {pv[hi + 1]:.6g}{where}"
+        why = (f"doubtful: Re omega changes sign at most {CHATTER_POINTS} stored points apart in {stretch}, faster "
+               "than the branch's points resolve (eigenvalue at the noise level of the states, or steps too long)")
+        out.points = [replace(sp, note=f"{sp.note}; {why}") if lo <= sp.index <= hi else sp for sp in out.points]
+        out.reasons.append(f"{stretch}: {why}")
+    return out
+
+
+def doubtful_crossings(intervals: list[int], gap: int = CHATTER_POINTS) -> list[tuple[int, int]]:
+    """Stretches (first, last interval) of sign changes at most ``gap`` stored points apart
+    (interval i lies between points i and i+1); an isolated change is not in any."""
+    out: list[tuple[int, int]] = []
+    run: list[int] = []
+    for i in sorted(intervals):
+        if run and i - run[-1] > gap:
+            if len(run) > 1:
+                out.append((run[0], run[-1]))
+            run = []
+        run.append(i)
+    if len(run) > 1:
+        out.append((run[0], run[-1]))
     return out
 
 

@@ -146,7 +146,9 @@ def slice_branch(branch: Branch, i0: int, i1: int) -> Branch:
         states=branch.states[keep].copy(), tangents=branch.tangents[keep].copy(),
         ds=np.concatenate([[0.0], branch.ds[i0 + 1: i1 + 1]]), newton_iterations=branch.newton_iterations[keep].copy(),
         special_points=sps, closed=branch.closed and i0 == 0 and i1 == len(branch) - 1, state_index=None,
-        stable=None, n_unstable=None, eigenvalues=None)
+        stable=None, n_unstable=None, eigenvalues=None,
+        grid=None if branch.grid is None else branch.grid[keep].copy(),
+        sizes=None if branch.sizes is None else branch.sizes[keep].copy())
 
 
 def trim_to_new(branch: Branch, seed: Array, known: Sequence[Branch], coordinates: Coordinates,

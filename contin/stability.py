@@ -363,10 +363,13 @@ def growth_columns(
                       "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
                       "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
                       stacklevel=2)
+    from contin.adapt import point_problem
+
     for i in range(s):
         p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
         try:
-            res = stability_of_state(problem, branch.state(i), p, kx=kx, kz=kz, n_eigs=1, tol=tol,
+            # each point on its own grid (adaptive runs, contin.adapt.point_problem)
+            res = stability_of_state(point_problem(problem, branch, i), branch.state(i), p, kx=kx, kz=kz, n_eigs=1, tol=tol,
                                      dense_max=dense_max)
         except KeyError:
             continue

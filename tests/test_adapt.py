@@ -234,3 +234,21 @@ def test_kernel_vectors_of_the_grid_decisions():
     k = near_kernel(sp.csr_matrix(near))
     assert 1 - abs(k @ q[:, 0]) < 1e-12
     assert 1 - abs(null_vector(sp.csr_matrix(near)) @ q[:, 0]) > 1e-8  # what the iterations remove
+
+
+def test_slice_of_a_regridded_branch_keeps_each_points_grid():
+    """contin.overlap.slice_branch (the trims of contin.jumps/seeds) on a branch whose points lie
+    on several grids: the grid and size columns are sliced with the points, so every kept point's
+    state is still the solution on its own grid (residual ~0 there)."""
+    from contin.adapt import point_problem
+    from contin.overlap import slice_branch
+
+    pb, b = bratu_run("cheb", 8, 1e-8, 0.02)
+    (i, old, new), *_ = b.grid_changes
+    part = slice_branch(b, i - 2, len(b) - 1)
+    assert len(part.grid) == len(part.sizes) == len(part) == len(b) - i + 2
+    assert part.grid_changes[0] == (2, old, new)
+    for j in range(len(part)):
+        q = {"lam": float(part.params["lam"][j])}
+        assert part.state(j).size == part.grid[j] + 1
+        assert np.max(np.abs(point_problem(pb, part, j).residual(part.state(j), q))) < 1e-8

@@ -369,9 +369,10 @@ def test_phase_diagram_retraces_a_stopped_fold_curve_on_a_finer_grid():
     assert abs(fixed.fr_min_floating_plug - 254.120379954) > 1e-4  # the coarse grid's value is off
 
 
-def test_gravity_scene_retraces_only_when_asked():
-    """The whole-discovery retrace on finer grids is opt-in (``-s max_grid=M``): by default the
-    scene keeps its grid (cheb 64) and says nothing of a retrace; a bad max_grid is one error."""
+def test_gravity_scene_refines_only_branches_that_need_it():
+    """Without --grid the scene refines a branch's grid only where its estimate exceeds tol: a
+    diagram cheb 64 resolves (Fr = 1000 to H = 8) stays on cheb 64 with no refinement note and
+    no grid column; max_grid below the start grid, or negative, is one error."""
     import json
 
     from click.testing import CliRunner
@@ -383,7 +384,48 @@ def test_gravity_scene_retraces_only_when_asked():
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     assert doc["discretization"]["intervals"] == 64
-    assert not any("retrace" in note for note in doc["notes"])
+    assert not any("refined" in note for note in doc["notes"])
     r = CliRunner().invoke(main, ["trace", "gravity", "-s", "max_grid=-1", "-q"])
     assert r.exit_code == 1
-    assert r.stderr.strip() == "Error: max_grid must be a non-negative integer (0: no retrace), got -1"
+    assert r.stderr.strip() == "Error: max_grid must be a non-negative integer (0: a fixed grid), got -1"
+    r = CliRunner().invoke(main, ["trace", "gravity", "-s", "max_grid=48", "-q"])
+    assert r.exit_code == 1
+    assert r.stderr.strip() == "Error: max_grid must be 0 (a fixed grid) or at least the start grid 64, got 48"
+
+
+def test_strong_gravity_branch_refines_its_grid_instead_of_ending_mx():
+    """Fr = 50: the bottom plug approaches packing exponentially in H.  On a fixed cheb 64 the
+    resolution guard ends the primary branch MX at H = 21.84; with ``GravitySettings.refine``
+    the same trace refines 64 -> 96 at the last point before the guard's stop (H = 21.62) and reaches
+    H = 24, every point meeting tol on its own grid; below the change it is the fixed-grid run
+    point for point; its end state equals an independent cheb 128 solve; past max_grid it ends
+    MX with that reason."""
+    from contin.adapt import AdaptOptions, on_grid
+    from contin.newton import newton
+
+    pb64 = gravity_problem("cheb", 64)
+    p = pb64.params({"nu": 0.3, "e": 0.8, "Fr": 50.0, "H": 1.0})
+    st = GravitySettings(H_range=(1.0, 24.0), modes=1)
+    fixed = trace_in_H(pb64, pb64.initial_guess(p), p, st)
+    assert fixed.status == "MX" and "under-resolved" in fixed.message
+    assert fixed.params["H"][-1] == pytest.approx(21.62, abs=0.01)  # its last stored state
+    refine = AdaptOptions(tol=3e-5, max_grid=256, coarsen_below=None, special_tol=3e-5)
+    b = trace_in_H(pb64, pb64.initial_guess(p), p, replace(st, refine=refine))
+    assert b.status == "EP" and b.params["H"][-1] == pytest.approx(24.0, abs=1e-12)
+    (change,) = b.grid_changes
+    i, old, new = change
+    assert (old, new) == (64, 96) and b.params["H"][i] == pytest.approx(21.62, abs=0.01)
+    H = b.params["H"]
+    for j in range(len(b)):
+        q = {**p, "H": float(H[j])}
+        assert on_grid(pb64, b.grid_at(j)).error_estimate(b.state(j), q) <= 3e-5
+    np.testing.assert_array_equal(H[:i], fixed.params["H"][:i])  # the fixed-grid path up to the change
+    np.testing.assert_array_equal(b.states[:i, : pb64.size], fixed.states[:i])
+    pb128 = gravity_problem("cheb", 128)
+    q = {**p, "H": 24.0}
+    ref = newton(pb128, on_grid(pb64, 96).transfer(b.state(len(b) - 1), pb128), q)
+    assert ref.converged
+    phi = pb128.observables(ref.u, q)["phi"]
+    assert b.observables["phi"][-1] == pytest.approx(phi, rel=1e-7)
+    capped = trace_in_H(pb64, pb64.initial_guess(p), p, replace(st, refine=replace(refine, max_grid=80)))
+    assert capped.status == "MX" and "on the maximum grid 80" in capped.message

@@ -80,3 +80,30 @@ def test_count_change_without_complex_crossing_is_a_stated_reason():
     counts = growth_columns(RealCrossing(), br, kx=0.5)["n_unstable_kx0.5"]
     scan = locate_hopf(RealCrossing(), br, kx=0.5, counts=counts)
     assert not scan.points and len(scan.reasons) == 1 and "no complex pair" in scan.reasons[0]
+
+
+def test_crossings_closer_than_the_points_resolve_are_doubtful():
+    """Re omega of the travelling pair flips sign at every stored point past p = 0.9 (noise-level
+    eigenvalue, as gPCF's long-wave mode on plugs next to packing): the HBs there are located
+    but their notes and the reasons say 'doubtful'; the isolated crossing at p = kx^2 is not."""
+    from contin.hopfscan import doubtful_crossings
+
+    assert doubtful_crossings([3, 10, 11, 13, 20]) == [(10, 13)]
+    assert doubtful_crossings([3, 6, 9]) == []
+
+    class Noisy(Travelling):
+        def eigenproblem(self, u, p, kx=0.0, kz=0.0):
+            a, b = super().eigenproblem(u, p, kx, kz)
+            if p["p"] > 0.9:  # Re omega = +-1e-3 alternating with the 0.13-spaced points
+                r = 1e-3 * np.sin(np.pi * (p["p"] + 1.0) / 0.13 + 0.5)
+                a[0, 0] = a[1, 1] = r
+            return a, b
+
+    br = branch()
+    counts = growth_columns(Noisy(), br, kx=0.5)["n_unstable_kx0.5"]
+    scan = locate_hopf(Noisy(), br, kx=0.5, counts=counts)
+    clean = [h for h in scan.points if "doubtful" not in h.note]
+    noisy = [h for h in scan.points if "doubtful" in h.note]
+    assert [h.params["p"] for h in clean] == pytest.approx([0.25], abs=1e-10)
+    assert len(noisy) >= 3 and all(h.params["p"] > 0.9 for h in noisy)
+    assert len(scan.reasons) == 1 and "doubtful" in scan.reasons[0]

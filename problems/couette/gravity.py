@@ -107,6 +107,11 @@ class GravitySettings:
     Fr_start : Froude number at which route 2 first finds the fold of each imperfect pitchfork
         (:func:`pitchfork_fold_curves`)
     fold_steps : steps per direction of each fold curve (route 2)
+    refine : AdaptOptions of the branches traced in H (:func:`trace_in_H`); None: the fixed
+        grid, where the resolution guard ends a branch MX 'under-resolved'.  With it each branch
+        refines its own grid where its estimate exceeds ``refine.tol`` (``contin.adapt``: the
+        dense plugs near packing), and ends MX only past ``refine.max_grid``; the seeds, fold
+        curves and homotopies stay on the problem's grid.
     """
 
     H_range: tuple[float, float] = (1.0, 50.0)
@@ -118,12 +123,15 @@ class GravitySettings:
     modes: int = 3
     Fr_start: float = 2000.0
     fold_steps: int = 300
+    refine: AdaptOptions | None = None
 
-    def h_options(self) -> ContinuationOptions:
+    def h_options(self, adaptive: bool = False) -> ContinuationOptions:
+        """Options of a trace in H; ``adaptive``: with ``refine`` as ContinuationOptions.adapt."""
         return ContinuationOptions(
             bounds={"H": self.H_range}, max_steps=self.max_steps,
             step=StepOptions(ds=self.ds, ds_max=self.ds_max, max_angle=self.max_angle),
             detection=DetectionOptions(detect_branch_points=False),
+            adapt=self.refine if adaptive else None,
         )
 
     def g0_options(self) -> ContinuationOptions:
@@ -217,7 +225,7 @@ def trace_in_H(problem: CouetteProblem, state: Array, params: Mapping[str, float
     themselves (:func:`trim_self_overlap`), and a run showing a jump between sheets is retraced
     once with half the largest step (smaller steps keep the run on its sheet at the O(G)-narrow
     mode-2 near-crossing), unless ds_max <= :data:`RETRACE_DS_MAX`."""
-    return trace_both_ways(problem, state, params, "H", settings.h_options(), coordinates=COORDINATES,
+    return trace_both_ways(problem, state, params, "H", settings.h_options(adaptive=True), coordinates=COORDINATES,
                            excursion=OVERLAP_EXCURSION, restep="whole", min_ds_max=RETRACE_DS_MAX,
                            symmetric=False, branch_id=branch_id, kind=kind, parent=parent, progress=progress)
 

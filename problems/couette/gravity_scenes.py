@@ -9,13 +9,16 @@ de-duplicated and labelled (primary, isola, floating-plug, bottom-plug), with th
 branch.
 
 Defaults: Chebyshev N = 64 and H <= 70.  At N = 32 the dense plugs (nu -> nu_m = 0.65) are
-under-resolved already at H ~ 30-40 (the continuation stops them with MX 'under-resolved'),
-and at nu = 0.3, Fr = 1000 the isola of the third pitchfork spans H = 41.90 .. 63.48.
-With ``-s max_grid=M`` (and no ``--grid``) a run where a branch stops under-resolved is repeated
-on the grid the resolution estimate asks for at the stop, up to M (``contin.adapt.retrace_finer``;
-Fr = 50 to H = 30: cheb 64 stops at H = 21.8, the rerun on cheb 144 reaches H = 30).  Without it
-the grid is fixed (cheb 64 unless ``--grid N``): retracing the whole discovery is opt-in, because
-at the default Fr = 1000 the dense plugs near H = 70 keep asking for finer grids.
+under-resolved already at H ~ 30-40, and at nu = 0.3, Fr = 1000 the isola of the third
+pitchfork spans H = 41.90 .. 63.48.  Without ``--grid`` each branch traced in H refines its own
+grid where the resolution estimate (Chebyshev tail against the distance to packing,
+problems.couette.resolution) exceeds the guard's tol 3e-5 (``GravitySettings.refine``,
+``contin.adapt``: the state and tangent carried onto the finer grid, the branch continued), up
+to ``-s max_grid=M`` (default :data:`GRAVITY_MAX_GRID`); past it the branch ends MX "under-resolved
+... on the maximum grid M", and where double-precision rounding of the plug's distance to packing
+exceeds tol it ends EP "precision limit".  The other branches, the seeds, homotopies and fold
+curves stay on cheb 64, so a diagram that cheb 64 resolves is unchanged.  ``-s max_grid=0`` or
+``--grid N``: one fixed grid, where the guard ends an under-resolved branch MX.
 """
 
 from __future__ import annotations
@@ -25,18 +28,23 @@ from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
-from contin.adapt import retrace_finer
+import numpy as np
+
 from contin.branch import relabel
 from contin.options import AdaptOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_params
-from problems.couette.gravity import GravitySettings, discover, gravity_problem, suggest_grid_for
+from problems.couette.gravity import RESOLUTION_TOL, GravitySettings, discover, gravity_problem
 from problems.couette.model import rebuilt_engine
+from problems.couette.pitchfork import state_on
 
 GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 70.0,
-                                    "walls": "noslip", "modes": 3, "max_grid": 0}
+                                    "walls": "noslip", "modes": 3, "max_grid": 256}
 
 #: Default Chebyshev grid of the scene (see the module docstring).
 GRAVITY_GRID = 64
+
+#: Default largest grid a branch may refine to (``-s max_grid``; see the module docstring).
+GRAVITY_MAX_GRID = 256
 
 
 def _settings(request: SceneRequest) -> dict[str, Any]:
@@ -53,7 +61,7 @@ def _settings(request: SceneRequest) -> dict[str, Any]:
     if not (out["modes"] >= 1 and out["modes"] == int(out["modes"])):
         raise SceneError(f"modes must be a positive integer, got {out['modes']:g}")
     if not (out["max_grid"] >= 0 and out["max_grid"] == int(out["max_grid"])):
-        raise SceneError(f"max_grid must be a non-negative integer (0: no retrace), got {out['max_grid']:g}")
+        raise SceneError(f"max_grid must be a non-negative integer (0: a fixed grid), got {out['max_grid']:g}")
     if out["walls"] not in ("noslip", "jj"):
         raise SceneError(f"walls must be 'noslip' or 'jj', got {out['walls']!r}")
     return out
@@ -64,6 +72,24 @@ def problem_factory(parameters: Mapping[str, Any], discretization: Mapping[str, 
                            str(parameters.get("walls", "noslip")), engine=rebuilt_engine(discretization.get("engine")))
 
 
+def _refine(request: SceneRequest, s: Mapping[str, Any], pb: Any) -> AdaptOptions | None:
+    """The branches' grid refinement (module docstring): None with ``--grid``, ``max_grid=0``
+    or the resolution guard switched off (``--resolution-tol off``)."""
+    tol = request.overrides.get("resolution_tol", RESOLUTION_TOL)
+    if request.grid or not s["max_grid"] or tol is None:
+        return None
+    if s["max_grid"] < pb.N:
+        raise SceneError(f"max_grid must be 0 (a fixed grid) or at least the start grid {pb.N}, got {s['max_grid']:g}")
+    # Refinement only (no coarsening, special points to the same tol as states): a branch that
+    # cheb 64 resolves is traced exactly as on the fixed grid.
+    return AdaptOptions(tol=float(tol), max_grid=int(s["max_grid"]), coarsen_below=None, special_tol=float(tol))
+
+
+def _first_refined(b: Any, n: int) -> float:
+    """H at the first point of ``b`` on a grid finer than ``n``."""
+    return float(b.params["H"][int(np.flatnonzero(np.asarray(b.grid) > n)[0])])
+
+
 def run_gravity(request: SceneRequest) -> SceneResult:
     s = _settings(request)
     try:
@@ -72,28 +98,11 @@ def run_gravity(request: SceneRequest) -> SceneResult:
         params = pb.params({"nu": s["nu"], "e": s["e"], "Fr": s["Fr"], "H": s["H_min"]})
     except ValueError as exc:
         raise SceneError(str(exc)) from None
-    settings = GravitySettings(H_range=(s["H_min"], s["H_max"]), modes=int(s["modes"]))
+    refine = _refine(request, s, pb)
+    settings = GravitySettings(H_range=(s["H_min"], s["H_max"]), modes=int(s["modes"]), refine=refine)
     o = request.options_for(settings.h_options())
     settings = replace(settings, ds=o.step.ds, ds_max=o.step.ds_max, max_steps=o.max_steps)
-    retrace = not request.grid and s["max_grid"] > 0
-    if not retrace:
-        diagram = discover(pb, params, settings, progress=request.report)
-    else:
-        # -s max_grid=M without --grid: the whole discovery is retraced on a finer grid while a
-        # branch stops under-resolved (dense plugs at strong gravity: Fr = 50 stops at H = 21.8
-        # on cheb 64).  Opt-in: at the default Fr = 1000 the dense plugs near H = 70 ask for
-        # ever finer grids and the retraced discovery ran for more than 25 min (was minutes).
-        def compute(problem: Any) -> list[Any]:
-            holder[:] = [discover(problem, params, settings, progress=request.report)]
-            return holder[0].branches
-
-        holder: list[Any] = []
-        opts = AdaptOptions(max_grid=int(s["max_grid"]))
-        pb, _, sizes = retrace_finer(pb, compute, opts, suggest=lambda problem, stopped: suggest_grid_for(
-            problem, stopped, factor=1.0))
-        diagram = holder[0]
-        if len(sizes) > 1:
-            request.report(f"gravity: retraced on grids {', '.join(map(str, sizes))}")
+    diagram = discover(pb, params, settings, progress=request.report)
     branches = diagram.branches
     relabel(branches)
     if request.stability:
@@ -103,8 +112,10 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     for b in branches:
         request.finished(b)
     notes = [f"G = Fr^-2 = {params['G']:.6g}"]
-    if retrace and len(sizes) > 1:
-        notes.append(f"retraced on grids {', '.join(map(str, sizes))}: a branch stopped under-resolved on the coarser ones")
+    for b in branches:
+        if b.grid is not None and int(np.max(b.grid)) > pb.N:
+            notes.append(f"branch {b.id}: grid refined up to cheb {int(np.max(b.grid))} from H = "
+                         f"{_first_refined(b, pb.N):.4g} (estimate above tol {refine.tol:g} on cheb {pb.N})")
     notes += [f"branch {b.id}: {b.kind}, traced from a {diagram.routes[b.id]} seed, found by "
               f"{' + '.join(diagram.found_by[b.id])}, {len(b.fold_points)} folds"
               + (", closed" if b.closed else "") for b in branches]
@@ -114,7 +125,7 @@ def run_gravity(request: SceneRequest) -> SceneResult:
         parameters={**s, "G": params["G"]},
         discretization={"method": pb.grid.method, "intervals": pb.N, "engine": pb.engine},
         y=pb.grid.y,
-        profiles=pb.profiles,
+        profiles=lambda state: pb.profiles(state_on(pb, state)),
         notes=notes,
         extra={"kinds": {b.id: b.kind for b in branches}, "routes": diagram.routes,
                "found_by": diagram.found_by, "duplicates": diagram.duplicates, "seeds": diagram.seeds},
