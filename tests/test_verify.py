@@ -163,3 +163,38 @@ def test_cli_verify_exit_codes_and_bad_input(tmp_path):
         r = run("verify", *args)
         assert r.exit_code in (1, 2) and "Error:" in r.stderr and needle in r.stderr, r.output
         assert "Traceback" not in r.output
+
+
+def test_readme_verify_example_runs_as_printed():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).parent.parent / "README.md").read_text()
+    section = text.split("**Checking the achieved error**", 1)[1].split("\n**", 1)[0]
+    (code,) = re.findall(r"```python\n(.*?)\n```", section, flags=re.S)
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    check = ns["check"]
+    assert len(check.exceeding) == 7 and check.max_error == pytest.approx(5.7e-3, rel=0.05)
+    assert check.worst(1)[0].params["lam"] == pytest.approx(3.5133, abs=1e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("settings, points, beyond, worst", [
+    (("-s", "nu=0.3"), 136, 12, 1.26e-4),                     # the main job
+    (("-s", "nu=0.5", "-s", "H_max=40"), 140, 6, 2.52e-4),
+])
+def test_readme_table_gpcf_runs(tmp_path, settings, points, beyond, worst):
+    """The README's table of `contin verify` on the main job and the dense nu = 0.5 run."""
+    out = tmp_path / "pf.h5"
+    r = run("trace", "pitchfork", *settings, "-s", "e=0.8", "--no-stability", "-q", "-o", out)
+    assert r.exit_code == 0, r.output
+    r = run("verify", out, "--json")
+    assert r.exit_code == 4
+    import json
+
+    doc = json.loads(r.stdout)
+    assert sum(len(b["points"]) for b in doc["branches"]) == points
+    assert sum(len(b["exceeding"]) for b in doc["branches"]) == beyond
+    assert max(b["max_error"] for b in doc["branches"]) == pytest.approx(worst, rel=0.05)
+    assert not any(b["unchecked"] for b in doc["branches"])
