@@ -801,6 +801,13 @@ class CouetteProblem:
 
         return resolution(self, x, p).error
 
+    def solution_error(self, x: Array, ref: Array, p: Mapping[str, Any]) -> float:
+        """Relative error of state x against a reference solution ref on this grid, in the norm of
+        :meth:`error_estimate` (``problems.couette.resolution.solution_error``; ``contin.verify``)."""
+        from problems.couette.resolution import solution_error
+
+        return solution_error(self, x, ref, p)
+
     def rounding_error(self, x: Array, p: Mapping[str, Any]) -> float:
         """The part of :meth:`error_estimate` no finer grid lowers: the rounding error of nu
         against the distance to packing (``Resolution.rounding``, the precision limit)."""

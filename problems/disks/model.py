@@ -334,6 +334,13 @@ class DiskCouetteProblem:
 
         return resolution(self, x, p).error
 
+    def solution_error(self, x, ref, p) -> float:
+        """Relative error of state x against a reference solution ref on this grid, in the norm of
+        :meth:`error_estimate` (``problems.couette.resolution.solution_error``; ``contin.verify``)."""
+        from problems.couette.resolution import solution_error
+
+        return solution_error(self, x, ref, p)
+
     def rounding_error(self, x, p) -> float:
         """The part of the estimate no finer grid lowers (``Resolution.rounding``)."""
         from problems.couette.resolution import resolution
