@@ -163,6 +163,11 @@ def test_cli_verify_exit_codes_and_bad_input(tmp_path):
         r = run("verify", *args)
         assert r.exit_code in (1, 2) and "Error:" in r.stderr and needle in r.stderr, r.output
         assert "Traceback" not in r.output
+    # a file whose problem cannot change its grid (Lorenz: a factory, no grid hooks)
+    lor = tmp_path / "lorenz.h5"
+    assert run("trace", "lorenz", "-q", "-o", lor).exit_code == 0
+    r = run("verify", lor)
+    assert r.exit_code == 1 and r.stderr.count("Error:") == 1 and "cannot change its grid" in r.stderr
 
 
 def test_readme_verify_example_runs_as_printed():
