@@ -136,6 +136,20 @@ def _to_chebyshev_matrix(grid: Grid) -> sp.csr_matrix:
     return lagrange_matrix(grid.y, chebyshev_nodes(grid.intervals), FD_WIDTH)
 
 
+def profile_vector_error(grid: Grid, profiles: tuple[Array, ...]) -> float:
+    """Estimated relative error of a perturbation (a null vector at a branch point) given by its
+    profiles (nu, u, T) on ``grid``: the largest Chebyshev tail of the profiles relative to their
+    largest coefficient, FD profiles carried to the Chebyshev grid as in the resolution guard.
+    The ``vector_error`` hook of gPCF and of the 2-D disks."""
+    fields = list(profiles)
+    if grid.method != "cheb":
+        m = _to_chebyshev_matrix(grid)
+        fields = [m @ f for f in fields]
+    coeffs = [chebyshev_coefficients(f) for f in fields]
+    scale = max(float(np.max(np.abs(a))) for a in coeffs)
+    return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
+
+
 @dataclass(frozen=True)
 class Resolution:
     """The resolution estimate of one state.
