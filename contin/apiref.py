@@ -23,6 +23,7 @@ MODULES = (
     "contin.branch",
     "contin.io",
     "contin.restart",
+    "contin.verify",
     "contin.plot",
     "contin.stability",
     "contin.twoparam",

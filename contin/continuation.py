@@ -140,7 +140,10 @@ class _Tracer:
             x = self.system.pack(self.anti.symmetrize(x[:-1]), x[-1])
         t = tangent(self.system, corr.factorization, orient)
         bp = bp_value(corr.factorization, corr.row, t)
-        anti = self.anti.det(self.system.state_jacobian(x)) if self.anti is not None else None
+        anti = None
+        if self.anti is not None:  # a dense J when the reduction gathers densely anyway
+            dense_ok = self.anti.reduces_densely(x.size - 1)
+            anti = self.anti.det(self.system.state_jacobian(x, dense_ok=dense_ok))
         extra = {pt.name: pt.value(self.system, x) for pt in self.point_tests}
         return _Point(x, t, TestValues(float(t[-1]), bp, anti, extra))
 

@@ -128,18 +128,35 @@ class ExtendedSystem:
         fp = np.asarray(self.problem.dresidual_dp(u, q, self.parameter), dtype=float).ravel()
         return jac, fp
 
-    def state_jacobian(self, x: Array, q: Mapping[str, float] | None = None) -> sp.spmatrix | Array:
+    def state_jacobian(self, x: Array, q: Mapping[str, float] | None = None,
+                       dense_ok: bool = False) -> sp.spmatrix | Array:
         """J = dF/du at x (no F_p); sparse as the problem returns it, dense input as a 2-D array.
 
         The last JACOBIAN_MEMO Jacobians (by the bytes of x) are remembered: a point's J is asked
         for by its test functions (the symmetry-breaking determinant) and again by adaptive
         resolution's kernel estimates at the same point (``contin.adapt``).  Read-only for
-        callers (every consumer copies before factorizing)."""
+        callers (every consumer copies before factorizing).
+
+        ``dense_ok=True``: the caller uses J only through its entries' values (e.g. a dense
+        gather, :meth:`contin.testfunctions.Antisymmetric.reduced`), so when the problem's
+        ``dense_jacobian`` hook is in use (see :meth:`jacobian`) J comes from it (memoized
+        apart from the sparse J): the same entries (the hook's contract), without building a
+        sparse matrix only to copy it densely again (~1 ms per point of gPCF's main job, most
+        of it scipy.sparse's constructor)."""
         if q is not None:
             jac = self.problem.jacobian(x[:-1], q)
             return jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
         key = np.asarray(x, dtype=float).tobytes()
         memo = self.__dict__.setdefault("_jacobians", {})
+        if dense_ok and self._dense_decided and self._dense_jacobian is not None:
+            key += b"dense"
+            jac = memo.get(key)
+            if jac is None:
+                jac = np.asarray(self._dense_jacobian(x[:-1], self.params_at(x[-1])), dtype=float)
+                if len(memo) >= JACOBIAN_MEMO:
+                    memo.pop(next(iter(memo)))
+                memo[key] = jac
+            return jac
         jac = memo.get(key)
         if jac is None:
             jac = self.problem.jacobian(x[:-1], self.params_at(x[-1]))

@@ -117,6 +117,10 @@ class Problem(Protocol):
         kernels at brackets are smooth modes whose decay rate extrapolates (demo BVPs); gPCF
         does not provide it: its banded branches bracket grid-scale artefact BPs whose slow
         envelopes asked for 2-2.5x the grid (main job: 1.8x the LU flops).
+    solution_error(x, ref, p) -> float  (optional)
+        Relative error of state x against a reference solution ref on the same grid, in the
+        norm of error_estimate (``contin.verify`` re-solves stored points on a finer grid and
+        measures them with it; default: the state's relative max-norm difference).
     """
 
     parameter_names: tuple[str, ...]

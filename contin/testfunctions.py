@@ -178,6 +178,12 @@ class Antisymmetric:
         qtj = v1[:, None] * a[i1] + v2[:, None] * a[i2]  # (Q^T J)_jk = v1_j J_i1(j),k + v2_j J_i2(j),k
         return qtj[:, i1] * v1 + qtj[:, i2] * v2
 
+    def reduces_densely(self, n: int) -> bool:
+        """True when :meth:`reduced` of an n x n J takes the dense gather whether J is sparse or
+        dense, so a dense J with the same entries gives the same Q^T J Q bit for bit (nonzero
+        entries; an exact zero may change sign, which no LU pivot or determinant sees)."""
+        return self._pairs is not None and n <= DENSE_REDUCTION_LIMIT
+
     @functools.cached_property
     def _pairs(self) -> tuple[Array, Array, Array, Array] | None:
         """(i1, v1, i2, v2): the one or two entries of each column of Q (v2 = 0 for one), or None

@@ -341,6 +341,22 @@ def _residual_dh(f, x, n, size, H, G, wall, jj, gravity):
     return out
 
 
+def _stencil(g, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(ptr, cols, w1s, w2s): D1 and D2 of grid g on the union of their sparsity patterns (all
+    columns for Chebyshev, a band for finite differences), CSR-like, so that the kernels' cost
+    follows the stencils, not n^2.  Read-only once built (shared by the problems on g)."""
+    d1, d2 = sp.csr_matrix(g.d1), sp.csr_matrix(g.d2)
+    pattern = sp.csr_matrix((np.ones(d1.nnz + d2.nnz), (np.r_[d1.tocoo().row, d2.tocoo().row],
+                                                        np.r_[d1.tocoo().col, d2.tocoo().col])), shape=d1.shape)
+    pattern.sum_duplicates()
+    pattern.sort_indices()
+    rows = np.repeat(np.arange(n), np.diff(pattern.indptr))
+    ptr, cols = pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64)
+    w1s = np.asarray(d1[rows, cols], dtype=float).ravel()
+    w2s = np.asarray(d2[rows, cols], dtype=float).ravel()
+    return ptr, cols, w1s, w2s
+
+
 class CompiledKernels:
     """The kernels bound to one ``CouetteProblem``'s grid and switches (its ``engine="numba"``).
 
@@ -356,17 +372,16 @@ class CompiledKernels:
         g = problem.grid
         self.n, self.size = problem.n, problem.size
         self.y = np.ascontiguousarray(g.y, dtype=float)
-        # D1 and D2 on the union of their sparsity patterns (all columns for Chebyshev, a band
-        # for finite differences): the kernels' cost follows the stencils, not n^2.
-        d1, d2 = sp.csr_matrix(g.d1), sp.csr_matrix(g.d2)
-        pattern = sp.csr_matrix((np.ones(d1.nnz + d2.nnz), (np.r_[d1.tocoo().row, d2.tocoo().row],
-                                                            np.r_[d1.tocoo().col, d2.tocoo().col])), shape=d1.shape)
-        pattern.sum_duplicates()
-        pattern.sort_indices()
-        rows = np.repeat(np.arange(self.n), np.diff(pattern.indptr))
-        self.ptr, self.cols = pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64)
-        self.w1s = np.asarray(d1[rows, self.cols], dtype=float).ravel()
-        self.w2s = np.asarray(d2[rows, self.cols], dtype=float).ravel()
+        # The stencil depends on the grid only: built once per grid and shared by the problems
+        # on it through the model's per-grid set-up (an adaptive run rebuilds its problem on
+        # every grid it visits; the sparse constructions cost ~4 ms per instance).
+        shared = getattr(problem, "_shared_layouts", None)
+        stencil = shared.get("compiled_stencil") if shared is not None else None
+        if stencil is None:
+            stencil = _stencil(g, self.n)
+            if shared is not None:
+                shared["compiled_stencil"] = stencil
+        self.ptr, self.cols, self.w1s, self.w2s = stencil
         self.weights = np.ascontiguousarray(g.weights, dtype=float)
         self.chi_code = CHI_CODES[problem.chi]
         self.jj = problem.walls == "jj"

@@ -56,7 +56,7 @@ from contin.problem import complex_step_dp
 from problems.couette import compiled
 from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients, wall_prefactors
 from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
-from problems.discretization import cell_integration_matrix, chebyshev_coefficients, make_grid
+from problems.discretization import cell_integration_matrix, make_grid
 
 Array = NDArray[np.float64]
 WALLS = ("noslip", "jj")
@@ -801,6 +801,13 @@ class CouetteProblem:
 
         return resolution(self, x, p).error
 
+    def solution_error(self, x: Array, ref: Array, p: Mapping[str, Any]) -> float:
+        """Relative error of state x against a reference solution ref on this grid, in the norm of
+        :meth:`error_estimate` (``problems.couette.resolution.solution_error``; ``contin.verify``)."""
+        from problems.couette.resolution import solution_error
+
+        return solution_error(self, x, ref, p)
+
     def rounding_error(self, x: Array, p: Mapping[str, Any]) -> float:
         """The part of :meth:`error_estimate` no finer grid lowers: the rounding error of nu
         against the distance to packing (``Resolution.rounding``, the precision limit)."""
@@ -812,16 +819,10 @@ class CouetteProblem:
         """Estimated relative error of a perturbation v (a null vector at a branch point): the
         largest Chebyshev tail of its profiles nu, u, T relative to the largest profile
         coefficient of v (FD profiles carried to the Chebyshev grid as in the resolution guard)."""
-        from problems.couette.resolution import FIELDS, _to_chebyshev_matrix, tail
+        from problems.couette.resolution import profile_vector_error
 
         nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
-        fields = dict(zip(FIELDS, (nu, u, T)))
-        if self.method != "cheb":
-            m = _to_chebyshev_matrix(self.grid)
-            fields = {k: m @ f for k, f in fields.items()}
-        coeffs = [chebyshev_coefficients(f) for f in fields.values()]
-        scale = max(float(np.max(np.abs(a))) for a in coeffs)
-        return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
+        return profile_vector_error(self.grid, (nu, u, T))
 
     def suggest_grid(self, x: Array, p: Mapping[str, Any], tol: float) -> int:
         """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""

@@ -136,6 +136,20 @@ def _to_chebyshev_matrix(grid: Grid) -> sp.csr_matrix:
     return lagrange_matrix(grid.y, chebyshev_nodes(grid.intervals), FD_WIDTH)
 
 
+def profile_vector_error(grid: Grid, profiles: tuple[Array, ...]) -> float:
+    """Estimated relative error of a perturbation (a null vector at a branch point) given by its
+    profiles (nu, u, T) on ``grid``: the largest Chebyshev tail of the profiles relative to their
+    largest coefficient, FD profiles carried to the Chebyshev grid as in the resolution guard.
+    The ``vector_error`` hook of gPCF and of the 2-D disks."""
+    fields = list(profiles)
+    if grid.method != "cheb":
+        m = _to_chebyshev_matrix(grid)
+        fields = [m @ f for f in fields]
+    coeffs = [chebyshev_coefficients(f) for f in fields]
+    scale = max(float(np.max(np.abs(a))) for a in coeffs)
+    return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
+
+
 @dataclass(frozen=True)
 class Resolution:
     """The resolution estimate of one state.
@@ -283,3 +297,24 @@ def under_resolved(problem: Any, x: Array, p: Mapping[str, Any], tol: float) -> 
     if r.error <= tol:
         return None
     return r.reason(tol)
+
+
+def solution_error(problem: Any, x: Array, ref: Array, p: Mapping[str, Any]) -> float:
+    """Relative error of state x against the reference ref on the same grid (``contin.verify``):
+    max over nu, T, u of max|f(x) - f(ref)| / scale(f), the scales of :func:`resolution` taken
+    on the nodal values of ref (nu's is min(max nu, nu_m - max nu): near a plug the closures
+    feel an error in nu against the distance to packing)."""
+    from problems.couette.closures import packing_limit
+
+    a = problem.profiles(np.asarray(x, dtype=float))
+    b = problem.profiles(np.asarray(ref, dtype=float))
+    own_limit = getattr(problem, "packing_limit", None)
+    limit = float(own_limit(p)) if callable(own_limit) else packing_limit(problem.chi, float(np.real(p["num"])))
+    worst = 0.0
+    for name in FIELDS:
+        scale = float(np.max(np.abs(b[name])))
+        if name == "nu":
+            scale = min(scale, float(limit - np.max(b[name])))
+        diff = float(np.max(np.abs(a[name] - b[name])))
+        worst = max(worst, diff / scale if scale > 0 else (math.inf if diff > 0 else 0.0))
+    return worst

@@ -334,6 +334,13 @@ class DiskCouetteProblem:
 
         return resolution(self, x, p).error
 
+    def solution_error(self, x, ref, p) -> float:
+        """Relative error of state x against a reference solution ref on this grid, in the norm of
+        :meth:`error_estimate` (``problems.couette.resolution.solution_error``; ``contin.verify``)."""
+        from problems.couette.resolution import solution_error
+
+        return solution_error(self, x, ref, p)
+
     def rounding_error(self, x, p) -> float:
         """The part of the estimate no finer grid lowers (``Resolution.rounding``)."""
         from problems.couette.resolution import resolution
@@ -343,17 +350,10 @@ class DiskCouetteProblem:
     def vector_error(self, v) -> float:
         """Largest Chebyshev tail of the profiles nu, u, T of a perturbation v relative to its largest
         coefficient (FD profiles carried to the Chebyshev grid), as CouetteProblem.vector_error."""
-        from problems.couette.resolution import FIELDS, _to_chebyshev_matrix, tail
-        from problems.discretization import chebyshev_coefficients
+        from problems.couette.resolution import profile_vector_error
 
         nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
-        fields = dict(zip(FIELDS, (nu, u, T)))
-        if self.method != "cheb":
-            m = _to_chebyshev_matrix(self.grid)
-            fields = {k: m @ f for k, f in fields.items()}
-        coeffs = [chebyshev_coefficients(f) for f in fields.values()]
-        scale = max(float(np.max(np.abs(a))) for a in coeffs)
-        return max(tail(a) for a in coeffs) / scale if scale > 0 else 0.0
+        return profile_vector_error(self.grid, (nu, u, T))
 
     def suggest_grid(self, x, p, tol: float) -> int:
         """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""
