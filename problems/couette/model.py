@@ -57,6 +57,7 @@ from problems.couette import compiled
 from problems.couette.closures import CHI_MODELS, coefficients, packing_limit, real_coefficients, wall_prefactors
 from problems.couette.params import PARAMETER_NAMES, build_params, validate_params
 from problems.discretization import cell_integration_matrix, make_grid
+from problems.gridhooks import ResolutionHooks
 
 Array = NDArray[np.float64]
 WALLS = ("noslip", "jj")
@@ -114,7 +115,7 @@ def rebuilt_engine(stored: Any) -> str:
     return "auto" if stored == "numba" else "numpy"
 
 
-class CouetteProblem:
+class CouetteProblem(ResolutionHooks):
     """Steady granular plane Couette flow F(x, p) = 0 (see the module docstring).
 
     Parameters
@@ -761,23 +762,8 @@ class CouetteProblem:
             raise ValueError(f"eigenvector has shape {vec.shape}, expected ({5 * grid.size},)")
         return grid.y.copy(), dict(zip(FIELDS, vec.reshape(5, grid.size)))
 
-    # ------------------------------------------------------------------ resolution
-    def under_resolved(self, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
-        """None if the grid resolves x to estimated relative error ``tol``, else the reason.
-
-        The contin hook (``ContinuationOptions.resolution_tol``); the estimate, a Chebyshev tail
-        measured against the distance to packing, is :mod:`problems.couette.resolution`.
-        """
-        from problems.couette.resolution import under_resolved
-
-        return under_resolved(self, x, p, tol)
-
     # ------------------------------------------------------------------ grid hooks (contin.adapt)
-    @property
-    def grid_size(self) -> int:
-        """Number of grid intervals N (the size adaptive resolution changes)."""
-        return self.N
-
+    # under_resolved, grid_size, transfer and the estimates: problems.gridhooks.ResolutionHooks
     def with_grid(self, N: int) -> CouetteProblem:
         """The same model (method, walls, chi, gravity, Dufour term) on N intervals; the same engine
         where it can run that grid (the compiled engine stops at its dense-Jacobian size limit,
@@ -785,50 +771,6 @@ class CouetteProblem:
         engine = "auto" if self.engine == "numba" else self.engine
         return CouetteProblem(self.method, int(N), walls=self.walls, chi=self.chi, gravity=self.gravity,
                               dufour=self.dufour, engine=engine)
-
-    def transfer(self, x: Array, other: CouetteProblem) -> Array:
-        """A state (or the state part of a tangent) carried onto ``other``'s grid: the profiles
-        nu, u, T (and M with gravity) by this grid's interpolant, P unchanged; linear in x."""
-        nu, u, T, P, M = self.unpack(np.asarray(x, dtype=float))
-        y = other.grid.y
-        moved = [self.grid.interpolate(f, y) for f in (nu, u, T)]
-        return other.pack(*moved, P, None if M is None else self.grid.interpolate(M, y))
-
-    def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
-        """Estimated relative error of x: the measure of :mod:`problems.couette.resolution`
-        (Chebyshev tails, nu's against the distance to packing) behind :meth:`under_resolved`."""
-        from problems.couette.resolution import resolution
-
-        return resolution(self, x, p).error
-
-    def solution_error(self, x: Array, ref: Array, p: Mapping[str, Any]) -> float:
-        """Relative error of state x against a reference solution ref on this grid, in the norm of
-        :meth:`error_estimate` (``problems.couette.resolution.solution_error``; ``contin.verify``)."""
-        from problems.couette.resolution import solution_error
-
-        return solution_error(self, x, ref, p)
-
-    def rounding_error(self, x: Array, p: Mapping[str, Any]) -> float:
-        """The part of :meth:`error_estimate` no finer grid lowers: the rounding error of nu
-        against the distance to packing (``Resolution.rounding``, the precision limit)."""
-        from problems.couette.resolution import resolution
-
-        return resolution(self, x, p).rounding
-
-    def vector_error(self, v: Array) -> float:
-        """Estimated relative error of a perturbation v (a null vector at a branch point): the
-        largest Chebyshev tail of its profiles nu, u, T relative to the largest profile
-        coefficient of v (FD profiles carried to the Chebyshev grid as in the resolution guard)."""
-        from problems.couette.resolution import profile_vector_error
-
-        nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
-        return profile_vector_error(self.grid, (nu, u, T))
-
-    def suggest_grid(self, x: Array, p: Mapping[str, Any], tol: float) -> int:
-        """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""
-        from problems.couette.resolution import resolution
-
-        return resolution(self, x, p, tol).suggested_N
 
 
 class _Layout:

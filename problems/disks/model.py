@@ -39,6 +39,7 @@ from contin.problem import complex_step_dp
 from problems.couette.model import _mass_rows, reflected
 from problems.discretization import cell_integration_matrix, make_grid
 from problems.disks.closures import DiskClosure, check_closure_parameters, uniform_temperature
+from problems.gridhooks import ResolutionHooks
 
 WALLS = ("noslip", "bumpy")
 PARAMETER_NAMES = ("nu", "e", "H", "G", "phi_w", "ew", "phi_inf", "phi_f", "m_f", "phi_c", "a0")
@@ -49,7 +50,7 @@ DEFAULTS: dict[str, float] = {
 _SQRT_2PI = np.sqrt(2.0 * np.pi)
 
 
-class DiskCouetteProblem:
+class DiskCouetteProblem(ResolutionHooks):
     """Steady Couette flow of disks, F(x, p) = 0 (module docstring).
 
     Parameters
@@ -290,33 +291,14 @@ class DiskCouetteProblem:
         """The area fraction where the closure ends (phi_inf)."""
         return self.closure.packing_limit(p)
 
-    def under_resolved(self, x, p, tol: float) -> str | None:
-        """contin's resolution guard: the Chebyshev-tail estimate of problems.couette.resolution (the
-        tail of nu measured against the distance to phi_inf), shared with the 3-D problem."""
-        from problems.couette.resolution import under_resolved
-
-        return under_resolved(self, x, p, tol)
-
     # ------------------------------------------------------------------ grid hooks (contin.adapt)
-    # As problems.couette.model.CouetteProblem: the estimate is the shared resolution measure
-    # (Chebyshev tails, nu's against the distance to phi_inf, plus the rounding term that sets
-    # the precision limit next to packing), so disks scenes run adaptively like gPCF.
-    @property
-    def grid_size(self) -> int:
-        """Number of grid intervals N (the size adaptive resolution changes)."""
-        return self.N
-
+    # The estimates, transfer and the guard are gPCF's (problems.gridhooks.ResolutionHooks: the
+    # shared resolution measure -- Chebyshev tails, nu's against the distance to phi_inf, plus the
+    # rounding term that sets the precision limit next to packing), so disks scenes run
+    # adaptively like gPCF.
     def with_grid(self, N: int) -> DiskCouetteProblem:
         """The same model (method, walls, closure, gravity) on N intervals."""
         return DiskCouetteProblem(self.method, int(N), walls=self.walls, closure=self.closure, gravity=self.gravity)
-
-    def transfer(self, x, other: DiskCouetteProblem) -> np.ndarray:
-        """A state (or the state part of a tangent) on ``other``'s grid: nu, u, T (and M) by this
-        grid's interpolant, P unchanged; linear in x."""
-        nu, u, T, P, M = self.unpack(np.asarray(x, dtype=float))
-        y = other.grid.y
-        moved = [self.grid.interpolate(f, y) for f in (nu, u, T)]
-        return other.pack(*moved, P, None if M is None else self.grid.interpolate(M, y))
 
     def state_on(self, x) -> np.ndarray:
         """A state of any grid of this model (its size tells the grid) carried onto this grid."""
@@ -327,39 +309,6 @@ class DiskCouetteProblem:
             return x
         fields = 4 if self.gravity else 3
         return on_grid(self, (x.size - 1) // fields - 1).transfer(x, self)
-
-    def error_estimate(self, x, p) -> float:
-        """Estimated relative error of x (problems.couette.resolution, max of truncation and rounding)."""
-        from problems.couette.resolution import resolution
-
-        return resolution(self, x, p).error
-
-    def solution_error(self, x, ref, p) -> float:
-        """Relative error of state x against a reference solution ref on this grid, in the norm of
-        :meth:`error_estimate` (``problems.couette.resolution.solution_error``; ``contin.verify``)."""
-        from problems.couette.resolution import solution_error
-
-        return solution_error(self, x, ref, p)
-
-    def rounding_error(self, x, p) -> float:
-        """The part of the estimate no finer grid lowers (``Resolution.rounding``)."""
-        from problems.couette.resolution import resolution
-
-        return resolution(self, x, p).rounding
-
-    def vector_error(self, v) -> float:
-        """Largest Chebyshev tail of the profiles nu, u, T of a perturbation v relative to its largest
-        coefficient (FD profiles carried to the Chebyshev grid), as CouetteProblem.vector_error."""
-        from problems.couette.resolution import profile_vector_error
-
-        nu, u, T, _, _ = self.unpack(np.asarray(v, dtype=float))
-        return profile_vector_error(self.grid, (nu, u, T))
-
-    def suggest_grid(self, x, p, tol: float) -> int:
-        """The grid the resolution estimate expects to meet tol (``Resolution.suggested_N``)."""
-        from problems.couette.resolution import resolution
-
-        return resolution(self, x, p, tol).suggested_N
 
     def order_parameter(self, x, p=None) -> float:
         """Phi = nu(y = 1/2), the area fraction at the top wall."""
