@@ -177,11 +177,10 @@ def null_vector(jacobian: Any) -> Array:
         return null_vectors(sp.csc_matrix(jacobian)).phi
     from scipy.linalg import lu_factor, lu_solve
 
+    from contin.linalg import bordered_dense
+
     b, c = borders(n)
-    border = np.zeros((n + 1, n + 1))
-    border[:n, :n] = jacobian.toarray() if sp.issparse(jacobian) else np.asarray(jacobian)
-    border[:n, n] = b
-    border[n, :n] = c
+    border = bordered_dense(jacobian if sp.issparse(jacobian) else np.asarray(jacobian), b, np.append(c, 0.0))
     rhs = np.zeros(n + 1)
     rhs[-1] = 1.0
     phi = lu_solve(lu_factor(border, check_finite=False), rhs, check_finite=False)[:n]

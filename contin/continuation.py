@@ -404,8 +404,9 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
 
 
 def _guard_status(message: str) -> str:
-    """The status a fixed-grid guard stop ends a branch with: EP at a precision limit (every stored
-    point meets tol; a finer grid would only raise the rounding), MX when the grid does not resolve the branch."""
+    """The status a resolution stop (the fixed-grid guard's or adaptive refinement's) ends a branch
+    with: EP at a precision limit (every stored point meets tol; a finer grid would only raise the
+    rounding), MX when the grid does not resolve the branch."""
     return "EP" if message.startswith(PRECISION_LIMIT) else "MX"
 
 
@@ -592,19 +593,24 @@ def trace(
         finally:
             tracer.pre_locate = hook
 
+    def adopt_grid() -> None:
+        """Continue on the grid the tracer moved to (contin.adapt): its system, problem and size;
+        the start point for the closure test is carried onto it when the test first needs it."""
+        nonlocal system, problem, n
+        system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
+        closure_start.clear()
+
     def detect_or_refine(cur: _Point, new: _Point, stepped: _Point) -> tuple[list[SpecialPoint] | None, bool]:
         """(found, regridded) for the step cur -> new: the located special points (None: the
         step jumped onto another branch), or regridded = True when an LP/BP in the bracket
         needed a finer grid first -- the tracer then continues on it and the step is retried."""
-        nonlocal system, problem, n
         try:
             return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt), False
         except _RefineFirst as why:
             found = refine_first(why, cur, new, stepped, direction_vec)
             if found is not None:
                 return found, False
-        system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-        closure_start.clear()  # carried onto the new grid when the closure test needs it
+        adopt_grid()
         return None, True
     ds = abs(sopt.ds)
     travelled = 0.0
@@ -657,10 +663,9 @@ def trace(
                 continue
             if stop is not None:
                 # precision limit: every stored point meets tol and no grid can go on (EP)
-                status, message = ("EP" if stop.startswith(PRECISION_LIMIT) else "MX"), stop
+                status, message = _guard_status(stop), stop
                 break
-            system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-            closure_start.clear()  # carried onto the new grid when the closure test needs it
+            adopt_grid()
             continue
         steps += 1
 
@@ -734,8 +739,7 @@ def trace(
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol)) is None:
                     steps -= 1
-                    system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                    closure_start.clear()  # carried onto the new grid when the closure test needs it
+                    adopt_grid()
                     continue
             if err > special_tol:
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") +
@@ -759,8 +763,7 @@ def trace(
         if adaptor is not None and not closing:
             adaptor.maybe_coarsen(tracer, options.newton)
             if tracer.system is not system:
-                system, problem, n = tracer.system, tracer.system.problem, tracer.system.n
-                closure_start.clear()  # carried onto the new grid when the closure test needs it
+                adopt_grid()
 
     mark = "MX" if status == "MX" else "EP"
     note = message

@@ -84,6 +84,7 @@ class ExtendedSystem:
         # The hook may take out= (an earlier J to overwrite): then scratch=True Jacobians reuse one array.
         self._dense_out = self._dense_jacobian is not None and _takes_out(self._dense_jacobian)
         self._scratch: Array | None = None
+        self._jacobians: dict[bytes, Any] = {}  # state_jacobian's memo (sparse and dense J by x)
 
     # --- packing ------------------------------------------------------------------------
     def pack(self, u: Array, p: float) -> Array:
@@ -147,23 +148,19 @@ class ExtendedSystem:
             jac = self.problem.jacobian(x[:-1], q)
             return jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
         key = np.asarray(x, dtype=float).tobytes()
-        memo = self.__dict__.setdefault("_jacobians", {})
-        if dense_ok and self._dense_decided and self._dense_jacobian is not None:
+        dense = dense_ok and self._dense_decided and self._dense_jacobian is not None
+        if dense:
             key += b"dense"
-            jac = memo.get(key)
-            if jac is None:
-                jac = np.asarray(self._dense_jacobian(x[:-1], self.params_at(x[-1])), dtype=float)
-                if len(memo) >= JACOBIAN_MEMO:
-                    memo.pop(next(iter(memo)))
-                memo[key] = jac
-            return jac
-        jac = memo.get(key)
+        jac = self._jacobians.get(key)
         if jac is None:
-            jac = self.problem.jacobian(x[:-1], self.params_at(x[-1]))
-            jac = jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
-            if len(memo) >= JACOBIAN_MEMO:
-                memo.pop(next(iter(memo)))
-            memo[key] = jac
+            if dense:
+                jac = np.asarray(self._dense_jacobian(x[:-1], self.params_at(x[-1])), dtype=float)
+            else:
+                jac = self.problem.jacobian(x[:-1], self.params_at(x[-1]))
+                jac = jac if sp.issparse(jac) else np.atleast_2d(np.asarray(jac, dtype=float))
+            if len(self._jacobians) >= JACOBIAN_MEMO:
+                self._jacobians.pop(next(iter(self._jacobians)))
+            self._jacobians[key] = jac
         return jac
 
     def admissible(self, x: Array) -> str | None:

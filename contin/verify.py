@@ -132,7 +132,9 @@ class BranchCheck:
 
 def fine_grid(grid: int, factor: float, max_grid: int | None) -> int:
     """ceil(factor * grid) rounded up to a multiple of 4, capped by max_grid."""
-    n = int(MULTIPLE * math.ceil(factor * grid / MULTIPLE - 1e-12))
+    from contin.adapt import _round
+
+    n = _round(factor * grid, MULTIPLE)
     return min(n, int(max_grid)) if max_grid is not None else n
 
 
