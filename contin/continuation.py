@@ -504,6 +504,7 @@ def trace(
         from contin.adapt import Adaptor, start_grid
 
         adaptor = Adaptor(options.adapt)
+        adaptor.newton_options = options.newton
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
                                              coarsen=tangent is None, estimate=adaptor.estimate)
         if problem is not problem0:
