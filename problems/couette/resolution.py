@@ -40,8 +40,10 @@ logistic of width m_f = 0.01 at phi_f: poles at nu = phi_f +- i pi m_f, a geomet
 last four alone under-stated the error measured against a 1.5x finer solve
 (``contin.verify``) by 20-60x on G_GF's n = 1 band (cheb 192-512, H = 18.9-23.3: 1.5e-5
 estimated, 3.3e-4 measured at H = 18.9) and by 60-7000x on Savage's dense band (cheb 272-512).
-With the tail sum the same points estimate 0.7-2.1x (G_GF; 0.4x at H = 23.3) and 1-4.7x
-(Savage) of the measured error.  On gPCF's spectra (the main job, nu = 0.5 to H = 40: 276 stored
+With the tail sum the same points estimate 0.3-2.9x (G_GF) and 1-4.6x (Savage; 0.04x at its
+last point, H = 24.27: behind a kink the last coefficients scatter with the kink's position
+between the nodes, which the adaptive end reports with a two-grid difference, ``contin.adapt``)
+of the measured error.  On gPCF's spectra (the main job, nu = 0.5 to H = 40: 276 stored
 points) the tail sum raises no estimate by more than 1.21x and none above tol.
 
 Rounding: the precision limit next to packing.  The state is solved in double precision, and
