@@ -71,6 +71,38 @@ def test_command_body_still_limits_blas(monkeypatch):
     assert res.exit_code == 1 and "Error: CONTIN_BLAS_THREADS must be a whole number" in res.output
 
 
+_DEFERRED = """
+import sys
+from contin.lazyimports import defer_numpy_tools
+print(",".join(defer_numpy_tools()) or "-")
+import scipy.sparse, scipy.linalg, scipy.sparse.linalg
+print("numpy.f2py.crackfortran" in sys.modules, "unittest" in sys.modules)
+import numpy as np
+np.testing.assert_array_equal(np.arange(3), [0, 1, 2])  # the first access runs the module in full
+import numpy.testing as npt
+print(type(npt).__name__, npt is np.testing, "unittest" in sys.modules, callable(npt.assert_allclose))
+"""
+
+
+def test_numpy_tools_deferred_until_used():
+    """contin.lazyimports: scipy's import (array_api_compat's clone of numpy's namespace) no longer
+    executes numpy.f2py and numpy.testing; their first use does, and they then are the ordinary
+    modules.  CONTIN_LAZY_NUMPY=0 leaves numpy alone."""
+    out = subprocess.run([sys.executable, "-c", _DEFERRED], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["numpy.f2py,numpy.testing", "False", "False", "module", "True", "True", "True"]
+    off = subprocess.run([sys.executable, "-c", _DEFERRED], capture_output=True, text=True, check=True,
+                         env={**os.environ, "CONTIN_LAZY_NUMPY": "0"}).stdout
+    assert off.split()[:3] == ["-", "True", "True"]
+
+
+def test_a_running_command_defers_numpy_tools():
+    """A command that runs (here ``contin scenes``, which imports every scene table and scipy)
+    executes neither numpy.f2py nor numpy.testing."""
+    loaded = _loaded("from contin.cli import main\ntry:\n    main(['scenes'])\nexcept SystemExit:\n    pass")
+    assert "scipy.sparse" in loaded and "problems.couette.scenes" in loaded
+    assert "numpy.f2py.crackfortran" not in loaded and "numpy.testing._private.utils" not in loaded
+
+
 def test_lazy_package_attributes():
     """``import contin`` is light; ``contin.Branch`` etc. resolve on first access."""
     loaded = _loaded("import contin")

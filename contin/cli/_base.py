@@ -61,12 +61,15 @@ class ContinGroup(click.Group):
 
 
 class ContinCommand(click.Command):
-    """A ``contin`` subcommand: BLAS threads are limited when its body runs, after its arguments
-    are parsed, so ``contin CMD --help`` and usage errors load no numpy or scipy."""
+    """A ``contin`` subcommand: numpy's developer tools are deferred and BLAS threads limited when
+    its body runs, after its arguments are parsed, so ``contin CMD --help`` and usage errors load
+    no numpy or scipy."""
 
     def invoke(self, ctx: click.Context) -> Any:
         from contin.blas import limit_blas_threads
+        from contin.lazyimports import defer_numpy_tools
 
+        defer_numpy_tools()  # before scipy is imported: numpy.f2py/testing only if used (contin/lazyimports.py)
         limit_blas_threads()  # one BLAS thread for small matrices (contin/blas.py); CONTIN_BLAS_THREADS
         return super().invoke(ctx)
 
