@@ -22,6 +22,55 @@ def test_import_cli_loads_no_heavy_library():
     assert not {m for m in loaded if m.split(".")[0] in HEAVY}
 
 
+_HELP_RUN = """
+import io, sys, contextlib
+from contin.cli import main
+heavy = {heavy!r}
+for args in [["--version"], ["--help"]] + [[name, "--help"] for name in sorted(main.commands)]:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(args, prog_name="contin", standalone_mode=False)
+    loaded = sorted(m for m in sys.modules if m.split(".")[0] in heavy)
+    print(" ".join(args), code, len(out.getvalue().splitlines()), ",".join(loaded) or "-")
+"""
+
+
+def test_help_and_version_load_no_heavy_library():
+    """``contin --help``, ``--version`` and ``contin CMD --help`` for every command, run in a fresh
+    interpreter: each prints its text and exits 0, and none of them loads numpy, scipy, h5py,
+    matplotlib or numba (the BLAS limit runs only when a command's body does, ContinCommand)."""
+    out = subprocess.run([sys.executable, "-c", _HELP_RUN.format(heavy=HEAVY + ("threadpoolctl", "problems"))],
+                         capture_output=True, text=True, check=True)
+    rows = [line.split(" ") for line in out.stdout.splitlines()]
+    from contin.cli import main
+
+    assert len(rows) == 2 + len(main.commands) >= 12
+    for *args, code, lines, loaded in rows:
+        assert code in ("0", "None"), (args, code)
+        assert int(lines) >= (1 if args == ["--version"] else 5), args
+        assert loaded == "-", f"contin {' '.join(args)} loaded {loaded}"
+    assert rows[0][-2] == "1"  # --version: one line
+
+
+def test_command_body_still_limits_blas(monkeypatch):
+    """The BLAS limit moved from the group callback to ContinCommand.invoke: a command that runs
+    still applies it (CONTIN_BLAS_THREADS), and a bad value is one Error: line."""
+    from click.testing import CliRunner
+
+    import contin.blas
+    from contin.cli import main
+
+    calls = []
+    monkeypatch.setattr(contin.blas, "limit_blas_threads", lambda n=None: calls.append(n))
+    assert CliRunner().invoke(main, ["scenes"]).exit_code == 0
+    assert calls == [None]
+    assert CliRunner().invoke(main, ["scenes", "--help"]).exit_code == 0
+    assert calls == [None]  # --help: not applied
+    monkeypatch.undo()
+    res = CliRunner().invoke(main, ["scenes"], env={"CONTIN_BLAS_THREADS": "many"})
+    assert res.exit_code == 1 and "Error: CONTIN_BLAS_THREADS must be a whole number" in res.output
+
+
 def test_lazy_package_attributes():
     """``import contin`` is light; ``contin.Branch`` etc. resolve on first access."""
     loaded = _loaded("import contin")
