@@ -220,7 +220,6 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     step from the border b: one LU of J serves all of them (up to sign, which no estimate
     sees).  An exactly singular J (a zero pivot) falls back to the bordered solve."""
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
     from contin.normalform import borders
 
@@ -239,6 +238,8 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
             def solve(r: Array) -> Array:
                 return lu_solve(factors, r, check_finite=False)
         else:
+            import scipy.sparse.linalg as spla  # only here: the main path stays dense
+
             solve = spla.splu(sp.csc_matrix(jacobian)).solve
     except RuntimeError:  # exactly singular: the bordered vector is the kernel
         return null_vector(jacobian)

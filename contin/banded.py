@@ -36,7 +36,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from contin.problem import Array
 from contin.sparsity import canonical_csc, permutation_parity
@@ -115,6 +114,8 @@ def analyze(a: sp.csc_matrix) -> BandedStructure | None:
     inner = (r >= 0) & (c >= 0)
     pattern = sp.csr_matrix((np.ones(int(inner.sum())), (r[inner], c[inner])), shape=(m, m))
     pattern = (pattern + pattern.T).tocsr()
+    from scipy.sparse.csgraph import reverse_cuthill_mckee  # here: csgraph only where a band is looked for
+
     perm = np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=np.int64)
     inv = np.empty(m, dtype=np.int64)
     inv[perm] = np.arange(m)

@@ -62,8 +62,7 @@ def limit_blas_threads(n: int | None = None) -> int | None:
         log.debug("threadpoolctl not installed; BLAS threads not limited")
         return None
     import numpy  # noqa: F401
-    import scipy.linalg  # noqa: F401
-    import scipy.sparse.linalg  # noqa: F401
+    import scipy.linalg  # noqa: F401  (scipy.sparse.linalg's SuperLU/ARPACK use the same library)
 
     threadpool_limits(limits=n, user_api="blas")
     return n
@@ -120,8 +119,7 @@ def _controller() -> Any:
         log.debug("threadpoolctl not installed; BLAS threads not limited")
         return None
     import numpy  # noqa: F401
-    import scipy.linalg  # noqa: F401  (scipy's own BLAS: loaded first so that it is limited too)
-    import scipy.sparse.linalg  # noqa: F401
+    import scipy.linalg  # noqa: F401  (scipy's own BLAS, also scipy.sparse.linalg's: loaded first so that it is limited too)
 
     return ThreadpoolController()
 

@@ -33,13 +33,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from typing import TYPE_CHECKING
+
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
 
 from contin.banded import BandedStructure, factorize_banded, structure_of
 from contin.problem import Array
 from contin.sparsity import as_csc, canonical_csc, permutation_parity
+
+if TYPE_CHECKING:
+    import scipy.sparse.linalg as spla
 
 __all__ = ["DENSE_FILL", "DENSE_LIMIT", "DENSE_MAX", "DenseLU", "Factorization", "SparseLU", "as_csc", "bordered",
            "bordered_dense", "factorize", "factorize_bordered", "inf_norm", "inverse_iteration", "permutation_parity",
@@ -192,6 +196,8 @@ def factorize(a: object) -> Factorization | None:
         fact = factorize_banded(csc, banded)
         if fact is not None:
             return fact  # type: ignore[return-value]
+    import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
     try:
         return SparseLU(spla.splu(csc))
     except RuntimeError:  # SuperLU: "Factor is exactly singular"
