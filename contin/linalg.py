@@ -36,9 +36,9 @@ import numpy as np
 from typing import TYPE_CHECKING
 
 import scipy.sparse as sp
-from scipy.linalg import lapack
 
 from contin.banded import BandedStructure, factorize_banded, structure_of
+from contin.lapack import flapack
 from contin.problem import Array
 from contin.sparsity import as_csc, canonical_csc, permutation_parity
 
@@ -49,7 +49,7 @@ __all__ = ["DENSE_FILL", "DENSE_LIMIT", "DENSE_MAX", "DenseLU", "Factorization",
            "bordered_dense", "factorize", "factorize_bordered", "inf_norm", "inverse_iteration", "permutation_parity",
            "structure"]
 
-_getrf, _getrs = lapack.dgetrf, lapack.dgetrs
+_getrf, _getrs = flapack().dgetrf, flapack().dgetrs  # scipy.linalg.lapack's, without scipy.linalg (contin.lapack)
 # ufunc reductions called directly (ndarray.all & co. add a Python wrapper: at continuation
 # sizes the wrapper costs more than the reduction)
 _ALL, _SUM = np.logical_and.reduce, np.add.reduce
