@@ -66,8 +66,6 @@ WALLS = ("noslip", "jj")
 #: installed and covers the problem (compiled.supports), numpy elsewhere.
 ENGINES = ("numpy", "numba")
 
-# ufunc reductions called directly (ndarray.min & co. add a Python wrapper; see admissible)
-_MIN, _MAX, _SUM = np.minimum.reduce, np.maximum.reduce, np.add.reduce
 #: Parameter value types for which the residual is real double (see CouetteProblem.residual).
 _REAL_TYPES = frozenset({float, int, np.float64})
 #: Types of e for which closures.real_coefficients applies (it caches its matrix per e).
@@ -603,9 +601,12 @@ class CouetteProblem(ResolutionHooks):
         x = np.asarray(x)
         nu, _, T, _, _ = self.unpack(x)
         limit = packing_limit(self.chi, p["num"])
-        # Fast path (called for every Newton iterate): four reductions decide a physical state;
-        # anything else (including a sum that overflows) gets the detailed checks below.
-        if _MIN(nu) > 0 and _MAX(nu) < limit and _MIN(T) > 0 and math.isfinite(_SUM(x)):
+        # Fast path (called for every Newton iterate): the extremes of nu and T and the finiteness
+        # of x . x decide a physical state; anything else (including an x . x that overflows)
+        # gets the detailed checks below.  argmin/argmax (C methods; NaN propagates) and dot
+        # instead of ufunc reductions, whose set-up costs ~2.5 us each at continuation sizes.
+        if (nu[nu.argmin()] > 0 and nu[nu.argmax()] < limit and T[T.argmin()] > 0
+                and math.isfinite(x.dot(x))):
             return None
         if not np.all(np.isfinite(x)):
             return "state has non-finite entries"
