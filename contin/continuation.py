@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.adapt import PRECISION_LIMIT
+from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
@@ -406,8 +406,10 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
 def _guard_status(message: str) -> str:
     """The status a resolution stop (the fixed-grid guard's or adaptive refinement's) ends a branch
     with: EP at a precision limit (every stored point meets tol; a finer grid would only raise the
-    rounding), MX when the grid does not resolve the branch."""
-    return "EP" if message.startswith(PRECISION_LIMIT) else "MX"
+    rounding) or a resolution limit (every stored point meets tol; the estimate falls so slowly on
+    the maximum grid that tol needs a grid far beyond it, ``contin.adapt``), MX when the grid does
+    not resolve the branch."""
+    return "EP" if message.startswith((PRECISION_LIMIT, RESOLUTION_LIMIT)) else "MX"
 
 
 def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0: float) -> tuple[float, float]:
@@ -502,6 +504,7 @@ def trace(
         from contin.adapt import Adaptor, start_grid
 
         adaptor = Adaptor(options.adapt)
+        adaptor.newton_options = options.newton
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
                                              coarsen=tangent is None, estimate=adaptor.estimate)
         if problem is not problem0:
@@ -651,8 +654,8 @@ def trace(
         assert new is not None
         if adaptor is not None and (err := adaptor.too_coarse(system, new.x)) is not None:
             # Not resolved: refine at the last accepted point and retry the step from there.
-            stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, "estimate above tol",
-                                                                             options.newton)
+            stop = (adaptor.precision_limit(tracer, new.x) or adaptor.resolution_limit(tracer, new.x, err)
+                    or adaptor.refine(tracer, err, "estimate above tol", options.newton))
             if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
                 # Refinement did not halve the candidate's estimate: try a candidate nearer the
                 # resolved last point before concluding that the estimate has a floor.
@@ -662,7 +665,7 @@ def trace(
                 ds = reduced_step(ds, sopt)
                 continue
             if stop is not None:
-                # precision limit: every stored point meets tol and no grid can go on (EP)
+                # precision or resolution limit: every stored point meets tol and no grid (within max_grid) can go on (EP)
                 status, message = _guard_status(stop), stop
                 break
             adopt_grid()
