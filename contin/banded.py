@@ -35,13 +35,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import lapack
 
+from contin.lapack import flapack
 from contin.problem import Array
 from contin.sparsity import canonical_csc, permutation_parity
 
-_gbtrf, _gbtrs = lapack.dgbtrf, lapack.dgbtrs
-_getrf, _getrs = lapack.dgetrf, lapack.dgetrs
+_lapack = flapack()  # scipy.linalg.lapack's routines, without importing scipy.linalg (contin.lapack)
+_gbtrf, _gbtrs = _lapack.dgbtrf, _lapack.dgbtrs
+_getrf, _getrs = _lapack.dgetrf, _lapack.dgetrs
 
 #: Largest border (dense rows = dense columns) eliminated by the Schur complement.
 MAX_BORDER = 16

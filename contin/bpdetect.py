@@ -38,7 +38,6 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
 
 from contin.branch import MAX_AUDIT, SpecialPoint
@@ -99,6 +98,8 @@ def spectrum(jac: Any, k: int) -> Spectrum:
     n = jac.shape[0]
     if n <= DENSE_EIG_LIMIT or k >= n - 1:
         a = jac.toarray() if sp.issparse(jac) else np.asarray(jac, dtype=float)
+        import scipy.linalg as la  # lazy: the package is off the path to the first step (contin.lapack)
+
         w = la.eigvals(a)
         return Spectrum(w[np.argsort(np.abs(w))], math.inf)
     import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)

@@ -45,7 +45,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
@@ -146,6 +145,8 @@ def _dense_eigenpairs(A: Any, B: Any, k: int | None, inf_cutoff: float, vectors:
     b = B.toarray() if sp.issparse(B) else np.asarray(B)
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise ValueError("the eigenproblem matrices contain NaN or inf entries")
+    import scipy.linalg as la  # lazy: the package is off the path to the first step (contin.lapack)
+
     if vectors:
         ab, v = la.eig(a, b, right=True, homogeneous_eigvals=True)
     else:

@@ -130,6 +130,76 @@ def test_main_path_modules_import_no_sparse_solvers():
                      "import contin.continuation, contin.stability, contin.adapt, contin.io, contin.hopf, contin.normalform")
     assert "problems.couette.pitchfork" in loaded and "scipy.sparse" in loaded
     assert "scipy.sparse.linalg" not in loaded and "scipy.sparse.csgraph" not in loaded
+    assert "scipy.linalg" not in loaded  # the LU routines come from contin.lapack
+
+
+_LAPACK_RUN = """
+import sys
+import contin.linalg, contin.banded
+from contin.blas import limit_blas_threads
+from contin.lapack import flapack
+from threadpoolctl import threadpool_info
+limit_blas_threads(1)
+direct = sorted((i["filepath"], i["num_threads"]) for i in threadpool_info())
+print(flapack().__name__, "scipy.linalg" in sys.modules)
+import scipy.linalg
+print(direct == sorted((i["filepath"], i["num_threads"]) for i in threadpool_info()), len(direct),
+      all(n == 1 for _, n in direct))
+"""
+
+
+def test_lapack_routines_without_scipy_linalg():
+    """contin.linalg/contin.banded take dgetrf & co. from scipy's LAPACK extension without
+    importing the scipy.linalg package, and the BLAS limit still reaches scipy's BLAS: importing
+    scipy.linalg afterwards loads no library that was not already limited to one thread."""
+    out = subprocess.run([sys.executable, "-c", _LAPACK_RUN], capture_output=True, text=True, check=True).stdout
+    name, linalg_loaded, same, count, limited = out.split()
+    assert (name, linalg_loaded, same, limited) == ("contin._scipy_lapack._flapack", "False", "True", "True")
+    assert int(count) >= 1  # here numpy's and scipy's OpenBLAS; one where they share a BLAS
+
+
+def test_lapack_direct_is_bitwise_the_public_api(monkeypatch):
+    """contin.lapack's routines are scipy.linalg.lapack's: the same LU factors, pivots and solves,
+    bit for bit, dense and banded; CONTIN_LAPACK_DIRECT=0 or a failed direct load gives the public
+    module itself."""
+    import numpy as np
+    from scipy.linalg import lapack
+
+    import contin.lapack as cl
+
+    direct = cl.flapack()
+    assert direct is not lapack and direct.__name__ == cl.PRIVATE_NAME
+    rng = np.random.default_rng(7)
+    a = np.asfortranarray(rng.standard_normal((40, 40)))
+    b = rng.standard_normal((40, 3))
+    for mod in (direct, lapack):
+        lu, piv, info = mod.dgetrf(a)
+        assert info == 0
+    lu1, piv1, _ = direct.dgetrf(a)
+    lu2, piv2, _ = lapack.dgetrf(a)
+    assert np.array_equal(lu1, lu2) and np.array_equal(piv1, piv2)
+    assert np.array_equal(direct.dgetrs(lu1, piv1, b)[0], lapack.dgetrs(lu2, piv2, b)[0])
+    kl = ku = 2
+    ab = np.zeros((2 * kl + ku + 1, 40), order="F")
+    ab[kl:] = rng.standard_normal((kl + ku + 1, 40))
+    f1, f2 = direct.dgbtrf(ab, kl, ku), lapack.dgbtrf(ab, kl, ku)
+    assert all(np.array_equal(x, y) for x, y in zip(f1, f2))
+    assert np.array_equal(direct.dgbtrs(f1[0], kl, ku, b, f1[1])[0], lapack.dgbtrs(f2[0], kl, ku, b, f2[1])[0])
+
+    cl.flapack.cache_clear()
+    try:
+        monkeypatch.setenv(cl.ENV, "0")
+        assert cl.flapack() is lapack
+        cl.flapack.cache_clear()
+        monkeypatch.delenv(cl.ENV)
+
+        def broken() -> None:
+            raise ImportError("another scipy layout")
+
+        monkeypatch.setattr(cl, "_load_direct", broken)
+        assert cl.flapack() is lapack
+    finally:
+        cl.flapack.cache_clear()
 
 
 def test_get_scene_later_source_wins(monkeypatch):
