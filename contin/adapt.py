@@ -58,7 +58,7 @@ import numpy as np
 from contin.options import AdaptOptions
 from contin.problem import Array, has
 
-__all__ = ["AdaptOptions", "Adaptor", "on_grid", "point_problem", "start_grid"]
+__all__ = ["AdaptOptions", "Adaptor", "on_grid", "point_problem", "start_grid", "two_grid_error"]
 
 #: Hooks a problem needs for adaptive resolution.
 REQUIRED_HOOKS = ("error_estimate", "with_grid", "transfer")
@@ -233,6 +233,50 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     return v
 
 
+def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
+    """The grid of the two-grid check of a point on ``problem``'s grid: ceil(factor N) rounded
+    up to ``multiple`` (verify's fine grid), capped at max_grid; None on max_grid itself."""
+    n = int(problem.grid_size)
+    n_f = min(_round(factor * n, opts.multiple), opts.max_grid)
+    return n_f if n_f > n else None
+
+
+def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOptions) -> float | None:
+    """Achieved relative error of the discrete solution u (on ``problem``'s grid), measured on a
+    grid ``factor`` times finer by one Newton correction (a two-grid estimate; Brandt's tau
+    correction without the coarse solve, W. Hackbusch, *Multi-Grid Methods*, 1985, ch. 9):
+
+        v = T u,   delta = -J_f(v)^-1 F_f(v, p),   error = ||delta|| / ||v + delta||
+
+    in the problem's ``solution_error`` norm (:func:`contin.verify.solution_error`).  v + delta
+    is the fine solution to O(||delta||^2), so this is the quantity ``contin verify`` measures
+    (the fine grid's own error subtracted: equal to the error for spectral grids, 1 - factor^-q
+    of it for FD of order q).  Unlike the state's estimate it sees the truncation amplified by
+    ||J^-1||, which grows next to a BP or LP.  Cost: one fine residual, Jacobian, LU and solve.
+    None when no finer grid exists (max_grid); inf when the fine J is exactly singular or the
+    result is not finite."""
+    from contin.linalg import dense_factorization, factorize
+    from contin.verify import solution_error
+
+    n_f = check_grid(problem, factor, opts)
+    if n_f is None:
+        return None
+    fine = on_grid(problem, n_f)
+    with np.errstate(all="ignore"):
+        v = np.asarray(problem.transfer(np.asarray(u, dtype=float), fine), dtype=float)
+        f = np.asarray(fine.residual(v, p), dtype=float)
+        jac = fine.jacobian(v, p)
+        if has(fine, "dense_jacobian") and dense_factorization(jac):
+            jac = fine.dense_jacobian(v, p)
+        fact = factorize(jac)
+        if fact is None:
+            return math.inf
+        delta = fact.solve(-f)
+        if not np.all(np.isfinite(delta)):
+            return math.inf
+        return solution_error(fine, v, v + delta, p)
+
+
 @dataclass(frozen=True)
 class GridChange:
     """One grid change along a branch (kept in ``Branch.audit`` as text)."""
@@ -321,6 +365,8 @@ class Adaptor:
     def __init__(self, opts: AdaptOptions) -> None:
         self.opts = opts
         self.since_change = 0
+        self.checks = 0  # two-grid checks done (solve_check)
+        self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
         self.lines: list[str] = []
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
@@ -432,7 +478,29 @@ class Adaptor:
     def too_coarse(self, system: Any, x: Array) -> float | None:
         """The estimate at x if it exceeds tol, else None."""
         e = self.error(system, x)
+        self.checked = None
         return e if e > self.opts.tol else None
+
+    def solve_check(self, system: Any, x: Array) -> float | None:
+        """The two-grid error of the point x (:func:`two_grid_error`) if it exceeds tol, else None
+        (also without ``check_factor`` or on max_grid).  Called for a candidate whose estimate
+        meets tol: the estimate does not see the amplification by ||J^-1|| next to a BP/LP."""
+        factor = self.opts.check_factor
+        self.checked = None
+        if factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
+            return None
+        self.checks += 1
+        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), factor, self.opts)
+        self.checked = e
+        return e if e is not None and e > self.opts.tol else None
+
+    def _solve_exceeds(self, system: Any, x: Array, limit: float) -> bool:
+        """Whether the two-grid error of x exceeds ``limit`` (False without the check)."""
+        if self.opts.check_factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
+            return False
+        self.checks += 1
+        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), self.opts.check_factor, self.opts)
+        return e is not None and e > limit
 
     def precision_limit(self, tracer: Any, x: Array) -> str | None:
         """The precision-limit message if the rounding part of the estimate at the candidate x
@@ -574,7 +642,10 @@ class Adaptor:
         keep = self._snapshot(tracer)
         if not self.regrid(tracer, size, f"estimate below {opts.coarsen_below:g} tol", err, newton_options):
             return
-        if self.error(tracer.system, tracer.points[-1].x) > COARSEN_MARGIN * opts.tol:  # the corrected state says no
+        new = tracer.system
+        x = tracer.points[-1].x
+        if self.error(new, x) > COARSEN_MARGIN * opts.tol or self._solve_exceeds(new, x, COARSEN_MARGIN * opts.tol):
+            # the corrected state says no (its estimate, or its solve's two-grid error)
             self._restore(tracer, keep)
             self.since_change = 0
 

@@ -649,10 +649,13 @@ def trace(
             ds = reduced_step(ds, sopt)
             continue
         assert new is not None
-        if adaptor is not None and (err := adaptor.too_coarse(system, new.x)) is not None:
-            # Not resolved: refine at the last accepted point and retry the step from there.
-            stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, "estimate above tol",
-                                                                             options.newton)
+        if adaptor is not None and ((err := adaptor.too_coarse(system, new.x)) is not None
+                                    or (err := adaptor.solve_check(system, new.x)) is not None):
+            # Not resolved (the estimate, or the two-grid error of the solve that the estimate
+            # can under-read next to a BP/LP): refine at the last accepted point and retry the
+            # step from there.
+            why = "estimate above tol" if adaptor.checked is None else "two-grid error above tol"
+            stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, why, options.newton)
             if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
                 # Refinement did not halve the candidate's estimate: try a candidate nearer the
                 # resolved last point before concluding that the estimate has a floor.
