@@ -235,9 +235,11 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
 
 def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
     """The grid of the two-grid check of a point on ``problem``'s grid: ceil(factor N) rounded
-    up to ``multiple`` (verify's fine grid), capped at max_grid; None on max_grid itself."""
+    up to ``multiple`` (verify's fine grid), at most factor x max_grid -- a measurement, not a
+    grid the run computes on, so a point on max_grid is checked too (None only if factor N
+    rounds to N)."""
     n = int(problem.grid_size)
-    n_f = min(_round(factor * n, opts.multiple), opts.max_grid)
+    n_f = min(_round(factor * n, opts.multiple), _round(factor * opts.max_grid, opts.multiple))
     return n_f if n_f > n else None
 
 
@@ -253,7 +255,7 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
     (the fine grid's own error subtracted: equal to the error for spectral grids, 1 - factor^-q
     of it for FD of order q).  Unlike the state's estimate it sees the truncation amplified by
     ||J^-1||, which grows next to a BP or LP.  Cost: one fine residual, Jacobian, LU and solve.
-    None when no finer grid exists (max_grid); inf when the fine J is exactly singular or the
+    None when factor N rounds to N; inf when the fine J is exactly singular or the
     result is not finite."""
     from contin.linalg import dense_factorization, factorize
     from contin.verify import solution_error
@@ -367,6 +369,13 @@ class Adaptor:
         self.since_change = 0
         self.checks = 0  # two-grid checks done (solve_check)
         self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
+        #: (points, snapshot) of the last refinement, to undo it at a two-grid floor (solve_floor)
+        self._undo: tuple[int, tuple] | None = None
+        #: the grid in force was raised by the two-grid check, not by the estimate: coarsening is
+        #: tried where the estimate is below COARSEN_MARGIN * tol (the check then decides), else
+        #: an FD branch refined to max_grid at a fold would stay there (Bratu fd2: its defect
+        #: estimate never falls below coarsen_below * tol)
+        self.check_raised = False
         self.lines: list[str] = []
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
@@ -494,6 +503,25 @@ class Adaptor:
         self.checked = e
         return e if e is not None and e > self.opts.tol else None
 
+    def solve_floor(self, tracer: Any, stop: str) -> str:
+        """The end of a branch whose two-grid error did not fall with refinement (``stop``, from
+        :meth:`refine`, stalled): the solve's error has a floor above tol that finer grids do
+        not lower -- rounding next to a closure's singularity, which the problem's
+        ``rounding_error`` under-reads (gPCF nu = 0.5, H = 38.96: the solutions on cheb 80 .. 384
+        all differ by 0.6-1.5e-4, their rounding estimate 2e-7 .. 6e-6).  The refinement of the
+        last point is undone, so that every stored point keeps its passed check, and the
+        message is a precision limit (the tracer ends the branch EP)."""
+        count = len(tracer.points)
+        if self._undo is not None and self._undo[0] == count:
+            self._restore(tracer, self._undo[1])
+        self._undo = None
+        sys = tracer.system
+        cur = tracer.points[-1]
+        return (f"{PRECISION_LIMIT} at {sys.parameter} = {cur.x[-1]:.6g}: the two-grid error of the solve "
+                f"does not fall with refinement ({stop.split('does not fall with refinement (')[-1].split(')')[0]}) "
+                f"> tol {self.opts.tol:.2g}: an error floor (rounding) no grid lowers; every stored point meets tol "
+                f"up to {sys.parameter} = {cur.x[-1]:.6g} (its last point, grid {sys.problem.grid_size})")
+
     def _solve_exceeds(self, system: Any, x: Array, limit: float) -> bool:
         """Whether the two-grid error of x exceeds ``limit`` (False without the check)."""
         if self.opts.check_factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
@@ -603,6 +631,8 @@ class Adaptor:
                     # the point on its old grid, where it met tol, and end at the precision limit.
                     self._restore(tracer, keep)
                     return self._precision_message(tracer, tracer.points[-1].x, rnd, int(size))
+                self._undo = (count, keep)
+                self.check_raised = self.checked is not None
                 return None
             size = finer(sys.problem.with_grid(size), None, None, self.opts)
         return self.at_max(sys, cur.x, err)
@@ -628,17 +658,21 @@ class Adaptor:
         sys = tracer.system
         cur = tracer.points[-1]
         err = self.error(sys, cur.x)
-        if not coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts):
+        if not (coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts)
+                or (self.check_raised and err <= COARSEN_MARGIN * opts.tol)):
             return
         size = coarser(sys.problem, opts)
         if size is None:
             return
-        other = sys.problem.with_grid(size)
-        trial = sys.problem.transfer(cur.x[:-1], other)
-        e_new = state_error(other, trial, sys.params_at(cur.x[-1]))
-        if e_new > COARSEN_MARGIN * opts.tol:
-            self.since_change = 0  # try again after the cooldown
-            return
+        if not self.check_raised:
+            # (a grid the check raised is left by the corrected state's estimate and check: the
+            # resampled, unsolved state's estimate is no guide for an FD defect estimate)
+            other = sys.problem.with_grid(size)
+            trial = sys.problem.transfer(cur.x[:-1], other)
+            e_new = state_error(other, trial, sys.params_at(cur.x[-1]))
+            if e_new > COARSEN_MARGIN * opts.tol:
+                self.since_change = 0  # try again after the cooldown
+                return
         keep = self._snapshot(tracer)
         if not self.regrid(tracer, size, f"estimate below {opts.coarsen_below:g} tol", err, newton_options):
             return

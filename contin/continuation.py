@@ -656,6 +656,12 @@ def trace(
             # step from there.
             why = "estimate above tol" if adaptor.checked is None else "two-grid error above tol"
             stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, why, options.newton)
+            if stop is not None and adaptor.stalled and adaptor.checked is not None:
+                # The two-grid error does not fall with refinement: a floor, not a far candidate.
+                stop = adaptor.solve_floor(tracer, stop)
+                adopt_grid()
+                status, message = _guard_status(stop), stop
+                break
             if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
                 # Refinement did not halve the candidate's estimate: try a candidate nearer the
                 # resolved last point before concluding that the estimate has a floor.

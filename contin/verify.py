@@ -174,7 +174,7 @@ def _special_at(branch: Any, i: int) -> str:
 
 
 def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, factor: float = 2.0,
-                  tol: float | None = None, max_grid: int | None = 512, newton_options: Any = None,
+                  tol: float | None = None, max_grid: int | None = 1024, newton_options: Any = None,
                   indices: Sequence[int] | None = None) -> BranchCheck:
     """Re-solve the stored points of ``branch`` on a grid ``factor`` times finer and measure
     their achieved error (module docstring).
@@ -183,7 +183,9 @@ def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, facto
         :func:`contin.adapt.point_problem`)
     params : the run's fixed parameters; each point's are these updated with the branch columns
     tol : the accuracy the points should meet (default: 3e-5, AdaptOptions' default)
-    max_grid : the largest fine grid (None: no cap); a point already on it is reported unchecked
+    max_grid : the largest fine grid (None: no cap); a point already on it is reported unchecked.
+        Default 1024, twice AdaptOptions' max_grid: a point an adaptive run stored on its
+        largest grid is checked too
     indices : the rows to check (default: every row with a stored state)
 
     Raises ValueError for a multi-parameter branch (its states carry more than the problem's
