@@ -179,11 +179,6 @@ def test_gpcf_audit_point_flagged_and_uniform_shear_exact(tmp_path):
 
 def test_cli_verify_exit_codes_and_bad_input(tmp_path):
     out = tmp_path / "b.h5"
-    checked = tmp_path / "checked.h5"
-    r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-3", "-q", "-o", checked)  # the two-grid check on
-    assert r.exit_code == 0, r.output
-    r = run("verify", checked)
-    assert r.exit_code == 0 and "inaccurate" not in r.stderr, r.output
     r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-3", "--no-solve-check", "-q", "-o", out)
     assert r.exit_code == 0, r.output
     r = run("verify", out)
@@ -208,6 +203,20 @@ def test_cli_verify_exit_codes_and_bad_input(tmp_path):
     assert r.exit_code == 1 and r.stderr.count("Error:") == 1 and "cannot change its grid" in r.stderr
     r = run("trace", "lorenz", "--no-solve-check", "-q", "-o", lor)  # a fixed-grid scene: one Error line
     assert r.exit_code != 0 and r.stderr.count("Error:") == 1 and "no adaptive resolution" in r.stderr
+
+
+def test_cli_trace_with_the_solve_check_verifies_clean(tmp_path):
+    """The CLI default (the two-grid check on): the Bratu fd2 run at tol 1e-3 that
+    ``--no-solve-check`` leaves with 7 points beyond tol (test above) verifies clean, exit 0."""
+    checked = tmp_path / "checked.h5"
+    r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-3", "-q", "-o", checked)
+    assert r.exit_code == 0, r.output
+    r = run("verify", checked, "--json")
+    assert r.exit_code == 0 and "inaccurate" not in r.stderr, r.output
+    import json
+
+    (b,) = json.loads(r.stdout)["branches"]
+    assert len(b["points"]) == 61 and not b["exceeding"] and not b["unchecked"] and b["max_error"] <= 1e-3
 
 
 def test_readme_verify_example_runs_as_printed():
