@@ -156,13 +156,6 @@ def coarser(problem: Any, opts: AdaptOptions) -> int | None:
     return want if want < n else None
 
 
-#: The two-grid check is skipped where the problem's rounding estimate on the check's fine grid
-#: exceeds this fraction of tol: there it would measure the fine grid's rounding (growing like N^2
-#: for collocation), not the point's error, and the estimate -- truncation and rounding, with its
-#: precision limit -- decides (gPCF nu = 0.63: the cheb 80 states up to H = 91.3, accurate to 1e-5
-#: against an extended-precision solve, differ from cheb 160 by more than tol from H = 86.6 on).
-ROUNDING_SHARE = 0.1
-
 #: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
 ESTIMATE_CACHE = 8
 
@@ -250,8 +243,7 @@ def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
     return n_f if n_f > n else None
 
 
-def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOptions,
-                   rounding_above: float | None = None) -> float | None:
+def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOptions) -> float | None:
     """Achieved relative error of the discrete solution u (on ``problem``'s grid), measured on a
     grid ``factor`` times finer by one Newton correction (a two-grid estimate; Brandt's tau
     correction without the coarse solve, W. Hackbusch, *Multi-Grid Methods*, 1985, ch. 9):
@@ -263,10 +255,8 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
     (the fine grid's own error subtracted: equal to the error for spectral grids, 1 - factor^-q
     of it for FD of order q).  Unlike the state's estimate it sees the truncation amplified by
     ||J^-1||, which grows next to a BP or LP.  Cost: one fine residual, Jacobian, LU and solve.
-    None when factor N rounds to N, or when the problem's ``rounding_error`` of the transferred
-    state on the fine grid exceeds ``rounding_above`` (the difference would then measure the fine
-    grid's rounding, which grows with N, not the coarse point's error); inf when the fine J is
-    exactly singular or the result is not finite."""
+    None when factor N rounds to N; inf when the fine J is exactly singular or the
+    result is not finite."""
     from contin.linalg import dense_factorization, factorize
     from contin.verify import solution_error
 
@@ -276,8 +266,6 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
     fine = on_grid(problem, n_f)
     with np.errstate(all="ignore"):
         v = np.asarray(problem.transfer(np.asarray(u, dtype=float), fine), dtype=float)
-        if rounding_above is not None and rounding_error(fine, v, p) > rounding_above:
-            return None
         f = np.asarray(fine.residual(v, p), dtype=float)
         jac = fine.jacobian(v, p)
         if has(fine, "dense_jacobian") and dense_factorization(jac):
@@ -511,8 +499,7 @@ class Adaptor:
         if factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
             return None
         self.checks += 1
-        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), factor, self.opts,
-                           rounding_above=ROUNDING_SHARE * self.opts.tol)
+        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), factor, self.opts)
         self.checked = e
         return e if e is not None and e > self.opts.tol else None
 
@@ -540,8 +527,7 @@ class Adaptor:
         if self.opts.check_factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
             return False
         self.checks += 1
-        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), self.opts.check_factor, self.opts,
-                           rounding_above=ROUNDING_SHARE * self.opts.tol)
+        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), self.opts.check_factor, self.opts)
         return e is not None and e > limit
 
     def precision_limit(self, tracer: Any, x: Array) -> str | None:
