@@ -22,6 +22,14 @@ log(e_a / e_b) / log(N_b / N_a).  Wall time (``time.perf_counter``) and CPU time
 (``time.process_time``) are both recorded: on a shared machine the CPU time is the fairer
 figure.  Peak memory is the tracemalloc peak of a second, separate run (tracemalloc slows
 numpy-heavy code down, so it never overlaps the timed run); ``memory=False`` skips it.
+
+Asking for an accuracy instead of a grid (``tols``; scenes with ``Scene.adaptive``): for each
+tol the scene is also run with adaptive resolution (``SceneRequest.overrides['tol']``, no grid:
+the scene's start grid), its key points are measured against the same reference, and the run is
+compared with the cheapest fixed (method, N) run whose worst key-point error meets the same tol
+(issue 14: achieved error <= tol, cost within 1.5x of that grid).  ``repeats`` > 1 times every
+run that many times in interleaved rounds and keeps each run's smallest CPU time, so that a
+change of the machine's load shifts both sides of a cost ratio alike.
 """
 
 from __future__ import annotations
@@ -59,6 +67,8 @@ class Run:
     values: dict[str, float]
     failed: str = ""  # the reason when the run raised (then values is empty)
     engine: str = ""  # the problem's engine as the scene reports it (SceneResult.discretization)
+    grids_used: tuple[int, int] | None = None  # (smallest, largest) per-point grid of an adaptive run
+    stopped: int = 0  # branches that ended MX (e.g. the resolution guard: the grid does not carry the job)
 
 
 @dataclass
@@ -79,6 +89,35 @@ class Row:
 
 
 @dataclass
+class AdaptiveRow:
+    """One adaptive run (asked for ``tol``) against the reference and the cheapest fixed grid.
+
+    errors : relative error of each key point; worst_key : the key point of the largest
+    met : every key point is within tol (False also when a key point is missing or the run failed)
+    grids : (smallest, largest) grid any stored point of the run used
+    fixed_method, fixed_grid, fixed_cpu : the cheapest fixed run whose worst error is <= tol
+        (None / nan when no fixed run of the report meets it)
+    ratio : cpu / fixed_cpu (nan without such a run)
+    """
+
+    tol: float
+    cpu: float
+    wall: float
+    newton_iterations: int
+    values: dict[str, float]
+    errors: dict[str, float]
+    worst_error: float
+    worst_key: str
+    met: bool
+    grids: tuple[int, int] | None
+    fixed_method: str | None
+    fixed_grid: int | None
+    fixed_cpu: float
+    ratio: float
+    failed: str = ""
+
+
+@dataclass
 class AccuracyReport:
     scene: str
     params: dict[str, Any]
@@ -86,14 +125,20 @@ class AccuracyReport:
     reference_from: str
     runs: list[Run]
     rows: list[Row] = field(default_factory=list)
+    adaptive: list[AdaptiveRow] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {
             "scene": self.scene, "params": {k: _jsonable(v) for k, v in self.params.items()},
             "reference": self.reference, "reference_from": self.reference_from,
             "runs": [asdict(r) for r in self.runs], "rows": [asdict(r) for r in self.rows],
-            "recommendations": recommend(self),
+            "recommendations": recommend(self), "adaptive": [asdict(a) for a in self.adaptive],
         }
+
+    @property
+    def inaccurate(self) -> list[AdaptiveRow]:
+        """The adaptive runs whose achieved error exceeds the tol they asked for."""
+        return [a for a in self.adaptive if not a.met]
 
 
 def _jsonable(v: Any) -> Any:
@@ -120,16 +165,19 @@ def key_points(result: SceneResult) -> dict[str, float]:
     return out
 
 
-def _request(params: Mapping[str, Any], method: str, grid: int, overrides: Mapping[str, Any] | None,
+def _request(params: Mapping[str, Any], method: str, grid: int | None, overrides: Mapping[str, Any] | None,
              engine: str | None) -> SceneRequest:
     """The request of one accuracy run (stability off: only the key points are measured)."""
     return SceneRequest(params=dict(params), method=method, grid=grid, stability=False,
                         overrides=dict(overrides or {}), engine=engine)
 
 
-def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int, *, memory: bool = True,
+def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int | None, *, memory: bool = True,
             overrides: Mapping[str, Any] | None = None, engine: str | None = None) -> Run:
-    """Run ``scene`` once at (method, grid) and time it (plus a tracemalloc run if ``memory``)."""
+    """Run ``scene`` once at (method, grid) and time it (plus a tracemalloc run if ``memory``).
+
+    ``grid`` None: the scene's own start grid (an adaptive run, ``overrides['tol']``); the Run's
+    grid is then the largest grid any stored point used and :func:`grids_used` gives both ends."""
     t0, c0 = time.perf_counter(), time.process_time()
     result = scene.run(_request(params, method, grid, overrides, engine))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -143,37 +191,92 @@ def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int, *, 
             tracemalloc.stop()
     iters = sum(int(b.newton_iterations.sum()) for b in result.branches if len(b))
     points = sum(len(b) for b in result.branches)
+    used = grids_used(result)
+    if grid is None:
+        grid = used[1] if used else int(result.discretization.get("intervals", 0) or 0)
     return Run(method, grid, wall, cpu, iters, points, peak, key_points(result),
-               engine=str(result.discretization.get("engine", "")))
+               engine=str(result.discretization.get("engine", "")), grids_used=used,
+               stopped=sum(1 for b in result.branches if b.status == "MX"))
+
+
+def grids_used(result: SceneResult) -> tuple[int, int] | None:
+    """(smallest, largest) grid of the stored points and special points of a scene's branches
+    (None when no branch stores per-point grids: a fixed-grid run)."""
+    sizes = []
+    for b in result.branches:
+        g = getattr(b, "grid", None)
+        if g is not None and len(g):
+            sizes += [int(x) for x in g if x > 0]
+        sizes += [int(sp.grid) for sp in b.special_points if getattr(sp, "grid", None)]
+    return (min(sizes), max(sizes)) if sizes else None
 
 
 def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str], grids: Sequence[int], *,
                  memory: bool = True, overrides: Mapping[str, Any] | None = None,
-                 progress: Callable[[str], None] | None = None, engine: str | None = None) -> AccuracyReport:
+                 progress: Callable[[str], None] | None = None, engine: str | None = None,
+                 tols: Sequence[float] = (), repeats: int = 1) -> AccuracyReport:
     """Measure every (method, grid) pair and tabulate errors against the reference.
 
     A pair whose scene run raises ValueError (e.g. a grid too small for the method) is kept as
     a failed :class:`Run` with the reason; other exceptions propagate.  One untimed run at the
     first method's coarsest grid goes first, so that the first timed run does not pay the
     one-off costs of a process (lazy imports, loading compiled kernels: ``engine``).
+
+    ``tols``: also run the scene adaptively at each tol (module docstring; the scene must be
+    ``adaptive``) and fill :attr:`AccuracyReport.adaptive`.  ``repeats``: interleaved timing
+    rounds, each run keeping its smallest CPU time (the memory run is made once).
     """
     if not methods or not grids:
         raise ValueError("need at least one method and one grid")
+    if tols and not scene.adaptive:
+        raise ValueError(f"scene {scene.name!r} has no adaptive resolution: --tols needs an adaptive scene")
+    if any(not (math.isfinite(t) and 0 < t < 1) for t in tols):
+        raise ValueError(f"every tol must be a number in (0, 1), got {', '.join(map(str, tols))}")
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
     with contextlib.suppress(ValueError):
         scene.run(_request(params, methods[0], min(int(g) for g in grids), overrides, engine))
-    runs: list[Run] = []
-    for method in methods:
-        for n in sorted(set(int(g) for g in grids)):
+    adaptive_method = "cheb" if "cheb" in methods else methods[0]
+    jobs: list[tuple[str, int | None, float | None]] = [(m, n, None) for m in methods for n in sorted(set(int(g) for g in grids))]
+    jobs += [(adaptive_method, None, float(t)) for t in tols]
+    best: dict[int, Run] = {}
+    for rnd in range(repeats):
+        for i, (method, n, tol) in enumerate(jobs):
+            if i in best and best[i].failed:
+                continue
+            what = f"{method} N={n}" if tol is None else f"{method} tol={tol:g}"
             if progress is not None:
-                progress(f"{scene.name}: {method} N={n}")
+                progress(f"{scene.name}: {what}" + (f" (round {rnd + 1}/{repeats})" if repeats > 1 else ""))
+            ov = dict(overrides or {}) if tol is None else {**dict(overrides or {}), "tol": tol}
             try:
-                runs.append(measure(scene, params, method, n, memory=memory, overrides=overrides, engine=engine))
+                run = measure(scene, params, method, n, memory=memory and rnd == 0, overrides=ov, engine=engine)
             except ValueError as exc:
-                runs.append(Run(method, n, math.nan, math.nan, 0, 0, math.nan, {}, failed=str(exc).splitlines()[0]))
-    reference, source = references(runs)
-    report = AccuracyReport(scene.name, dict(params), reference, source, runs)
-    report.rows = tabulate(runs, reference)
+                run = Run(method, n or 0, math.nan, math.nan, 0, 0, math.nan, {}, failed=str(exc).splitlines()[0])
+            if i not in best or run.cpu < best[i].cpu:
+                if i in best and not math.isnan(best[i].peak_memory_mb):
+                    run.peak_memory_mb = best[i].peak_memory_mb
+                best[i] = run
+    fixed = [best[i] for i, job in enumerate(jobs) if job[2] is None]
+    reference, source = references(fixed)
+    report = AccuracyReport(scene.name, dict(params), reference, source, fixed)
+    report.rows = tabulate(fixed, reference)
+    report.adaptive = [adaptive_row(best[i], job[2], report) for i, job in enumerate(jobs) if job[2] is not None]
     return report
+
+
+def adaptive_row(run: Run, tol: float, report: AccuracyReport) -> AdaptiveRow:
+    """An adaptive run's key points against ``report``'s reference and cheapest fixed grid."""
+    errors = {k: relative_error(run.values[k], ref) for k, ref in report.reference.items() if k in run.values}
+    missing = [k for k in report.reference if k not in run.values]
+    worst_key = max(errors, key=errors.get) if errors else ""  # type: ignore[arg-type]
+    worst = math.inf if missing or not errors or run.failed else errors[worst_key]
+    if missing and not run.failed:
+        worst_key = missing[0]
+    rec = recommend(report, (tol,), complete_only=True)[0]
+    ratio = run.cpu / rec["cpu"] if rec["method"] and rec["cpu"] > 0 else math.nan
+    return AdaptiveRow(tol, run.cpu, run.wall, run.newton_iterations, dict(run.values), errors, worst, worst_key,
+                       bool(worst <= tol), run.grids_used, rec["method"], rec["grid"], rec["cpu"], ratio,
+                       failed=run.failed or (f"key point {missing[0]} not found" if missing else ""))
 
 
 def references(runs: Iterable[Run]) -> tuple[dict[str, float], str]:
@@ -222,13 +325,19 @@ def tabulate(runs: Sequence[Run], reference: Mapping[str, float]) -> list[Row]:
     return rows
 
 
-def recommend(report: AccuracyReport, targets: Sequence[float] = DEFAULT_TARGETS) -> list[dict[str, Any]]:
-    """For each accuracy budget, the cheapest (CPU time) run whose worst key-point error meets it."""
+def recommend(report: AccuracyReport, targets: Sequence[float] = DEFAULT_TARGETS, *,
+              complete_only: bool = False) -> list[dict[str, Any]]:
+    """For each accuracy budget, the cheapest (CPU time) run whose worst key-point error meets it.
+
+    ``complete_only``: only runs none of whose branches ended MX (the comparison for adaptive
+    runs, which trace every branch to its end: a fixed grid that the resolution guard stops
+    part-way did not do the same job, and its user would have to rerun it finer)."""
     worst: dict[tuple[str, int], float] = {}
     cost: dict[tuple[str, int], float] = {}
+    stopped = {(r.method, r.grid) for r in report.runs if r.stopped}
     for row in report.rows:
         k = (row.method, row.grid)
-        if math.isnan(row.error):
+        if math.isnan(row.error) or (complete_only and k in stopped):
             continue
         worst[k] = max(worst.get(k, 0.0), row.error)
         cost[k] = row.cpu
@@ -264,6 +373,17 @@ def write_outputs(report: AccuracyReport, directory: str | Path, *, plots: bool 
     written.append(d / f"{stem}.csv")
     _publish_text(d / f"{stem}.json", json.dumps(_clean(report.to_json()), indent=1) + "\n")
     written.append(d / f"{stem}.json")
+    if report.adaptive:
+        cols = ("tol", "worst_error", "worst_key", "met", "cpu", "wall", "newton_iterations", "grid_min", "grid_max",
+                "fixed_method", "fixed_grid", "fixed_cpu", "ratio", "failed")
+        lines = [",".join(cols)]
+        for a in report.adaptive:
+            g = a.grids or (None, None)
+            cells = (a.tol, a.worst_error, a.worst_key, a.met, a.cpu, a.wall, a.newton_iterations, g[0], g[1],
+                     a.fixed_method, a.fixed_grid, a.fixed_cpu, a.ratio, a.failed)
+            lines.append(",".join(_csv_cell("" if c is None else c) for c in cells))
+        _publish_text(d / f"{stem}_adaptive.csv", "\n".join(lines) + "\n")
+        written.append(d / f"{stem}_adaptive.csv")
     if plots and report.rows:
         written += plot_report(report, d / f"{stem}")
     return written

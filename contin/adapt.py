@@ -35,6 +35,13 @@ sec. 2.12 for the tail estimate the spectral problems use):
   steps, so the grid does not oscillate);
 - past ``max_grid`` the run ends with MX: "under-resolved at p = ...: estimated error ... >
   tol on the maximum grid ...";
+- resolution limit: on ``max_grid``, a rejected candidate whose estimate falls only slowly with
+  the grid (like N^-p, 0 < p <= SLOW_ORDER, fitted over its interpolants on coarser grids:
+  a kink of the solution, a layer far too steep for the grid) ends the branch with status EP
+  and a message starting "resolution limit" that names the grid tol would need (algebraic
+  extrapolation), the last stored point's estimate and its difference to a solve on a coarser
+  grid (behind a kink the estimate can under-state the error; the difference bounds a falling
+  error), instead of MX;
 - precision limit: where the problem's ``rounding_error`` (the part of the estimate that
   refinement cannot lower, e.g. double-precision rounding next to a closure's singularity,
   which grows with the grid) exceeds tol at a rejected candidate, or would at the last point
@@ -100,6 +107,18 @@ def vector_error(problem: Any, v: Array) -> float:
 
 #: Messages of the precision-limit end start with this (the tracer ends such a branch EP).
 PRECISION_LIMIT = "precision limit"
+
+#: Messages of the resolution-limit end start with this (EP: :meth:`Adaptor.resolution_limit`).
+RESOLUTION_LIMIT = "resolution limit"
+
+#: On the maximum grid, an estimate that falls like N^-p with p at most this (fitted over the
+#: coarser grids max_grid / growth^j) is *slow* (a 2.25x finer grid gains less than 2.25^6 = 130x):
+#: the branch ends EP "resolution limit" with the grid the decay asks for, not MX.  A spectral
+#: estimate falls far faster there.
+SLOW_ORDER = 6.0
+
+#: Coarser grids (max_grid / growth^j, j = 1..SLOW_GRIDS) the order of that decay is fitted over.
+SLOW_GRIDS = 3
 
 
 def rounding_error(problem: Any, u: Array, p: Any) -> float:
@@ -201,7 +220,6 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     step from the border b: one LU of J serves all of them (up to sign, which no estimate
     sees).  An exactly singular J (a zero pivot) falls back to the bordered solve."""
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
     from contin.normalform import borders
 
@@ -220,6 +238,8 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
             def solve(r: Array) -> Array:
                 return lu_solve(factors, r, check_finite=False)
         else:
+            import scipy.sparse.linalg as spla  # only here: the main path stays dense
+
             solve = spla.splu(sp.csc_matrix(jacobian)).solve
     except RuntimeError:  # exactly singular: the bordered vector is the kernel
         return null_vector(jacobian)
@@ -366,6 +386,8 @@ class Adaptor:
 
     def __init__(self, opts: AdaptOptions) -> None:
         self.opts = opts
+        #: Newton settings of the two-grid check in a resolution-limit message (the tracer's)
+        self.newton_options: Any = None
         self.since_change = 0
         self.checks = 0  # two-grid checks done (solve_check)
         self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
@@ -547,6 +569,72 @@ class Adaptor:
                 f"{self.opts.tol:.2g} on grid {grid}, which no finer grid lowers; the branch is accurate to {last:.2g} up to {sys.parameter} = {cur.x[-1]:.6g} (its last point, "
                 f"grid {sys.problem.grid_size})")
 
+    def resolution_limit(self, tracer: Any, x: Array, err: float) -> str | None:
+        """On the maximum grid, the resolution-limit message for the rejected candidate x (its
+        estimate ``err`` > tol) if the estimate falls only slowly with the grid, else None.
+
+        The candidate's state is carried onto the coarser grids N / growth^j, j = 1..SLOW_GRIDS
+        (its interpolant there: the truncation a solve on that grid would have) and estimated;
+        a least-squares line log e = c - p log N through these and (N, err) gives the order p (a
+        fit, not two grids: behind a kink the estimate of one grid scatters by 2-5x with the
+        kink's position between the nodes).  0 < p <= SLOW_ORDER is algebraic-like decay (a kink
+        of the solution, or a layer that a spectral grid resolves only at N >> max_grid): the
+        line's N at tol names the grid tol would need, and the branch ends EP with it and the
+        estimate of its last stored point.  A faster decay (a larger max_grid would do) or none
+        (the estimate does not fall) is left to :meth:`at_max` (MX)."""
+        sys = tracer.system
+        problem = sys.problem
+        n = int(problem.grid_size)
+        if n < self.opts.max_grid or not err > self.opts.tol:
+            return None
+        params = sys.params_at(x[-1])
+        sizes, errors = [n], [err]
+        for j in range(1, SLOW_GRIDS + 1):
+            n_c = _round(n / self.opts.growth ** j, self.opts.multiple)
+            if n_c < self.opts.min_grid or n_c in sizes:
+                break
+            coarse = problem.with_grid(n_c)
+            e_c = state_error(coarse, problem.transfer(x[:-1], coarse), params)
+            if not (math.isfinite(e_c) and e_c > 0):
+                return None
+            sizes.append(n_c)
+            errors.append(e_c)
+        if len(sizes) < 3:
+            return None
+        slope, icpt = np.polyfit(np.log(sizes), np.log(errors), 1)
+        order = -float(slope)
+        if not 0 < order <= SLOW_ORDER:
+            return None
+        need = math.exp((float(icpt) - math.log(self.opts.tol)) / order)
+        cur = tracer.points[-1]
+        last = self.error(sys, cur.x)
+        fit = ", ".join(f"{e:.2g} on {m}" for m, e in zip(sizes[1:], errors[1:]))
+        return (f"{RESOLUTION_LIMIT} at {sys.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol "
+                f"{self.opts.tol:.2g} on the maximum grid {n} falls only like N^-{order:.2g} ({fit}): tol needs "
+                f"N ~ {need:.3g} > max_grid {self.opts.max_grid}; the branch ends at {sys.parameter} = "
+                f"{cur.x[-1]:.6g} (its last point, grid {problem.grid_size}: estimate {last:.2g}"
+                f"{self._two_grid(sys, cur.x, sizes[1])})")
+
+    def _two_grid(self, sys: Any, x: Array, n_c: int) -> str:
+        """', difference D to its solve on grid n_c' ('' if that solve fails): behind a
+        kink the estimate can under-state the error (the jump's position between the nodes is
+        not in the spectrum: 55-110x on KinkedBratu, up to 12x on Savage's dense band), while the
+        difference to a coarser solve bounds a monotonically falling error (``contin.verify``'s
+        norm; a coarser grid, so the check costs less than a step on max_grid)."""
+        from contin.newton import newton
+        from contin.verify import solution_error
+
+        problem = sys.problem
+        params = sys.params_at(x[-1])
+        coarse = problem.with_grid(n_c)
+        guess = problem.transfer(x[:-1], coarse)
+        res = newton(coarse, guess, params) if self.newton_options is None else newton(coarse, guess, params,
+                                                                                        self.newton_options)
+        if not res.converged:
+            return ""
+        diff = solution_error(problem, coarse.transfer(res.u, problem), x[:-1], params)
+        return f", difference {diff:.2g} to its solve on grid {n_c}"
+
     def at_max(self, system: Any, x: Array, err: float) -> str:
         return (f"under-resolved at {system.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                 f"{self.opts.tol:.2g} on the maximum grid {system.problem.grid_size} (AdaptOptions.max_grid = "
@@ -631,9 +719,21 @@ class Adaptor:
                     # the point on its old grid, where it met tol, and end at the precision limit.
                     self._restore(tracer, keep)
                     return self._precision_message(tracer, tracer.points[-1].x, rnd, int(size))
-                self._undo = (count, keep)
+                # The carried point met tol on its old grid; on the finer one it can exceed it
+                # where the coarse spectrum had not yet shown a forming kink or layer (Savage's
+                # dense band, cheb 32 -> 48 -> 144: 4.6e-5 on 144, 1e-4 against cheb 216): refine
+                # on until it meets tol again (on max_grid its estimate is what the end states).
+                self._undo = (count, keep)  # one grid change, undone at a two-grid floor (solve_floor)
                 self.check_raised = self.checked is not None
-                return None
+                x_last = tracer.points[-1].x
+                e_last = self.error(new, x_last)
+                if e_last <= self.opts.tol:
+                    return None
+                nxt = finer(new.problem, x_last[:-1], new.params_at(x_last[-1]), self.opts)
+                if nxt is None:
+                    return None
+                why, err, size = "last point above tol on the refined grid", e_last, nxt
+                continue
             size = finer(sys.problem.with_grid(size), None, None, self.opts)
         return self.at_max(sys, cur.x, err)
 

@@ -35,14 +35,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import lapack
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from contin.lapack import flapack
 from contin.problem import Array
 from contin.sparsity import canonical_csc, permutation_parity
 
-_gbtrf, _gbtrs = lapack.dgbtrf, lapack.dgbtrs
-_getrf, _getrs = lapack.dgetrf, lapack.dgetrs
+_lapack = flapack()  # scipy.linalg.lapack's routines, without importing scipy.linalg (contin.lapack)
+_gbtrf, _gbtrs = _lapack.dgbtrf, _lapack.dgbtrs
+_getrf, _getrs = _lapack.dgetrf, _lapack.dgetrs
 
 #: Largest border (dense rows = dense columns) eliminated by the Schur complement.
 MAX_BORDER = 16
@@ -115,6 +115,8 @@ def analyze(a: sp.csc_matrix) -> BandedStructure | None:
     inner = (r >= 0) & (c >= 0)
     pattern = sp.csr_matrix((np.ones(int(inner.sum())), (r[inner], c[inner])), shape=(m, m))
     pattern = (pattern + pattern.T).tocsr()
+    from scipy.sparse.csgraph import reverse_cuthill_mckee  # here: csgraph only where a band is looked for
+
     perm = np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=np.int64)
     inv = np.empty(m, dtype=np.int64)
     inv[perm] = np.arange(m)

@@ -47,8 +47,8 @@ def limit_blas_threads(n: int | None = None) -> int | None:
     """Limit BLAS to ``n`` threads (None: ``$CONTIN_BLAS_THREADS``, default 1; 0 = leave alone).
 
     Returns the limit applied, or None when nothing was changed (n = 0, or threadpoolctl is
-    not installed).  scipy.linalg is imported first so that scipy's own BLAS is loaded and
-    limited too.
+    not installed).  scipy's LAPACK extension is loaded first (:func:`contin.lapack.flapack`) so
+    that scipy's own BLAS library is loaded and limited too.
     """
     if n is None:
         n = _env_threads()
@@ -62,9 +62,10 @@ def limit_blas_threads(n: int | None = None) -> int | None:
         log.debug("threadpoolctl not installed; BLAS threads not limited")
         return None
     import numpy  # noqa: F401
-    import scipy.linalg  # noqa: F401
-    import scipy.sparse.linalg  # noqa: F401
 
+    from contin.lapack import flapack
+
+    flapack()  # scipy's BLAS/LAPACK library (scipy.linalg's and scipy.sparse.linalg's), without scipy.linalg
     threadpool_limits(limits=n, user_api="blas")
     return n
 
@@ -120,8 +121,10 @@ def _controller() -> Any:
         log.debug("threadpoolctl not installed; BLAS threads not limited")
         return None
     import numpy  # noqa: F401
-    import scipy.linalg  # noqa: F401  (scipy's own BLAS: loaded first so that it is limited too)
-    import scipy.sparse.linalg  # noqa: F401
+
+    from contin.lapack import flapack
+
+    flapack()  # scipy's own BLAS (scipy.linalg's, scipy.sparse.linalg's): loaded first so that it is limited too
 
     return ThreadpoolController()
 

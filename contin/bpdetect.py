@@ -38,9 +38,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from contin.branch import MAX_AUDIT, SpecialPoint
 from contin.options import BP_AUTO_MAX, BP_EIGS_AUTO, DetectionOptions
@@ -100,8 +98,12 @@ def spectrum(jac: Any, k: int) -> Spectrum:
     n = jac.shape[0]
     if n <= DENSE_EIG_LIMIT or k >= n - 1:
         a = jac.toarray() if sp.issparse(jac) else np.asarray(jac, dtype=float)
+        import scipy.linalg as la  # lazy: the package is off the path to the first step (contin.lapack)
+
         w = la.eigvals(a)
         return Spectrum(w[np.argsort(np.abs(w))], math.inf)
+    import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
     w = spla.eigs(sp.csc_matrix(jac), k=k, sigma=0.0, which="LM", return_eigenvectors=False, tol=1e-10)
     w = np.asarray(w)[np.argsort(np.abs(w))]
     return Spectrum(w[:-1], float(abs(w[-1])))
@@ -219,7 +221,11 @@ class EigenCounter:
     def moved(self, ja: Any, jb: Any) -> float:
         """||J_b - J_a||_F: bounds how far an eigenvalue of (normal) J moved in the step."""
         d = jb - ja
-        return float(spla.norm(d) if sp.issparse(d) else np.linalg.norm(d))
+        if sp.issparse(d):
+            import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
+            return float(spla.norm(d))
+        return float(np.linalg.norm(d))
 
     def dimension_at(self, tracer: _Tracer, x: Array, scale: float = 0.0) -> int:
         return kernel_dimension_of(spectrum(tracer.system.state_jacobian(x), self.k), scale)

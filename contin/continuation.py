@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.adapt import PRECISION_LIMIT
+from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
@@ -406,8 +406,10 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
 def _guard_status(message: str) -> str:
     """The status a resolution stop (the fixed-grid guard's or adaptive refinement's) ends a branch
     with: EP at a precision limit (every stored point meets tol; a finer grid would only raise the
-    rounding), MX when the grid does not resolve the branch."""
-    return "EP" if message.startswith(PRECISION_LIMIT) else "MX"
+    rounding) or a resolution limit (every stored point meets tol; the estimate falls so slowly on
+    the maximum grid that tol needs a grid far beyond it, ``contin.adapt``), MX when the grid does
+    not resolve the branch."""
+    return "EP" if message.startswith((PRECISION_LIMIT, RESOLUTION_LIMIT)) else "MX"
 
 
 def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0: float) -> tuple[float, float]:
@@ -502,6 +504,7 @@ def trace(
         from contin.adapt import Adaptor, start_grid
 
         adaptor = Adaptor(options.adapt)
+        adaptor.newton_options = options.newton
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
                                              coarsen=tangent is None, estimate=adaptor.estimate)
         if problem is not problem0:
@@ -653,10 +656,13 @@ def trace(
                                     or (err := adaptor.solve_check(system, new.x)) is not None):
             # Not resolved (the estimate, or the two-grid error of the solve that the estimate
             # can under-read next to a BP/LP): refine at the last accepted point and retry the
-            # step from there.
-            why = "estimate above tol" if adaptor.checked is None else "two-grid error above tol"
-            stop = adaptor.precision_limit(tracer, new.x) or adaptor.refine(tracer, err, why, options.newton)
-            if stop is not None and adaptor.stalled and adaptor.checked is not None:
+            # step from there.  (The resolution limit fits the estimate's decay: not for a check.)
+            checked = adaptor.checked is not None
+            why = "two-grid error above tol" if checked else "estimate above tol"
+            stop = (adaptor.precision_limit(tracer, new.x)
+                    or (None if checked else adaptor.resolution_limit(tracer, new.x, err))
+                    or adaptor.refine(tracer, err, why, options.newton))
+            if stop is not None and adaptor.stalled and checked:
                 # The two-grid error does not fall with refinement: a floor, not a far candidate.
                 stop = adaptor.solve_floor(tracer, stop)
                 adopt_grid()
@@ -671,7 +677,7 @@ def trace(
                 ds = reduced_step(ds, sopt)
                 continue
             if stop is not None:
-                # precision limit: every stored point meets tol and no grid can go on (EP)
+                # precision or resolution limit: every stored point meets tol and no grid (within max_grid) can go on (EP)
                 status, message = _guard_status(stop), stop
                 break
             adopt_grid()

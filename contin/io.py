@@ -96,9 +96,8 @@ import sys
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import h5py
 import numpy as np
 
 from contin.atomic import OutputLock, check_target, publish, write_bytes
@@ -107,6 +106,9 @@ from contin.branch import Branch, SpecialPoint, first_crossing
 from contin.filecheck import BadDataset, check_branch, check_special_point, first_bad_row
 from contin.jsonout import dumps as _json_dumps
 from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
+
+if TYPE_CHECKING:
+    import h5py
 
 __all__ = [
     "FORMAT",
@@ -135,7 +137,15 @@ _RESERVED = frozenset({
     "ds", "newton_iterations", "states", "tangents", "stable", "n_unstable", "eigenvalues",
     "audit", "profiles", "profile_index", "state_index",
 })
-_STR = h5py.string_dtype()
+
+
+@functools.cache
+def _str() -> Any:
+    """h5py's variable-length UTF-8 string dtype.  h5py is imported on the first write or read,
+    not with this module: a run computes its first branch before anything is published."""
+    import h5py
+
+    return h5py.string_dtype()
 
 ProfileFn = Callable[[np.ndarray], Mapping[str, np.ndarray]]
 
@@ -281,7 +291,7 @@ def _column(values: Any) -> np.ndarray:
 def _put(group: h5py.Group, name: str, values: Any) -> h5py.Dataset:
     arr = _column(values)
     if arr.dtype == object:
-        return group.create_dataset(name, data=arr, dtype=_STR)
+        return group.create_dataset(name, data=arr, dtype=_str())
     return group.create_dataset(name, data=arr)
 
 
@@ -300,15 +310,15 @@ def _write_branch(group: h5py.Group, branch: Branch, position: int,
     a = g.attrs
     a["id"] = str(branch.id)
     a["parameter"] = branch.parameter
-    a["free"] = np.asarray(list(branch.free), dtype=_STR)
+    a["free"] = np.asarray(list(branch.free), dtype=_str())
     a["status"] = branch.status
     a["message"] = branch.message
     a["closed"] = bool(branch.closed)
     a["kind"] = branch.kind
     a["parent"] = branch.parent
     a["position"] = position
-    a["param_names"] = np.asarray(list(branch.params), dtype=_STR)
-    a["observable_names"] = np.asarray(list(branch.observables), dtype=_STR)
+    a["param_names"] = np.asarray(list(branch.params), dtype=_str())
+    a["observable_names"] = np.asarray(list(branch.observables), dtype=_str())
     taken: set[str] = set()
     mapping: dict[str, dict[str, str]] = {"params": {}, "observables": {}}
     for kind, table in (("params", branch.params), ("observables", branch.observables)):
@@ -327,7 +337,7 @@ def _write_branch(group: h5py.Group, branch: Branch, position: int,
             g.create_dataset(name, data=np.asarray(value))
     if branch.stability_k is not None:
         a["stability_kx"], a["stability_kz"] = (float(k) for k in branch.stability_k)
-    g.create_dataset("audit", data=np.asarray(list(branch.audit), dtype=object), dtype=_STR)
+    g.create_dataset("audit", data=np.asarray(list(branch.audit), dtype=object), dtype=_str())
     if profiles is not None and profile_index is not None:
         g.create_dataset("profile_index", data=profile_index)
         pg = g.create_group("profiles")
@@ -344,16 +354,16 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
     names: list[str] = []
     for _, sp in rows:
         names.extend(n for n in sp.params if n not in names)
-    g.attrs["param_names"] = np.asarray(names, dtype=_STR)
+    g.attrs["param_names"] = np.asarray(names, dtype=_str())
     g.attrs["n_rows"] = k
 
     def text(vals: list[str]) -> np.ndarray:
         return np.asarray(vals, dtype=object)
 
-    g.create_dataset("branch", data=text([str(b.id) for b, _ in rows]), dtype=_STR)
-    g.create_dataset("name", data=text([sp.name for _, sp in rows]), dtype=_STR)
-    g.create_dataset("type", data=text([sp.type for _, sp in rows]), dtype=_STR)
-    g.create_dataset("note", data=text([sp.note for _, sp in rows]), dtype=_STR)
+    g.create_dataset("branch", data=text([str(b.id) for b, _ in rows]), dtype=_str())
+    g.create_dataset("name", data=text([sp.name for _, sp in rows]), dtype=_str())
+    g.create_dataset("type", data=text([sp.type for _, sp in rows]), dtype=_str())
+    g.create_dataset("note", data=text([sp.note for _, sp in rows]), dtype=_str())
     g.create_dataset("branch_position", data=np.asarray(positions, dtype=np.int64))
     g.create_dataset("label", data=np.asarray([sp.label for _, sp in rows], dtype=np.int64))
     g.create_dataset("index", data=np.asarray([sp.index for _, sp in rows], dtype=np.int64))
@@ -369,7 +379,7 @@ def _write_special_points(f: h5py.File, branches: Sequence[Branch],
             present[i, j] = name in sp.params
             vals.append(sp.params.get(name, np.nan))
         if any(isinstance(v, str) for v in vals):
-            pg.create_dataset(name.replace("/", "%2F"), data=text([str(v) for v in vals]), dtype=_STR)
+            pg.create_dataset(name.replace("/", "%2F"), data=text([str(v) for v in vals]), dtype=_str())
         else:
             pg.create_dataset(name.replace("/", "%2F"), data=np.asarray(vals, dtype=float))
     g.create_dataset("params_present", data=present)
@@ -398,7 +408,7 @@ def _write_special_data(g: h5py.Group, sps: Sequence[SpecialPoint]) -> None:
     names: list[str] = []
     for sp in sps:
         names.extend(n for n in sp.data if n not in names)
-    g.attrs["data_names"] = np.asarray(names, dtype=_STR)
+    g.attrs["data_names"] = np.asarray(names, dtype=_str())
     dg = g.create_group("data")
     present = np.zeros((len(sps), len(names)), dtype=bool)
     for j, name in enumerate(names):
@@ -426,6 +436,8 @@ def _publish(path: Path, fill: Callable[[h5py.File], None]) -> None:
     :func:`contin.atomic.publish` turns into one sentence.  Runs are a few MB.
     """
     import io as _io
+
+    import h5py
 
     def write(tmp: Path) -> None:
         buf = _io.BytesIO()
@@ -691,6 +703,8 @@ def _text(ds: h5py.Dataset) -> list[str]:
 
 
 def _read_column(ds: h5py.Dataset) -> np.ndarray:
+    import h5py
+
     if h5py.check_string_dtype(ds.dtype) is not None:
         return np.asarray(_text(ds), dtype=str)
     return ds[()]
@@ -797,6 +811,8 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"no such file: {str(p)!r}")
+    import h5py
+
     try:
         f = h5py.File(p, "r")
     except OSError as exc:

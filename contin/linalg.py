@@ -33,19 +33,23 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from typing import TYPE_CHECKING
+
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.linalg import lapack
 
 from contin.banded import BandedStructure, factorize_banded, structure_of
+from contin.lapack import flapack
 from contin.problem import Array
 from contin.sparsity import as_csc, canonical_csc, permutation_parity
+
+if TYPE_CHECKING:
+    import scipy.sparse.linalg as spla
 
 __all__ = ["DENSE_FILL", "DENSE_LIMIT", "DENSE_MAX", "DenseLU", "Factorization", "SparseLU", "as_csc", "bordered",
            "bordered_dense", "factorize", "factorize_bordered", "inf_norm", "inverse_iteration", "permutation_parity",
            "structure"]
 
-_getrf, _getrs = lapack.dgetrf, lapack.dgetrs
+_getrf, _getrs = flapack().dgetrf, flapack().dgetrs  # scipy.linalg.lapack's, without scipy.linalg (contin.lapack)
 # ufunc reductions called directly (ndarray.all & co. add a Python wrapper: at continuation
 # sizes the wrapper costs more than the reduction)
 _ALL, _SUM = np.logical_and.reduce, np.add.reduce
@@ -192,6 +196,8 @@ def factorize(a: object) -> Factorization | None:
         fact = factorize_banded(csc, banded)
         if fact is not None:
             return fact  # type: ignore[return-value]
+    import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
     try:
         return SparseLU(spla.splu(csc))
     except RuntimeError:  # SuperLU: "Factor is exactly singular"

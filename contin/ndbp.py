@@ -26,7 +26,6 @@ import math
 from typing import Any
 
 import numpy as np
-import scipy.linalg as la
 
 from contin.branch import Branch, SpecialPoint
 from contin.extended import ExtendedSystem
@@ -45,6 +44,8 @@ ROOT_TOL = 1e-10
 
 def kernels(jac: Array, d: int) -> tuple[Array, Array]:
     """Z, W: right and left singular vectors of the d smallest singular values, W^T Z = I."""
+    import scipy.linalg as la  # lazy: the package is off the path to the first step (contin.lapack)
+
     u, s, vt = la.svd(jac)
     z = vt[-d:].T
     w = u[:, -d:]

@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from contin.problem import Array
@@ -71,6 +70,8 @@ def null_vectors(jacobian: sp.spmatrix, *, seed: int = 0) -> NullVectors:
     n = jacobian.shape[0]
     b, c = borders(n, seed=seed)
     border = sp.bmat([[sp.csc_matrix(jacobian), b[:, None]], [c[None, :], None]], format="csc")
+    import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
     lu = spla.splu(border)
     rhs = np.zeros(n + 1)
     rhs[-1] = 1.0
@@ -122,6 +123,8 @@ class ReducedFunction:
             jac = sp.bmat(
                 [[sp.csc_matrix(self.problem.jacobian(u, p)), -psi[:, None]], [c[None, :], None]], format="csc"
             )
+            import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
             step = spla.spsolve(jac, -res)
             w += step[:n]
             g += step[n]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from contin.problem import Array
 
@@ -26,6 +25,8 @@ def permutation_parity(perm: Array) -> int:
     n = perm.size
     if n == 0:
         return 1
+    from scipy.sparse.csgraph import connected_components  # here: only the sparse LUs need a parity
+
     graph = sp.csr_matrix((np.ones(n), perm, np.arange(n + 1)), shape=(n, n))
     cycles, _ = connected_components(graph, directed=True, connection="weak")
     return 1 if (n - cycles) % 2 == 0 else -1

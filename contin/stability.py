@@ -45,9 +45,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from contin.blas import limited
@@ -147,6 +145,8 @@ def _dense_eigenpairs(A: Any, B: Any, k: int | None, inf_cutoff: float, vectors:
     b = B.toarray() if sp.issparse(B) else np.asarray(B)
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise ValueError("the eigenproblem matrices contain NaN or inf entries")
+    import scipy.linalg as la  # lazy: the package is off the path to the first step (contin.lapack)
+
     if vectors:
         ab, v = la.eig(a, b, right=True, homogeneous_eigvals=True)
     else:
@@ -173,6 +173,8 @@ def _sparse_eigenpairs(A: Any, B: Any, k: int | None, sigma: complex, vectors: b
     a = sp.csc_matrix(A)
     b = sp.csc_matrix(B)
     dtype = np.result_type(a.dtype, b.dtype, np.asarray(sigma).dtype)
+    import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
+
     lu = spla.splu(sp.csc_matrix(a - sigma * b, dtype=dtype))
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(np.asarray(b @ x, dtype=dtype)), dtype=dtype)
     ncv = min(n, max(2 * k + 1, 40))
@@ -325,7 +327,7 @@ def stability_pass(
             # Each point on its own grid (adaptive runs, contin.adapt.point_problem).
             res = stability_of_state(point_problem(problem, branch, i), u, p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
                                      dense_max=dense_max, sigma=shift)
-        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
+        except (np.linalg.LinAlgError, RuntimeError) as exc:  # RuntimeError includes ARPACK's ArpackError
             log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
             continue
         stable[i] = res.stable
@@ -373,7 +375,7 @@ def growth_columns(
                                      dense_max=dense_max)
         except KeyError:
             continue
-        except (np.linalg.LinAlgError, spla.ArpackError, RuntimeError) as exc:
+        except (np.linalg.LinAlgError, RuntimeError) as exc:  # RuntimeError includes ARPACK's ArpackError
             log.warning("stability at kx=%g failed at point %d of branch %s: %s", kx, i, branch.id, exc)
             continue
         growth[i] = res.leading.real

@@ -4,6 +4,8 @@
   lam* = 3.513830719125162: the exact solutions are u = -2 ln[cosh((x - 1/2) theta/2) / cosh(theta/4)]
   with lam = theta^2 / (2 cosh^2(theta/4)), and lam* is the maximum over theta (Bratu 1914,
   Gel'fand 1963).
+- :class:`KinkedBratu`: Bratu plus a step source lam^3 [x > 0.3]: a solution with a jump in u''
+  (algebraically falling Chebyshev coefficients), for adaptive resolution's slow-decay paths.
 - :class:`AllenCahn`: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet.  Supercritical
   pitchforks off u = 0 at lam = k^2 (the Dirichlet eigenvalues of -d^2/dx^2 on [0, pi]);
   symmetry u -> -u (Chafee & Infante, Applicable Anal. 4, 1974).
@@ -30,7 +32,7 @@ from collections.abc import Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from problems.discretization import Grid, chebyshev_coefficients, chebyshev_tail, make_grid
+from problems.discretization import Grid, chebyshev_coefficients, chebyshev_tail, chebyshev_tail_sum, make_grid
 
 Array = np.ndarray
 
@@ -199,6 +201,51 @@ class Bratu(_DirichletBVP):
 
     def initial(self) -> Array:
         return np.zeros(self.n)
+
+
+class KinkedBratu(_DirichletBVP):
+    """u'' + lam e^u + lam^3 s(x) = 0 on [0, 1], u(0) = u(1) = 0, with the step s = 1 for
+    x > X0 = 0.3, else 0: a source with a jump, so u'' jumps by lam^3 at X0, u is only C^1,1 and
+    its Chebyshev coefficients fall algebraically, |a_k| ~ k^-3 (Boyd, *Chebyshev and Fourier
+    Spectral Methods*, 2nd ed., sec. 2.6), with a weight ~ lam^2 relative to the smooth part.
+    The non-granular test problem of adaptive resolution's slow-decay paths (the tail sum of
+    ``problems.discretization.chebyshev_tail_sum`` and the "resolution limit" end of
+    ``contin.adapt``); no symmetry (X0 is off-centre).
+
+    Estimate (Chebyshev): the relative coefficient tail or, where larger, the extrapolated sum of
+    the omitted coefficients (what the last coefficients under-state when they fall slowly).
+    """
+
+    length = 1.0
+    X0 = 0.3
+
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        super().__init__(method, intervals)
+        self._step = (self.x > self.X0).astype(float)
+
+    def _g(self, u: Array, lam: float) -> Array:
+        return lam * np.exp(u) + lam**3 * self._step
+
+    def _g_u(self, u: Array, lam: float) -> Array:
+        return lam * np.exp(u)
+
+    def _g_lam(self, u: Array, lam: float) -> Array:
+        return np.exp(u) + 3.0 * lam**2 * self._step
+
+    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
+        return float(np.max(u))
+
+    def initial(self) -> Array:
+        return np.zeros(self.n)
+
+    def vector_error(self, v: Array) -> float:
+        if self.grid.method != "cheb":
+            return super().vector_error(v)
+        a = np.abs(chebyshev_coefficients(np.asarray(v, dtype=float)))
+        scale = float(np.max(a)) if a.size else 0.0
+        if scale == 0:
+            return 0.0
+        return float(max(np.max(a[-4:]), chebyshev_tail_sum(a)[0]) / scale)
 
 
 class AllenCahn(_DirichletBVP):

@@ -414,6 +414,46 @@ def _lagrange_setup(y_bytes: bytes, y_new_bytes: bytes, width: int, intervals: i
         vals[k * width:(k + 1) * width] = fornberg_weights(yk, y[idx], 0)[:, 0]
     return sp.csr_matrix((vals, (rows, cols)), shape=(y_new.size, size))
 
+
+#: Tails at or below this fraction of the largest coefficient are rounding noise: no tail sum.
+TAIL_SUM_NOISE = 1e-12
+
+
+def chebyshev_tail_sum(absc: NDArray[np.float64], modes: int = 4) -> NDArray[np.float64]:
+    """Extrapolated sum of the *omitted* Chebyshev coefficients sum_{k > N} |a_k| of each row of
+    |a_0..a_N| (``absc``, as from :func:`chebyshev_coefficients`): the suffix-maximum envelope
+    E_k = max_{j >= k} |a_j| is fitted by log E_k = c + s k over the upper half of the spectrum
+    (least squares) and summed geometrically, E(N) rho / (1 - rho) with rho = e^s (capped at N
+    terms).
+
+    Why: the last coefficients (:func:`chebyshev_tail`) are the truncation error only when the
+    coefficients fall fast (rho << 1, Boyd, *Chebyshev and Fourier Spectral Methods*, 2nd ed.,
+    sec. 2.12).  When they fall slowly -- algebraically, |a_k| ~ k^-p, behind a kink of the
+    solution (sec. 2.6: a jump in the q-th derivative gives p = q + 1), or geometrically with
+    rho -> 1, behind a complex singularity close to the interval (a steep interior layer) -- the
+    omitted sum is ~ |a_N| / (1 - rho) ~ |a_N| N / p, one or two orders above |a_N| (2-D disks:
+    measured errors 20-300x the last coefficients at cheb 192-512, docs/disks.md section 9).
+    0 for a row whose tail is rounding noise (<= TAIL_SUM_NOISE of its largest coefficient) or
+    whose envelope does not fall.
+    """
+    a = np.atleast_2d(np.asarray(absc, dtype=float))
+    n = a.shape[-1] - 1
+    out = np.zeros(a.shape[0])
+    if n < 2 * modes:
+        return out
+    env = np.maximum.accumulate(a[:, ::-1], axis=1)[:, ::-1]
+    k = np.arange(n // 2, n + 1, dtype=float)
+    logs = np.log(np.maximum(env[:, n // 2:], 1e-300))
+    km = k - k.mean()
+    slope = (logs - logs.mean(axis=1, keepdims=True)) @ km / float(km @ km)
+    at_n = np.exp(logs.mean(axis=1) + slope * (n - k.mean()))
+    live = (slope < 0) & (a[:, -modes:].max(axis=1) > TAIL_SUM_NOISE * a.max(axis=1))
+    slope = np.minimum(slope, -1e-12)  # rows with slope >= 0 are not live
+    factor = np.minimum(np.exp(slope) / -np.expm1(slope), float(n))
+    out[live] = (at_n * factor)[live]
+    return out
+
+
 @lru_cache(maxsize=32)
 def _barycentric_setup(y_bytes: bytes, y_new_bytes: bytes) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """The point-dependent part of :meth:`Grid.interpolate` from the Chebyshev nodes y to y_new:

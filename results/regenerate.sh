@@ -24,7 +24,7 @@ contin trace jj-walls -s nu=0.3 -s e=0.8 -q -o results/jj_walls.h5
 contin diagram results/jj_walls.h5 -o results/jj_walls.png
 # accuracy: key points of gPCF against method and grid (~2 min)
 CONTIN_SCENES=problems.couette.keypoints:SCENES contin accuracy gpcf-keypoints \
-    --grids 16,24,32,48,64,96,128,256 -q -o results/accuracy
+    --grids 16,24,32,48,64,96,128,256 --tols 1e-4,1e-6,1e-8,1e-10 -q -o results/accuracy
 # criticality: threshold and tricritical densities at e = 0.8, and the two shipped sweeps (~3 min)
 contin trace criticality -s e=0.8 --json --no-stability -q -o results/criticality_e0.8.h5 > results/criticality_e0.8.json
 rm -rf results/sweeps/threshold_tricritical results/sweeps/critical_gap  # recompute, do not resume
@@ -55,9 +55,11 @@ python results/nonlocal/make_figures.py
 
 # ---- disks (issue 17; docs/disks.md): 2-D Jenkins-Richman disks and Savage's dense closure (~30 CPU-min, most of it criticality)
 mkdir -p results/disks
-# adaptive (no grid flag): G_CS n = 1 ends EP at its precision limit, G_FV reaches the bound; exit 3:
-# the G_GF banded branches (steep where nu crosses phi_f) need more than cheb 512 (MX on the maximum grid)
-contin trace disks-pitchfork -q --json -o results/disks/pitchfork.h5 > results/disks/pitchfork.json || [ $? -eq 3 ]
+# adaptive (no grid flag): G_CS n = 1 ends EP at its precision limit, G_FV reaches the bound; the G_GF
+# banded branches (a layer of width m_f = 0.01 where nu crosses phi_f: Chebyshev coefficients fall
+# only slowly) end EP "resolution limit" on cheb 512 (n = 1 at H = 19.5, n = 2 at 37.5/36.7, n = 3 at
+# 54.8; the message names the grid tol would need, ~1.2e3-7.7e3)
+contin trace disks-pitchfork -q --json -o results/disks/pitchfork.h5 > results/disks/pitchfork.json
 for g in cs fv gf; do
     contin diagram results/disks/pitchfork.h5 --branch $g --branch $g.n1.1 --branch $g.n1.2 --branch $g.n2.1 \
         --branch $g.n2.2 --branch $g.n3.1 --branch $g.n3.2 -o results/disks/pitchfork_$g.png
@@ -65,8 +67,9 @@ done
 contin trace disks-steady -q --json -o results/disks/steady.h5 > results/disks/steady.json
 contin diagram results/disks/steady.h5 -o results/disks/steady.png
 contin profiles results/disks/steady.h5 --at H=128 --names nu,u,T -o results/disks/steady_profiles_H128.png
-# exit 3: the banded dense plug (p_con's kink at phi_c, plug near phi_inf) needs more than cheb 512 past H = 24.3 (MX on the maximum grid)
-contin trace savage-rheology -q --json -o results/disks/savage.h5 > results/disks/savage.json || [ $? -eq 3 ]
+# the dense band's n = 1 branches end EP "resolution limit" on cheb 512 at H = 17.9: p_con's kink at
+# phi_c (ESI Eq. 15, zero below phi_c) puts a kink into nu, whose coefficients fall like k^-2
+contin trace savage-rheology -q --json -o results/disks/savage.h5 > results/disks/savage.json
 contin diagram results/disks/savage.h5 --branch band --branch band.n1.1 --branch band.n1.2 -o results/disks/savage_band.png
 python results/disks/make_figures.py savage results/disks/savage.json results/disks/savage.png
 contin trace disks-criticality -q --json -o results/disks/criticality.h5 > results/disks/criticality.json

@@ -166,3 +166,106 @@ def test_cli_accuracy_all_runs_failed():
     r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "fd6", "--grids", "6,8", "--no-memory"])
     assert r.exit_code == 1
     assert "no key points" in r.stderr and "fd6 needs at least 12 intervals" in r.stderr
+
+
+# ------------------------------------------------------------ asking for an accuracy (--tols)
+@pytest.fixture(scope="module")
+def bratu_tols():
+    return run_accuracy(get_scene("bratu"), {}, ["cheb"], [8, 16, 32, 64], memory=False, tols=[1e-4, 1e-8])
+
+
+def test_adaptive_runs_meet_their_tol_against_the_closed_form(bratu_tols):
+    assert [a.tol for a in bratu_tols.adaptive] == [1e-4, 1e-8]
+    for a in bratu_tols.adaptive:
+        assert a.met and not a.failed
+        # independent of the report's reference: the fold against the closed form of problems.demo
+        (fold,) = [v for k, v in a.values.items() if "LP" in k]
+        assert relative_error(fold, BRATU_FOLD) <= a.tol
+        assert a.worst_error == max(a.errors.values()) <= a.tol
+        assert a.grids is not None and a.grids[0] <= a.grids[1]
+
+
+def test_adaptive_cost_is_against_the_cheapest_complete_fixed_run_meeting_tol(bratu_tols):
+    for a in bratu_tols.adaptive:
+        ok = [r for r in bratu_tols.runs if not r.stopped and r.values
+              and all(relative_error(r.values[k], v) <= a.tol for k, v in bratu_tols.reference.items())
+              and (r.method, r.grid) != ("cheb", 64)]  # the reference itself has no error
+        cheapest = min(ok, key=lambda r: r.cpu)
+        assert (a.fixed_method, a.fixed_grid) == (cheapest.method, cheapest.grid)
+        assert a.ratio == pytest.approx(a.cpu / cheapest.cpu)
+
+
+def test_adaptive_row_flags_a_run_beyond_tol():
+    from contin.accuracy import AccuracyReport, Run, adaptive_row
+
+    fixed = [Run("cheb", 32, 1.0, 0.5, 10, 5, math.nan, {"a": 1.0 + 1e-9}),
+             Run("cheb", 64, 2.0, 1.0, 10, 5, math.nan, {"a": 1.0})]
+    rep = AccuracyReport("s", {}, {"a": 1.0}, "cheb N=64", fixed)
+    from contin.accuracy import tabulate
+
+    rep.rows = tabulate(fixed, rep.reference)
+    bad = adaptive_row(Run("cheb", 48, 1.0, 0.25, 10, 5, math.nan, {"a": 1.0 + 3e-6}), 1e-6, rep)
+    assert not bad.met and bad.worst_error == pytest.approx(3e-6) and bad.worst_key == "a"
+    assert (bad.fixed_grid, bad.ratio) == (32, pytest.approx(0.5))
+    missing = adaptive_row(Run("cheb", 48, 1.0, 0.25, 10, 5, math.nan, {}), 1e-6, rep)
+    assert not missing.met and "not found" in missing.failed
+    assert rep.inaccurate == [] and AccuracyReport("s", {}, {}, "", [], adaptive=[bad]).inaccurate == [bad]
+
+
+def test_gpcf_keypoints_adaptive_meet_tol(gpcf):
+    """H_1^c against n pi psi and the nu = 0.16 fold against the cheb-96 reference, asked for
+    1e-4 and 1e-8 instead of a grid (issue 14's tol-vs-achieved check)."""
+    from problems.couette.keypoints import exact_hc1
+
+    rep = run_accuracy(gpcf, {}, ["cheb"], [32, 48, 96], memory=False, tols=[1e-4, 1e-8])
+    assert rep.reference["LP_nu0.16"] == pytest.approx(41.9625323, abs=1e-6)
+    for a in rep.adaptive:
+        assert a.met, a
+        assert relative_error(a.values["Hc1"], exact_hc1(0.3, 0.8)) <= a.tol
+        assert relative_error(a.values["LP_nu0.16"], rep.reference["LP_nu0.16"]) <= a.tol
+    # fixed cheb 32 stops at the guard past the fold (MX): not a grid the job can be run on
+    assert [r.stopped for r in rep.runs] == [1, 0, 0]
+    assert all(a.fixed_grid == 48 for a in rep.adaptive)
+
+
+def test_cli_accuracy_tols_json_csv_and_table(tmp_path):
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "cheb", "--grids", "16,32,64", "--tols", "1e-6",
+                                  "--repeats", "2", "--json", "--no-memory", "--no-plots", "-o", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    (row,) = json.loads(r.stdout)["adaptive"]
+    assert row["tol"] == 1e-6 and row["met"] and row["worst_error"] <= 1e-6
+    assert (tmp_path / "accuracy_bratu_adaptive.csv").read_text().startswith("tol,worst_error")
+    assert "cheapest fixed" in r.stderr
+
+
+def test_cli_accuracy_inaccurate_adaptive_run_exits_4(monkeypatch):
+    import contin.accuracy as acc
+
+    real = acc.run_accuracy
+
+    def fake(*args, **kwargs):
+        rep = real(*args, **kwargs)
+        rep.adaptive = [dataclasses.replace(a, met=False, worst_error=10 * a.tol) for a in rep.adaptive]
+        return rep
+
+    monkeypatch.setattr(acc, "run_accuracy", fake)
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "cheb", "--grids", "16,32", "--tols", "1e-4",
+                                  "--no-memory", "-q"])
+    assert r.exit_code == 4
+    assert r.stderr.strip().startswith("inaccurate: adaptive run at tol 0.0001: achieved error 0.001")
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--tols", "0"], "--tols must be numbers in (0, 1)"),
+    (["--tols", "1e-4,nan"], "--tols must be numbers in (0, 1)"),
+    (["--tols", "x"], "comma-separated list"),
+])
+def test_cli_accuracy_tols_bad_input_one_line(args, message):
+    r = CliRunner().invoke(main, ["accuracy", "bratu", "--no-memory", "--grids", "16,32", *args])
+    assert r.exit_code in (1, 2) and message in r.stderr and "Traceback" not in r.stderr
+
+
+def test_cli_accuracy_tols_needs_an_adaptive_scene():
+    r = CliRunner().invoke(main, ["accuracy", "lorenz", "--no-memory", "--tols", "1e-4"])
+    assert r.exit_code == 1 and "has no adaptive resolution" in r.stderr
+    assert len([line for line in r.stderr.splitlines() if line.startswith("Error")]) == 1

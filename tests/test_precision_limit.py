@@ -10,6 +10,8 @@ on Bratu (problems.demo) with a synthetic rounding model that grows like N^2.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -74,14 +76,20 @@ class SlowBratu(Bratu):
 def test_core_stalled_refinement_retries_a_shorter_step_first():
     """At lam = 2.756 refining 20 -> 32 does not halve the candidate's estimate (6.7e-6 -> 5.2e-6): the
     tracer halves the step instead of ending there ("shortened" in the audit), goes on to lam = 2.999 and
-    ends MX only on the maximum grid (64); every stored point meets tol 1e-6."""
+    ends only on the maximum grid (64); every stored point meets tol 1e-6.  There the estimate falls
+    like N^-1/2 by construction, so the end is EP "resolution limit" (contin.adapt, SLOW_ORDER) with
+    the fitted order 0.5 and the grid tol needs, 64 (err / tol)^2 (tests/test_resolution_limit.py)."""
     pb = SlowBratu("cheb", 8)
     o = ContinuationOptions(bounds={"lam": (0.02, 4.0)}, max_steps=200, step=StepOptions(ds=0.1, ds_max=0.5),
                             adapt=AdaptOptions(tol=1e-6, max_grid=64, min_grid=8, special_tol=1e-6))
     b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
     shortened = [a for a in b.audit if "shortened" in a]
     assert shortened and shortened[0].startswith("step 9: lam=2.755964807 ds=0.5 shortened: under-resolved")
-    assert b.status == "MX" and "on the maximum grid 64" in b.message
+    assert b.status == "EP" and b.message.startswith("resolution limit at lam = ")
+    m = re.search(r"error ([0-9.e+-]+) > tol 1e-06 on the maximum grid 64 falls only like N\^-0.5 .*tol needs N ~ "
+                  r"([0-9.e+]+) > max_grid 64", b.message)
+    assert m, b.message
+    assert float(m.group(2)) == pytest.approx(64 * (float(m.group(1)) / 1e-6) ** 2, rel=0.05)
     assert b.params["lam"][-1] > 2.99 and b.grid[-1] == 64
     assert max(pb.with_grid(b.grid[i]).error_estimate(b.state(i), None) for i in range(len(b))) <= 1e-6
 

@@ -8,7 +8,6 @@ with ``--debug``); 2 usage error (click); 3 the run finished but a branch ended 
 from __future__ import annotations
 
 import contextlib
-import logging
 import math
 import os
 import re
@@ -61,16 +60,40 @@ class ContinGroup(click.Group):
             raise click.ClickException(error_line(exc)) from None
 
 
-class _OneLine(logging.Formatter):
-    def format(self, record: logging.LogRecord) -> str:
-        return f"{record.levelname.lower()}: {record.getMessage()}"
+class ContinCommand(click.Command):
+    """A ``contin`` subcommand: numpy's developer tools are deferred and BLAS threads limited when
+    its body runs, after its arguments are parsed, so ``contin CMD --help`` and usage errors load
+    no numpy or scipy."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        from contin.blas import limit_blas_threads
+        from contin.lazyimports import defer_numpy_tools
+
+        defer_numpy_tools()  # before scipy is imported: numpy.f2py/testing only if used (contin/lazyimports.py)
+        limit_blas_threads()  # one BLAS thread for small matrices (contin/blas.py); CONTIN_BLAS_THREADS
+        return super().invoke(ctx)
+
+
+ContinGroup.command_class = ContinCommand  # every @main.command()
+
+
+def _one_line_formatter(logging: Any) -> Any:
+    """``level: message`` lines (the logging module is passed in: it is imported lazily)."""
+
+    class OneLine(logging.Formatter):
+        def format(self, record: Any) -> str:
+            return f"{record.levelname.lower()}: {record.getMessage()}"
+
+    return OneLine()
 
 
 def _setup_logging(verbose: int) -> None:
+    import logging  # here, not at import: `contin --help` / `--version` never log
+
     log = logging.getLogger("contin")
     if not any(getattr(h, "_contin_cli", False) for h in log.handlers):
         handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(_OneLine())
+        handler.setFormatter(_one_line_formatter(logging))
         handler._contin_cli = True  # type: ignore[attr-defined]
         log.addHandler(handler)
     log.setLevel(logging.DEBUG if verbose > 1 else logging.INFO if verbose else logging.WARNING)
@@ -89,10 +112,7 @@ def main(debug: bool, verbose: int) -> None:
 
     Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 143 SIGTERM.
     """
-    _setup_logging(verbose)
-    from contin.blas import limit_blas_threads
-
-    limit_blas_threads()  # one BLAS thread for small matrices (contin/blas.py); CONTIN_BLAS_THREADS
+    _setup_logging(verbose)  # BLAS threads: ContinCommand.invoke, when a command runs
 
 
 # --------------------------------------------------------------------------- helpers

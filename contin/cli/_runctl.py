@@ -23,7 +23,6 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import click
 
@@ -61,8 +60,9 @@ def sigterm_as_interrupt() -> Iterator[None]:
 
 def check_hdf5_output(path: str | None, option: str = "-o") -> None:
     """Refuse an HDF5 output whose suffix names another format (``-o x.png`` on ``trace``)."""
-    if path is not None and Path(path).suffix.lower() in NOT_HDF5:
-        raise click.BadParameter(f"{path!r} has suffix {Path(path).suffix!r}, but this command writes an HDF5 "
+    suffix = os.path.splitext(path)[1] if path is not None else ""
+    if suffix.lower() in NOT_HDF5:
+        raise click.BadParameter(f"{path!r} has suffix {suffix!r}, but this command writes an HDF5 "
                                  f"run file; use FILE.h5", param_hint=f"'{option}'")
 
 

@@ -43,18 +43,25 @@ def _split(text: str, kind: type, option: str) -> list[Any]:
               help="Directory for the CSV, JSON and plots (e.g. results/accuracy).")
 @click.option("--no-memory", is_flag=True, help="Skip the separate tracemalloc run (halves the time).")
 @click.option("--no-plots", is_flag=True, help="Write the table only.")
+@click.option("--tols", default=None, metavar="LIST",
+              help="Also run the scene with adaptive resolution at each tol (comma-separated, e.g. 1e-4,1e-6; "
+                   "adaptive scenes only): achieved error against tol and cost against the cheapest fixed grid "
+                   "meeting it.  Exit 4 when an achieved error exceeds its tol.")
+@click.option("--repeats", default=1, show_default=True, type=click.IntRange(1, 100),
+              help="Timing rounds, interleaved; each run keeps its smallest CPU time (fair cost ratios on a busy machine).")
 @resolution_tol_option
 @engine_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no table on stderr.")
 def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids: str, as_json: bool,
-                     outdir: str | None, no_memory: bool, no_plots: bool, resolution_tol: str | None,
-                     engine: str, quiet: bool) -> None:
+                     outdir: str | None, no_memory: bool, no_plots: bool, tols: str | None, repeats: int,
+                     resolution_tol: str | None, engine: str, quiet: bool) -> None:
     """Re-trace SCENE's key points (BPs, LPs) at every METHOD x GRID.
 
     Reports each value, its relative error against the finest Chebyshev grid (or a
     Richardson estimate), the observed order, wall and CPU time, Newton iterations and peak
     memory, and which discretization is cheapest for each accuracy budget.  Coarse grids may
     be stopped by the resolution guard; --resolution-tol off keeps their answers as they are.
+    With --tols, the scene is also run asking for each accuracy instead of a grid.
     """
     import contin.scene as scene_mod
     from contin.accuracy import recommend, run_accuracy, write_outputs
@@ -74,7 +81,13 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
         raise ValueError(f"grids must be at most {MAX_GRID} intervals, got {max(grid_list)}")
     if len(set(grid_list)) < 2:  # the finest grid is the reference: one grid measured nothing (a table of nan)
         raise ValueError(f"--grids needs at least two different grid sizes (the finest is the reference), got {grids!r}")
+    tol_list = _split(tols, float, "'--tols'") if tols is not None else []
+    bad_tol = [t for t in tol_list if not 0 < t < 1]  # nan and inf fail this too
+    if bad_tol:
+        raise ValueError(f"--tols must be numbers in (0, 1), got {bad_tol[0]}")
     sc = scene_mod.get_scene(scene)
+    if tol_list and not sc.adaptive:
+        raise ValueError(f"scene {scene!r} has no adaptive resolution; --tols needs an adaptive scene")
     if sc.defaults:
         bad = [n for n in params if n not in sc.defaults]
         if bad:
@@ -90,7 +103,8 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
     try:
         with guard:
             report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
-                                  progress=None if quiet else (lambda m: progress.line(f"running {m}")))
+                                  progress=None if quiet else (lambda m: progress.line(f"running {m}")),
+                                  tols=tol_list, repeats=repeats)
     finally:
         progress.close()
     if not report.reference:
@@ -114,5 +128,20 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
                 fmt(x["cpu"], 3) if x["method"] else "-", fmt(x["worst_error"], 2) if x["method"] else "not reached")
                for x in recommend(report)]
         echo_err(table(rec, ("budget", "method", "N", "cpu s", "worst error")))
+        if report.adaptive:
+            rows = [(f"{a.tol:.0e}", fmt(a.worst_error, 2), a.worst_key, "yes" if a.met else "NO",
+                     "-" if a.grids is None else f"{a.grids[0]}..{a.grids[1]}", f"{a.cpu:.3f}",
+                     f"{a.fixed_method} {a.fixed_grid}" if a.fixed_method else "none",
+                     fmt(a.fixed_cpu, 3) if a.fixed_method else "-", fmt(a.ratio, 3) if a.fixed_method else "-")
+                    for a in report.adaptive]
+            echo_err(table(rows, ("tol", "achieved", "worst key point", "met", "grids", "cpu s",
+                                  "cheapest fixed", "its cpu s", "ratio")))
         for path in written:
             echo_err(f"wrote {path}")
+    if report.inaccurate:
+        from contin.cli.verify import EXIT_INACCURATE
+
+        for a in report.inaccurate:
+            why = a.failed or f"achieved error {fmt(a.worst_error, 2)} at {a.worst_key} exceeds it"
+            click.echo(f"inaccurate: adaptive run at tol {a.tol:g}: {why}", err=True)
+        raise click.exceptions.Exit(EXIT_INACCURATE)

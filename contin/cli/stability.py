@@ -12,7 +12,6 @@ without one) is solved by dense QZ (:func:`contin.stability.eigenpairs`).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
 
 import click
@@ -209,6 +208,8 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
     if eigenfunction:
         if output is None:
             fail("--eigenfunction needs -o FIG (the eigenfunction goes to FIG_eigenfunction.EXT)")
+        from pathlib import Path
+
         p = Path(output)
         eig_path = p.with_name(f"{p.stem}_eigenfunction{p.suffix or '.png'}")
     if output is not None:

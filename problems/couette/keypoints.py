@@ -9,6 +9,9 @@
 
 Each is traced as a user would: uniform branch in H through the BP, branch switching, banded
 branch down to the fold.  The result exposes ``extra['key_points']`` (see contin.accuracy).
+The scene is adaptive: ``--tol`` (``SceneRequest.overrides['tol']``) lets every trace choose and
+change its grid (``contin.adapt``); ``contin accuracy gpcf-keypoints --tols 1e-4,...`` compares
+those runs with the fixed grids.
 Register it for the CLI with ``CONTIN_SCENES=problems.couette.keypoints:SCENES``.
 """
 
@@ -34,25 +37,37 @@ def exact_hc1(nu: float, e: float) -> float:
     return float(np.pi * critical_gap_factor(nu, e))
 
 
+def first_bp_options(nu: float, e: float) -> ContinuationOptions:
+    """The uniform-shear trace of :func:`first_bp`: H from 0.8 H_1^c to 1.2 H_1^c."""
+    hc = exact_hc1(nu, e)
+    return ContinuationOptions(step=StepOptions(ds=0.5, ds_max=2.0), bounds={"H": (0.8 * hc, 1.2 * hc)}, max_steps=200)
+
+
+def fold_options(nu: float, e: float) -> ContinuationOptions:
+    """The traces of :func:`banded_fold`: H in (0.6, 1.05) H_1^c.
+
+    The subcritical branch bends steeply: H - H_c ~ -3500 a^2 in the theta = 1 norm (a the
+    mode amplitude), so the first step off the BP needs ds ~ 1e-4.  Down-weighting H in the
+    arclength (theta = 1e-4) makes ds = 0.01 work and halves the number of steps."""
+    hc = exact_hc1(nu, e)
+    return ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.5, theta=1e-4),
+                               bounds={"H": (0.6 * hc, 1.05 * hc)}, max_steps=300)
+
+
 def first_bp(problem: CouetteProblem, nu: float, e: float, options: ContinuationOptions | None = None) -> tuple[Branch, Any]:
     """Uniform shear in H from 0.8 H_1^c to 1.2 H_1^c and its first BP (None if none found)."""
     hc = exact_hc1(nu, e)
     p = build_params({"nu": nu, "e": e, "H": 0.8 * hc})
-    opts = options or ContinuationOptions(step=StepOptions(ds=0.5, ds_max=2.0), bounds={"H": (0.8 * hc, 1.2 * hc)},
-                                          max_steps=200)
+    opts = options or first_bp_options(nu, e)
     br = trace(problem, problem.uniform_state(p), p, "H", opts)
     bps = [s for s in br.special_points if s.type == "BP"]
     return br, (bps[0] if bps else None)
 
 
-def banded_fold(problem: CouetteProblem, nu: float, e: float) -> tuple[list[Branch], Any]:
+def banded_fold(problem: CouetteProblem, nu: float, e: float,
+                options: ContinuationOptions | None = None) -> tuple[list[Branch], Any]:
     """The n = 1 banded branch from H_1^c(nu) downwards and its first LP (None if none)."""
-    hc = exact_hc1(nu, e)
-    # The subcritical branch bends steeply: H - H_c ~ -3500 a^2 in the theta = 1 norm (a the
-    # mode amplitude), so the first step off the BP needs ds ~ 1e-4.  Down-weighting H in the
-    # arclength (theta = 1e-4) makes ds = 0.01 work and halves the number of steps.
-    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.5, theta=1e-4),
-                               bounds={"H": (0.6 * hc, 1.05 * hc)}, max_steps=300)
+    opts = options or fold_options(nu, e)
     base, bp = first_bp(problem, nu, e, opts)
     if bp is None:
         return [base], None
@@ -74,8 +89,10 @@ def run(request: SceneRequest) -> SceneResult:
         problem = CouetteProblem(request.method or "cheb", request.grid or 32, engine=request.engine or "numpy")
     except ValueError as exc:
         raise SceneError(str(exc)) from None
-    base, bp = first_bp(problem, values["nu_super"], values["e"])
-    branches, lp = banded_fold(problem, values["nu_sub"], values["e"])
+    base, bp = first_bp(problem, values["nu_super"], values["e"],
+                        request.options_for(first_bp_options(values["nu_super"], values["e"])))
+    branches, lp = banded_fold(problem, values["nu_sub"], values["e"],
+                               request.options_for(fold_options(values["nu_sub"], values["e"])))
     keys: dict[str, float] = {}
     if bp is not None and bp.converged:
         keys["Hc1"] = bp.params["H"]
@@ -91,4 +108,4 @@ def run(request: SceneRequest) -> SceneResult:
 
 
 SCENES = {"gpcf-keypoints": Scene("gpcf-keypoints", "gPCF key points: H_1^c (nu=0.3) and the banded-branch fold at nu=0.16",
-                                  DEFAULTS, run, x="H", y="phi")}
+                                  DEFAULTS, run, x="H", y="phi", adaptive=True)}

@@ -67,7 +67,6 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
 
 from contin.adapt import on_grid, point_problem
@@ -643,6 +642,8 @@ def finite_eigenvalues(A: Any, B: Any) -> np.ndarray:
             schur = a[np.ix_(k, k)]
             if z.size:
                 schur = schur - a[np.ix_(k, z)] @ np.linalg.solve(azz, a[np.ix_(z, k)])
+            import scipy.linalg as la  # lazy: the package is off the path to the first step (contin.lapack)
+
             w = la.eigvals(schur / d[k][:, None])
             return w[np.lexsort((-w.imag, -w.real))]
     return eigenvalues(A, B)
