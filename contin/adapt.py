@@ -255,11 +255,13 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
 
 def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
     """The grid of the two-grid check of a point on ``problem``'s grid: ceil(factor N) rounded
-    up to ``multiple`` (verify's fine grid), at most factor x max_grid -- a measurement, not a
-    grid the run computes on, so a point on max_grid is checked too (None only if factor N
-    rounds to N)."""
+    up to ``multiple`` (verify's fine grid), capped at max_grid for points below it; a point on
+    max_grid is checked on factor x max_grid (a measurement, not a grid the run computes on).
+    None only if factor N rounds to N."""
     n = int(problem.grid_size)
-    n_f = min(_round(factor * n, opts.multiple), _round(factor * opts.max_grid, opts.multiple))
+    n_f = _round(factor * n, opts.multiple)
+    if n < opts.max_grid:
+        n_f = min(n_f, opts.max_grid)  # (gPCF: a check of cheb 368 on 512, 1/3 of the LU flops of 736)
     return n_f if n_f > n else None
 
 
@@ -392,7 +394,7 @@ class Adaptor:
         self.checks = 0  # two-grid checks done (solve_check)
         self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
         #: (points, snapshot) of the last refinement, to undo it at a two-grid floor (solve_floor)
-        self._undo: tuple[int, tuple] | None = None
+        self._undo: tuple[int, tuple, int] | None = None
         #: the grid in force was raised by the two-grid check, not by the estimate: coarsening is
         #: tried where the estimate is below COARSEN_MARGIN * tol (the check then decides), else
         #: an FD branch refined to max_grid at a fold would stay there (Bratu fd2: its defect
@@ -530,12 +532,18 @@ class Adaptor:
         :meth:`refine`, stalled): the solve's error has a floor above tol that finer grids do
         not lower -- rounding next to a closure's singularity, which the problem's
         ``rounding_error`` under-reads (gPCF nu = 0.5, H = 38.96: the solutions on cheb 80 .. 384
-        all differ by 0.6-1.5e-4, their rounding estimate 2e-7 .. 6e-6).  The refinement of the
-        last point is undone, so that every stored point keeps its passed check, and the
+        all differ by 0.6-1.5e-4, their rounding estimate 2e-7 .. 6e-6).  The refinements of the
+        last point are undone (back to the grid on which it passed its check), so that every
+        stored point keeps its passed check, and the
         message is a precision limit (the tracer ends the branch EP)."""
         count = len(tracer.points)
         if self._undo is not None and self._undo[0] == count:
-            self._restore(tracer, self._undo[1])
+            # undo every refinement from this point (a chain of them: 80 -> 128 -> 240 -> 368)
+            _, keep, n_lines = self._undo
+            tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1] = keep[:5]
+            tracer.point_tests = keep[6]
+            del tracer.audit[keep[5]:]
+            del self.lines[n_lines:]
         self._undo = None
         sys = tracer.system
         cur = tracer.points[-1]
@@ -723,7 +731,10 @@ class Adaptor:
                 # where the coarse spectrum had not yet shown a forming kink or layer (Savage's
                 # dense band, cheb 32 -> 48 -> 144: 4.6e-5 on 144, 1e-4 against cheb 216): refine
                 # on until it meets tol again (on max_grid its estimate is what the end states).
-                self._undo = (count, keep)  # one grid change, undone at a two-grid floor (solve_floor)
+                if self._undo is None or self._undo[0] != count:
+                    # the point's grid before its first refinement (where it passed its check),
+                    # restored at a two-grid floor (solve_floor)
+                    self._undo = (count, keep, len(self.lines) - 1)
                 self.check_raised = self.checked is not None
                 x_last = tracer.points[-1].x
                 e_last = self.error(new, x_last)
