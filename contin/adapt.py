@@ -57,6 +57,7 @@ from __future__ import annotations
 import math
 import warnings
 import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -253,6 +254,19 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
     return v
 
 
+def solution_error(problem: Any, x: Any, ref: Any, p: Mapping[str, Any]) -> float:
+    """Relative error of state x against the reference ref (both on ``problem``'s grid): the
+    problem's ``solution_error`` hook, else max|x - ref| / max|ref|."""
+    x = np.asarray(x, dtype=float)
+    ref = np.asarray(ref, dtype=float)
+    if has(problem, "solution_error"):
+        e = float(problem.solution_error(x, ref, p))
+    else:
+        scale = float(np.max(np.abs(ref))) if ref.size else 0.0
+        e = float(np.max(np.abs(x - ref)) / scale) if scale > 0 else float(np.max(np.abs(x - ref), initial=0.0))
+    return e if math.isfinite(e) else math.inf
+
+
 def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
     """The grid of the two-grid check of a point on ``problem``'s grid: ceil(factor N) rounded
     up to ``multiple`` (verify's fine grid), capped at max_grid for points below it; a point on
@@ -272,7 +286,7 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
 
         v = T u,   delta = -J_f(v)^-1 F_f(v, p),   error = ||delta|| / ||v + delta||
 
-    in the problem's ``solution_error`` norm (:func:`contin.verify.solution_error`).  v + delta
+    in the problem's ``solution_error`` norm (:func:`solution_error`, which ``contin.verify`` uses).  v + delta
     is the fine solution to O(||delta||^2), so this is the quantity ``contin verify`` measures
     (the fine grid's own error subtracted: equal to the error for spectral grids, 1 - factor^-q
     of it for FD of order q).  Unlike the state's estimate it sees the truncation amplified by
@@ -280,7 +294,6 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
     None when factor N rounds to N; inf when the fine J is exactly singular or the
     result is not finite."""
     from contin.linalg import dense_factorization, factorize
-    from contin.verify import solution_error
 
     n_f = check_grid(problem, factor, opts)
     if n_f is None:
@@ -630,7 +643,6 @@ class Adaptor:
         difference to a coarser solve bounds a monotonically falling error (``contin.verify``'s
         norm; a coarser grid, so the check costs less than a step on max_grid)."""
         from contin.newton import newton
-        from contin.verify import solution_error
 
         problem = sys.problem
         params = sys.params_at(x[-1])

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.adapt import solution_error  # the norm the tracer's two-grid check shares
 from contin.problem import has
 
 __all__ = ["BranchCheck", "PointCheck", "fine_grid", "solution_error", "verify_branch"]
@@ -138,17 +139,6 @@ def fine_grid(grid: int, factor: float, max_grid: int | None) -> int:
     return min(n, int(max_grid)) if max_grid is not None else n
 
 
-def solution_error(problem: Any, x: Any, ref: Any, p: Mapping[str, Any]) -> float:
-    """Relative error of state x against the reference ref (both on ``problem``'s grid): the
-    problem's ``solution_error`` hook, else max|x - ref| / max|ref|."""
-    x = np.asarray(x, dtype=float)
-    ref = np.asarray(ref, dtype=float)
-    if has(problem, "solution_error"):
-        e = float(problem.solution_error(x, ref, p))
-    else:
-        scale = float(np.max(np.abs(ref))) if ref.size else 0.0
-        e = float(np.max(np.abs(x - ref)) / scale) if scale > 0 else float(np.max(np.abs(x - ref), initial=0.0))
-    return e if math.isfinite(e) else math.inf
 
 
 def _observable(problem: Any, u: Any, p: Mapping[str, Any]) -> float:
