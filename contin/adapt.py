@@ -176,6 +176,12 @@ def coarser(problem: Any, opts: AdaptOptions) -> int | None:
     return want if want < n else None
 
 
+#: A two-grid error that refinement does not lower is a rounding floor (EP precision limit) where
+#: the problem's rounding estimate on the check grid is at least this fraction of tol (gPCF nu = 0.5
+#: at H = 38.96: 2.9e-6 on cheb 256 for tol 3e-5, the measured differences 1e-4); below it (or
+#: without the hook: a kink, whose two-grid differences scatter) the estimate decides instead.
+ROUNDING_SHARE = 0.01
+
 #: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
 ESTIMATE_CACHE = 8
 
@@ -539,6 +545,17 @@ class Adaptor:
         e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), factor, self.opts)
         self.checked = e
         return e if e is not None and e > self.opts.tol else None
+
+    def rounding_floor(self, system: Any, x: Array) -> bool:
+        """Whether the problem's ``rounding_error`` of the candidate x on its check grid is at least
+        ROUNDING_SHARE x tol: then a two-grid error that refinement does not lower is the finer
+        grids' rounding (a floor, :meth:`solve_floor`); without the hook, or far below, it is not."""
+        n_f = None if self.opts.check_factor is None else check_grid(system.problem, self.opts.check_factor, self.opts)
+        if n_f is None or not has(system.problem, "rounding_error"):
+            return False
+        fine = on_grid(system.problem, n_f)
+        v = system.problem.transfer(x[:-1], fine)
+        return rounding_error(fine, v, system.params_at(x[-1])) >= ROUNDING_SHARE * self.opts.tol
 
     def solve_floor(self, tracer: Any, stop: str) -> str:
         """The end of a branch whose two-grid error did not fall with refinement (``stop``, from
