@@ -22,7 +22,13 @@ the uniform branch at H = 10) from Chebyshev N = 12 to fd4 N = 25600:
    25600 --no-stability`` (target < 1 GB).
 
 Times are CPU seconds (time.process_time; the fairer figure on a shared machine), best of
-``repeats`` timings of >= 20 ms of calls each, one BLAS thread (contin.blas).
+``repeats`` rounds (20; --quick 8) of timings of >= 20 ms of calls each, one BLAS thread
+(contin.blas).  Why 20 rounds and not 5: with 4-5 busy processes on the 2 cores, a 20 ms batch
+is often slowed by another process's cache and branch-predictor traffic, and min-of-5 left the
+cheb 12-24 ratios scattering by +-0.2 from run to run (1.3-2.1 seen), each side catching a
+clean batch or not by chance; with 20 rounds both sides reach their floor and repeated runs
+agree to a few per cent.  The rounds stay interleaved, so the definition of the ratio is
+unchanged.
 """
 
 from __future__ import annotations
@@ -154,10 +160,12 @@ def newton_row(method: str, n_grid: int, repeats: int) -> dict[str, Any]:
     kind = structure(jac if not hasattr(jac, "tocsc") else bordered_sparse(jac, fp, row))
     dense_lu = math.nan
     if x.size <= 3000:
-        from scipy.linalg import lu_factor
+        from contin.linalg import factorize
 
+        # contin's own dense path (a Fortran-ordered copy, then LAPACK getrf in place), as the
+        # factorization column's: scipy.linalg.lu_factor adds its wrapper (check_finite, asarray)
         dense = bordered_dense(jac.toarray() if hasattr(jac, "toarray") else jac, fp, row)
-        dense_lu = cpu_best(lambda: lu_factor(dense), repeats)
+        dense_lu = cpu_best(lambda: factorize(dense), repeats)
     parts = t_res + t_jac + t_fact + t_solve
     return {"grid": f"{method} {n_grid}", "unknowns": x.size, "structure": kind, "converged": corr.converged,
             "iterations": corr.iterations, "iteration": t_iter, "residual": t_res, "jacobian": t_jac,
@@ -224,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     args = ap.parse_args(argv)
     limit_blas_threads(1)
-    repeats = 3 if args.quick else 5
+    repeats = 8 if args.quick else 20
     out: dict[str, Any] = {"newton": [], "branch": [], "memory": None}
     print(f"{'grid':>11} {'unknowns':>8} {'structure':>9} {'it':>3} {'iteration':>10} {'residual':>9} {'jacobian':>9} "
           f"{'factor':>9} {'solve':>9} {'sum':>9} {'ratio':>6} {'replay':>9} {'ratio':>6} {'dense LU':>9}   (CPU ms)")

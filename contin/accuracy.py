@@ -192,6 +192,9 @@ def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int | No
     iters = sum(int(b.newton_iterations.sum()) for b in result.branches if len(b))
     points = sum(len(b) for b in result.branches)
     used = grids_used(result)
+    if used is None and grid is None and result.discretization.get("intervals"):
+        n = int(result.discretization["intervals"])  # an adaptive run that stayed on its start grid
+        used = (n, n)
     if grid is None:
         grid = used[1] if used else int(result.discretization.get("intervals", 0) or 0)
     return Run(method, grid, wall, cpu, iters, points, peak, key_points(result),

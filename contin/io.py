@@ -147,6 +147,7 @@ def _str() -> Any:
 
     return h5py.string_dtype()
 
+
 ProfileFn = Callable[[np.ndarray], Mapping[str, np.ndarray]]
 
 

@@ -269,3 +269,17 @@ def test_cli_accuracy_tols_needs_an_adaptive_scene():
     r = CliRunner().invoke(main, ["accuracy", "lorenz", "--no-memory", "--tols", "1e-4"])
     assert r.exit_code == 1 and "has no adaptive resolution" in r.stderr
     assert len([line for line in r.stderr.splitlines() if line.startswith("Error")]) == 1
+
+
+@pytest.mark.slow
+def test_gpcf_frstar_asked_for_tol_meets_it():
+    """Fr* (the floating-plug limit, max of G on the first pitchfork's fold curve) asked for
+    1e-4 instead of a grid, against the fixed cheb 48 run (whose Fr* agrees with cheb 96 to
+    1e-12) and AUTO-07p's 254.1204 (benchmarks/auto_peer, DSMAX 0.02)."""
+    from problems.couette.keypoints import SCENES
+
+    rep = run_accuracy(SCENES["gpcf-frstar"], {}, ["cheb"], [24, 48], memory=False, tols=[1e-4])
+    (a,) = rep.adaptive
+    assert rep.reference["Fr*"] == pytest.approx(254.1204, abs=2e-4)
+    assert a.met and relative_error(a.values["Fr*"], rep.reference["Fr*"]) <= 1e-4
+    assert a.grids is not None and a.grids[1] <= 48  # the curve's grid chosen from its seed, not the start's 32 refined

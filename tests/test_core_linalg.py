@@ -1,6 +1,7 @@
 """LU (dense and sparse back ends) determinant signs, permutation parity, bordered assembly, step-size law."""
 
 import itertools
+import warnings
 
 import numpy as np
 import pytest
@@ -163,3 +164,42 @@ def test_antisymmetric_reduction_dense_gather_equals_sparse_product_bitwise(n):
         assert isinstance(red, np.ndarray)
         np.testing.assert_array_equal(red, ref)
     assert anti.det(jac) == factorize(as_csc(ref)).det_sign_log()
+
+
+@pytest.mark.parametrize("case", ["random", "exactly singular", "zero column", "tiny pivot", "nan"])
+def test_dense_lu_equals_scipy_on_random_and_singular_ish_matrices(case):
+    # contin's dense LU calls LAPACK getrf/getrs directly (positional arguments, zero pivots by
+    # count_nonzero): the same LU, pivots, solves and determinant sign as scipy.linalg
+    # lu_factor / lu_solve and numpy's slogdet, and None exactly where a pivot is exactly 0
+    from scipy.linalg import lu_factor, lu_solve
+
+    rng = np.random.default_rng(11)
+    n = 30
+    a = rng.standard_normal((n, n))
+    if case == "exactly singular":
+        a[7] = 2.0 * a[3]  # rows in exact ratio 2: elimination leaves an exact zero pivot
+    elif case == "zero column":
+        a[:, 5] = 0.0
+    elif case == "tiny pivot":
+        a[:, 4] = a[:, 2] + 1e-300 * rng.standard_normal(n)
+    elif case == "nan":
+        a[3, 3] = np.nan
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy's LinAlgWarning on an exactly zero pivot
+        lu, piv = lu_factor(a, check_finite=False)
+    fact = factorize(a)
+    zero_pivot = np.count_nonzero(np.diag(lu)) < n
+    assert zero_pivot == (case in ("exactly singular", "zero column"))
+    if zero_pivot:
+        assert fact is None
+        return
+    assert np.array_equal(fact.lu, lu, equal_nan=True) and np.array_equal(fact.piv, piv)
+    b = rng.standard_normal(n)
+    for trans, t in (("N", 0), ("T", 1)):
+        assert np.array_equal(fact.solve(b, trans=trans), lu_solve((lu, piv), b, trans=t, check_finite=False),
+                              equal_nan=True)
+    if case == "nan":
+        return
+    sign, logabs = fact.det_sign_log()
+    ref_sign, ref_log = np.linalg.slogdet(a)
+    assert sign == ref_sign and logabs == pytest.approx(ref_log, rel=1e-12)

@@ -580,3 +580,37 @@ def test_grid_setup_shared_per_grid_and_bounded():
     for N in range(8, 8 + m._SETUPS_MAX + 5):
         m.CouetteProblem("cheb", N)
     assert len(m._SETUPS) == m._SETUPS_MAX
+
+
+def test_admissible_fast_path_agrees_with_the_detailed_checks():
+    # admissible's fast path (argmin/argmax of nu, T and x) returns None exactly where every
+    # detailed check passes: edge states on each side of each bound, non-finite entries in
+    # every block, huge but finite entries
+    problem = CouetteProblem("cheb", 10, gravity=True)
+    p = problem.params({"nu": 0.25})
+    x = perturbed(problem, p)
+    limit = p["num"]
+
+    def detailed(v):
+        nu, T = v[problem.i_nu], v[problem.i_T]
+        ok = np.all(np.isfinite(v)) and np.min(T) > 0 and np.min(nu) > 0 and np.max(nu) < limit
+        return None if ok else "bad"
+
+    cases = [x]
+    for block, k, value in [(problem.i_nu, 0, 0.0), (problem.i_nu, 4, -0.0), (problem.i_nu, 9, limit),
+                            (problem.i_nu, 2, np.nextafter(limit, 0)), (problem.i_nu, 3, 5e-324),
+                            (problem.i_T, 0, 0.0), (problem.i_T, 5, 5e-324), (problem.i_T, 7, np.inf),
+                            (problem.i_u, 1, np.nan), (problem.i_u, 2, -np.inf), (problem.i_T, 3, np.nan),
+                            (problem.i_nu, 6, np.nan), (problem.i_M, 0, np.inf), (problem.i_u, 0, 1e200)]:
+        v = x.copy()
+        v[block][k] = value
+        cases.append(v)
+    v = x.copy()
+    v[problem.i_P] = np.nan
+    cases.append(v)
+    for v in cases:
+        got = problem.admissible(v, p)
+        assert (got is None) == (detailed(v) is None), (v, got)
+    huge = x.copy()
+    huge[problem.i_u][0], huge[problem.i_P] = 1e300, -1.7e308
+    assert problem.admissible(huge, p) is None

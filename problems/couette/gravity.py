@@ -570,7 +570,7 @@ class PhaseDiagram:
 def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], base: Branch, kids: Sequence[Branch],
                           *, H_range: tuple[float, float] = (1.0, 50.0), Fr_start: float = 2000.0,
                           max_steps: int = 300, progress: Callable[[str], None] | None = None,
-                          refine: AdaptOptions | None = None) -> list[Branch]:
+                          refine: AdaptOptions | None = None, choose_grid: bool = False) -> list[Branch]:
     """Fold curves in (H, G) through the imperfect symmetry-breaking pitchforks of ``base``
     (gravity-free uniform shear with its banded branches ``kids``, :func:`gravity_free_branches`).
 
@@ -587,6 +587,14 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     MX): a pitchfork's fold curve that stops under-resolved is retraced on finer grids, up to
     ``refine.max_grid`` (:func:`contin.adapt.retrace_finer`); such a curve's ``grid`` column
     holds the grid it was traced on and its audit names the grids tried.
+
+    ``choose_grid`` (with ``refine``; asking for an accuracy instead of a grid): each fold curve
+    starts on the grid :func:`contin.adapt.start_grid` picks for its seed (the dense-top banded
+    state at H_c + 3, G = 0: refined while its estimate exceeds ``refine.tol``, coarsened where it
+    is far below), and its traces run with the resolution guard at ``refine.tol``
+    (:func:`contin.options.resolution_override`), so a curve the chosen grid does not carry to
+    ``refine.tol`` is retraced finer.  (Fold curves are augmented systems the tracer cannot regrid
+    point by point: the whole curve takes one grid.)
     """
     say = progress or (lambda m: None)
     bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
@@ -600,6 +608,8 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
 
         if refine is None:
             found, sizes = compute(problem), [int(problem.grid_size)]
+        elif choose_grid:
+            found, sizes = _fold_curves_at_tol(problem, params, kids, base, bp, compute, refine)
         else:
             _, found, sizes = retrace_finer(problem, compute, refine, suggest=_suggest_for_curves)
         for c in found:
@@ -616,7 +626,37 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     return curves
 
 
-def suggest_grid_for(problem: CouetteProblem, stopped: Sequence[Branch], factor: float = 2.0) -> int:
+def _dense_top(params: Mapping[str, float], base: Branch, kids: Sequence[Branch], bp: SpecialPoint) -> tuple[Branch, int] | None:
+    """The dense-top banded branch of pitchfork ``bp`` and its row nearest H_c + 3 (the seed of
+    the pitchfork's fold curve), or None."""
+    mode = base.branch_points.index(bp) + 1
+    tops = [b for b in kids if b.id.startswith(f"g0.{mode}.") and b.observables["phi"][-1] > params["nu"]]
+    if not tops:
+        return None
+    return tops[0], int(np.argmin(np.abs(tops[0].params["H"] - (bp.params["H"] + 3.0))))
+
+
+def _fold_curves_at_tol(problem: CouetteProblem, params: Mapping[str, float], kids: Sequence[Branch], base: Branch,
+                        bp: SpecialPoint, compute: Callable[[CouetteProblem], list[Branch]],
+                        refine: AdaptOptions) -> tuple[list[Branch], list[int]]:
+    """:func:`pitchfork_fold_curves` with ``choose_grid``: the start grid from the seed state,
+    then retraced finer while the guard at ``refine.tol`` stops a curve."""
+    from contin.adapt import start_grid
+    from contin.options import resolution_override
+
+    start = problem
+    seed = _dense_top(params, base, kids, bp)
+    if seed is not None:
+        top, i = seed
+        start, _, _ = start_grid(problem, np.asarray(top.state(i), float), _params_at(top, i), refine, NewtonOptions())
+    with resolution_override(refine.tol):
+        _, found, sizes = retrace_finer(start, compute, refine,
+                                        suggest=lambda pb, stopped: suggest_grid_for(pb, stopped, tol=refine.tol))
+    return found, sizes
+
+
+def suggest_grid_for(problem: CouetteProblem, stopped: Sequence[Branch], factor: float = 2.0,
+                     tol: float = RESOLUTION_TOL) -> int:
     """Grid for branches (or fold curves: their states start with the problem's state) that
     stopped under-resolved: ``factor`` times what the resolution estimate asks for at their two
     ends (the plug keeps densifying past the stop, up to H_max, so the grid that just meets tol
@@ -626,7 +666,7 @@ def suggest_grid_for(problem: CouetteProblem, stopped: Sequence[Branch], factor:
     for c in stopped:
         for j in (0, len(c) - 1):
             p = {k: float(v[j]) for k, v in c.params.items()}
-            asked = problem.suggest_grid(np.asarray(c.states[j][:n], float), p, RESOLUTION_TOL)
+            asked = problem.suggest_grid(np.asarray(c.states[j][:n], float), p, tol)
             want = max(want, int(math.ceil(factor * asked)))
     return want
 
@@ -650,12 +690,10 @@ def _bp_fold_curves(problem: CouetteProblem, source: CouetteProblem, params: Map
     G0 = Fr_start ** -2.0
     Hc = bp.params["H"]
     # dense-top half of the banded branch of this BP (ids g0.<mode>.1/2, both signs)
-    mode = base.branch_points.index(bp) + 1
-    tops = [b for b in kids if b.id.startswith(f"g0.{mode}.") and b.observables["phi"][-1] > params["nu"]]
-    if not tops:
+    seed = _dense_top(params, base, kids, bp)
+    if seed is None:
         return []
-    top = tops[0]
-    i = int(np.argmin(np.abs(top.params["H"] - (Hc + 3.0))))
+    top, i = seed
     p = _params_at(top, i)
     u = top.state(i) if problem is source else source.transfer(np.asarray(top.state(i), float), problem)
     x = homotopy_in_G(problem, u, p, G0)

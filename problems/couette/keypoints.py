@@ -7,6 +7,12 @@
 - ``LP_nu0.16``: the fold of the subcritical n = 1 banded branch at nu = 0.16, e = 0.8
   (H ~ 41.96; the solve_bvp baseline in benchmarks/ finds 41.963 by pinning).
 
+``gpcf-frstar`` (gravity, Fr = G^-1/2): ``Fr*``, the smallest Froude number with a floating-plug
+state at (nu, e) = (0.3, 0.8): the maximum of G along the (H, G) fold curve of the first
+imperfect pitchfork (problems.couette.gravity.pitchfork_fold_curves; 254.12, the gravity-phase
+scene and AUTO-07p's job d agree).  With ``--tol`` the fold curve's grid is chosen from its seed
+and the curve retraced finer while the guard at tol stops it (``choose_grid``).
+
 Each is traced as a user would: uniform branch in H through the BP, branch switching, banded
 branch down to the fold.  The result exposes ``extra['key_points']`` (see contin.accuracy).
 The scene is adaptive: ``--tol`` (``SceneRequest.overrides['tol']``) lets every trace choose and
@@ -107,5 +113,41 @@ def run(request: SceneRequest) -> SceneResult:
                        extra={"key_points": keys, "Hc1_exact": exact_hc1(values["nu_super"], values["e"])})
 
 
-SCENES = {"gpcf-keypoints": Scene("gpcf-keypoints", "gPCF key points: H_1^c (nu=0.3) and the banded-branch fold at nu=0.16",
+FRSTAR_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 30.0}
+#: start grid of gpcf-frstar (fixed runs: the grid; adaptive runs: where the choice starts)
+FRSTAR_GRID = 32
+
+
+def run_frstar(request: SceneRequest) -> SceneResult:
+    """Fr* = G_max^-1/2 along the first pitchfork's fold curve (module docstring)."""
+    from contin.options import AdaptOptions
+    from problems.couette.gravity import GravitySettings, extrema, gravity_free_branches, gravity_problem, pitchfork_fold_curves
+
+    values = dict(FRSTAR_DEFAULTS)
+    for k, v in request.params.items():
+        if k not in FRSTAR_DEFAULTS:
+            raise SceneError(f"unknown parameter {k!r} for scene 'gpcf-frstar'; its parameters are {', '.join(FRSTAR_DEFAULTS)}")
+        values[k] = float(v)
+    try:
+        problem = gravity_problem(request.method or "cheb", request.grid or FRSTAR_GRID, engine=request.engine or "numpy")
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    p = problem.params({"nu": values["nu"], "e": values["e"], "G": 0.0})
+    H_range = (values["H_min"], values["H_max"])
+    base, kids = gravity_free_branches(problem, p, GravitySettings(H_range=H_range, modes=1))
+    tol = request.overrides.get("tol")
+    refine = None if tol is None else AdaptOptions(tol=float(tol), max_grid=int(request.overrides.get("max_grid") or 512))
+    curves = pitchfork_fold_curves(problem, p, base, kids, H_range=H_range, refine=refine, choose_grid=refine is not None)
+    first = [r for r in extrema(curves) if r["curve"] == "fold0" and r["extremum"] == "max"]
+    keys = {"Fr*": min(r["Fr"] for r in first)} if first else {}
+    base.id = "g0"
+    done = [base, *kids, *curves]
+    return SceneResult(branches=done, parameters=values,
+                       discretization={"method": problem.method, "intervals": problem.N, "engine": problem.engine},
+                       extra={"key_points": keys})
+
+
+SCENES = {"gpcf-frstar": Scene("gpcf-frstar", "gPCF key point Fr*: the floating-plug limit on the first pitchfork's fold curve",
+                               FRSTAR_DEFAULTS, run_frstar, x="H", y="G", adaptive=True),
+          "gpcf-keypoints": Scene("gpcf-keypoints", "gPCF key points: H_1^c (nu=0.3) and the banded-branch fold at nu=0.16",
                                   DEFAULTS, run, x="H", y="phi", adaptive=True)}

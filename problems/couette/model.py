@@ -66,8 +66,6 @@ WALLS = ("noslip", "jj")
 #: installed and covers the problem (compiled.supports), numpy elsewhere.
 ENGINES = ("numpy", "numba")
 
-# ufunc reductions called directly (ndarray.min & co. add a Python wrapper; see admissible)
-_MIN, _MAX, _SUM = np.minimum.reduce, np.maximum.reduce, np.add.reduce
 #: Parameter value types for which the residual is real double (see CouetteProblem.residual).
 _REAL_TYPES = frozenset({float, int, np.float64})
 #: Types of e for which closures.real_coefficients applies (it caches its matrix per e).
@@ -601,11 +599,14 @@ class CouetteProblem(ResolutionHooks):
     def admissible(self, x: Array, p: Mapping[str, Any]) -> str | None:
         """None for a physical state, else the reason (non-finite, T <= 0, nu outside (0, limit))."""
         x = np.asarray(x)
-        nu, _, T, _, _ = self.unpack(x)
+        nu, T = x[self.i_nu], x[self.i_T]
         limit = packing_limit(self.chi, p["num"])
-        # Fast path (called for every Newton iterate): four reductions decide a physical state;
-        # anything else (including a sum that overflows) gets the detailed checks below.
-        if _MIN(nu) > 0 and _MAX(nu) < limit and _MIN(T) > 0 and math.isfinite(_SUM(x)):
+        # Fast path (called for every Newton iterate): the extremes of nu, T and x decide a
+        # physical state (x is finite iff its largest and smallest entries are); anything else
+        # gets the detailed checks below.  argmin/argmax (C methods; they return the first NaN)
+        # instead of ufunc reductions, whose set-up costs ~2.5 us each at continuation sizes.
+        if (nu[nu.argmin()] > 0 and nu[nu.argmax()] < limit and T[T.argmin()] > 0
+                and math.isfinite(x[x.argmax()]) and math.isfinite(x[x.argmin()])):
             return None
         if not np.all(np.isfinite(x)):
             return "state has non-finite entries"
