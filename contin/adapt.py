@@ -57,6 +57,7 @@ from __future__ import annotations
 import math
 import warnings
 import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -65,7 +66,7 @@ import numpy as np
 from contin.options import AdaptOptions
 from contin.problem import Array, has
 
-__all__ = ["AdaptOptions", "Adaptor", "on_grid", "point_problem", "start_grid"]
+__all__ = ["AdaptOptions", "Adaptor", "on_grid", "point_problem", "start_grid", "two_grid_error"]
 
 #: Hooks a problem needs for adaptive resolution.
 REQUIRED_HOOKS = ("error_estimate", "with_grid", "transfer")
@@ -175,6 +176,12 @@ def coarser(problem: Any, opts: AdaptOptions) -> int | None:
     return want if want < n else None
 
 
+#: A two-grid error that refinement does not lower is a rounding floor (EP precision limit) where
+#: the problem's rounding estimate on the check grid is at least this fraction of tol (gPCF nu = 0.5
+#: at H = 38.96: 2.9e-6 on cheb 256 for tol 3e-5, the measured differences 1e-4); below it (or
+#: without the hook: a kink, whose two-grid differences scatter) the estimate decides instead.
+ROUNDING_SHARE = 0.01
+
 #: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
 ESTIMATE_CACHE = 8
 
@@ -251,6 +258,66 @@ def near_kernel(jacobian: Any, iterations: int = 3) -> Array:
             return null_vector(jacobian) if k == 0 else v
         v = w / norm
     return v
+
+
+def solution_error(problem: Any, x: Any, ref: Any, p: Mapping[str, Any]) -> float:
+    """Relative error of state x against the reference ref (both on ``problem``'s grid): the
+    problem's ``solution_error`` hook, else max|x - ref| / max|ref|."""
+    x = np.asarray(x, dtype=float)
+    ref = np.asarray(ref, dtype=float)
+    if has(problem, "solution_error"):
+        e = float(problem.solution_error(x, ref, p))
+    else:
+        scale = float(np.max(np.abs(ref))) if ref.size else 0.0
+        e = float(np.max(np.abs(x - ref)) / scale) if scale > 0 else float(np.max(np.abs(x - ref), initial=0.0))
+    return e if math.isfinite(e) else math.inf
+
+
+def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
+    """The grid of the two-grid check of a point on ``problem``'s grid: ceil(factor N) rounded
+    up to ``multiple`` (verify's fine grid), capped at max_grid for points below it; a point on
+    max_grid is checked on factor x max_grid (a measurement, not a grid the run computes on).
+    None only if factor N rounds to N."""
+    n = int(problem.grid_size)
+    n_f = _round(factor * n, opts.multiple)
+    if n < opts.max_grid:
+        n_f = min(n_f, opts.max_grid)  # (gPCF: a check of cheb 368 on 512, 1/3 of the LU flops of 736)
+    return n_f if n_f > n else None
+
+
+def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOptions) -> float | None:
+    """Achieved relative error of the discrete solution u (on ``problem``'s grid), measured on a
+    grid ``factor`` times finer by one Newton correction (a two-grid estimate; Brandt's tau
+    correction without the coarse solve, W. Hackbusch, *Multi-Grid Methods*, 1985, ch. 9):
+
+        v = T u,   delta = -J_f(v)^-1 F_f(v, p),   error = ||delta|| / ||v + delta||
+
+    in the problem's ``solution_error`` norm (:func:`solution_error`, which ``contin.verify`` uses).  v + delta
+    is the fine solution to O(||delta||^2), so this is the quantity ``contin verify`` measures
+    (the fine grid's own error subtracted: equal to the error for spectral grids, 1 - factor^-q
+    of it for FD of order q).  Unlike the state's estimate it sees the truncation amplified by
+    ||J^-1||, which grows next to a BP or LP.  Cost: one fine residual, Jacobian, LU and solve.
+    None when factor N rounds to N; inf when the fine J is exactly singular or the
+    result is not finite."""
+    from contin.linalg import dense_factorization, factorize
+
+    n_f = check_grid(problem, factor, opts)
+    if n_f is None:
+        return None
+    fine = on_grid(problem, n_f)
+    with np.errstate(all="ignore"):
+        v = np.asarray(problem.transfer(np.asarray(u, dtype=float), fine), dtype=float)
+        f = np.asarray(fine.residual(v, p), dtype=float)
+        jac = fine.jacobian(v, p)
+        if has(fine, "dense_jacobian") and dense_factorization(jac):
+            jac = fine.dense_jacobian(v, p)
+        fact = factorize(jac)
+        if fact is None:
+            return math.inf
+        delta = fact.solve(-f)
+        if not np.all(np.isfinite(delta)):
+            return math.inf
+        return solution_error(fine, v, v + delta, p)
 
 
 @dataclass(frozen=True)
@@ -343,6 +410,15 @@ class Adaptor:
         #: Newton settings of the two-grid check in a resolution-limit message (the tracer's)
         self.newton_options: Any = None
         self.since_change = 0
+        self.checks = 0  # two-grid checks done (solve_check)
+        self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
+        #: (points, snapshot) of the last refinement, to undo it at a two-grid floor (solve_floor)
+        self._undo: tuple[int, tuple, int] | None = None
+        #: the grid in force was raised by the two-grid check, not by the estimate: coarsening is
+        #: tried where the estimate is below COARSEN_MARGIN * tol (the check then decides), else
+        #: an FD branch refined to max_grid at a fold would stay there (Bratu fd2: its defect
+        #: estimate never falls below coarsen_below * tol)
+        self.check_raised = False
         self.lines: list[str] = []
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
@@ -454,7 +530,65 @@ class Adaptor:
     def too_coarse(self, system: Any, x: Array) -> float | None:
         """The estimate at x if it exceeds tol, else None."""
         e = self.error(system, x)
+        self.checked = None
         return e if e > self.opts.tol else None
+
+    def solve_check(self, system: Any, x: Array) -> float | None:
+        """The two-grid error of the point x (:func:`two_grid_error`) if it exceeds tol, else None
+        (also without ``check_factor`` or on max_grid).  Called for a candidate whose estimate
+        meets tol: the estimate does not see the amplification by ||J^-1|| next to a BP/LP."""
+        factor = self.opts.check_factor
+        self.checked = None
+        if factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
+            return None
+        self.checks += 1
+        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), factor, self.opts)
+        self.checked = e
+        return e if e is not None and e > self.opts.tol else None
+
+    def rounding_floor(self, system: Any, x: Array) -> bool:
+        """Whether the problem's ``rounding_error`` of the candidate x on its check grid is at least
+        ROUNDING_SHARE x tol: then a two-grid error that refinement does not lower is the finer
+        grids' rounding (a floor, :meth:`solve_floor`); without the hook, or far below, it is not."""
+        n_f = None if self.opts.check_factor is None else check_grid(system.problem, self.opts.check_factor, self.opts)
+        if n_f is None or not has(system.problem, "rounding_error"):
+            return False
+        fine = on_grid(system.problem, n_f)
+        v = system.problem.transfer(x[:-1], fine)
+        return rounding_error(fine, v, system.params_at(x[-1])) >= ROUNDING_SHARE * self.opts.tol
+
+    def solve_floor(self, tracer: Any, stop: str) -> str:
+        """The end of a branch whose two-grid error did not fall with refinement (``stop``, from
+        :meth:`refine`, stalled): the solve's error has a floor above tol that finer grids do
+        not lower -- rounding next to a closure's singularity, which the problem's
+        ``rounding_error`` under-reads (gPCF nu = 0.5, H = 38.96: the solutions on cheb 80 .. 384
+        all differ by 0.6-1.5e-4, their rounding estimate 2e-7 .. 6e-6).  The refinements of the
+        last point are undone (back to the grid on which it passed its check), so that every
+        stored point keeps its passed check, and the
+        message is a precision limit (the tracer ends the branch EP)."""
+        count = len(tracer.points)
+        if self._undo is not None and self._undo[0] == count:
+            # undo every refinement from this point (a chain of them: 80 -> 128 -> 240 -> 368)
+            _, keep, n_lines = self._undo
+            tracer.system, tracer.anti, tracer.points[-1], tracer.records[-1], tracer.grids[-1] = keep[:5]
+            tracer.point_tests = keep[6]
+            del tracer.audit[keep[5]:]
+            del self.lines[n_lines:]
+        self._undo = None
+        sys = tracer.system
+        cur = tracer.points[-1]
+        return (f"{PRECISION_LIMIT} at {sys.parameter} = {cur.x[-1]:.6g}: the two-grid error of the solve "
+                f"does not fall with refinement ({stop.split('does not fall with refinement (')[-1].split(')')[0]}) "
+                f"> tol {self.opts.tol:.2g}: an error floor (rounding) no grid lowers; every stored point meets tol "
+                f"up to {sys.parameter} = {cur.x[-1]:.6g} (its last point, grid {sys.problem.grid_size})")
+
+    def _solve_exceeds(self, system: Any, x: Array, limit: float) -> bool:
+        """Whether the two-grid error of x exceeds ``limit`` (False without the check)."""
+        if self.opts.check_factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
+            return False
+        self.checks += 1
+        e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), self.opts.check_factor, self.opts)
+        return e is not None and e > limit
 
     def precision_limit(self, tracer: Any, x: Array) -> str | None:
         """The precision-limit message if the rounding part of the estimate at the candidate x
@@ -526,7 +660,6 @@ class Adaptor:
         difference to a coarser solve bounds a monotonically falling error (``contin.verify``'s
         norm; a coarser grid, so the check costs less than a step on max_grid)."""
         from contin.newton import newton
-        from contin.verify import solution_error
 
         problem = sys.problem
         params = sys.params_at(x[-1])
@@ -627,6 +760,11 @@ class Adaptor:
                 # where the coarse spectrum had not yet shown a forming kink or layer (Savage's
                 # dense band, cheb 32 -> 48 -> 144: 4.6e-5 on 144, 1e-4 against cheb 216): refine
                 # on until it meets tol again (on max_grid its estimate is what the end states).
+                if self._undo is None or self._undo[0] != count:
+                    # the point's grid before its first refinement (where it passed its check),
+                    # restored at a two-grid floor (solve_floor)
+                    self._undo = (count, keep, len(self.lines) - 1)
+                self.check_raised = self.checked is not None
                 x_last = tracer.points[-1].x
                 e_last = self.error(new, x_last)
                 if e_last <= self.opts.tol:
@@ -660,21 +798,28 @@ class Adaptor:
         sys = tracer.system
         cur = tracer.points[-1]
         err = self.error(sys, cur.x)
-        if not coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts):
+        if not (coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts)
+                or (self.check_raised and err <= COARSEN_MARGIN * opts.tol)):
             return
         size = coarser(sys.problem, opts)
         if size is None:
             return
-        other = sys.problem.with_grid(size)
-        trial = sys.problem.transfer(cur.x[:-1], other)
-        e_new = state_error(other, trial, sys.params_at(cur.x[-1]))
-        if e_new > COARSEN_MARGIN * opts.tol:
-            self.since_change = 0  # try again after the cooldown
-            return
+        if not self.check_raised:
+            # (a grid the check raised is left by the corrected state's estimate and check: the
+            # resampled, unsolved state's estimate is no guide for an FD defect estimate)
+            other = sys.problem.with_grid(size)
+            trial = sys.problem.transfer(cur.x[:-1], other)
+            e_new = state_error(other, trial, sys.params_at(cur.x[-1]))
+            if e_new > COARSEN_MARGIN * opts.tol:
+                self.since_change = 0  # try again after the cooldown
+                return
         keep = self._snapshot(tracer)
         if not self.regrid(tracer, size, f"estimate below {opts.coarsen_below:g} tol", err, newton_options):
             return
-        if self.error(tracer.system, tracer.points[-1].x) > COARSEN_MARGIN * opts.tol:  # the corrected state says no
+        new = tracer.system
+        x = tracer.points[-1].x
+        if self.error(new, x) > COARSEN_MARGIN * opts.tol or self._solve_exceeds(new, x, COARSEN_MARGIN * opts.tol):
+            # the corrected state says no (its estimate, or its solve's two-grid error)
             self._restore(tracer, keep)
             self.since_change = 0
 

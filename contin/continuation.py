@@ -652,24 +652,52 @@ def trace(
             ds = reduced_step(ds, sopt)
             continue
         assert new is not None
-        if adaptor is not None and (err := adaptor.too_coarse(system, new.x)) is not None:
-            # Not resolved: refine at the last accepted point and retry the step from there.
-            stop = (adaptor.precision_limit(tracer, new.x) or adaptor.resolution_limit(tracer, new.x, err)
-                    or adaptor.refine(tracer, err, "estimate above tol", options.newton))
-            if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
-                # Refinement did not halve the candidate's estimate: try a candidate nearer the
-                # resolved last point before concluding that the estimate has a floor.
+        if adaptor is not None and ((err := adaptor.too_coarse(system, new.x)) is not None
+                                    or (err := adaptor.solve_check(system, new.x)) is not None):
+            # Not resolved (the estimate, or the two-grid error of the solve that the estimate
+            # can under-read next to a BP/LP): refine at the last accepted point and retry the
+            # step from there.  (The resolution limit fits the estimate's decay: not for a check.)
+            checked = adaptor.checked is not None
+            why = "two-grid error above tol" if checked else "estimate above tol"
+            stop = adaptor.precision_limit(tracer, new.x)
+            refined = stop is None and checked
+            stop = (stop or (None if checked else adaptor.resolution_limit(tracer, new.x, err))
+                    or adaptor.refine(tracer, err, why, options.newton))
+            if stop is not None and stop.startswith(PRECISION_LIMIT):
+                refined = False  # the finer grid's rounding estimate exceeds tol: that limit ends it
+            if refined and stop is not None:
+                # The two-grid error does not fall with refinement (or max_grid is reached).  Where
+                # the fine grid's rounding is a part of tol, it is a floor: end EP there (the last
+                # point back on the grid where it passed its check).  Otherwise the check cannot
+                # decide (a kink's two-grid differences scatter with its position between the
+                # nodes): the candidate is accepted by its estimate, and the audit says so.
+                if adaptor.rounding_floor(system, new.x):
+                    stop = adaptor.solve_floor(tracer, stop)
+                    adopt_grid()
+                    status, message = _guard_status(stop), stop
+                    break
                 adaptor.stalled = False
                 if len(tracer.audit) < MAX_AUDIT:
-                    tracer.audit.append(f"step {steps + 1}: {parameter}={cur.x[-1]:.10g} ds={ds:.3g} shortened: {stop}")
-                ds = reduced_step(ds, sopt)
+                    tracer.audit.append(f"step {steps + 1}: {parameter}={new.x[-1]:.10g} accepted by its estimate: two-grid "
+                                        f"error {err:.2g} > tol, not lowered by refinement ({stop})")
+            elif refined:
+                adopt_grid()
                 continue
-            if stop is not None:
-                # precision or resolution limit: every stored point meets tol and no grid (within max_grid) can go on (EP)
-                status, message = _guard_status(stop), stop
-                break
-            adopt_grid()
-            continue
+            else:
+                if stop is not None and adaptor.stalled and ds > sopt.ds_min * (1 + 1e-12):
+                    # Refinement did not halve the candidate's estimate: try a candidate nearer the
+                    # resolved last point before concluding that the estimate has a floor.
+                    adaptor.stalled = False
+                    if len(tracer.audit) < MAX_AUDIT:
+                        tracer.audit.append(f"step {steps + 1}: {parameter}={cur.x[-1]:.10g} ds={ds:.3g} shortened: {stop}")
+                    ds = reduced_step(ds, sopt)
+                    continue
+                if stop is not None:
+                    # precision or resolution limit: every stored point meets tol and no grid (within max_grid) can go on (EP)
+                    status, message = _guard_status(stop), stop
+                    break
+                adopt_grid()
+                continue
         steps += 1
 
         if closing:

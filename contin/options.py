@@ -164,6 +164,18 @@ class AdaptOptions:
         finer grid above min(tol, special_tol).  Default 1e-10: the states of a branch may carry
         tol = 3e-5, but BPs and LPs keep the accuracy of a fine fixed grid (gPCF H_n^c to ~1e-13
         at a cheb 16-32 kernel instead of 1e-8 at cheb 12; the kernel converges spectrally).
+    check_factor : two-grid check of the *solve* before a point is accepted
+        (:func:`contin.adapt.two_grid_error`): one Newton correction of the transferred state on
+        a grid ``check_factor`` times finer measures the point's achieved error, the quantity
+        ``contin verify`` measures at its default factor 2; above tol the point is refused and
+        the grid refined, as for an estimate above tol.  The estimate (a coefficient tail or a
+        defect) measures how well the grid carries the state, not the error of the discrete
+        solution, which is that truncation amplified by ||J^-1|| next to a BP or LP (issue 14:
+        3-150x on coarse gPCF grids).  None switches the check off (CLI ``--no-solve-check``).
+    check_above : the check runs only where the estimate exceeds check_above * tol: a state whose
+        estimate is lower would miss tol only through an amplification above 1 / check_above
+        (the largest measured, error / estimate on the gPCF main job, was 3e2); states exact on
+        their grid (estimate at rounding level, e.g. uniform shear) are not checked.
     """
 
     tol: float = 3e-5
@@ -174,10 +186,16 @@ class AdaptOptions:
     multiple: int = 4
     cooldown: int = 5
     special_tol: float = 1e-10
+    check_factor: float | None = 2.0
+    check_above: float = 1e-4
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.tol) and self.tol > 0):
             raise ValueError(f"AdaptOptions.tol must be a finite number > 0, got {self.tol}")
+        if self.check_factor is not None and not (math.isfinite(self.check_factor) and self.check_factor > 1):
+            raise ValueError(f"AdaptOptions.check_factor must be a finite number > 1 or None, got {self.check_factor}")
+        if not (math.isfinite(self.check_above) and 0 <= self.check_above < 1):
+            raise ValueError(f"AdaptOptions.check_above must lie in [0, 1), got {self.check_above}")
         if not (math.isfinite(self.special_tol) and self.special_tol > 0):
             raise ValueError(f"AdaptOptions.special_tol must be a finite number > 0, got {self.special_tol}")
         if not 1 <= self.min_grid <= self.max_grid:

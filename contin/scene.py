@@ -69,7 +69,8 @@ class SceneRequest:
         their own defaults (bounds...) survive.  (The command line also sets resolution_tol for
         every trace of the run, ``contin.options.resolution_override``: scenes build options of
         their own too.)  Adaptive resolution (``--tol``, ``--max-grid``; only for scenes with
-        ``Scene.adaptive``): keys 'tol' and 'max_grid' become ``ContinuationOptions.adapt``.
+        ``Scene.adaptive``): keys 'tol', 'max_grid' and 'solve_check' (False: ``--no-solve-check``)
+        become ``ContinuationOptions.adapt``.
     """
 
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -104,6 +105,8 @@ class SceneRequest:
             kw["resolution_tol"] = ov["resolution_tol"]
         if ov.get("tol") is not None:
             adapt = AdaptOptions(tol=float(ov["tol"]))
+            if ov.get("solve_check") is False:  # --no-solve-check
+                adapt = dataclasses.replace(adapt, check_factor=None)
             kw["adapt"] = dataclasses.replace(adapt, max_grid=int(ov["max_grid"])) if ov.get("max_grid") else adapt
         if "user_zeros" in ov:  # --uz NAME=V1,V2 (AUTO's UZR), added to the scene's own
             kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.adapt import solution_error  # the norm the tracer's two-grid check shares
 from contin.problem import has
 
 __all__ = ["BranchCheck", "PointCheck", "fine_grid", "solution_error", "verify_branch"]
@@ -138,17 +139,6 @@ def fine_grid(grid: int, factor: float, max_grid: int | None) -> int:
     return min(n, int(max_grid)) if max_grid is not None else n
 
 
-def solution_error(problem: Any, x: Any, ref: Any, p: Mapping[str, Any]) -> float:
-    """Relative error of state x against the reference ref (both on ``problem``'s grid): the
-    problem's ``solution_error`` hook, else max|x - ref| / max|ref|."""
-    x = np.asarray(x, dtype=float)
-    ref = np.asarray(ref, dtype=float)
-    if has(problem, "solution_error"):
-        e = float(problem.solution_error(x, ref, p))
-    else:
-        scale = float(np.max(np.abs(ref))) if ref.size else 0.0
-        e = float(np.max(np.abs(x - ref)) / scale) if scale > 0 else float(np.max(np.abs(x - ref), initial=0.0))
-    return e if math.isfinite(e) else math.inf
 
 
 def _observable(problem: Any, u: Any, p: Mapping[str, Any]) -> float:
@@ -174,7 +164,7 @@ def _special_at(branch: Any, i: int) -> str:
 
 
 def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, factor: float = 2.0,
-                  tol: float | None = None, max_grid: int | None = 512, newton_options: Any = None,
+                  tol: float | None = None, max_grid: int | None = 1024, newton_options: Any = None,
                   indices: Sequence[int] | None = None) -> BranchCheck:
     """Re-solve the stored points of ``branch`` on a grid ``factor`` times finer and measure
     their achieved error (module docstring).
@@ -183,7 +173,9 @@ def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, facto
         :func:`contin.adapt.point_problem`)
     params : the run's fixed parameters; each point's are these updated with the branch columns
     tol : the accuracy the points should meet (default: 3e-5, AdaptOptions' default)
-    max_grid : the largest fine grid (None: no cap); a point already on it is reported unchecked
+    max_grid : the largest fine grid (None: no cap); a point already on it is reported unchecked.
+        Default 1024, twice AdaptOptions' max_grid: a point an adaptive run stored on its
+        largest grid is checked too
     indices : the rows to check (default: every row with a stored state)
 
     Raises ValueError for a multi-parameter branch (its states carry more than the problem's

@@ -116,6 +116,22 @@ def _nu_error(pb, x, X):
     return float(np.max(np.abs(np.asarray(np.asarray(x).astype(LD) - X, float)[:n]) / gap))
 
 
+@pytest.mark.slow
+def test_nu063_plug_two_grid_check_ends_where_its_error_stops_falling(tmp_path):
+    """The default run (two-grid check on): the n = 1 band ends EP at H = 86.6363 on cheb 80, where
+    the check's error does not fall with refinement (3.7e-5 against cheb 160, 2.4e-4 on cheb 128
+    against 256: the finer grids' rounding next to packing), before the rounding estimate's limit at
+    H = 91.4; exit 0, every stored point of n1.1 passed its check."""
+    out = tmp_path / "p.h5"
+    r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1",
+                                  "-s", "H_max=100", "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    band = next(b for b in branches if b.id == "n1.1")
+    assert band.status == "EP" and band.message.startswith("precision limit at H = 86.6363: the two-grid error")
+    assert band.grid[-1] == 80 and band.params["H"][-1] == pytest.approx(86.6363, abs=1e-4)
+
+
 def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
     """nu = 0.63, e = 0.8, n = 1 (issue 14 (1)): the band's plug reaches 6e-9 below nu_m = 0.65 near
     H = 91.3 on cheb 80, where rounding (0.2 eps N^2 nu_m / gap = 2.9e-5) reaches tol 3e-5.  The
@@ -126,8 +142,11 @@ def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
     from problems.couette.resolution import resolution
 
     out = tmp_path / "p.h5"
+    # the rounding estimate is the subject: the estimate alone (--no-solve-check); the default run's
+    # two-grid check ends earlier (test_nu063_plug_two_grid_check_ends_where_its_error_stops_falling)
     r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1",
-                                  "-s", "H_max=100", "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+                                  "-s", "H_max=100", "--no-stability", "--no-solve-check", "-q", "-o", str(out)],
+                           catch_exceptions=False)
     assert r.exit_code == 0, r.output
     branches, _ = io.load(out)
     band = next(b for b in branches if b.id == "n1.1")
@@ -217,7 +236,9 @@ def test_disks_grid_hooks_and_adaptive_band_to_the_precision_limit():
     p = pb.params({"nu": 0.5, "e": 0.8})
     hc = critical_gaps(p, cl, 1)[0]
     p["H"] = 0.8 * hc
-    ad = AdaptOptions(tol=3e-5)
+    # the rounding estimate's precision limit is the subject: the estimate alone decides (the
+    # two-grid check, on by default, refines the band to cheb 128 before the same end at H = 28.876)
+    ad = AdaptOptions(tol=3e-5, check_factor=None)
     o = ContinuationOptions(bounds={"H": (0.8 * hc, 1.2 * hc)}, max_steps=50, step=StepOptions(ds=0.05 * hc, ds_max=0.1 * hc),
                             detection=DetectionOptions(locate_tol=1e-12, detect_hopf=False), adapt=ad)
     base = trace(pb, pb.uniform_state(p), p, "H", o)

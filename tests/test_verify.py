@@ -39,14 +39,30 @@ def bratu_exact(lam: float, x: np.ndarray, upper: bool) -> np.ndarray:
     return -2 * np.log(np.cosh((x - 0.5) * th / 2) / np.cosh(th / 4))
 
 
-@pytest.fixture(scope="module")
-def bratu_fd2():
-    """Bratu on fd2 with a loose tol 1e-3: the defect estimate misses the fold's amplification."""
+def bratu_fd2_run(check_factor):
     pb = Bratu("fd2", 16)
     opts = ContinuationOptions(bounds={"lam": (0.0, 4.0)}, max_steps=60, step=StepOptions(ds=0.05, ds_max=0.25),
-                               adapt=AdaptOptions(tol=1e-3))
-    branch = trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
-    return pb, branch
+                               adapt=AdaptOptions(tol=1e-3, check_factor=check_factor))
+    return pb, trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
+
+
+@pytest.fixture(scope="module")
+def bratu_fd2():
+    """Bratu on fd2 with a loose tol 1e-3, points accepted by their estimate alone (the tracer's
+    two-grid check off): the defect estimate misses the fold's amplification."""
+    return bratu_fd2_run(None)
+
+
+def true_errors(pb, branch, points):
+    """Each stored point's error: its interpolant against the closed form on 400 intervals."""
+    ref = pb.with_grid(400)
+    true = {}
+    for p in points:
+        u = branch.state(p.index)
+        moved = pb.with_grid(p.grid).transfer(u, ref)
+        ex = bratu_exact(p.params["lam"], ref.x, upper=bool(np.max(u) > 1.1868))  # max u at the fold: 1.18684
+        true[p.index] = float(np.max(np.abs(moved - ex)) / np.max(np.abs(ex))) if p.params["lam"] > 0 else 0.0
+    return true
 
 
 def test_fine_grid_rounds_and_caps():
@@ -60,14 +76,7 @@ def test_bratu_loose_tol_points_beyond_tol_found_and_measured_against_the_closed
     pb, branch = bratu_fd2
     check = verify_branch(pb, branch, {}, tol=1e-3)
     assert len(check.points) == len(branch) and not check.unchecked
-    # the true error of each stored point, its interpolant against the closed form on 400 intervals
-    ref = pb.with_grid(400)
-    true = {}
-    for p in check.points:
-        u = branch.state(p.index)
-        moved = pb.with_grid(p.grid).transfer(u, ref)
-        ex = bratu_exact(p.params["lam"], ref.x, upper=bool(np.max(u) > 1.1868))  # max u at the fold: 1.18684
-        true[p.index] = float(np.max(np.abs(moved - ex)) / np.max(np.abs(ex))) if p.params["lam"] > 0 else 0.0
+    true = true_errors(pb, branch, check.points)
     beyond = {i for i, e in true.items() if e > 1e-3}
     flagged = {p.index for p in check.exceeding}
     # every stored point next to the fold (lam > 3.3) estimated <= 1e-3 yet up to ~7e-3 off: found
@@ -80,6 +89,28 @@ def test_bratu_loose_tol_points_beyond_tol_found_and_measured_against_the_closed
     assert 0.65 <= check.max_error / max(true.values()) <= 0.95
     assert 0.65 <= worst.error / true[worst.index] <= 0.95
     assert check.max_error > 20 * worst.estimate  # the fold amplifies the defect ~30x
+
+
+def test_bratu_fd2_solve_check_keeps_every_point_within_tol_against_the_closed_form(bratu_fd2):
+    """The same run with the tracer's two-grid check (the default, AdaptOptions.check_factor = 2):
+    the 7 points that the estimate passed next to the fold (up to 5.7e-3) are refused and the grid
+    refined, so verify finds none beyond tol, every point checked; against the closed form every
+    point is within tol / (1 - 2^-2) (fd2 at factor 2: the check measures 0.75 of the error) and the
+    fold lam* within 1e-5 (2e-6; 1e-4 off when accepted by the estimate alone)."""
+    from problems.demo import BRATU_FOLD
+
+    pb, branch = bratu_fd2_run(2.0)
+    check = verify_branch(pb, branch, {}, tol=1e-3)
+    assert len(check.points) == len(branch) == 61 and check.ok and not check.exceeding
+    assert check.max_error <= 1e-3
+    true = true_errors(pb, branch, check.points)
+    assert max(true.values()) <= 1e-3 / 0.75
+    before = verify_branch(bratu_fd2[0], bratu_fd2[1], {}, tol=1e-3)
+    assert len(before.exceeding) == 7  # estimate alone (the fixture): 7 points beyond tol
+    (lp,) = branch.fold_points
+    (lp0,) = bratu_fd2[1].fold_points
+    assert abs(lp.params["lam"] - BRATU_FOLD) <= 1e-5 < abs(lp0.params["lam"] - BRATU_FOLD)
+    assert any("two-grid error above tol" in line for line in branch.audit)
 
 
 class _NoSolution(Bratu):
@@ -121,7 +152,9 @@ def test_bratu_cheb_errors_equal_the_closed_form_and_failures_are_reported():
 
 def test_gpcf_audit_point_flagged_and_uniform_shear_exact(tmp_path):
     out = tmp_path / "pf.h5"
-    r = run("trace", "pitchfork", "-s", "nu=0.3", "-s", "e=0.8", "-s", "modes=1", "--no-stability", "-q", "-o", out)
+    # the estimate alone (--no-solve-check): the audit's point is stored on cheb 32
+    r = run("trace", "pitchfork", "-s", "nu=0.3", "-s", "e=0.8", "-s", "modes=1", "--no-stability", "--no-solve-check",
+            "-q", "-o", out)
     assert r.exit_code == 0, r.output
     branches, meta = io.load(out)
     from contin.restart import rebuild_problem
@@ -146,7 +179,7 @@ def test_gpcf_audit_point_flagged_and_uniform_shear_exact(tmp_path):
 
 def test_cli_verify_exit_codes_and_bad_input(tmp_path):
     out = tmp_path / "b.h5"
-    r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-3", "-q", "-o", out)
+    r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-3", "--no-solve-check", "-q", "-o", out)
     assert r.exit_code == 0, r.output
     r = run("verify", out)
     assert r.exit_code == 4, r.output
@@ -168,6 +201,22 @@ def test_cli_verify_exit_codes_and_bad_input(tmp_path):
     assert run("trace", "lorenz", "-q", "-o", lor).exit_code == 0
     r = run("verify", lor)
     assert r.exit_code == 1 and r.stderr.count("Error:") == 1 and "cannot change its grid" in r.stderr
+    r = run("trace", "lorenz", "--no-solve-check", "-q", "-o", lor)  # a fixed-grid scene: one Error line
+    assert r.exit_code != 0 and r.stderr.count("Error:") == 1 and "no adaptive resolution" in r.stderr
+
+
+def test_cli_trace_with_the_solve_check_verifies_clean(tmp_path):
+    """The CLI default (the two-grid check on): the Bratu fd2 run at tol 1e-3 that
+    ``--no-solve-check`` leaves with 7 points beyond tol (test above) verifies clean, exit 0."""
+    checked = tmp_path / "checked.h5"
+    r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-3", "-q", "-o", checked)
+    assert r.exit_code == 0, r.output
+    r = run("verify", checked, "--json")
+    assert r.exit_code == 0 and "inaccurate" not in r.stderr, r.output
+    import json
+
+    (b,) = json.loads(r.stdout)["branches"]
+    assert len(b["points"]) == 61 and not b["exceeding"] and not b["unchecked"] and b["max_error"] <= 1e-3
 
 
 def test_readme_verify_example_runs_as_printed():
@@ -179,15 +228,17 @@ def test_readme_verify_example_runs_as_printed():
     (code,) = re.findall(r"```python\n(.*?)\n```", section, flags=re.S)
     ns: dict = {}
     exec(compile(code, "README.md", "exec"), ns)
-    check = ns["check"]
-    assert len(check.exceeding) == 7 and check.max_error == pytest.approx(5.7e-3, rel=0.05)
-    assert check.worst(1)[0].params["lam"] == pytest.approx(3.5133, abs=1e-3)
+    check, before = ns["check"], ns["before"]
+    assert len(before.exceeding) == 7 and before.max_error == pytest.approx(5.7e-3, rel=0.05)
+    assert before.worst(1)[0].params["lam"] == pytest.approx(3.5133, abs=1e-3)
+    assert not check.exceeding and check.ok and check.max_error == pytest.approx(7.3e-4, rel=0.05)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("settings, points, beyond, worst", [
-    (("-s", "nu=0.3"), 136, 12, 1.26e-4),                     # the main job
-    (("-s", "nu=0.5", "-s", "H_max=40"), 140, 6, 2.52e-4),
+    (("-s", "nu=0.3"), 136, 0, 8.16e-6),                      # the main job (10 beyond, 1.26e-4 before the check)
+    (("-s", "nu=0.5", "-s", "H_max=40"), 136, 0, 1.44e-5),    # 6 beyond, 2.52e-4 before (140 points to H = 40)
+    (("-s", "nu=0.3", "--no-solve-check"), 136, 10, 1.26e-4),  # the estimate alone: as before
 ])
 def test_readme_table_gpcf_runs(tmp_path, settings, points, beyond, worst):
     """The README's table of `contin verify` on the main job and the dense nu = 0.5 run."""
@@ -195,7 +246,7 @@ def test_readme_table_gpcf_runs(tmp_path, settings, points, beyond, worst):
     r = run("trace", "pitchfork", *settings, "-s", "e=0.8", "--no-stability", "-q", "-o", out)
     assert r.exit_code == 0, r.output
     r = run("verify", out, "--json")
-    assert r.exit_code == 4
+    assert r.exit_code == (4 if beyond else 0)
     import json
 
     doc = json.loads(r.stdout)

@@ -180,6 +180,10 @@ def stability_messages(branch: Any) -> list[str]:
                    "grid is fixed].")
 @click.option("--max-grid", type=click.IntRange(min=4), default=None,
               help="Largest grid adaptive resolution may use [default 512]; past it a branch ends with MX.")
+@click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
+              help="Adaptive resolution: accept a point by its error estimate alone, without the two-grid check "
+                   "of its solve (AdaptOptions.check_factor = None; faster, but points next to a BP or LP can miss "
+                   "tol: check them with contin verify).")
 @engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
@@ -202,7 +206,7 @@ def stability_messages(branch: Any) -> list[str]:
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resolution_tol: str | None, tol: float | None, max_grid: int | None, engine: str, uz: tuple[str, ...], stop_at: str | None,
+                  resolution_tol: str | None, tol: float | None, max_grid: int | None, no_solve_check: bool, engine: str, uz: tuple[str, ...], stop_at: str | None,
                   bp_eigs: int | None, resume: str | None, depth: int | None, max_branches: int | None,
                   quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
@@ -254,10 +258,12 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             return explore(start(request), request, depth=depth, max_branches=max_branches)
 
         sc = dataclasses.replace(sc, run=run_diagram, adaptive=False)
-    if (tol is not None or max_grid is not None) and not sc.adaptive:
-        fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid); choose its grid with --grid")
+    if (tol is not None or max_grid is not None or no_solve_check) and not sc.adaptive:
+        fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid, --no-solve-check); choose its grid with --grid")
     if sc.adaptive and (tol is not None or grid is None):
         overrides["tol"] = tol if tol is not None else sc.default_tol
+        if no_solve_check:
+            overrides["solve_check"] = False
         if max_grid is not None:
             if grid is not None and grid > max_grid:
                 fail(f"--grid {grid} exceeds --max-grid {max_grid}")

@@ -34,7 +34,8 @@ def _run_tol(meta: dict[str, Any]) -> float:
 def _run_max_grid(meta: dict[str, Any]) -> int:
     adapt = (meta.get("options") or {}).get("adapt")
     value = adapt.get("max_grid") if isinstance(adapt, dict) else None
-    return int(value) if isinstance(value, int | float) and value >= 1 else 512
+    # twice the run's largest grid: a point on it is checked too (as the tracer's two-grid check does)
+    return 2 * int(value) if isinstance(value, int | float) and value >= 1 else 1024
 
 
 @main.command("verify")
@@ -43,7 +44,7 @@ def _run_max_grid(meta: dict[str, Any]) -> int:
 @click.option("--factor", type=float, default=2.0, help="Fine grid = FACTOR x each point's grid (> 1).")
 @click.option("--tol", type=float, default=None,
               help="Largest acceptable relative error [default: the run's adaptive tol, else its resolution tol].")
-@click.option("--max-grid", type=int, default=None, help="Largest fine grid [default: the run's max_grid, else 512].")
+@click.option("--max-grid", type=int, default=None, help="Largest fine grid [default: twice the run's max_grid, else 1024].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="Only the summary lines.")
 def verify_command(file: str, branch_id: str | None, factor: float, tol: float | None, max_grid: int | None,
