@@ -30,7 +30,7 @@ import numpy as np
 from contin.branch import Branch, relabel
 from contin.continuation import switch, trace
 from contin.options import ContinuationOptions, StepOptions
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
 from problems.couette.closures import critical_gap_factor
 from problems.couette.model import CouetteProblem
 from problems.couette.params import build_params
@@ -86,11 +86,7 @@ def banded_fold(problem: CouetteProblem, nu: float, e: float,
 
 
 def run(request: SceneRequest) -> SceneResult:
-    values = dict(DEFAULTS)
-    for k, v in request.params.items():
-        if k not in DEFAULTS:
-            raise SceneError(f"unknown parameter {k!r} for scene 'gpcf-keypoints'; its parameters are {', '.join(DEFAULTS)}")
-        values[k] = float(v)
+    values = scene_numbers(request, DEFAULTS, "gpcf-keypoints")
     try:
         problem = CouetteProblem(request.method or "cheb", request.grid or 32, engine=request.engine or "numpy")
     except ValueError as exc:
@@ -123,11 +119,7 @@ def run_frstar(request: SceneRequest) -> SceneResult:
     from contin.options import AdaptOptions
     from problems.couette.gravity import GravitySettings, extrema, gravity_free_branches, gravity_problem, pitchfork_fold_curves
 
-    values = dict(FRSTAR_DEFAULTS)
-    for k, v in request.params.items():
-        if k not in FRSTAR_DEFAULTS:
-            raise SceneError(f"unknown parameter {k!r} for scene 'gpcf-frstar'; its parameters are {', '.join(FRSTAR_DEFAULTS)}")
-        values[k] = float(v)
+    values = scene_numbers(request, FRSTAR_DEFAULTS, "gpcf-frstar")
     try:
         problem = gravity_problem(request.method or "cheb", request.grid or FRSTAR_GRID, engine=request.engine or "numpy")
     except ValueError as exc:
