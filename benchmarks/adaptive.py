@@ -14,6 +14,11 @@ grid's cost (issue 14's target: within 1.5x).  Jobs:
   of the located H_1^c against n pi psi.  The adaptive run starts on the default cheb 64 (a user
   who asks for an accuracy, not a grid) and finds its grid itself.
 
+The adaptive runs ask for tol for the special points too (``special_tol`` = tol, as ``contin
+accuracy --tols`` does): the errors measured are those of a fold and a BP, and the tracer's
+default ``special_tol`` = 1e-10 would locate them far beyond tol -- a different request from the
+fixed grid they are compared with.
+
 Costs are CPU seconds (time.process_time, best of ``--repeats`` interleaved rounds: the fair
 figure on a shared machine), BLAS on one thread.  These are measurements, not tests (tests/test_adapt.py checks
 the accuracy side).
@@ -50,7 +55,7 @@ def bratu_job(tol: float | None, grid: int) -> Callable[[], list[float]]:
     def run() -> list[float]:
         pb = Bratu("cheb", grid)
         o = ContinuationOptions(bounds={"lam": (0.02, 4.0)}, max_steps=400, step=StepOptions(ds=0.1, ds_max=0.5),
-                                adapt=None if tol is None else AdaptOptions(tol=tol, min_grid=8))
+                                adapt=None if tol is None else AdaptOptions(tol=tol, min_grid=8, special_tol=tol))
         b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
         if b.status != "EP" or len(b.fold_points) != 1:
             return [math.inf]
@@ -75,7 +80,7 @@ def hc1_job(tol: float | None, grid: int) -> Callable[[], list[float]]:
         p = pb.params({"nu": 0.3, "e": 0.8})
         o = ContinuationOptions(bounds={"H": (0.8 * exact, 1.2 * exact)}, step=StepOptions(ds=0.1 * exact, ds_max=0.3 * exact),
                                 detection=DetectionOptions(locate_tol=1e-13),
-                                adapt=None if tol is None else AdaptOptions(tol=tol, min_grid=4))
+                                adapt=None if tol is None else AdaptOptions(tol=tol, min_grid=4, special_tol=tol))
         b = pf.trace_base(pb, p, 0.8 * exact, o)
         if len(b.branch_points) != 1:
             return [math.inf]

@@ -25,7 +25,8 @@ numpy-heavy code down, so it never overlaps the timed run); ``memory=False`` ski
 
 Asking for an accuracy instead of a grid (``tols``; scenes with ``Scene.adaptive``): for each
 tol the scene is also run with adaptive resolution (``SceneRequest.overrides['tol']``, no grid:
-the scene's start grid), its key points are measured against the same reference, and the run is
+the scene's start grid; ``special_tol`` = tol too, since the key points are special points), its
+key points are measured against the same reference, and the run is
 compared with the cheapest fixed (method, N) run whose worst key-point error meets the same tol
 (issue 14: achieved error <= tol, cost within 1.5x of that grid).  ``repeats`` > 1 times every
 run that many times in interleaved rounds and keeps each run's smallest CPU time, so that a
@@ -250,7 +251,10 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
             what = f"{method} N={n}" if tol is None else f"{method} tol={tol:g}"
             if progress is not None:
                 progress(f"{scene.name}: {what}" + (f" (round {rnd + 1}/{repeats})" if repeats > 1 else ""))
-            ov = dict(overrides or {}) if tol is None else {**dict(overrides or {}), "tol": tol}
+            # the key points are special points: the accuracy asked for is theirs as well
+            # (special_tol = tol; the tracer's default 1e-10 would locate them far beyond tol,
+            # a different request from the fixed grid it is compared with)
+            ov = dict(overrides or {}) if tol is None else {"special_tol": tol, **dict(overrides or {}), "tol": tol}
             try:
                 run = measure(scene, params, method, n, memory=memory and rnd == 0, overrides=ov, engine=engine)
             except ValueError as exc:

@@ -107,6 +107,8 @@ class SceneRequest:
             adapt = AdaptOptions(tol=float(ov["tol"]))
             if ov.get("solve_check") is False:  # --no-solve-check
                 adapt = dataclasses.replace(adapt, check_factor=None)
+            if ov.get("special_tol") is not None:  # --special-tol
+                adapt = dataclasses.replace(adapt, special_tol=float(ov["special_tol"]))
             kw["adapt"] = dataclasses.replace(adapt, max_grid=int(ov["max_grid"])) if ov.get("max_grid") else adapt
         if "user_zeros" in ov:  # --uz NAME=V1,V2 (AUTO's UZR), added to the scene's own
             kw["user_zeros"] = {**base.user_zeros, **ov["user_zeros"]}

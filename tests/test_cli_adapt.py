@@ -37,6 +37,26 @@ def test_trace_tol_meets_the_fold(tmp_path, tol):
     assert b.fold_points[0].grid is not None
 
 
+def test_special_tol_relaxes_where_special_points_are_located(tmp_path):
+    """--special-tol REL: a located LP is re-located on a finer grid only above min(tol, REL);
+    the default (1e-10) locates the Bratu fold on a finer grid than --special-tol 1e-4 does,
+    and both are within 1e-4 of the closed form."""
+    folds = {}
+    for extra in ((), ("--special-tol", "1e-4")):
+        out = tmp_path / f"b{len(extra)}.h5"
+        r = run("trace", "bratu", "--tol", "1e-4", *extra, "-s", "lam_min=0.05", "--max-steps", 120, "-o", out, "-q")
+        assert r.exit_code == 0, r.output
+        (b,), _ = io.load(out)
+        (lp,) = b.fold_points
+        assert abs(lp.params["lam"] - BRATU_FOLD) <= 1e-4 * BRATU_FOLD
+        folds[extra] = lp
+    assert folds[("--special-tol", "1e-4")].grid < folds[()].grid
+    assert abs(folds[()].params["lam"] - BRATU_FOLD) <= 1e-10 * BRATU_FOLD
+    r = CliRunner().invoke(main, ["trace", "bratu", "--grid", "24", "--special-tol", "1e-4"])
+    assert r.exit_code != 0 and "Error: --special-tol needs adaptive resolution" in r.output
+    assert "Traceback" not in r.output
+
+
 def test_info_diagram_profiles_read_adaptive_files(tmp_path):
     out = tmp_path / "b.h5"
     r = run("trace", "bratu", "-s", "lam_min=0.05", "--max-steps", 120, "-o", out, "-q")  # default: the scene's tol (1e-10)

@@ -180,6 +180,11 @@ def stability_messages(branch: Any) -> list[str]:
                    "grid is fixed].")
 @click.option("--max-grid", type=click.IntRange(min=4), default=None,
               help="Largest grid adaptive resolution may use [default 512]; past it a branch ends with MX.")
+@click.option("--special-tol", "special_tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None,
+              metavar="REL",
+              help="Adaptive resolution: largest estimated relative error of the kernel that fixes a located BP or "
+                   "LP (AdaptOptions.special_tol); the point is located again on a finer grid above min(tol, REL) "
+                   "[default 1e-10: special points far more accurate than the branch].")
 @click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
               help="Adaptive resolution: accept a point by its error estimate alone, without the two-grid check "
                    "of its solve (AdaptOptions.check_factor = None; faster, but points next to a BP or LP can miss "
@@ -206,7 +211,7 @@ def stability_messages(branch: Any) -> list[str]:
 def trace_command(scene: str, settings: tuple[str, ...], method: str | None, grid: int | None,
                   output: str | None, as_json: bool, no_stability: bool, kx: str | None,
                   max_steps: int | None, ds: float | None, ds_max: float | None,
-                  resolution_tol: str | None, tol: float | None, max_grid: int | None, no_solve_check: bool, engine: str, uz: tuple[str, ...], stop_at: str | None,
+                  resolution_tol: str | None, tol: float | None, max_grid: int | None, special_tol: float | None, no_solve_check: bool, engine: str, uz: tuple[str, ...], stop_at: str | None,
                   bp_eigs: int | None, resume: str | None, depth: int | None, max_branches: int | None,
                   quiet: bool) -> None:
     """Trace the branches of SCENE and report its special points.
@@ -249,8 +254,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     if depth is not None:
         if sc.start is None:
             fail(f"scene {scene!r} gives no start point for --depth (it has its own run only)")
-        if resume is not None or tol is not None or max_grid is not None:
-            fail("--depth runs on a fixed grid and from scratch: drop --resume, --tol and --max-grid")
+        if resume is not None or tol is not None or max_grid is not None or special_tol is not None:
+            fail("--depth runs on a fixed grid and from scratch: drop --resume, --tol, --max-grid and --special-tol")
         import dataclasses
         from contin.diagram import explore
 
@@ -258,12 +263,17 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             return explore(start(request), request, depth=depth, max_branches=max_branches)
 
         sc = dataclasses.replace(sc, run=run_diagram, adaptive=False)
-    if (tol is not None or max_grid is not None or no_solve_check) and not sc.adaptive:
-        fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid, --no-solve-check); choose its grid with --grid")
+    if (tol is not None or max_grid is not None or special_tol is not None or no_solve_check) and not sc.adaptive:
+        fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid, --special-tol, --no-solve-check); "
+             "choose its grid with --grid")
+    if special_tol is not None and grid is not None and tol is None:
+        fail("--special-tol needs adaptive resolution: drop --grid or add --tol")
     if sc.adaptive and (tol is not None or grid is None):
         overrides["tol"] = tol if tol is not None else sc.default_tol
         if no_solve_check:
             overrides["solve_check"] = False
+        if special_tol is not None:
+            overrides["special_tol"] = special_tol
         if max_grid is not None:
             if grid is not None and grid > max_grid:
                 fail(f"--grid {grid} exceeds --max-grid {max_grid}")

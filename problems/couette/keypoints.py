@@ -50,14 +50,18 @@ def first_bp_options(nu: float, e: float) -> ContinuationOptions:
 
 
 def fold_options(nu: float, e: float) -> ContinuationOptions:
-    """The traces of :func:`banded_fold`: H in (0.6, 1.05) H_1^c.
+    """The traces of :func:`banded_fold`: H in (0.6, 1.05) H_1^c, the banded branch stopped at
+    its first fold (AUTO's STOP LP1: the key point is the fold, and the branch beyond it --
+    back up to 1.05 H_1^c, where the adaptive tracer refines for the stiffening band -- is
+    not needed; modelling only what the scene asks for).
 
     The subcritical branch bends steeply: H - H_c ~ -3500 a^2 in the theta = 1 norm (a the
     mode amplitude), so the first step off the BP needs ds ~ 1e-4.  Down-weighting H in the
     arclength (theta = 1e-4) makes ds = 0.01 work and halves the number of steps."""
     hc = exact_hc1(nu, e)
     return ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.5, theta=1e-4),
-                               bounds={"H": (0.6 * hc, 1.05 * hc)}, max_steps=300)
+                               bounds={"H": (0.6 * hc, 1.05 * hc)}, max_steps=300,
+                               stop_at=("LP1",))
 
 
 def first_bp(problem: CouetteProblem, nu: float, e: float, options: ContinuationOptions | None = None) -> tuple[Branch, Any]:
