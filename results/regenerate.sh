@@ -67,7 +67,7 @@ done
 contin trace disks-steady -q --json -o results/disks/steady.h5 > results/disks/steady.json
 contin diagram results/disks/steady.h5 -o results/disks/steady.png
 contin profiles results/disks/steady.h5 --at H=128 --names nu,u,T -o results/disks/steady_profiles_H128.png
-# the dense band's n = 1 branches end EP "resolution limit" on cheb 512 at H = 17.9: p_con's kink at
+# the dense band's n = 1 branches end EP "resolution limit" on cheb 512 at H = 17.7: p_con's kink at
 # phi_c (ESI Eq. 15, zero below phi_c) puts a kink into nu, whose coefficients fall like k^-2
 contin trace savage-rheology -q --json -o results/disks/savage.h5 > results/disks/savage.json
 contin diagram results/disks/savage.h5 --branch band --branch band.n1.1 --branch band.n1.2 -o results/disks/savage_band.png
