@@ -12,6 +12,8 @@ not the eigenvalue pass) and its *key points* are collected:
 
 Errors are measured against a reference value per key point:
 
+- its closed form, where the scene gives one (``SceneResult.extra['exact']``, ``{name: value}``;
+  gPCF's H_1^c = n pi psi): then every grid's own error is shown, the finest included; else
 - the finest Chebyshev grid of the run when 'cheb' is among the methods (spectral
   convergence: its error is far below every other entry's); else
 - Richardson extrapolation of the highest-order FD method from its two finest grids with
@@ -70,6 +72,7 @@ class Run:
     engine: str = ""  # the problem's engine as the scene reports it (SceneResult.discretization)
     grids_used: tuple[int, int] | None = None  # (smallest, largest) per-point grid of an adaptive run
     stopped: int = 0  # branches that ended MX (e.g. the resolution guard: the grid does not carry the job)
+    exact: dict[str, float] = field(default_factory=dict)  # closed-form values of key points (extra['exact'])
 
 
 @dataclass
@@ -148,6 +151,12 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
+def exact_points(result: SceneResult) -> dict[str, float]:
+    """The closed-form values of key points the scene gives (``extra['exact']``), else {}."""
+    given = result.extra.get("exact") if isinstance(result.extra, Mapping) else None
+    return {str(k): float(v) for k, v in given.items()} if isinstance(given, Mapping) else {}
+
+
 def key_points(result: SceneResult) -> dict[str, float]:
     """The scene's key points (module docstring): ``extra['key_points']`` or its BPs/LPs."""
     given = result.extra.get("key_points") if isinstance(result.extra, Mapping) else None
@@ -200,7 +209,7 @@ def measure(scene: Scene, params: Mapping[str, Any], method: str, grid: int | No
         grid = used[1] if used else int(result.discretization.get("intervals", 0) or 0)
     return Run(method, grid, wall, cpu, iters, points, peak, key_points(result),
                engine=str(result.discretization.get("engine", "")), grids_used=used,
-               stopped=sum(1 for b in result.branches if b.status == "MX"))
+               stopped=sum(1 for b in result.branches if b.status == "MX"), exact=exact_points(result))
 
 
 def grids_used(result: SceneResult) -> tuple[int, int] | None:
@@ -289,6 +298,19 @@ def adaptive_row(run: Run, tol: float, report: AccuracyReport) -> AdaptiveRow:
 def references(runs: Iterable[Run]) -> tuple[dict[str, float], str]:
     """(reference value per key point, description) -- see the module docstring."""
     ok = [r for r in runs if not r.failed and r.values]
+    numeric, source = _numeric_references(ok)
+    exact = next((r.exact for r in ok if r.exact), {})
+    if not exact:
+        return numeric, source
+    closed = [k for k in exact if k in numeric]
+    if not closed:
+        return numeric, source
+    rest = [k for k in numeric if k not in exact]
+    what = f"closed form for {', '.join(closed)}" + (f"; {source} for {', '.join(rest)}" if rest else "")
+    return {k: (exact[k] if k in exact else v) for k, v in numeric.items()}, what
+
+
+def _numeric_references(ok: Sequence[Run]) -> tuple[dict[str, float], str]:
     cheb = sorted((r for r in ok if r.method == "cheb"), key=lambda r: r.grid)
     if cheb:
         best = cheb[-1]
@@ -319,7 +341,7 @@ def tabulate(runs: Sequence[Run], reference: Mapping[str, float]) -> list[Row]:
         for r in runs:
             if r.failed or key not in r.values:
                 continue
-            is_ref = r.method == "cheb" and r.grid == finest_cheb
+            is_ref = r.method == "cheb" and r.grid == finest_cheb and key not in r.exact
             err = math.nan if is_ref else relative_error(r.values[key], ref)
             prev = by_method.setdefault(r.method, [])
             order = math.nan

@@ -24,7 +24,7 @@ contin trace jj-walls -s nu=0.3 -s e=0.8 -q -o results/jj_walls.h5
 contin diagram results/jj_walls.h5 -o results/jj_walls.png
 # accuracy: key points of gPCF against method and grid (~2 min)
 CONTIN_SCENES=problems.couette.keypoints:SCENES contin accuracy gpcf-keypoints \
-    --grids 16,24,32,48,64,96,128,256 --tols 1e-4,1e-6,1e-8,1e-10 -q -o results/accuracy
+    --grids 16,24,32,48,64,96,128,256 --tols 1e-4,1e-6,1e-8,1e-10 --repeats 3 -q -o results/accuracy
 # criticality: threshold and tricritical densities at e = 0.8, and the two shipped sweeps (~3 min)
 contin trace criticality -s e=0.8 --json --no-stability -q -o results/criticality_e0.8.h5 > results/criticality_e0.8.json
 rm -rf results/sweeps/threshold_tricritical results/sweeps/critical_gap  # recompute, do not resume

@@ -14,7 +14,7 @@ import math
 import pytest
 from click.testing import CliRunner
 
-from contin.accuracy import key_points, recommend, references, relative_error, run_accuracy, write_outputs
+from contin.accuracy import key_points, recommend, references, relative_error, run_accuracy, tabulate, write_outputs
 from contin.cli import main
 from contin.scene import SceneRequest, get_scene
 from problems.demo import BRATU_FOLD
@@ -106,6 +106,21 @@ def test_key_points_from_special_points_skip_unconverged():
     res.branches[0].special_points = [dataclasses.replace(s, converged=False) if s.type == "LP" else s for s in sps]
     assert key_points(res) == {}
     assert references([])[1] == "none (every run failed)"
+
+
+def test_closed_forms_replace_the_numeric_reference():
+    """A key point with a closed form (SceneResult.extra['exact']) is measured against it on every
+    grid, the finest included; the others against the finest Chebyshev grid."""
+    from contin.accuracy import Run
+
+    runs = [Run("cheb", n, 1.0, 1.0, 1, 1, math.nan, {"a": 1.0 + d, "b": 2.0 + d}, exact={"a": 1.0})
+            for n, d in ((16, 1e-6), (32, 1e-9))]
+    ref, what = references(runs)
+    assert ref == {"a": 1.0, "b": 2.0 + 1e-9}
+    assert what == "closed form for a; cheb N=32 for b"
+    rows = {(r.key, r.grid): r.error for r in tabulate(runs, ref)}
+    assert rows[("a", 32)] == pytest.approx(1e-9) and rows[("a", 16)] == pytest.approx(1e-6)
+    assert math.isnan(rows[("b", 32)]) and rows[("b", 16)] == pytest.approx((1e-6 - 1e-9) / (2 + 1e-9))
 
 
 # ----------------------------------------------------------------------------- gPCF
@@ -219,6 +234,7 @@ def test_gpcf_keypoints_adaptive_meet_tol(gpcf):
 
     rep = run_accuracy(gpcf, {}, ["cheb"], [32, 48, 96], memory=False, tols=[1e-4, 1e-8])
     assert rep.reference["LP_nu0.16"] == pytest.approx(41.9625323, abs=1e-6)
+    assert rep.reference["Hc1"] == exact_hc1(0.3, 0.8)  # the closed form, not the cheb-96 value
     for a in rep.adaptive:
         assert a.met, a
         assert relative_error(a.values["Hc1"], exact_hc1(0.3, 0.8)) <= a.tol

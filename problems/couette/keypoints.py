@@ -110,7 +110,8 @@ def run(request: SceneRequest) -> SceneResult:
     relabel(done)
     return SceneResult(branches=done, parameters=values,
                        discretization={"method": problem.method, "intervals": problem.N, "engine": problem.engine},
-                       extra={"key_points": keys, "Hc1_exact": exact_hc1(values["nu_super"], values["e"])})
+                       extra={"key_points": keys, "Hc1_exact": exact_hc1(values["nu_super"], values["e"]),
+                              "exact": {"Hc1": exact_hc1(values["nu_super"], values["e"])}})
 
 
 FRSTAR_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 30.0}
