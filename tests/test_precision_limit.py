@@ -383,6 +383,19 @@ def test_gpcf_precise_residual_agrees_with_the_residual():
                 r, rp = pb.residual(x, p), pb.precise_residual(x, p)
                 assert rp.dtype == np.float64 and rp.shape == r.shape
                 assert 0 < np.max(np.abs(r - rp)) <= rel * np.max(np.abs(r)), (method, walls, engine)
+    # the closures are numpy-generic: every field of the evaluation is longdouble (Dufour flux, LS chi too)
+    from problems.couette.extended_precision import LD
+
+    for kw in ({"dufour": True}, {"chi": "ls"}):
+        pb = CouetteProblem("cheb", 24, **kw)
+        p = pb.params({"nu": 0.3, "e": 0.8, "H": 20.0})
+        x = pb.uniform_state(p)
+        x[pb.i_T] *= 1 + 0.3 * pb.grid.y**2
+        r, rp = pb.residual(x, p), pb.precise_residual(x, p)
+        assert 0 < np.max(np.abs(r - rp)) <= 1e-11 * np.max(np.abs(r))
+        f = pb._extended._compute_fields(x.astype(LD), {k: LD(v) if isinstance(v, float) else v for k, v in p.items()})
+        assert all(getattr(f, name).dtype == LD for name in f._fields if hasattr(getattr(f, name), "dtype"))
+        assert f.c.f1.dtype == f.c.f2.dtype == f.c.chi.dtype == LD
     pg = CouetteProblem("cheb", 32, gravity=True)
     p = pg.params({"nu": 0.3, "e": 0.8, "H": 20.0})
     assert pg.precise_residual(pg.uniform_state(p), p) is None
