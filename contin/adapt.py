@@ -14,6 +14,9 @@ The tracer (``contin.continuation.trace``) calls into this module when
                               depends on the kernel of J, not only on the state
     suggest_grid(u, p, tol)   optional: the grid size expected to meet tol
     suggest_vector_grid(v, tol)  optional: the same for a perturbation v (a kernel vector)
+    rounding_error(u, p)      optional: the part of the estimate no finer grid lowers (rounding)
+    precise_residual(u, p)    optional: the residual in extended precision (as float64), used by
+                              the two-grid check where rounding_error >= ROUNDING_SHARE x tol
 
 Policy (h-adaptivity in the grid size, as in AUTO-07p's mesh adaption but choosing the number
 of points instead of moving them; Boyd, *Chebyshev and Fourier Spectral Methods*, 2nd ed.,
