@@ -110,6 +110,15 @@ class Problem(Protocol):
         The part of error_estimate that no finer grid lowers (rounding of the computed state,
         e.g. next to a singularity of a closure): where it exceeds adapt.tol the branch ends
         at its precision limit (status EP, message "precision limit ...") instead of refining.
+    precise_residual(u, p) -> array | None  (optional)
+        The same residual F(u, p) evaluated in extended precision (e.g. ``numpy.longdouble``
+        operators and arithmetic), returned as float64; None where the problem does not
+        provide it for this model variant.  Where ``rounding_error`` of a state on the grid of
+        the two-grid check is >= tol/100, ``contin.adapt.two_grid_error`` evaluates the fine
+        residual with it and refines the correction twice (delta += -J^-1 F_precise(v + delta)),
+        so the check measures the discretization error, not double-precision rounding in F;
+        ``contin verify`` polishes its fine solves with it (two Newton steps) where present.
+        Elsewhere it is never called (results bitwise as without it).  gPCF provides it.
     suggest_vector_grid(v, tol) -> int  (optional)
         The same for a perturbation v (``vector_error``): a refinement for an under-resolved
         BP's or LP's kernel takes at least it, so the point is located once on a grid that

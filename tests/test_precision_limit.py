@@ -118,18 +118,20 @@ def _nu_error(pb, x, X):
 
 @pytest.mark.slow
 def test_nu063_plug_two_grid_check_ends_where_its_error_stops_falling(tmp_path):
-    """The default run (two-grid check on): the n = 1 band ends EP at H = 86.6363 on cheb 80, where
-    the check's error does not fall with refinement (3.7e-5 against cheb 160, 2.4e-4 on cheb 128
-    against 256: the finer grids' rounding next to packing), before the rounding estimate's limit at
-    H = 91.4; exit 0, every stored point of n1.1 passed its check."""
+    """The default run (two-grid check on): the n = 1 band ends EP at H = 87.0361 on cheb 80, where
+    the check's error does not fall with refinement (4.5e-5 against cheb 160, 1.7e-4 on cheb 128
+    against 256), before the rounding estimate's limit at H = 91.4; exit 0, every stored point of
+    n1.1 passed its check.  The check's fine residual is gPCF's ``precise_residual`` there (without
+    it: H = 85.97, the fine grids' double rounding); what remains is the rounding of the coarse
+    (double) solve itself, which grows with the grid as well."""
     out = tmp_path / "p.h5"
     r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1",
                                   "-s", "H_max=100", "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
     assert r.exit_code == 0, r.output
     branches, _ = io.load(out)
     band = next(b for b in branches if b.id == "n1.1")
-    assert band.status == "EP" and band.message.startswith("precision limit at H = 86.6363: the two-grid error")
-    assert band.grid[-1] == 80 and band.params["H"][-1] == pytest.approx(86.6363, abs=1e-4)
+    assert band.status == "EP" and band.message.startswith("precision limit at H = 87.0361: the two-grid error")
+    assert band.grid[-1] == 80 and band.params["H"][-1] == pytest.approx(87.0361, abs=1e-4)
 
 
 def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
@@ -284,3 +286,137 @@ def test_fixed_grid_guard_ends_ep_at_the_precision_limit(tmp_path):
     assert band.status == "EP" and band.message.startswith("precision limit at H = 91.")
     assert "of the packing limit nu_m = 0.65" in band.message and band.message.endswith("on cheb 80; finer grids only raise it")
     assert 90.5 < band.params["H"][-1] < 91.6 and not under_resolved_stop(band)
+
+
+# ----------------------------------------------------------------------------- precise_residual hook
+EPS = np.finfo(float).eps
+
+
+class RoundedBratu(Bratu):
+    """Bratu whose double residual carries a fixed rounding-like noise K eps N^4 g (g a standard
+    normal vector per grid: the size of the cheb D2 rows' rounding, which grows like N^4), and
+    whose ``rounding_error`` says so.  Without a precise residual, the two-grid check measures
+    the finer grid's noise (16x the point's own at factor 2) and stalls."""
+
+    K = 0.5
+
+    def _noise(self):
+        g = getattr(self, "_noise_vector", None)
+        if g is None:
+            rng = np.random.default_rng(self.grid_size)
+            g = self._noise_vector = self.K * EPS * self.grid_size**4 * rng.standard_normal(self.n)
+        return g
+
+    def residual(self, u, p):
+        return super().residual(u, p) + self._noise()
+
+    def rounding_error(self, u, p):
+        return self.K * EPS * self.grid_size**4
+
+
+class PreciseBratu(RoundedBratu):
+    """The same with the optional ``precise_residual`` hook: the residual without the noise."""
+
+    calls = 0
+
+    def precise_residual(self, u, p):
+        PreciseBratu.calls += 1
+        return Bratu.residual(self, u, p)
+
+
+def rounded_run(cls, tol):
+    pb = cls("cheb", 8)
+    o = ContinuationOptions(bounds={"lam": (0.02, 3.0)}, max_steps=200, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=tol, max_grid=512, min_grid=8, special_tol=1e-6))
+    return pb, trace(pb, pb.initial(), {"lam": 0.1}, "lam", o)
+
+
+def test_core_precise_residual_lifts_the_two_grid_rounding_floor():
+    """tol 1e-9: without the hook the first point's two-grid error does not fall with refinement
+    (2e-9 against cheb 24, 1.2e-8 against cheb 40: the finer grid's noise), so the branch ends EP
+    "precision limit" at lam = 0.1; with ``precise_residual`` (rounding_error >= tol / 100 on the
+    check grid) the check's residual and its two refinement steps are noise-free, and the branch
+    reaches lam = 3 on cheb 12 -> 20, as clean Bratu does.  contin verify polishes its fine solves with
+    the hook too: every point within tol (2.1e-10 worst); without the hook it measures the noise."""
+    from contin.verify import verify_branch
+
+    _, stalled = rounded_run(RoundedBratu, 1e-9)
+    assert stalled.status == "EP" and stalled.message.startswith("precision limit at lam = 0.1: the two-grid error")
+    PreciseBratu.calls = 0
+    pb, b = rounded_run(PreciseBratu, 1e-9)
+    assert PreciseBratu.calls > 0
+    assert b.status == "EP" and b.message == "reached bound lam=3"
+    assert [c[1:] for c in b.grid_changes] == [(12, 20)]
+    check = verify_branch(pb, b, {"lam": 0.1}, tol=1e-9)
+    assert check.ok and 1e-11 < check.max_error < 5e-10
+    noisy = verify_branch(RoundedBratu("cheb", 8), b, {"lam": 0.1}, tol=1e-9)
+    assert noisy.exceeding and noisy.max_error > 2e-9
+
+
+def test_core_precise_residual_unused_where_rounding_is_negligible():
+    """tol 1e-6: the rounding estimate (<= 1.4e-10 on the check grids) is below tol / 100, so the
+    hook is never called and the branch is bitwise the one without it."""
+    PreciseBratu.calls = 0
+    _, a = rounded_run(PreciseBratu, 1e-6)
+    assert PreciseBratu.calls == 0
+    _, b = rounded_run(RoundedBratu, 1e-6)
+    assert a.status == b.status == "EP" and len(a) == len(b)
+    for i in range(len(a)):
+        assert a.state(i).tobytes() == b.state(i).tobytes()
+    assert a.params["lam"].tobytes() == b.params["lam"].tobytes()
+
+
+def test_gpcf_precise_residual_agrees_with_the_residual():
+    """At an ordinary (non-solution) state F is O(1): the longdouble residual agrees with the double
+    one to the double's rounding (cheb 32: ~3e-12 of max|F|, the D2 rows ~N^4; fd4: ~2e-14), for
+    both engines and wall models; with gravity the hook declines (None: the caller uses residual)."""
+    from problems.couette.model import CouetteProblem
+
+    for method, N, rel in (("cheb", 32, 1e-11), ("fd4", 64, 1e-13)):
+        for walls in ("noslip", "jj"):
+            for engine in ("numpy", "numba"):
+                pb = CouetteProblem(method, N, walls=walls, engine=engine)
+                p = pb.params({"nu": 0.3, "e": 0.8, "H": 20.0})
+                nu, u, T, P, _ = pb.unpack(pb.uniform_state(p))
+                y = pb.grid.y
+                x = pb.pack(nu * (1 + 0.2 * np.cos(np.pi * y)), u + 0.05 * np.sin(np.pi * y), T * (1 + 0.3 * y**2), P)
+                r, rp = pb.residual(x, p), pb.precise_residual(x, p)
+                assert rp.dtype == np.float64 and rp.shape == r.shape
+                assert 0 < np.max(np.abs(r - rp)) <= rel * np.max(np.abs(r)), (method, walls, engine)
+    # the closures are numpy-generic: every field of the evaluation is longdouble (Dufour flux, LS chi too)
+    from problems.couette.extended_precision import LD
+
+    for kw in ({"dufour": True}, {"chi": "ls"}):
+        pb = CouetteProblem("cheb", 24, **kw)
+        p = pb.params({"nu": 0.3, "e": 0.8, "H": 20.0})
+        x = pb.uniform_state(p)
+        x[pb.i_T] *= 1 + 0.3 * pb.grid.y**2
+        r, rp = pb.residual(x, p), pb.precise_residual(x, p)
+        assert 0 < np.max(np.abs(r - rp)) <= 1e-11 * np.max(np.abs(r))
+        f = pb._extended._compute_fields(x.astype(LD), {k: LD(v) if isinstance(v, float) else v for k, v in p.items()})
+        assert all(getattr(f, name).dtype == LD for name in f._fields if hasattr(getattr(f, name), "dtype"))
+        assert f.c.f1.dtype == f.c.f2.dtype == f.c.chi.dtype == LD
+    pg = CouetteProblem("cheb", 32, gravity=True)
+    p = pg.params({"nu": 0.3, "e": 0.8, "H": 20.0})
+    assert pg.precise_residual(pg.uniform_state(p), p) is None
+
+
+def test_gpcf_nu05_band_reaches_h40_with_the_precise_residual(tmp_path):
+    """nu = 0.5, e = 0.8, H_max = 40 (before the hook: EP "precision limit" at H = 38.9576, the two-grid
+    error's floor 5.5e-5 on cheb 240, 3.6e-4 on 368): the n = 1 band reaches the bound on cheb 80, and
+    contin verify finds every point within tol (worst 1.5e-5 at H = 40 against cheb 160)."""
+    import json
+
+    out = tmp_path / "p.h5"
+    r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.5", "-s", "e=0.8", "-s", "H_max=40", "-s", "modes=1",
+                                  "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    band = next(b for b in branches if b.id == "n1.1")
+    assert band.status == "EP" and band.message == "reached bound H=40"
+    assert band.grid[-1] == 80
+    r = CliRunner().invoke(main, ["verify", str(out), "--branch", "n1.1", "--json"], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    (doc,) = json.loads(r.stdout)["branches"]
+    assert not doc["exceeding"] and not doc["unchecked"]
+    assert 1e-5 < doc["max_error"] < 2e-5

@@ -182,6 +182,7 @@ class CouetteProblem(ResolutionHooks):
         self._cache: tuple | None = None  # (x, (e, num), _Fields) of the last real evaluation
         self._mid_weights: Array | None = None
         self._symmetry_matrix: sp.csr_matrix | None = None
+        self._extended: CouetteProblem | None = None  # the longdouble copy of precise_residual
         if engine not in ENGINES + ("auto",):
             raise ValueError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)} or auto")
         if engine == "auto":
@@ -359,6 +360,28 @@ class CouetteProblem(ResolutionHooks):
         if self.gravity:
             F[self.i_M] = self._mass_M @ f.M - self._mass_nu @ f.nu
         return F
+
+    def precise_residual(self, x: Array, p: Mapping[str, Any]) -> Array | None:
+        """F(x, p) evaluated in extended precision (``np.longdouble``), returned as float64: the
+        optional hook of ``contin.problem`` (the two-grid check of ``contin.adapt`` and the polish
+        of ``contin verify`` use it where ``rounding_error`` matters for tol).
+
+        The same code as :meth:`residual` (numpy path, whatever the engine) on the grid of
+        :func:`problems.couette.extended_precision.extended` (nodes, weights and differentiation
+        matrices in longdouble, dense products), with x and the real parameters cast to
+        longdouble; the closures are numpy-generic (problems.couette.closures), so the whole
+        evaluation is in longdouble.  Its rounding is ~2000x below the double residual's, whose
+        cheb D2 rows (entries ~N^4) leave a floor next to packing.  None with ``gravity=True``
+        (the cumulative-mass rows are not converted: the caller then uses :meth:`residual`)."""
+        if self.gravity:
+            return None
+        from problems.couette.extended_precision import LD, extended
+
+        ext = self._extended
+        if ext is None:
+            ext = self._extended = extended(self)
+        pl = {k: LD(v) if isinstance(v, (float, np.floating)) else v for k, v in p.items()}
+        return np.asarray(ext.residual(np.asarray(x, dtype=float).astype(LD), pl), dtype=float)
 
     # ------------------------------------------------------------------ Jacobian
     def jacobian(self, x: Array, p: Mapping[str, Any]) -> sp.csr_matrix:
