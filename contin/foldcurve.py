@@ -448,33 +448,36 @@ def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, 
         last = len(half) - 1
         x_last, t_last = half.state(last), half.tangent(last)
         params = {k: float(v[last]) for k, v in half.params.items()}
-        n = int(aug.n)
         q = {**params, second: float(x_last[-1])}
-        size = regrid.next_grid(aug.problem, x_last[:n], q)
-        if size is None:
+        size = regrid.next_grid(aug.problem, x_last[: int(aug.n)], q)
+        seg, other = None, aug
+        while size is not None:
+            other = aug.with_grid(size)
+            x, t = aug.carry(x_last, t_last[:-1], other)
+            system = ExtendedSystem(other, params, parameter, opts.step.theta)
+            system.n = x.size
+            tt = system.unit(system.pack(t, float(t_last[-1])))
+            corr = correct(system, system.pack(x, params[parameter]), system.row(tt), opts.newton)
+            if not corr.converged or system.admissible(corr.x) is not None:
+                half.audit.append(f"{kind} not continued on grid {size} from {parameter} = {params[parameter]:.6g}: "
+                                  f"the carried point did not converge there ({corr.message})")
+                break
+            budget = opts.max_steps - int(np.sum(half.ds > 0))
+            if budget <= 0:
+                break
+            ds = min(max(abs(float(half.ds[-1])), abs(opts.step.ds)), opts.step.ds_max)
+            o = replace(opts, max_steps=budget, step=replace(opts.step, ds=ds))
+            line = (f"grid {int(aug.grid_size)} -> {size} at {parameter} = {corr.x[-1]:.6g}, {second} = "
+                    f"{corr.x[-2]:.6g}: {half.message}")
+            seg = run(other, corr.x[:-1], {**params, parameter: float(corr.x[-1])}, o, +1, tt)
+            if len(seg) > 0:
+                seg.audit.insert(0, line)
+                break
+            # the carried point itself is under-resolved on this grid (its start check): finer still
+            seg = None
+            size = regrid.next_grid(other.problem, corr.x[: other.n], {**q, parameter: float(corr.x[-1])})
+        if seg is None:
             break
-        other = aug.with_grid(size)
-        x, t = aug.carry(x_last, t_last[:-1], other)
-        system = ExtendedSystem(other, params, parameter, opts.step.theta)
-        system.n = x.size
-        xx = system.pack(x, params[parameter])
-        tt = system.unit(system.pack(t, float(t_last[-1])))
-        corr = correct(system, xx, system.row(tt), opts.newton)
-        if not corr.converged or system.admissible(corr.x) is not None:
-            half.audit.append(f"{kind} not continued on grid {size} from {parameter} = {params[parameter]:.6g}: "
-                              f"the carried point did not converge there ({corr.message})")
-            break
-        used = int(np.sum(half.ds > 0))
-        budget = opts.max_steps - used
-        if budget <= 0:
-            break
-        ds = min(max(abs(float(half.ds[-1])), abs(opts.step.ds)), opts.step.ds_max)
-        o = replace(opts, max_steps=budget, step=replace(opts.step, ds=ds))
-        line = (f"grid {int(aug.grid_size)} -> {size} at {parameter} = {corr.x[-1]:.6g}, {second} = "
-                f"{corr.x[-2]:.6g}: {half.message}")
-        p_new = {**params, parameter: float(corr.x[-1])}
-        seg = run(other, corr.x[:-1], p_new, o, +1, tt)
-        seg.audit.insert(0, line)
         half = _chain(half, seg)
         aug = other
     return half
