@@ -16,6 +16,11 @@ imperfection parameter; extrema of p1 appear as ordinary ``LP`` of the augmented
 point that is an extremum of both (p1 and p2 stationary together) is a cusp of the curve's
 projection on the (p1, p2) plane, e.g. the hysteresis point alpha = beta^3/27 of the
 imperfect pitchfork.
+
+Segment-wise regridding (:class:`SegmentRegrid`, ``trace_fold_curve(..., regrid=...)``): where
+the resolution guard stops a fold curve on grid N, its last accepted point and tangent are
+carried onto a finer grid (:meth:`FoldProblem.carry`) and the curve continues from there, so only
+the part that needs the finer grid pays for it; the points keep their grids (``Branch.grid``).
 """
 
 from __future__ import annotations

@@ -6,6 +6,9 @@
   Gel'fand 1963).
 - :class:`KinkedBratu`: Bratu plus a step source lam^3 [x > 0.3]: a solution with a jump in u''
   (algebraically falling Chebyshev coefficients), for adaptive resolution's slow-decay paths.
+- :class:`StretchedBratu`: Bratu on the stretched coordinate s = (e^{a x} - 1)/(e^a - 1), a second
+  parameter a: fold curve lam = lam*/(1 + a), fold state Bratu's compressed into a layer of width
+  ~ 1/a (the grid a tolerance needs grows along the curve: segment-wise regridding's test).
 - :class:`AllenCahn`: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet.  Supercritical
   pitchforks off u = 0 at lam = k^2 (the Dirichlet eigenvalues of -d^2/dx^2 on [0, pi]);
   symmetry u -> -u (Chafee & Infante, Applicable Anal. 4, 1974).
@@ -220,6 +223,11 @@ class StretchedBratu(Bratu):
 
     parameter_names = ("lam", "a")
 
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        super().__init__(method, intervals)
+        mask = sp.diags(self.interior.astype(float))
+        self._d1 = sp.csr_matrix(mask @ self.grid.d1 / self.length)
+
     @staticmethod
     def _k2(a: float) -> tuple[float, float]:
         """k(a)^2 and d ln k / da (series near a = 0)."""
@@ -259,11 +267,6 @@ class StretchedBratu(Bratu):
         super().validate(p)
         if not (np.isfinite(p["a"]) and p["a"] > -1.0):
             raise ValueError(f"a must be finite and > -1, got {p['a']}")
-
-    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
-        super().__init__(method, intervals)
-        mask = sp.diags(self.interior.astype(float))
-        self._d1 = sp.csr_matrix(mask @ self.grid.d1 / self.length)
 
     def under_resolved(self, u: Array, p: Mapping[str, float], tol: float) -> str | None:
         """The resolution guard: None if the state's estimate (:meth:`error_estimate`) is <= tol."""
