@@ -920,8 +920,9 @@ def retrace_finer(problem: Any, compute: Any, opts: AdaptOptions = AdaptOptions(
     tried).
 
     For computations the tracer cannot regrid point by point (augmented two-parameter systems
-    such as fold curves, whose state carries a null vector and whose branch bookkeeping assumes
-    one grid): the whole computation is repeated on the next grid (growth factor
+    such as fold curves, whose state carries a null vector; a fold curve can instead continue
+    from where the guard stopped it on a finer grid, :class:`contin.foldcurve.SegmentRegrid`):
+    the whole computation is repeated on the next grid (growth factor
     ``opts.growth``, as :func:`finer`), which is what a user did by hand after the guard's
     "refine the grid" message.  The growth is geometric, so the total cost is at most
     1/(1 - 1/growth^a) times the last run's (a ~ 1-3, the cost's order in the grid size).

@@ -170,7 +170,15 @@ class Branch:
         """The unit tangent at point ``i`` (unpadded)."""
         i = range(len(self))[i]
         row = self.tangents[i]
-        return row if self.sizes is None else row[: int(self.sizes[i]) + len(self.free)]
+        return row if self.sizes is None else row[: int(self.sizes[i]) + self.tangent_extra]
+
+    @property
+    def tangent_extra(self) -> int:
+        """Entries a tangent has beyond its state: the free parameters outside the state (one
+        for a branch, and for a fold curve, whose state carries the second parameter)."""
+        if self.states.ndim == 2 and self.tangents.ndim == 2 and self.states.shape[1] and self.tangents.shape[1]:
+            return int(self.tangents.shape[1] - self.states.shape[1])
+        return len(self.free)
 
     def grid_at(self, i: int) -> int | None:
         """The grid size of point ``i`` (None: the problem's own grid)."""

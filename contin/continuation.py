@@ -892,7 +892,7 @@ def join(backward: Branch, forward: Branch) -> Branch:
         def widen(b: Branch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             n_b = b.sizes if b.sizes is not None else np.full(len(b), b.states.shape[1], dtype=np.int64)
             st = pad_rows(list(b.states), width)
-            tg = pad_rows([b.tangents[i, : int(n_b[i]) + len(b.free)] for i in range(len(b))], twidth)
+            tg = pad_rows([b.tangents[i, : int(n_b[i]) + b.tangent_extra] for i in range(len(b))], twidth)
             return st, tg, n_b
 
         rs, rt, rn = widen(r)

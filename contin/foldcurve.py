@@ -16,12 +16,19 @@ imperfection parameter; extrema of p1 appear as ordinary ``LP`` of the augmented
 point that is an extremum of both (p1 and p2 stationary together) is a cusp of the curve's
 projection on the (p1, p2) plane, e.g. the hysteresis point alpha = beta^3/27 of the
 imperfect pitchfork.
+
+Segment-wise regridding (:class:`SegmentRegrid`, ``trace_fold_curve(..., regrid=...)``): where
+the resolution guard stops a fold curve on grid N, its last accepted point and tangent are
+carried onto a finer grid (:meth:`FoldProblem.carry`) and the curve continues from there, so only
+the part that needs the finer grid pays for it; the points keep their grids (``Branch.grid``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,7 +37,7 @@ from contin.branch import Branch, SpecialPoint, relabel
 from contin.continuation import trace, trace_both
 from contin.extended import l2_norm
 from contin.normalform import null_vectors
-from contin.options import ContinuationOptions
+from contin.options import AdaptOptions, ContinuationOptions
 from contin.problem import Array, has
 
 
@@ -122,6 +129,44 @@ class FoldProblem:
 
         return tests + [fold_bt_test(self.problem, self.n, self.c, self.second)]
 
+    # --- grids (segment-wise regridding of a fold curve: :func:`trace_augmented`) ----------------
+    @property
+    def grid_size(self) -> int | None:
+        """The wrapped problem's grid size (None for a problem without grids)."""
+        return getattr(self.problem, "grid_size", None)
+
+    def with_grid(self, size: int) -> FoldProblem:
+        """The same augmented system on the wrapped problem's grid of ``size``; the normalisation
+        c is carried over with the problem's linear ``transfer``."""
+        from contin.adapt import on_grid
+
+        other = on_grid(self.problem, int(size))
+        out = FoldProblem(other, self.second, self.problem.transfer(self.c, other), self.eps)  # type: ignore[attr-defined]
+        out.detect_cusps = self.detect_cusps
+        return out
+
+    def transfer(self, state: Array, other: FoldProblem) -> Array:
+        """An augmented vector (u, phi, p2) -- a state, or the first 2n + 1 entries of a tangent --
+        carried onto ``other``'s grid: the u and phi blocks with the problem's linear ``transfer``,
+        p2 (and anything after it) as it is.  Linear; :meth:`carry` also renormalises phi."""
+        n = self.n
+        move = self.problem.transfer  # type: ignore[attr-defined]
+        state = np.asarray(state, float)
+        return np.concatenate([move(state[:n], other.problem), move(state[n:2 * n], other.problem), state[2 * n:]])
+
+    def carry(self, state: Array, tangent: Array, other: FoldProblem) -> tuple[Array, Array]:
+        """A point (u, phi, p2) and its tangent (du, dphi, dp2, dp1) carried onto ``other``'s grid:
+        :meth:`transfer`, then phi scaled so that other.c . phi = 1 (the system's normalisation)
+        and dphi by the same factor, minus its component that would change c . phi."""
+        x = self.transfer(state, other)
+        t = self.transfer(tangent, other)
+        m = other.n
+        scale = 1.0 / float(other.c @ x[m:2 * m])
+        x[m:2 * m] *= scale
+        t[m:2 * m] *= scale
+        t[m:2 * m] -= float(other.c @ t[m:2 * m]) * x[m:2 * m]
+        return x, t
+
     def under_resolved(self, state: Array, p: Mapping[str, float], tol: float) -> str | None:
         """The wrapped problem's resolution guard (``contin.problem``) on the base state u.
 
@@ -152,14 +197,16 @@ def _locate_extremum(fold: FoldProblem, branch: Branch, i: int, options: Continu
     continued in p2 with p1 carried in the state, so the tracer's own LP location (to its
     tolerance) does the work.
     """
+    fold = _fold_at(fold, branch, i)
     n = fold.n
     first = branch.parameter
     swapped = FoldProblem(fold.problem, first, fold.c, fold.eps)
-    u_phi = branch.states[i, : 2 * n]
+    row = branch.state(i)
+    u_phi = row[: 2 * n]
     start = np.concatenate([u_phi, [branch.params[first][i]]])
     params = {k: float(v[i]) for k, v in branch.params.items()}
-    params[fold.second] = float(branch.states[i, 2 * n])
-    direction = 1.0 if branch.tangents[i, 2 * n] > 0 else -1.0
+    params[fold.second] = float(row[2 * n])
+    direction = 1.0 if branch.tangent(i)[2 * n] > 0 else -1.0
     ds = max(min(abs(branch.ds[i + 1]), options.step.ds_max) / 4, 10 * options.step.ds_min)
     local = replace(
         options,
@@ -181,16 +228,32 @@ def _locate_extremum(fold: FoldProblem, branch: Branch, i: int, options: Continu
         params=params,
         order_parameter=lp.order_parameter,
         state=state,
-        bracket=(float(branch.states[i, 2 * n]), float(branch.states[i + 1, 2 * n])),
+        bracket=(float(branch.state(i)[-1]), float(branch.state(i + 1)[-1])),
         converged=lp.converged,
         note=f"extremum of {fold.second}",
+        grid=branch.grid_at(i),
     )
+
+
+def _fold_at(fold: FoldProblem, branch: Branch, i: int) -> FoldProblem:
+    """``fold`` on the grid of point ``i`` (a curve regridded segment-wise keeps per-point grids)."""
+    g = branch.grid_at(i)
+    if g is None or fold.grid_size is None or int(fold.grid_size) == g:
+        return fold
+    return fold.with_grid(g)
+
+
+def _second_column(branch: Branch, tangents: bool = False) -> Array:
+    """p2 (the last state entry) of every point of a raw augmented branch, or its tangent component."""
+    if branch.sizes is None:
+        return (branch.tangents if tangents else branch.states)[:, branch.states.shape[1] - 1].copy()
+    return np.array([(branch.tangent(i) if tangents else branch.state(i))[int(branch.sizes[i]) - 1]
+                     for i in range(len(branch))], dtype=float)
 
 
 def _extrema(branch: Branch, fold: FoldProblem, options: ContinuationOptions) -> list[SpecialPoint]:
     """Extrema of p2 along a fold curve (sign changes of its tangent component), located."""
-    column = 2 * fold.n
-    t = branch.tangents[:, column]
+    t = _second_column(branch, tangents=True)
     out = []
     for i in np.nonzero(np.sign(t[:-1]) * np.sign(t[1:]) < 0)[0]:
         point = _locate_extremum(fold, branch, int(i), options)
@@ -202,9 +265,8 @@ def _extrema(branch: Branch, fold: FoldProblem, options: ContinuationOptions) ->
 def as_fold_curve(branch: Branch, fold: FoldProblem, options: ContinuationOptions | None = None) -> Branch:
     """Turn a traced augmented branch into a fold curve: p2 as a parameter column, base states,
     and ``XT`` special points at the extrema of p2."""
-    n = fold.n
     params = dict(branch.params)
-    params[fold.second] = branch.states[:, 2 * n].copy()
+    params[fold.second] = _second_column(branch)
     observables = {k: v for k, v in branch.observables.items() if k != fold.second}
     out = replace(
         branch,
@@ -214,9 +276,9 @@ def as_fold_curve(branch: Branch, fold: FoldProblem, options: ContinuationOption
         kind="fold-curve",
     )
     specials = [
-        replace(sp_, params={**sp_.params, fold.second: float(sp_.state[2 * n])}, note=sp_.note or f"extremum of {branch.parameter}")
+        replace(sp_, params={**sp_.params, fold.second: float(sp_.state[-1])}, note=sp_.note or f"extremum of {branch.parameter}")
         if sp_.type == "LP"
-        else replace(sp_, params={**sp_.params, fold.second: float(sp_.state[2 * n])})
+        else replace(sp_, params={**sp_.params, fold.second: float(sp_.state[-1])})
         for sp_ in branch.special_points
     ]
     specials += _extrema(branch, fold, options or ContinuationOptions())
@@ -235,6 +297,7 @@ def trace_fold_curve(
     parameter: str | None = None,
     both: bool = True,
     branch_id: str = "fold",
+    regrid: SegmentRegrid | None = None,
 ) -> Branch:
     """Continue the fold ``point`` in (parameter, second); both directions joined.
 
@@ -243,18 +306,80 @@ def trace_fold_curve(
     augmented system's own singularities are not branch points of the original problem.
     Returns a fold-curve :class:`Branch` (``kind='fold-curve'``) with ``XT`` points at the
     extrema of ``second`` and ``LP`` points at the extrema of ``parameter``.
+
+    ``regrid`` (:class:`SegmentRegrid`, for a problem with the grid hooks ``grid_size``,
+    ``with_grid``, ``transfer``): where the resolution guard stops the curve, it continues on a
+    finer grid from its last accepted point (each direction on its own) instead of ending MX;
+    the curve's ``grid`` column then holds each point's grid and its audit the grid changes.
     """
     if parameter is None:
         raise ValueError("trace_fold_curve needs the name of the first continuation parameter")
     fold, start = fold_start(problem, point, second)
     raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=both,
-                          branch_id=branch_id, kind="fold-curve")
+                          branch_id=branch_id, kind="fold-curve", regrid=regrid)
     return as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
+
+
+@dataclass(frozen=True)
+class SegmentRegrid:
+    """Segment-wise regridding of an augmented two-parameter curve (:func:`trace_augmented`).
+
+    When the resolution guard (``ContinuationOptions.resolution_tol``, the problem's
+    ``under_resolved``) stops a half of the curve at its last accepted point on grid N, that
+    point and its tangent are carried onto a finer grid (the augmented system's ``with_grid`` /
+    ``carry``: the state and null-vector blocks with the problem's linear ``transfer``, the
+    parameters as they are, the null vector renormalised), corrected there on the
+    pseudo-arclength hyperplane of the carried tangent, and the half continues from there in the
+    same direction: one curve whose points keep the grid they were computed on
+    (``Branch.grid``), with the grid changes in its audit.  The part before the stop is kept as
+    computed (it met the guard there).
+
+    opts : growth, multiple and max_grid of the next grid (:func:`contin.adapt.finer`)
+    suggest : optional ``suggest(problem, u, params) -> grid size`` for the stopped point (u and
+        params of the wrapped problem); the next grid is the larger of it and the growth step
+    """
+
+    opts: AdaptOptions
+    suggest: Callable[[Any, Array, Mapping[str, float]], float | None] | None = None
+
+    def next_grid(self, problem: Any, u: Array, params: Mapping[str, float]) -> int | None:
+        """The grid after ``problem``'s for a curve stopped at (u, params); None past max_grid."""
+        from contin.adapt import _round, finer
+
+        size = finer(problem, u, params, self.opts)
+        if size is None:
+            return None
+        if self.suggest is not None:
+            want = self.suggest(problem, u, params)
+            if want is not None and math.isfinite(float(want)):
+                size = min(max(size, _round(float(want), self.opts.multiple)), self.opts.max_grid)
+        return size
+
+
+def _chain(first: Branch, second: Branch) -> Branch:
+    """One half from two segments traced in the same direction: ``second`` starts at ``first``'s
+    last point (carried onto a finer grid), which replaces it; ``first``'s end (EP/MX) is dropped.
+    Status and message are ``second``'s."""
+    from contin.continuation import join
+
+    end = len(first) - 1
+    head = replace(first, special_points=[s for s in first.special_points
+                                          if not (s.type in ("EP", "MX") and s.index >= end)])
+    out = join(head.reversed(), second)
+    out.status, out.message = second.status, second.message
+    out.audit = list(first.audit) + list(second.audit)
+    return out
+
+
+def _point_params(branch: Branch, i: int, second: str, index: int) -> dict[str, float]:
+    p = {k: float(v[i]) for k, v in branch.params.items()}
+    p[second] = float(branch.state(i)[index])
+    return p
 
 
 def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second: str, index: int,
                     options: ContinuationOptions, *, parameter: str, both: bool, branch_id: str, kind: str,
-                    mirror_start: bool = False) -> Branch:
+                    mirror_start: bool = False, regrid: SegmentRegrid | None = None) -> Branch:
     """Trace an augmented two-parameter system (fold or BP curve) whose state holds the second
     parameter at ``index``, in ``parameter``, both directions joined.
 
@@ -266,27 +391,98 @@ def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second
     ``mirror_start``: the second half starts with minus the first half's start tangent instead of
     the tracer's own choice from the sign of d parameter/ds (needed at a cusp, where the parameter
     is extremal and that sign cannot tell the halves apart: :mod:`contin.twoparam`).
+
+    ``regrid`` (:class:`SegmentRegrid`; the augmented system needs ``grid_size``, ``with_grid``,
+    ``carry`` and ``problem``, as :class:`FoldProblem` has, and ``index`` must be its last state
+    entry): a half that the resolution guard stops continues on a finer grid from its last
+    accepted point, each half on its own; every point of the result has its grid in ``grid``.
     """
-    import math
-
-    from contin.continuation import join, trace
-    from contin.hopfcurve import _cut_at_bound, _second_bound_event
-
     lo, hi = options.bounds.get(second, (-math.inf, math.inf))
     p2 = float(point.params[second])
     if not lo <= p2 <= hi:
         raise ValueError(f"start value {second}={p2:g} lies outside its bounds ({lo:g}, {hi:g})")
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
-    bounded = math.isfinite(lo) or math.isfinite(hi)
-    if bounded:
-        opts = replace(opts, events={**opts.events, **_second_bound_event(augmented, second, lo, hi, index=index)})
+    if regrid is not None and index != len(start) - 1:
+        raise ValueError("segment-wise regridding needs the second parameter as the last state entry")
     halves = []
     for direction in ((1, -1) if both else (1,)):
-        tangent = halves[0].tangents[0] if mirror_start and halves else None
-        half = trace(augmented, start, dict(point.params), parameter, opts, direction=direction, tangent=tangent,
-                     branch_id=branch_id, kind=kind, parent=f"{point.name}")
-        halves.append(_cut_at_bound(half, augmented, second, lo, hi, index=index) if bounded else half)
+        tangent = halves[0].tangent(0) if mirror_start and halves else None
+        half = _trace_half(augmented, start, point, second, index, opts, lo, hi, parameter=parameter,
+                           direction=direction, tangent=tangent, branch_id=branch_id, kind=kind, regrid=regrid)
+        halves.append(half)
         if half.closed or (mirror_start and len(half) < 2):  # nothing to mirror: no second half
             break
+    from contin.continuation import join
+
     return halves[0] if len(halves) == 1 else join(halves[1], halves[0])
+
+
+def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, index: int,
+                opts: ContinuationOptions, lo: float, hi: float, *, parameter: str, direction: int,
+                tangent: Array | None, branch_id: str, kind: str, regrid: SegmentRegrid | None) -> Branch:
+    """One half of :func:`trace_augmented`: a trace, and with ``regrid`` its continuations on
+    finer grids while the resolution guard stops it."""
+    from contin.adapt import under_resolved_stop
+    from contin.continuation import trace
+    from contin.corrector import correct
+    from contin.extended import ExtendedSystem
+    from contin.hopfcurve import _cut_at_bound, _second_bound_event
+
+    bounded = math.isfinite(lo) or math.isfinite(hi)
+
+    def run(aug: Any, x0: Array, params: Mapping[str, float], o: ContinuationOptions, d: int,
+            t: Array | None) -> Branch:
+        idx = len(x0) - 1 if regrid is not None else index
+        if bounded:
+            o = replace(o, events={**o.events, **_second_bound_event(aug, second, lo, hi, index=idx)})
+        seg = trace(aug, x0, dict(params), parameter, o, direction=d, tangent=t, branch_id=branch_id, kind=kind,
+                    parent=f"{point.name}")
+        seg = _cut_at_bound(seg, aug, second, lo, hi, index=idx) if bounded else seg
+        if regrid is not None:
+            size = int(aug.grid_size)
+            seg.grid = np.full(len(seg), size, dtype=np.int64)
+            seg.special_points = [replace(s, grid=size) for s in seg.special_points]
+        return seg
+
+    half = run(augmented, start, point.params, opts, direction, tangent)
+    if regrid is None:
+        return half
+    aug = augmented
+    while under_resolved_stop(half) and len(half) >= 1 and not half.closed:
+        last = len(half) - 1
+        x_last, t_last = half.state(last), half.tangent(last)
+        params = {k: float(v[last]) for k, v in half.params.items()}
+        q = {**params, second: float(x_last[-1])}
+        size = regrid.next_grid(aug.problem, x_last[: int(aug.n)], q)
+        seg, other = None, aug
+        while size is not None:
+            other = aug.with_grid(size)
+            x, t = aug.carry(x_last, t_last[:-1], other)
+            system = ExtendedSystem(other, params, parameter, opts.step.theta)
+            system.n = x.size
+            tt = system.unit(system.pack(t, float(t_last[-1])))
+            corr = correct(system, system.pack(x, params[parameter]), system.row(tt), opts.newton)
+            if not corr.converged or system.admissible(corr.x) is not None:
+                half.audit.append(f"{kind} not continued on grid {size} from {parameter} = {params[parameter]:.6g}: "
+                                  f"the carried point did not converge there ({corr.message})")
+                break
+            budget = opts.max_steps - int(np.sum(half.ds > 0))
+            if budget <= 0:
+                break
+            ds = min(max(abs(float(half.ds[-1])), abs(opts.step.ds)), opts.step.ds_max)
+            o = replace(opts, max_steps=budget, step=replace(opts.step, ds=ds))
+            line = (f"grid {int(aug.grid_size)} -> {size} at {parameter} = {corr.x[-1]:.6g}, {second} = "
+                    f"{corr.x[-2]:.6g}: {half.message}")
+            seg = run(other, corr.x[:-1], {**params, parameter: float(corr.x[-1])}, o, +1, tt)
+            if len(seg) > 0:
+                seg.audit.insert(0, line)
+                break
+            # the carried point itself is under-resolved on this grid (its start check): finer still
+            seg = None
+            size = regrid.next_grid(other.problem, corr.x[: other.n], {**q, parameter: float(corr.x[-1])})
+        if seg is None:
+            break
+        half = _chain(half, seg)
+        aug = other
+    return half

@@ -179,7 +179,7 @@ def check_finite(branch: Branch) -> None:
     if branch.sizes is not None:  # NaN padding of states of several sizes is not a bad value
         index = np.arange(len(branch)) if branch.state_index is None else np.asarray(branch.state_index)
         states = [states[r, : int(branch.sizes[i])] for r, i in enumerate(index)]
-        tangents = [tangents[i, : int(branch.sizes[i]) + len(branch.free)] for i in range(len(branch))]
+        tangents = [tangents[i, : int(branch.sizes[i]) + branch.tangent_extra] for i in range(len(branch))]
     for what, values in (("the state", states), ("the tangent", tangents), ("the step ds", branch.ds)):
         row = (next((k for k, v in enumerate(values) if not np.all(np.isfinite(v))), None)
                if isinstance(values, list) else first_bad_row(values))

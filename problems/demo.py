@@ -6,6 +6,9 @@
   Gel'fand 1963).
 - :class:`KinkedBratu`: Bratu plus a step source lam^3 [x > 0.3]: a solution with a jump in u''
   (algebraically falling Chebyshev coefficients), for adaptive resolution's slow-decay paths.
+- :class:`StretchedBratu`: Bratu on the stretched coordinate s = (e^{a x} - 1)/(e^a - 1), a second
+  parameter a: fold curve lam = lam*/(1 + a), fold state Bratu's compressed into a layer of width
+  ~ 1/a (the grid a tolerance needs grows along the curve: segment-wise regridding's test).
 - :class:`AllenCahn`: u'' + lam (u - u^3) = 0 on [0, pi], Dirichlet.  Supercritical
   pitchforks off u = 0 at lam = k^2 (the Dirichlet eigenvalues of -d^2/dx^2 on [0, pi]);
   symmetry u -> -u (Chafee & Infante, Applicable Anal. 4, 1974).
@@ -201,6 +204,95 @@ class Bratu(_DirichletBVP):
 
     def initial(self) -> Array:
         return np.zeros(self.n)
+
+
+class StretchedBratu(Bratu):
+    """Bratu mapped onto a stretched coordinate: v(x) = u(s(x)) with s = (e^{a x} - 1) / (e^a - 1),
+
+        v'' - a v' + lam (1 + a) k(a)^2 e^{2 a x} e^v = 0 on [0, 1],   v(0) = v(1) = 0,
+        k(a) = a / (e^a - 1)   (k(0) = 1: a = 0 is Bratu itself).
+
+    u solves Bratu u'' + lam (1 + a) e^u = 0, so the folds are those of Bratu at
+    lam (1 + a) = lam*: the fold curve in (lam, a) is lam = lam* / (1 + a) (a > -1), and the fold
+    state is Bratu's fold solution u* compressed towards x = 1 (a > 0) or x = 0 (a < 0) into a
+    layer of width ~ 1/|a|, so the grid a tolerance needs grows along the curve with |a|: the
+    non-granular test problem of segment-wise regridding of fold curves
+    (:class:`contin.foldcurve.SegmentRegrid`).  With the resolution guard ``under_resolved``
+    (the Chebyshev tail of the state against tol) and ``suggest_grid``.
+    """
+
+    parameter_names = ("lam", "a")
+
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        super().__init__(method, intervals)
+        mask = sp.diags(self.interior.astype(float))
+        self._d1 = sp.csr_matrix(mask @ self.grid.d1 / self.length)
+
+    @staticmethod
+    def _k2(a: float) -> tuple[float, float]:
+        """k(a)^2 and d ln k / da (series near a = 0)."""
+        if abs(a) < 1e-4:
+            k = 1.0 - a / 2.0 + a * a / 12.0
+            return k * k, -0.5 + a / 12.0
+        k = a / math.expm1(a)
+        return k * k, 1.0 / a - 1.0 / (-math.expm1(-a))
+
+    def _source(self, a: float, lam: float) -> Array:
+        """lam (1 + a) k(a)^2 e^{2 a x} (interior rows; the walls are Dirichlet rows)."""
+        k2, _ = self._k2(a)
+        return lam * (1.0 + a) * k2 * np.exp(2.0 * a * self.x)
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        a = float(p["a"])
+        out = self._d2 @ u - a * (self._d1 @ u) + np.where(self.interior, self._source(a, p["lam"]) * np.exp(u), 0.0)
+        out[~self.interior] = u[~self.interior]
+        return out
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        a = float(p["a"])
+        diag = np.where(self.interior, self._source(a, p["lam"]) * np.exp(u), 0.0)
+        return sp.csr_matrix(self._d2 + self._bc - a * self._d1 + sp.diags(diag))
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        a, lam = float(p["a"]), float(p["lam"])
+        if name == "lam":
+            return np.where(self.interior, self._source(a, 1.0) * np.exp(u), 0.0)
+        if name == "a":
+            _, dlnk = self._k2(a)
+            ds = self._source(a, lam) * (1.0 / (1.0 + a) + 2.0 * dlnk + 2.0 * self.x)
+            return np.where(self.interior, ds * np.exp(u) - self._d1 @ u, 0.0)
+        raise ValueError(f"unknown parameter {name!r}")
+
+    def validate(self, p: Mapping[str, float]) -> None:
+        super().validate(p)
+        if not (np.isfinite(p["a"]) and p["a"] > -1.0):
+            raise ValueError(f"a must be finite and > -1, got {p['a']}")
+
+    def under_resolved(self, u: Array, p: Mapping[str, float], tol: float) -> str | None:
+        """The resolution guard: None if the state's estimate (:meth:`error_estimate`) is <= tol."""
+        err = self.error_estimate(u, p)
+        if err <= tol:
+            return None
+        return f"estimated relative error {err:.2g} > {tol:.2g} on {self.grid.method} {self.grid.intervals}"
+
+    def suggest_grid(self, u: Array, p: Mapping[str, float], tol: float) -> float:
+        """The grid at which the state's estimate is expected to meet tol / 10
+        (:meth:`suggest_vector_grid`)."""
+        return self.suggest_vector_grid(u, tol)
+
+    @staticmethod
+    def fold_curve(a: Array | float) -> Array:
+        """The exact fold curve: lam = lam* / (1 + a)."""
+        return BRATU_FOLD / (1.0 + np.asarray(a, dtype=float))
+
+    def fold_state(self, a: float) -> Array:
+        """The exact fold state at a on this grid: u*(s(x)), u* = -2 ln[cosh((s - 1/2) theta*/2) /
+        cosh(theta*/4)] with theta* the root of (theta/4) tanh(theta/4) = 1."""
+        from scipy.optimize import brentq
+
+        theta = 4.0 * brentq(lambda z: z * math.tanh(z) - 1.0, 0.5, 2.0)
+        s = self.x if abs(a) < 1e-12 else np.expm1(a * self.x) / math.expm1(a)
+        return -2.0 * np.log(np.cosh((s - 0.5) * theta / 2.0) / math.cosh(theta / 4.0))
 
 
 class KinkedBratu(_DirichletBVP):

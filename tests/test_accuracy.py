@@ -11,6 +11,7 @@ import dataclasses
 import json
 import math
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -304,3 +305,30 @@ def test_gpcf_frstar_asked_for_tol_meets_it():
     assert rep.reference["Fr*"] == pytest.approx(254.1204, abs=2e-4)
     assert a.met and relative_error(a.values["Fr*"], rep.reference["Fr*"]) <= 1e-4
     assert a.grids is not None and a.grids[1] <= 48  # the curve's grid chosen from its seed, not the start's 32 refined
+
+
+@pytest.mark.slow
+def test_gpcf_frstar_at_1e_8_regrids_the_fold_curve_segment_wise():
+    """Fr* asked for 1e-8: the fold curve starts on its seed's grid and only its dense-plug ends
+    (H near 30, both halves) continue on a finer grid (contin.foldcurve.SegmentRegrid): one curve
+    whose grids fall then rise along it (each direction from the seed refines on its own), Fr*
+    located on the coarse segment, within 1e-8 of the fixed cheb 48 run (which agrees with cheb 96
+    to 1e-13, README) and of AUTO-07p's 254.1204."""
+    from contin.scene import SceneRequest
+    from problems.couette.keypoints import SCENES
+
+    scene = SCENES["gpcf-frstar"]
+    fixed = scene.run(SceneRequest(params={}, method="cheb", grid=48, stability=False))
+    ref = fixed.extra["key_points"]["Fr*"]
+    assert ref == pytest.approx(254.1204, abs=2e-4)
+    res = scene.run(SceneRequest(params={}, method="cheb", grid=None, stability=False, overrides={"tol": 1e-8}))
+    assert relative_error(res.extra["key_points"]["Fr*"], ref) <= 1e-8
+    (curve,) = [b for b in res.branches if b.id == "fold0"]
+    assert curve.status == "EP" and curve.grid is not None and len(curve.grid) == len(curve)
+    g = curve.grid
+    low = int(np.argmin(g))
+    assert np.all(np.diff(g[:low + 1]) <= 0) and np.all(np.diff(g[low:]) >= 0)  # refined outward only
+    assert g[0] > g[low] and g[-1] > g[low] and int(np.max(g)) <= 48
+    assert len([line for line in curve.audit if line.startswith("grid ")]) == len(curve.grid_changes) == 2
+    (xt,) = [s for s in curve.special_points if s.type == "XT" and s.params["G"] > 0]
+    assert xt.grid == g[low] and xt.params["G"] ** -0.5 == pytest.approx(res.extra["key_points"]["Fr*"], rel=1e-14)

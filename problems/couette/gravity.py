@@ -54,7 +54,7 @@ import numpy as np
 from contin.adapt import on_grid, retrace_finer
 from contin.branch import Branch, SpecialPoint
 from contin.continuation import newton, trace_both
-from contin.foldcurve import trace_fold_curve
+from contin.foldcurve import SegmentRegrid, trace_fold_curve
 from contin.jumps import jumped, trace_both_ways
 from contin.jumps import trim_self_overlap as _trim_self_overlap
 from contin.normalform import PitchforkNormalForm, pitchfork_normal_form
@@ -451,9 +451,11 @@ def discover(problem: CouetteProblem, params: Mapping[str, float], settings: Gra
 # ----------------------------------------------------------------------------- fold curves
 def fold_curves(problem: CouetteProblem, branches: Sequence[Branch], second: str = "G", *,
                 bounds: Mapping[str, tuple[float, float]] | None = None, max_steps: int = 300,
-                ds_max: float = 0.5) -> list[Branch]:
+                ds_max: float = 0.5, regrid: SegmentRegrid | None = None) -> list[Branch]:
     """Fold curves in (H, second) through the folds of ``branches``; a fold already lying on
-    a traced curve (within 1e-3 in H/10 and Phi) is not traced again."""
+    a traced curve (within 1e-3 in H/10 and Phi) is not traced again.  ``regrid``: a curve the
+    resolution guard stops continues on a finer grid from where it stopped
+    (:class:`contin.foldcurve.SegmentRegrid`)."""
     opts = ContinuationOptions(bounds=dict(bounds or {}), max_steps=max_steps,
                                step=StepOptions(ds=0.1, ds_max=ds_max, max_angle=0.2))
     curves: list[Branch] = []
@@ -465,7 +467,7 @@ def fold_curves(problem: CouetteProblem, branches: Sequence[Branch], second: str
             if any(np.min(_distance_to_polyline(pt, np.column_stack([c.params["H"] / 10.0, c.observables["phi"]]))) < 1e-3
                    for c in curves):
                 continue
-            c = trace_fold_curve(problem, lp, second, opts, parameter="H", branch_id=f"fold{len(curves)}")
+            c = trace_fold_curve(problem, lp, second, opts, parameter="H", branch_id=f"fold{len(curves)}", regrid=regrid)
             c.parent = f"{lp.name}@{b.id}"
             curves.append(c)
     return curves
@@ -593,8 +595,10 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     state at H_c + 3, G = 0: refined while its estimate exceeds ``refine.tol``, coarsened where it
     is far below), and its traces run with the resolution guard at ``refine.tol``
     (:func:`contin.options.resolution_override`), so a curve the chosen grid does not carry to
-    ``refine.tol`` is retraced finer.  (Fold curves are augmented systems the tracer cannot regrid
-    point by point: the whole curve takes one grid.)
+    ``refine.tol`` continues on a finer grid from where the guard stopped it
+    (:class:`contin.foldcurve.SegmentRegrid`: the part before the stop keeps its grid, each
+    direction from the seed refines on its own; the curve's ``grid`` column holds each point's
+    grid and its audit the grid changes).
     """
     say = progress or (lambda m: None)
     bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
@@ -603,8 +607,9 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
         # each pitchfork's fold curve on the grid that resolves it (the dense plugs at large H
         # need more points than the gravity-free branches it starts from): retraced on finer
         # grids while the resolution guard stops it (contin.adapt.retrace_finer)
-        def compute(pb: CouetteProblem, k: int = k, bp: SpecialPoint = bp) -> list[Branch]:
-            return _bp_fold_curves(pb, problem, params, base, kids, k, bp, H_range, Fr_start, max_steps, say)
+        def compute(pb: CouetteProblem, k: int = k, bp: SpecialPoint = bp,
+                    regrid: SegmentRegrid | None = None) -> list[Branch]:
+            return _bp_fold_curves(pb, problem, params, base, kids, k, bp, H_range, Fr_start, max_steps, say, regrid)
 
         if refine is None:
             found, sizes = compute(problem), [int(problem.grid_size)]
@@ -613,6 +618,10 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
         else:
             _, found, sizes = retrace_finer(problem, compute, refine, suggest=_suggest_for_curves)
         for c in found:
+            if c.grid is not None:  # regridded segment-wise (choose_grid): each point keeps its grid
+                if len(sizes) > 1:
+                    c.audit.append(f"fold curve retraced from grid {sizes[-1]} (grids tried {', '.join(map(str, sizes))})")
+                continue
             c.grid = np.full(len(c), sizes[-1], dtype=np.int64) if sizes[-1] != int(problem.grid_size) else None
             if len(sizes) > 1:
                 c.audit.append(f"fold curve retraced on grids {', '.join(map(str, sizes))}: under-resolved on the "
@@ -639,9 +648,11 @@ def _dense_top(params: Mapping[str, float], base: Branch, kids: Sequence[Branch]
 def _fold_curves_at_tol(problem: CouetteProblem, params: Mapping[str, float], kids: Sequence[Branch], base: Branch,
                         bp: SpecialPoint, compute: Callable[[CouetteProblem], list[Branch]],
                         refine: AdaptOptions) -> tuple[list[Branch], list[int]]:
-    """:func:`pitchfork_fold_curves` with ``choose_grid``: the start grid from the seed state,
-    then retraced finer while the guard at ``refine.tol`` stops a curve."""
-    from contin.adapt import start_grid
+    """:func:`pitchfork_fold_curves` with ``choose_grid``: the start grid from the seed state; a
+    curve the guard at ``refine.tol`` stops continues on a finer grid from its last accepted point
+    (segment-wise, each direction on its own); retraced whole on finer grids only if a curve still
+    stops below ``refine.max_grid``.  Returns the curves and the start grids tried."""
+    from contin.adapt import finer, start_grid, under_resolved_stop
     from contin.options import resolution_override
 
     start = problem
@@ -649,9 +660,20 @@ def _fold_curves_at_tol(problem: CouetteProblem, params: Mapping[str, float], ki
     if seed is not None:
         top, i = seed
         start, _, _ = start_grid(problem, np.asarray(top.state(i), float), _params_at(top, i), refine, NewtonOptions())
+    # A curve the guard stops continues on a finer grid from its stop (segment-wise regridding,
+    # contin.foldcurve.SegmentRegrid: the grid contin.adapt.finer picks there, i.e. the larger of
+    # growth x N and the problem's suggest_grid): the part before the stop keeps the seed's grid.
+    regrid = SegmentRegrid(refine)
     with resolution_override(refine.tol):
-        _, found, sizes = retrace_finer(start, compute, refine,
-                                        suggest=lambda pb, stopped: suggest_grid_for(pb, stopped, tol=refine.tol))
+        found, sizes = compute(start, regrid=regrid), [int(start.grid_size)]
+        # still stopped below max_grid (a carried point did not converge on the finer grid):
+        # retraced whole on finer grids, as before segment-wise regridding
+        if any(under_resolved_stop(c) and (c.grid is None or int(np.max(c.grid)) < refine.max_grid) for c in found):
+            n_new = finer(start, None, None, refine)
+            if n_new is not None:
+                _, found, more = retrace_finer(start.with_grid(n_new), lambda pb: compute(pb, regrid=regrid), refine,
+                                               suggest=lambda pb, stopped: suggest_grid_for(pb, stopped, tol=refine.tol))
+                sizes += more
     return found, sizes
 
 
@@ -684,9 +706,10 @@ def _on(problem: CouetteProblem, source: CouetteProblem, branch: Branch) -> Bran
 
 def _bp_fold_curves(problem: CouetteProblem, source: CouetteProblem, params: Mapping[str, float], base: Branch,
                     kids: Sequence[Branch], k: int, bp: SpecialPoint, H_range: tuple[float, float], Fr_start: float,
-                    max_steps: int, say: Callable[[str], None]) -> list[Branch]:
+                    max_steps: int, say: Callable[[str], None], regrid: SegmentRegrid | None = None) -> list[Branch]:
     """The fold curve(s) of the k-th symmetry-breaking pitchfork ``bp`` on ``problem``'s grid
-    (``base`` and ``kids`` were traced on ``source``'s; their states are carried over)."""
+    (``base`` and ``kids`` were traced on ``source``'s; their states are carried over); with
+    ``regrid`` a curve continues on finer grids where the resolution guard stops it."""
     G0 = Fr_start ** -2.0
     Hc = bp.params["H"]
     # dense-top half of the banded branch of this BP (ids g0.<mode>.1/2, both signs)
@@ -705,13 +728,15 @@ def _bp_fold_curves(problem: CouetteProblem, source: CouetteProblem, params: Map
     out = []
     if not lps:
         # subcritical pitchfork: its fold is on the banded branch already at G = 0
-        for c in fold_curves(problem, [_on(problem, source, top)], bounds={"H": H_range}, max_steps=max_steps):
+        for c in fold_curves(problem, [_on(problem, source, top)], bounds={"H": H_range}, max_steps=max_steps,
+                             regrid=regrid):
             c.id = f"fold{k}"
             c.parent = f"fold of {top.id} at G=0 (BP at H={Hc:.6g})"
             out.append(c)
         return out
     say(f"gravity: fold curve from the pitchfork at H = {Hc:.6g} (cheb {problem.grid_size})")
-    c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps)[0]
+    c = fold_curves(problem, [replace(b, special_points=lps[:1])], bounds={"H": H_range}, max_steps=max_steps,
+                    regrid=regrid)[0]
     c.id = f"fold{k}"
     c.parent = f"BP at H={Hc:.6g}"
     return [c]
