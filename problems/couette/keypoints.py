@@ -11,10 +11,11 @@
 state at (nu, e) = (0.3, 0.8): the maximum of G along the (H, G) fold curve of the first
 imperfect pitchfork (problems.couette.gravity.pitchfork_fold_curves; 254.12, the gravity-phase
 scene and AUTO-07p's job d agree).  With ``--tol`` the fold curve's grid is chosen from its seed
-and the curve retraced finer while the guard at tol stops it (``choose_grid``).
+and where the guard at tol stops the curve it continues on a finer grid from its last accepted
+point (``choose_grid``; ``contin.foldcurve.SegmentRegrid``).
 
 Each is traced as a user would: uniform branch in H through the BP, branch switching, banded
-branch down to the fold.  The result exposes ``extra['key_points']`` (see contin.accuracy).
+branch down to its fold, where it stops (AUTO's STOP LP1).  The result exposes ``extra['key_points']`` (see contin.accuracy).
 The scene is adaptive: ``--tol`` (``SceneRequest.overrides['tol']``) lets every trace choose and
 change its grid (``contin.adapt``); ``contin accuracy gpcf-keypoints --tols 1e-4,...`` compares
 those runs with the fixed grids.
