@@ -21,6 +21,15 @@ Other point types are a clear error (:class:`NotAvailable`); :func:`register_cur
 Bounds on the second parameter (``options.bounds[second]``) end the curve on the bound: the
 located crossing of a bound event (:func:`contin.foldcurve.trace_augmented`, as for every
 fold, BP and Hopf curve).
+
+Adaptive grids (``continue_point(..., regrid=SegmentRegrid(...))``, the CLI's
+``contin continue --tol``): the Moore-Spence curves -- LP and the fold curve of a BP that the
+second parameter unfolds -- are regridded segment-wise (:func:`contin.foldcurve.trace_augmented`):
+where the resolution guard stops a half, its last accepted point continues on a finer grid and
+every point keeps its grid (``Branch.grid``).  BP curves (:mod:`contin.bpcurve`: reduced
+coordinates whose symmetric/antisymmetric bases belong to one grid) and Hopf curves
+(:mod:`contin.hopfcurve`: another augmented layout, no grid transfer of its blocks) have no
+regridding yet: asking for it raises :class:`NotAvailable`.
 """
 
 from __future__ import annotations
@@ -33,7 +42,7 @@ import numpy as np
 
 from contin.bpcurve import trace_bp_curve
 from contin.branch import Branch, SpecialPoint
-from contin.foldcurve import as_fold_curve, fold_start, trace_augmented
+from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
 from contin.hopfcurve import trace_hopf_curve
 from contin.options import ContinuationOptions
@@ -46,8 +55,13 @@ class NotAvailable(ValueError):
     """Two-parameter continuation of this point type is not implemented (yet)."""
 
 
+#: The message of :class:`NotAvailable` for regridding a curve that cannot be regridded.
+NO_REGRID = ("adaptive grids are not available for BP/Hopf curves ({what}); continue it on a fixed grid "
+             "(without --tol / regrid)")
+
+
 def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: ContinuationOptions, *,
-                       parameter: str, branch_id: str) -> Branch:
+                       parameter: str, branch_id: str, regrid: SegmentRegrid | None = None) -> Branch:
     """Both halves of the Moore-Spence curve through ``point``.
 
     Unlike :func:`contin.foldcurve.trace_fold_curve` (halves chosen by the sign of d parameter/ds)
@@ -60,10 +74,13 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
             raise ValueError(f"{second!r} does not unfold {point.name} (psi . dF/d{second} = 0: the branch point "
                              f"persists as {second} changes) and {point.name} is not a symmetry-breaking pitchfork, "
                              "so contin cannot continue it in two parameters")
+        if regrid is not None:
+            raise NotAvailable(NO_REGRID.format(what=f"{point.name} is a symmetry-breaking pitchfork that {second!r} "
+                                                     "keeps: its curve is a BP curve"))
         return trace_bp_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
     fold, start = fold_start(problem, point, second)
     raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=True,
-                          branch_id=branch_id, kind="fold-curve", mirror_start=True)
+                          branch_id=branch_id, kind="fold-curve", mirror_start=True, regrid=regrid)
     return as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
 
 
@@ -83,12 +100,15 @@ def _unfolds(problem: Any, point: SpecialPoint, second: str) -> bool:
 
 
 def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationOptions, *,
-          parameter: str, branch_id: str) -> Branch:
+          parameter: str, branch_id: str, regrid: SegmentRegrid | None = None) -> Branch:
+    if regrid is not None:
+        raise NotAvailable(NO_REGRID.format(what=f"{point.name} is a Hopf point"))
     return trace_hopf_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
 
 
 #: Point type -> tracer of its two-parameter curve.  A module that adds one (e.g. Hopf curves)
-#: calls register_curve('HB', fn) on import.
+#: calls register_curve('HB', fn) on import.  Tracers take ``regrid`` (a SegmentRegrid or None)
+#: and raise NotAvailable if they cannot regrid.
 CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitchfork, "HB": _hopf}
 
 
@@ -98,15 +118,24 @@ def register_curve(point_type: str, tracer: CurveTracer) -> None:
 
 
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,
-                   options: ContinuationOptions, *, branch_id: str | None = None) -> Branch:
+                   options: ContinuationOptions, *, branch_id: str | None = None,
+                   regrid: SegmentRegrid | None = None) -> Branch:
     """The curve of ``point`` (a located LP, BP or HB of ``branch``) in (branch.parameter, ``second``).
 
     Bounds: ``options.bounds`` of either parameter; the curve ends exactly on them.
 
+    ``regrid`` (:class:`contin.foldcurve.SegmentRegrid`; a problem with the grid hooks
+    ``grid_size``, ``with_grid``, ``transfer``, ``error_estimate``, moved onto the point's own grid
+    ``point.grid`` when it has one, as points of adaptive runs do): fold curves
+    (LP, and BP unfolded by ``second``) that the resolution guard stops continue on finer grids
+    segment-wise; the guard's tol is ``options.resolution_tol`` or a
+    :func:`contin.options.resolution_override`.  The curve's ``grid`` holds every point's grid.
+
     Raises
     ------
     NotAvailable
-        For a point type without a registered curve tracer (EP, MX, UZ...).
+        For a point type without a registered curve tracer (EP, MX, UZ...), and with ``regrid``
+        for Hopf points and BPs whose curve is a BP curve.
     ValueError
         For a bad second parameter, a point without a state, or a start the corrector cannot
         converge (e.g. a transcritical BP, where the fold system is singular).
@@ -125,8 +154,20 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
                            f"not {point.type}")
     if point.state is None:
         raise ValueError(f"{point.name} has no stored state")
+    kw: dict[str, Any] = {}
+    if regrid is not None:
+        if point.type == "HB":  # before the hook check: the clearer message
+            raise NotAvailable(NO_REGRID.format(what=f"{point.name} is a Hopf point"))
+        from contin.adapt import missing_hooks, on_grid
+
+        missing = missing_hooks(problem)
+        if missing:
+            raise ValueError(f"adaptive grids need the problem hooks {', '.join(missing)} "
+                             f"({type(problem).__name__} lacks them)")
+        problem = on_grid(problem, point.grid)  # a point of an adaptive run: its own grid
+        kw["regrid"] = regrid
     curve = tracer(problem, point, second, options, parameter=first,
-                   branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
+                   branch_id=branch_id if branch_id is not None else f"{point.name}.{second}", **kw)
     if len(curve) <= 1:
         raise ValueError(f"the {point.type} curve from {point.name} did not start: {curve.message}")
     return curve

@@ -10,6 +10,11 @@
   lam_k = (1 - m_k)^2.
 - bratu, allen-cahn and swift-hohenberg give a start point (``Scene.start``):
   ``contin trace SCENE --depth D`` builds their whole diagram with ``contin.diagram.explore``.
+- ``stretched-bratu``: Bratu on a stretched coordinate (problems.demo.StretchedBratu, parameters
+  lam and a): the fold branch in lam at a fixed a; its fold continued in a
+  (``contin continue FILE --from LP1 --free a``) follows lam = lam*/(1 + a) into a layer of width
+  ~ 1/a, so the grid a tolerance needs grows along the fold curve (``--tol``: segment-wise
+  regridding).
 - ``lorenz``: the Lorenz equilibrium C+ for rho in [rho_min, rho_max] (sigma = 10, beta = 8/3 by
   default): a subcritical Hopf point (HB) at rho = 470/19 with omega and l1.
 """
@@ -28,7 +33,7 @@ from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
 from contin.resume import switch_reusing
 from contin.scene import DiagramStart, Scene, SceneError, SceneRequest, SceneResult, scene_numbers
-from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz, StretchedBratu
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -> dict[str, float]:
@@ -239,6 +244,44 @@ def start_swift_hohenberg(request: SceneRequest) -> DiagramStart:
                         notes=lambda d: _swift_hohenberg_notes(pb, d.branch("0"), p["lam_min"], p["lam_max"]))
 
 
+STRETCHED_BRATU_DEFAULTS = {"a": 0.0, "lam_min": 0.0, "lam_max": 4.0}
+
+
+def _stretched_bratu(method: str | None, grid: int | None) -> StretchedBratu:
+    try:
+        return StretchedBratu(method or "cheb", grid or 24)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def run_stretched_bratu(request: SceneRequest) -> SceneResult:
+    """The fold branch in lam at fixed a (from u = 0 at lam_min); its LP against lam*/(1 + a)."""
+    p = _numbers(request, STRETCHED_BRATU_DEFAULTS, "stretched-bratu")
+    if not p["a"] > -1.0:
+        raise SceneError(f"a must be > -1, got {p['a']:g}")
+    if p["lam_min"] >= BRATU_FOLD / (1.0 + p["a"]):
+        raise SceneError(f"lam_min must lie below the fold lam*/(1 + a) = {BRATU_FOLD / (1.0 + p['a']):.6f}")
+    pb = _stretched_bratu(request.method, request.grid)
+    options = request.options_for(_bratu_options(p))
+    done: list[Branch] = []
+    if "0" in request.completed:
+        branch = request.completed["0"]
+    else:
+        request.report(f"stretched-bratu: tracing from u = 0 at a = {p['a']:g}")
+        branch = trace(pb, pb.initial(), {"lam": p["lam_min"], "a": p["a"]}, "lam", options, progress=request.report)
+    _emit(request, done, branch)
+    exact = float(StretchedBratu.fold_curve(p["a"]))
+    notes = [f"{lp.name}: lam = {lp.params['lam']:.15g} (exact lam*/(1 + a) = {exact:.15g}, error "
+             f"{lp.params['lam'] - exact:.2g})" for lp in branch.fold_points]
+    return SceneResult(branches=done, parameters=p, discretization=_dirichlet_discretization(pb), y=pb.x,
+                       profiles=lambda state: {"u": _on_start_grid(pb, state)}, notes=notes)
+
+
+def stretched_bratu_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> StretchedBratu:
+    """The problem of a stretched-bratu file, on its start grid (``contin.adapt.on_grid`` the others)."""
+    return _stretched_bratu(discretization.get("method"), int(discretization.get("intervals") or 24))
+
+
 LORENZ_DEFAULTS = {"sigma": 10.0, "beta": 8.0 / 3.0, "rho_min": 1.5, "rho_max": 40.0}
 
 
@@ -297,6 +340,18 @@ SCENES = {
         x="lam",
         y="phi",
         start=start_swift_hohenberg,
+    ),
+    "stretched-bratu": Scene(
+        name="stretched-bratu",
+        summary="Bratu on a stretched coordinate (lam, a): fold curve lam = lam*/(1 + a), a layer of width ~1/a "
+                "(contin continue --from LP1 --free a --tol: segment-wise regridding)",
+        defaults=STRETCHED_BRATU_DEFAULTS,
+        run=run_stretched_bratu,
+        x="lam",
+        y="phi",
+        adaptive=True,
+        default_tol=1e-10,
+        problem_factory=stretched_bratu_factory,
     ),
     "lorenz": Scene(
         name="lorenz",

@@ -7,6 +7,15 @@ by :func:`contin.twoparam.continue_point`.  The curve is written to ``-o OUT.h5`
 parameters and discretization as FILE; its states are the augmented (u, phi, NAME)), with
 ``XT`` points at the extrema of NAME (isola birth/death when NAME is an imperfection) and
 ``LP`` points at the extrema of the first parameter.
+
+``--tol REL [--max-grid N]`` (problems with the grid hooks ``grid_size``, ``with_grid``,
+``transfer``, ``error_estimate``): the curve starts on the point's own grid (``SpecialPoint.grid``
+of an adaptive run's file, else the file's grid), the resolution guard is set to REL for the
+curve, and where it stops a half of the curve that half continues on a finer grid from its last
+accepted point (segment-wise regridding, :class:`contin.foldcurve.SegmentRegrid`), up to N; the
+file keeps every point's grid.  Fold curves only (LP, and a BP that NAME unfolds): for Hopf and
+BP curves --tol is an error.  Without --tol nothing changes: the fixed grid of the file and the
+run's guard.
 """
 
 from __future__ import annotations
@@ -46,10 +55,18 @@ def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
               help="Steps per direction.")
 @click.option("--ds", type=float, default=None, help="First step (arclength) [default: the run's].")
 @click.option("--ds-max", type=float, default=None, help="Largest step [default: the run's].")
+@click.option("--tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None, metavar="REL",
+              help="Adaptive grids: the resolution guard's tol for the curve (largest estimated relative error of a "
+                   "point); where it stops the curve, the curve continues on a finer grid from its last point "
+                   "(segment-wise). Starts on the point's own grid. Fold curves only (LP; BP unfolded by NAME).")
+@click.option("--max-grid", type=click.IntRange(min=4), default=None, metavar="N",
+              help="With --tol: the largest grid [default: the run's adaptive max_grid, else 512]; past it the "
+                   "curve ends with MX.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="HDF5 file of the curve.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 def continue_command(file: str, label: str, second: str, branch_id: str | None, bounds: tuple[str, ...],
-                     max_steps: int, ds: float | None, ds_max: float | None, output: str | None, as_json: bool) -> None:
+                     max_steps: int, ds: float | None, ds_max: float | None, tol: float | None, max_grid: int | None,
+                     output: str | None, as_json: bool) -> None:
     """Continue the point LABEL of FILE in two parameters (the branch's and --free NAME)."""
     import dataclasses
 
@@ -62,6 +79,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
             fail(f"{name} must be a finite number > 0, got {v}")
     if ds is not None and ds_max is not None and ds > ds_max:
         fail(f"--ds ({ds:g}) must not exceed --ds-max ({ds_max:g})")
+    if max_grid is not None and tol is None:
+        fail("--max-grid needs --tol (the grid is fixed without it)")
     box = parse_bounds(bounds)
     if output is not None:  # checked before any computing
         from contin.cli._runctl import check_hdf5_output
@@ -88,18 +107,34 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     run_bounds.update(box)
     options = dataclasses.replace(options, step=step, bounds=run_bounds, max_steps=max_steps)
     problem = rebuild_problem({**meta, "path": file})
+    regrid = None
+    if tol is not None:
+        problem, options, regrid = _adaptive_setup(problem, point, options, tol, max_grid, meta, file)
+    elif point.grid is not None and int(getattr(problem, "grid_size", point.grid)) != int(point.grid):
+        fail(f"{point.name} was computed on grid {point.grid} (an adaptive run; the file's grid is "
+             f"{problem.grid_size}): continue it with --tol REL, which starts on the point's own grid")
     size = getattr(problem, "size", None)
     if isinstance(size, int) and point.state is not None and size != len(point.state):
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")
     from contin.twoparam import continue_point
 
-    curve = continue_point(problem, branch, point, second, options)
+    if regrid is None:
+        curve = continue_point(problem, branch, point, second, options)
+    else:
+        from contin.options import resolution_override
+
+        with resolution_override(tol):
+            curve = continue_point(problem, branch, point, second, options, regrid=regrid)
     if output is not None:
+        notes = [f"{point.type} curve from {point.name} of branch {branch.id} in {file}, free {first}, {second}"]
+        extra: dict[str, Any] = {"source": file, "from": point.name, "branch": branch.id, "free": [first, second]}
+        if regrid is not None:
+            notes.append(f"adaptive grids: tol {tol:g}, grids {_grids(curve)} (max {regrid.opts.max_grid})")
+            extra["regrid"] = {"tol": tol, "max_grid": regrid.opts.max_grid}
         io.write(output, [curve], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=options,
-                 notes=[f"{point.type} curve from {point.name} of branch {branch.id} in {file}, free {first}, {second}"],
-                 extra={"source": file, "from": point.name, "branch": branch.id, "free": [first, second]},
+                 notes=notes, extra=extra,
                  diagram_x=first, diagram_y=meta.get("diagram_y") or "phi")
     if as_json:
         doc = run_document(scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
@@ -109,6 +144,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         echo_json(doc)
     echo_err(f"{point.type} curve from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
              f"{second} = {fmt(point.params[second])}): {len(curve)} points, {curve.status} {curve.message}")
+    if regrid is not None:
+        echo_err(f"grids along the curve (tol {tol:g}): {_grids(curve)}")
     echo_err(special_points_table([curve]))
     if output is not None:
         echo_err(f"wrote {output}")
@@ -117,3 +154,43 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
 
         echo_err(f"warning: the curve ended with MX: {curve.message}")
         raise click.exceptions.Exit(EXIT_INCOMPLETE)
+
+
+def _grids(curve: Any) -> str:
+    """The grid sizes along a curve regridded segment-wise, e.g. '24, 36, 56'."""
+    if curve.grid is None or len(curve.grid) == 0:
+        return "the start grid"
+    return ", ".join(str(int(g)) for g in sorted(set(curve.grid.tolist())))
+
+
+def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid: int | None,
+                    meta: Any, file: str) -> tuple[Any, Any, Any]:
+    """``--tol``: the problem on the point's own grid, the options with the guard at tol (and no
+    adaptive tracing: the curve regrids segment-wise instead), and the SegmentRegrid."""
+    import dataclasses
+
+    from contin.adapt import missing_hooks, on_grid
+    from contin.foldcurve import SegmentRegrid
+    from contin.options import AdaptOptions
+
+    missing = missing_hooks(problem)
+    if missing:
+        fail(f"--tol needs a problem with the grid hooks grid_size, with_grid, transfer, error_estimate; the problem "
+             f"of scene {meta.get('scene', '')!r} in {file} ({type(problem).__name__}) lacks {', '.join(missing)}")
+    if point.type == "HB":
+        from contin.twoparam import NO_REGRID
+
+        fail(NO_REGRID.format(what=f"{point.name} is a Hopf point"))
+    problem = on_grid(problem, point.grid)
+    base = options.adapt if options.adapt is not None else AdaptOptions()
+    if isinstance(base, dict):  # io.options_from_dict keeps the stored adapt settings as a dict
+        try:
+            base = AdaptOptions(**base)
+        except (TypeError, ValueError):
+            base = AdaptOptions()
+    refine = dataclasses.replace(base, tol=tol, max_grid=max_grid if max_grid is not None else base.max_grid)
+    start = int(problem.grid_size)
+    if refine.max_grid < start:
+        fail(f"--max-grid ({refine.max_grid}) is below the grid of {point.name} ({start})")
+    options = dataclasses.replace(options, adapt=None, resolution_tol=tol)
+    return problem, options, SegmentRegrid(refine)
