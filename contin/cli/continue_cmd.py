@@ -173,14 +173,14 @@ def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid
     from contin.foldcurve import SegmentRegrid
     from contin.options import AdaptOptions
 
-    missing = missing_hooks(problem)
-    if missing:
-        fail(f"--tol needs a problem with the grid hooks grid_size, with_grid, transfer, error_estimate; the problem "
-             f"of scene {meta.get('scene', '')!r} in {file} ({type(problem).__name__}) lacks {', '.join(missing)}")
     if point.type == "HB":
         from contin.twoparam import NO_REGRID
 
         fail(NO_REGRID.format(what=f"{point.name} is a Hopf point"))
+    missing = missing_hooks(problem)
+    if missing:
+        fail(f"--tol needs a problem with the grid hooks grid_size, with_grid, transfer, error_estimate; the problem "
+             f"of scene {meta.get('scene', '')!r} in {file} ({type(problem).__name__}) lacks {', '.join(missing)}")
     problem = on_grid(problem, point.grid)
     base = options.adapt if options.adapt is not None else AdaptOptions()
     if isinstance(base, dict):  # io.options_from_dict keeps the stored adapt settings as a dict

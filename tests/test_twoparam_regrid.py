@@ -1,0 +1,277 @@
+"""Adaptive grids for two-parameter continuation: ``continue_point(..., regrid=SegmentRegrid)`` and
+``contin continue FILE --from LP1 --free a --tol REL [--max-grid N]``, on the non-granular demo
+problem problems.demo.StretchedBratu (scene ``stretched-bratu``): its fold curve is
+lam = lam*/(1 + a) with the fold state Bratu's fold solution compressed into a layer of width
+~ 1/a (closed forms, independent of the solver), so the grid that tol needs grows along the curve
+with a."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from contin import io
+from contin.branch import SpecialPoint
+from contin.cli import main
+from contin.continuation import trace
+from contin.foldcurve import SegmentRegrid
+from contin.options import AdaptOptions, ContinuationOptions, StepOptions
+from contin.twoparam import NotAvailable, continue_point
+from problems.demo import BRATU_FOLD, StretchedBratu
+
+HERE = Path(__file__).parent
+TOL = 1e-8
+A_MIN, A_MAX = -0.5, 6.0
+START = 24  # the fixed grid of the stored run (cheb 24): the fold curve leaves tol on it near a = 2
+
+
+def _check_against_closed_form(c, start_grid: int) -> None:
+    """Every point: lam = lam*/(1 + a) and the state = the exact fold state on the point's grid, to
+    TOL; the guard met on the point's grid; grids non-decreasing towards a = A_MAX (the layer
+    sharpens), the start grid on the a <= 0 side (it needs no refinement)."""
+    a, lam, g = c.params["a"], c.params["lam"], c.grid
+    assert c.status == "EP", c.message
+    assert np.min(a) == pytest.approx(A_MIN, abs=1e-12) and np.max(a) == pytest.approx(A_MAX, abs=1e-12)
+    np.testing.assert_allclose(lam, BRATU_FOLD / (1.0 + a), rtol=TOL)
+    assert g is not None and len(g) == len(c) and c.sizes is not None
+    for i in range(len(c)):
+        on = StretchedBratu("cheb", int(g[i]))
+        assert c.sizes[i] == 2 * on.n + 1  # (u, phi, a) on the point's grid
+        u = c.state(i)[: on.n]
+        exact = on.fold_state(float(a[i]))
+        assert np.max(np.abs(u - exact)) <= TOL * np.max(np.abs(exact)), (i, a[i], g[i])
+        assert on.error_estimate(u, {"lam": lam[i], "a": a[i]}) <= TOL
+    start = int(np.argmin(np.abs(a)))
+    assert abs(a[start]) < 1e-12 and g[start] == start_grid
+    up = np.arange(start, len(c)) if a[-1] > a[0] else np.arange(start, -1, -1)
+    down = np.arange(start, -1, -1) if a[-1] > a[0] else np.arange(start, len(c))
+    assert np.all(np.diff(a[up]) > 0) and np.all(np.diff(g[up]) >= 0) and g[up][-1] > start_grid
+    assert np.all(g[down] == start_grid)
+
+
+# --------------------------------------------------------------------------- library
+
+@pytest.fixture(scope="module")
+def fold_point():
+    pb = StretchedBratu("cheb", START)
+    b = trace(pb, pb.initial(), {"lam": 0.5, "a": 0.0}, "lam", ContinuationOptions(max_steps=60, bounds={"lam": (0, 4)}))
+    return pb, b, b.fold_points[0]
+
+
+def _options(**kw) -> ContinuationOptions:
+    return ContinuationOptions(bounds={"a": (A_MIN, A_MAX)}, max_steps=300, step=StepOptions(ds=0.1, ds_max=0.5), **kw)
+
+
+def test_continue_point_without_regrid_stops_under_resolved(fold_point):
+    pb, b, lp = fold_point
+    c = continue_point(pb, b, lp, "a", _options(resolution_tol=TOL))
+    assert c.status == "MX" and "under-resolved" in c.message
+    assert c.grid is None and np.max(c.params["a"]) < 3.0
+
+
+def test_continue_point_regrids_the_fold_curve_to_the_bound(fold_point):
+    pb, b, lp = fold_point
+    c = continue_point(pb, b, lp, "a", _options(resolution_tol=TOL), regrid=SegmentRegrid(AdaptOptions(tol=TOL)))
+    assert c.kind == "fold-curve" and c.free == ("lam", "a") and c.id == f"{lp.name}.a"
+    _check_against_closed_form(c, START)
+    assert len(c.grid_changes) >= 2 and sum(line.startswith("grid ") for line in c.audit) == len(c.grid_changes)
+
+
+def test_continue_point_starts_on_the_points_own_grid(fold_point):
+    """A point of an adaptive run (its own grid, SpecialPoint.grid) with the problem on another
+    grid: the curve starts on the point's grid."""
+    pb, b, lp = fold_point
+    fine = StretchedBratu("cheb", 36)
+    moved = SpecialPoint(type="LP", index=lp.index, params=dict(lp.params), order_parameter=lp.order_parameter,
+                         state=pb.transfer(np.asarray(lp.state), fine), grid=36, label=lp.label)
+    c = continue_point(pb, b, moved, "a", _options(resolution_tol=TOL), regrid=SegmentRegrid(AdaptOptions(tol=TOL)))
+    _check_against_closed_form(c, 36)
+
+
+def test_regrid_needs_the_grid_hooks():
+    from tests.twoparam_fixture_scenes import Pitchfork
+
+    base, bp = _pitchfork_base(Pitchfork())
+    with pytest.raises(ValueError, match="adaptive grids need the problem hooks grid_size, error_estimate, with_grid, "
+                                         "transfer \\(Pitchfork lacks them\\)"):
+        continue_point(Pitchfork(), base, bp, "mu", _options(), regrid=SegmentRegrid(AdaptOptions()))
+
+
+class _GriddedPitchfork:
+    """The fixture pitchfork x^3 - lam x + mu + K mu x^2 + Q x^5 with (trivial) grid hooks: one grid."""
+
+    def __init__(self) -> None:
+        from tests.twoparam_fixture_scenes import Pitchfork
+
+        self.inner = Pitchfork()
+        self.parameter_names = self.inner.parameter_names
+        self.residual, self.jacobian, self.dresidual_dp = self.inner.residual, self.inner.jacobian, self.inner.dresidual_dp
+        self.grid_size = 1
+
+    def with_grid(self, size):
+        return self
+
+    def transfer(self, u, other):
+        return np.asarray(u, float).copy()
+
+    def error_estimate(self, u, p):
+        return 0.0
+
+
+def _pitchfork_base(pb):
+    """x = 0 in lam at mu = 0 and its pitchfork at lam = 0 (unfolded by mu, kept by K)."""
+    opts = ContinuationOptions(bounds={"lam": (-0.3, 0.3)}, max_steps=2000,
+                               step=StepOptions(ds=0.002, ds_max=0.005, max_angle=0.1))
+    base = trace(pb, np.array([0.0]), {"lam": -0.3, "mu": 0.0, "K": 0.5, "Q": 0.2}, "lam", opts)
+    (bp,) = base.branch_points
+    return base, bp
+
+
+def test_unfolded_bp_fold_curve_takes_regrid():
+    """BP unfolded by mu: the Moore-Spence curve through it takes regrid (the same curve, each
+    point with its grid); the closed form lam = 3x^2 + 2K mu x + 5Q x^4 holds."""
+    pb = _GriddedPitchfork()
+    base, bp = _pitchfork_base(pb)
+    two = ContinuationOptions(bounds={"mu": (-0.01, 0.01)}, max_steps=60, step=StepOptions(ds=0.002, ds_max=0.005, max_angle=0.1))
+    ref = continue_point(pb, base, bp, "mu", two)
+    c = continue_point(pb, base, bp, "mu", two, regrid=SegmentRegrid(AdaptOptions()))
+    assert c.status == "EP" and ref.grid is None and np.all(c.grid == 1)
+    np.testing.assert_array_equal(c.states, ref.states)
+    x, lam, mu = c.states[:, 0], c.params["lam"], c.params["mu"]
+    assert np.max(np.abs(lam - (3 * x**2 + 2 * 0.5 * mu * x + 5 * 0.2 * x**4))) < 1e-9
+
+
+def test_regrid_is_not_available_for_bp_and_hopf_curves():
+    from tests.hopf_models import BTNormalForm
+
+    x = 0.5 * (1 - math.sqrt(1 + 4 * 0.5))
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b1": (-1.0, 0.2)}, max_steps=200)
+    br = trace(BTNormalForm(), np.array([x, 0.0]), {"b1": -0.5, "b2": -1.0}, "b1", opts)
+    (hb,) = br.points("HB")
+    with pytest.raises(NotAvailable, match="adaptive grids are not available for BP/Hopf curves .HB.* is a Hopf point"):
+        continue_point(BTNormalForm(), br, hb, "b2", opts, regrid=SegmentRegrid(AdaptOptions()))
+    # a symmetry-breaking pitchfork that the second parameter keeps: its curve is a BP curve
+    pb = _GriddedPitchfork()
+    base, bp = _pitchfork_base(pb)
+    from dataclasses import replace
+
+    sym = replace(bp, note="symmetry-breaking pitchfork")
+    with pytest.raises(NotAvailable, match="adaptive grids are not available for BP/Hopf curves .* its curve is a BP curve"):
+        continue_point(pb, base, sym, "K", opts, regrid=SegmentRegrid(AdaptOptions()))
+
+
+# --------------------------------------------------------------------------- CLI
+
+def invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def one_error_line(r, expect: str) -> None:
+    assert r.exit_code == 1, r.output
+    lines = [line for line in r.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("Error: ") and expect in lines[0], r.output
+    assert "Traceback" not in r.output
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """stretched-bratu traced to its LP: on the fixed grid cheb 24 with the guard at TOL, and
+    adaptively at tol TOL (the LP on its own, finer grid)."""
+    d = tmp_path_factory.mktemp("regrid")
+    fixed, adaptive = d / "fixed.h5", d / "adaptive.h5"
+    r = invoke("trace", "stretched-bratu", "--grid", START, "--resolution-tol", TOL, "--stop-at", "LP1",
+               "--no-stability", "-q", "-o", fixed)
+    assert r.exit_code == 0, r.output
+    r = invoke("trace", "stretched-bratu", "--tol", TOL, "--stop-at", "LP1", "--no-stability", "-q", "-o", adaptive)
+    assert r.exit_code == 0, r.output
+    return fixed, adaptive
+
+
+BOUNDS = ("--bounds", f"a={A_MIN}:{A_MAX}", "--bounds", "lam=0:8", "--ds", "0.1", "--ds-max", "0.5")
+
+
+def test_cli_without_tol_the_curve_stops_under_resolved(runs, tmp_path):
+    fixed, _ = runs
+    out = tmp_path / "c.h5"
+    r = invoke("continue", fixed, "--from", "LP1", "--free", "a", *BOUNDS, "-o", out)
+    assert r.exit_code == 3, r.output  # EXIT_INCOMPLETE
+    assert "under-resolved" in r.output and "grids along the curve" not in r.output
+    (c,), meta = io.load(out)
+    assert c.status == "MX" and c.grid is None and np.max(c.params["a"]) < 3.0
+    assert "regrid" not in meta.get("extra", {})
+
+
+def test_cli_tol_regrids_to_the_bound(runs, tmp_path):
+    fixed, _ = runs
+    out = tmp_path / "c.h5"
+    r = invoke("continue", fixed, "--from", "LP1", "--free", "a", *BOUNDS, "--tol", TOL, "-o", out)
+    assert r.exit_code == 0, r.output
+    assert f"grids along the curve (tol {TOL:g}): {START}, " in r.output
+    (c,), meta = io.load(out)
+    assert meta["scene"] == "stretched-bratu" and c.free == ("lam", "a")
+    _check_against_closed_form(c, START)
+    assert meta["extra"]["regrid"] == {"tol": TOL, "max_grid": 512}
+    assert meta["options"]["resolution_tol"] == TOL and meta["options"]["adapt"] is None
+    r = invoke("info", out)
+    assert r.exit_code == 0 and f"grid of branch {c.id}: {START}.." in r.output, r.output
+    png = tmp_path / "d.png"
+    r = invoke("diagram", out, "-x", "lam", "-y", "a", "-o", png)
+    assert r.exit_code == 0, r.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_tol_starts_on_the_adaptive_points_grid(runs, tmp_path):
+    _, adaptive = runs
+    branches, meta = io.load(adaptive)
+    lp = next(s for b in branches for s in b.fold_points)
+    assert lp.grid is not None and lp.grid != meta["discretization"]["intervals"]  # the LP has its own grid
+    # without --tol the file's grid is not the point's: one error line
+    one_error_line(invoke("continue", adaptive, "--from", "LP1", "--free", "a", *BOUNDS),
+                   f"LP1 was computed on grid {lp.grid}")
+    out = tmp_path / "c.h5"
+    r = invoke("continue", adaptive, "--from", "LP1", "--free", "a", *BOUNDS, "--tol", TOL, "-o", out)
+    assert r.exit_code == 0, r.output
+    (c,), _ = io.load(out)
+    _check_against_closed_form(c, int(lp.grid))
+
+
+def test_cli_max_grid_caps_the_refinement(runs, tmp_path):
+    fixed, _ = runs
+    out = tmp_path / "c.h5"
+    r = invoke("continue", fixed, "--from", "LP1", "--free", "a", *BOUNDS, "--tol", TOL, "--max-grid", 32, "-o", out)
+    assert r.exit_code == 3, r.output
+    (c,), meta = io.load(out)
+    assert c.status == "MX" and "under-resolved" in c.message and int(np.max(c.grid)) == 32
+    assert np.max(c.params["a"]) < A_MAX
+    a, lam = c.params["a"], c.params["lam"]
+    np.testing.assert_allclose(lam, BRATU_FOLD / (1.0 + a), rtol=TOL)  # what it computed met tol
+    assert meta["extra"]["regrid"]["max_grid"] == 32
+
+
+def test_cli_tol_bad_input(runs, monkeypatch, tmp_path):
+    fixed, _ = runs
+    one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--max-grid", 64),
+                   "--max-grid needs --tol")
+    one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--tol", TOL, "--max-grid", 16),
+                   "--max-grid (16) is below the grid of LP1 (24)")
+    r = invoke("continue", fixed, "--from", "LP1", "--free", "a", "--tol", "0")
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    # a problem without the grid hooks (the two-parameter fixture scene)
+    monkeypatch.syspath_prepend(str(HERE))
+    monkeypatch.setenv("CONTIN_SCENES", "twoparam_fixture_scenes:SCENES")
+    ip = tmp_path / "ip.h5"
+    r = invoke("trace", "imperfect-pitchfork", "--no-stability", "-q", "-o", ip)
+    assert r.exit_code == 0, r.output
+    one_error_line(invoke("continue", ip, "--from", "BP2", "--free", "mu", "--tol", TOL),
+                   "--tol needs a problem with the grid hooks grid_size, with_grid, transfer, error_estimate; "
+                   "the problem of scene 'imperfect-pitchfork'")
+    # a Hopf point: no adaptive grids for Hopf curves
+    lz = tmp_path / "lorenz.h5"
+    r = invoke("trace", "lorenz", "--no-stability", "-q", "-o", lz)
+    assert r.exit_code == 0, r.output
+    one_error_line(invoke("continue", lz, "--from", "HB2", "--free", "sigma", "--tol", TOL),
+                   "adaptive grids are not available for BP/Hopf curves (HB2 is a Hopf point)")
