@@ -117,6 +117,36 @@ def register_curve(point_type: str, tracer: CurveTracer) -> None:
     CURVES[point_type] = tracer
 
 
+def _resolved_start(problem: Any, point: SpecialPoint, second: str, options: ContinuationOptions,
+                    regrid: SegmentRegrid) -> tuple[Any, SpecialPoint]:
+    """``problem`` and ``point`` on the first grid, from the point's own on, where the point's state
+    meets the resolution guard (``under_resolved`` at the effective resolution_tol): a point
+    located on a grid that resolves it to a looser tol is carried (the problem's ``transfer``)
+    onto the finer grids :meth:`SegmentRegrid.next_grid` picks, up to max_grid; the tracer's
+    Newton start then puts it on the fold (or BP) of that grid.  Unchanged without the hook, with
+    the guard off, or when the point meets tol where it is (or no finer grid meets it)."""
+    from contin.adapt import on_grid
+    from contin.options import effective_resolution_tol
+    from contin.problem import has
+
+    tol = effective_resolution_tol(options)
+    if tol is None or not has(problem, "under_resolved"):
+        return problem, point
+    u = np.asarray(point.state, float)
+    params = dict(point.params)
+    here, state = problem, u
+    while here.under_resolved(state, params, tol) is not None:
+        size = regrid.next_grid(here, state, params)
+        if size is None:
+            return problem, point  # the tracer's start check says why
+        finer = on_grid(here, size)
+        state = here.transfer(state, finer)
+        here = finer
+    if here is problem:
+        return problem, point
+    return here, replace(point, state=state, grid=int(here.grid_size), tangent=None)
+
+
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,
                    options: ContinuationOptions, *, branch_id: str | None = None,
                    regrid: SegmentRegrid | None = None) -> Branch:
@@ -126,7 +156,8 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
 
     ``regrid`` (:class:`contin.foldcurve.SegmentRegrid`; a problem with the grid hooks
     ``grid_size``, ``with_grid``, ``transfer``, ``error_estimate``, moved onto the point's own grid
-    ``point.grid`` when it has one, as points of adaptive runs do): fold curves
+    ``point.grid`` when it has one, as points of adaptive runs do, and onto a finer grid when the
+    point's state does not meet the guard's tol there): fold curves
     (LP, and BP unfolded by ``second``) that the resolution guard stops continue on finer grids
     segment-wise; the guard's tol is ``options.resolution_tol`` or a
     :func:`contin.options.resolution_override`.  The curve's ``grid`` holds every point's grid.
@@ -165,6 +196,7 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
             raise ValueError(f"adaptive grids need the problem hooks {', '.join(missing)} "
                              f"({type(problem).__name__} lacks them)")
         problem = on_grid(problem, point.grid)  # a point of an adaptive run: its own grid
+        problem, point = _resolved_start(problem, point, second, options, regrid)
         kw["regrid"] = regrid
     curve = tracer(problem, point, second, options, parameter=first,
                    branch_id=branch_id if branch_id is not None else f"{point.name}.{second}", **kw)
