@@ -92,6 +92,27 @@ def test_continue_point_starts_on_the_points_own_grid(fold_point):
     _check_against_closed_form(c, 36)
 
 
+def test_a_start_point_that_misses_tol_is_carried_onto_a_finer_grid():
+    """LP located on cheb 12 without a guard (estimate 2.7e-5): with regrid at tol 1e-8 the curve
+    starts on the first finer grid that resolves it (the tracer's Newton start puts the point on
+    that grid's fold), and every point meets the closed form to tol."""
+    pb = StretchedBratu("cheb", 12)
+    b = trace(pb, pb.initial(), {"lam": 0.5, "a": 0.0}, "lam",
+              ContinuationOptions(max_steps=60, bounds={"lam": (0, 4)}, resolution_tol=None))
+    lp = b.fold_points[0]
+    assert pb.error_estimate(lp.state, lp.params) > TOL
+    c = continue_point(pb, b, lp, "a", _options(resolution_tol=TOL), regrid=SegmentRegrid(AdaptOptions(tol=TOL)))
+    a, lam, g = c.params["a"], c.params["lam"], c.grid
+    assert c.status == "EP", c.message
+    assert np.min(a) == pytest.approx(A_MIN, abs=1e-12) and np.max(a) == pytest.approx(A_MAX, abs=1e-12)
+    assert int(np.min(g)) > 12  # nothing on the start point's own grid
+    np.testing.assert_allclose(lam, BRATU_FOLD / (1.0 + a), rtol=TOL)
+    for i in range(len(c)):
+        on = StretchedBratu("cheb", int(g[i]))
+        exact = on.fold_state(float(a[i]))
+        assert np.max(np.abs(c.state(i)[: on.n] - exact)) <= TOL * np.max(np.abs(exact)), (i, a[i], g[i])
+
+
 def test_regrid_needs_the_grid_hooks():
     from tests.twoparam_fixture_scenes import Pitchfork
 
@@ -275,3 +296,39 @@ def test_cli_tol_bad_input(runs, monkeypatch, tmp_path):
     assert r.exit_code == 0, r.output
     one_error_line(invoke("continue", lz, "--from", "HB2", "--free", "sigma", "--tol", TOL),
                    "adaptive grids are not available for BP/Hopf curves (HB2 is a Hopf point)")
+
+
+def test_cli_tol_on_the_gpcf_banded_fold(monkeypatch, tmp_path):
+    """gPCF: the fold of the nu = 0.16 banded branch (scene gpcf-keypoints, fixed cheb 32)
+    continued in nu with --tol 1e-8: the half towards small nu (the band densifies, H grows) is
+    regridded 32 -> 48 where the guard stops it, and both halves reach their bounds; every point
+    meets tol on its grid, and the nu = 0.17 end is the fold the one-parameter trace on a fixed
+    cheb 64 locates (an independent solve; 4e-12 measured)."""
+    from dataclasses import replace
+
+    from problems.couette.keypoints import banded_fold, fold_options
+    from problems.couette.model import CouetteProblem
+
+    monkeypatch.setenv("CONTIN_SCENES", "problems.couette.keypoints:SCENES")
+    kp, out = tmp_path / "kp.h5", tmp_path / "c.h5"
+    r = invoke("trace", "gpcf-keypoints", "--grid", 32, "--no-stability", "-q", "-o", kp)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(kp)
+    (lp,) = [s for b in branches for s in b.fold_points]
+    assert lp.params["nu"] == 0.16
+    r = invoke("continue", kp, "--from", lp.name, "--free", "nu", "--bounds", "nu=0.14:0.17", "--bounds", "H=10:200",
+               "--ds", 0.01, "--ds-max", 0.5, "--tol", TOL, "-o", out)
+    assert r.exit_code == 0, r.output
+    (c,), _ = io.load(out)
+    nu, g = c.params["nu"], c.grid
+    assert c.status == "EP" and min(nu) == pytest.approx(0.14, abs=1e-12) and max(nu) == pytest.approx(0.17, abs=1e-12)
+    assert sorted(set(g.tolist())) == [32, 48]
+    order = np.argsort(-nu)  # from nu = 0.17 down to 0.14: the grid only grows
+    assert np.all(np.diff(g[order]) >= 0)
+    for i in range(len(c)):
+        on = CouetteProblem("cheb", int(g[i]))
+        p = {k: float(v[i]) for k, v in c.params.items()}
+        assert on.error_estimate(c.state(i)[: on.size], p) <= TOL
+    _, ref = banded_fold(CouetteProblem("cheb", 64), 0.17, 0.8, replace(fold_options(0.17, 0.8), resolution_tol=None))
+    end = int(np.argmax(nu))
+    assert c.params["H"][end] == pytest.approx(ref.params["H"], rel=TOL)

@@ -115,6 +115,13 @@ def run(request: SceneRequest) -> SceneResult:
                               "exact": {"Hc1": exact_hc1(values["nu_super"], values["e"])}})
 
 
+def problem_factory(parameters: Any, discretization: Any) -> CouetteProblem:
+    """The problem of a gpcf-keypoints file (its start grid; ``contin.adapt.on_grid`` the others):
+    for ``contin continue`` from its fold, ``contin stability``, ``contin verify``."""
+    return CouetteProblem(str(discretization.get("method") or "cheb"), int(discretization.get("intervals") or 32),
+                          engine=str(discretization.get("engine") or "numpy"))
+
+
 FRSTAR_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 30.0}
 #: start grid of gpcf-frstar (fixed runs: the grid; adaptive runs: where the choice starts)
 FRSTAR_GRID = 32
@@ -148,4 +155,4 @@ def run_frstar(request: SceneRequest) -> SceneResult:
 SCENES = {"gpcf-frstar": Scene("gpcf-frstar", "gPCF key point Fr*: the floating-plug limit on the first pitchfork's fold curve",
                                FRSTAR_DEFAULTS, run_frstar, x="H", y="G", adaptive=True),
           "gpcf-keypoints": Scene("gpcf-keypoints", "gPCF key points: H_1^c (nu=0.3) and the banded-branch fold at nu=0.16",
-                                  DEFAULTS, run, x="H", y="phi", adaptive=True)}
+                                  DEFAULTS, run, x="H", y="phi", adaptive=True, problem_factory=problem_factory)}
