@@ -10,7 +10,8 @@ parameters and discretization as FILE; its states are the augmented (u, phi, NAM
 
 ``--tol REL [--max-grid N]`` (problems with the grid hooks ``grid_size``, ``with_grid``,
 ``transfer``, ``error_estimate``): the curve starts on the point's own grid (``SpecialPoint.grid``
-of an adaptive run's file, else the file's grid), the resolution guard is set to REL for the
+of an adaptive run's file, else the file's grid; a point that misses REL there is carried onto the
+first finer grid that meets it), the resolution guard is set to REL for the
 curve, and where it stops a half of the curve that half continues on a finer grid from its last
 accepted point (segment-wise regridding, :class:`contin.foldcurve.SegmentRegrid`), up to N; the
 file keeps every point's grid.  Fold curves only (LP, and a BP that NAME unfolds): for Hopf and
@@ -58,7 +59,8 @@ def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
 @click.option("--tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None, metavar="REL",
               help="Adaptive grids: the resolution guard's tol for the curve (largest estimated relative error of a "
                    "point); where it stops the curve, the curve continues on a finer grid from its last point "
-                   "(segment-wise). Starts on the point's own grid. Fold curves only (LP; BP unfolded by NAME).")
+                   "(segment-wise). Starts on the point's own grid (finer if the point misses REL there). Fold curves only "
+                   "(LP; BP unfolded by NAME).")
 @click.option("--max-grid", type=click.IntRange(min=4), default=None, metavar="N",
               help="With --tol: the largest grid [default: the run's adaptive max_grid, else 512]; past it the "
                    "curve ends with MX.")
