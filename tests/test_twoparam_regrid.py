@@ -258,6 +258,12 @@ def test_cli_tol_starts_on_the_adaptive_points_grid(runs, tmp_path):
     assert r.exit_code == 0, r.output
     (c,), _ = io.load(out)
     _check_against_closed_form(c, int(lp.grid))
+    r = invoke("continue", adaptive, "--from", "LP1", "--free", "a", *BOUNDS, "--tol", TOL, "--json")
+    assert r.exit_code == 0
+    import json
+
+    doc = json.loads(r.stdout)
+    assert doc["extra"]["regrid"] == {"tol": TOL, "max_grid": 512, "grids": sorted(set(c.grid.tolist()))}
 
 
 def test_cli_max_grid_caps_the_refinement(runs, tmp_path):

@@ -139,9 +139,13 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
                  notes=notes, extra=extra,
                  diagram_x=first, diagram_y=meta.get("diagram_y") or "phi")
     if as_json:
+        doc_extra: dict[str, Any] = {"from": point.name, "branch": branch.id, "free": [first, second]}
+        if regrid is not None:
+            grids = [] if curve.grid is None else sorted({int(g) for g in curve.grid})
+            doc_extra["regrid"] = {"tol": tol, "max_grid": regrid.opts.max_grid, "grids": grids}
         doc = run_document(scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                            discretization=meta.get("discretization", {}), branches=[curve],
-                           notes=[], extra={"from": point.name, "branch": branch.id, "free": [first, second]},
+                           notes=[], extra=doc_extra,
                            output=output, stability={})
         echo_json(doc)
     echo_err(f"{point.type} curve from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
