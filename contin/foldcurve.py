@@ -465,6 +465,7 @@ class _Checks:
             self.count += 1
             if e > tol:
                 self.refused += 1
+                self.worst = max(self.worst, worst)
                 self._line(seg, aug, count - 1, worst, where, n_f, parameter)
                 reason = (f"under-resolved at {parameter} = {params[parameter]:.6g}: two-grid error {e:.2g} of the "
                           f"augmented solve > tol {tol:.2g} (check on grid {n_f}; {second} = {x[-1]:.6g})")
