@@ -245,6 +245,23 @@ def test_cli_tol_regrids_to_the_bound(runs, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_cli_no_solve_check_switches_the_two_grid_check_off(runs, tmp_path):
+    """--tol checks every point's augmented solve on a twice finer grid (the curve's audit counts the
+    checks); --no-solve-check switches the check off (AdaptOptions.check_factor = None)."""
+    fixed, _ = runs
+    audits = {}
+    for flag in ((), ("--no-solve-check",)):
+        out = tmp_path / f"c{len(flag)}.h5"
+        r = invoke("continue", fixed, "--from", "LP1", "--free", "a", *BOUNDS, "--tol", TOL, *flag, "-o", out)
+        assert r.exit_code == 0, r.output
+        (c,), _ = io.load(out)
+        _check_against_closed_form(c, START)
+        (audits[flag],) = [line for line in c.audit if line.startswith("two-grid check of the augmented solve: ")]
+    assert audits[("--no-solve-check",)].endswith(": off (check_factor None)")
+    checks = int(audits[()].split(": ")[1].split(" checks")[0])
+    assert checks >= 10 and "worst accepted error" in audits[()]
+
+
 def test_cli_tol_starts_on_the_adaptive_points_grid(runs, tmp_path):
     _, adaptive = runs
     branches, meta = io.load(adaptive)
@@ -283,6 +300,8 @@ def test_cli_tol_bad_input(runs, monkeypatch, tmp_path):
     fixed, _ = runs
     one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--max-grid", 64),
                    "--max-grid needs --tol")
+    one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--no-solve-check"),
+                   "--no-solve-check needs --tol")
     one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--tol", TOL, "--max-grid", 16),
                    "--max-grid (16) is below the grid of LP1 (24)")
     r = invoke("continue", fixed, "--from", "LP1", "--free", "a", "--tol", "0")
