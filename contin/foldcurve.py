@@ -338,7 +338,13 @@ class SegmentRegrid:
     (``Branch.grid``), with the grid changes in its audit.  The part before the stop is kept as
     computed (it met the guard there).
 
-    opts : growth, multiple and max_grid of the next grid (:func:`contin.adapt.finer`)
+    Every point of the curve also passes the two-grid check of its augmented solve
+    (:func:`augmented_two_grid_error`; ``opts.check_factor``, ``opts.check_above`` and ``opts.tol``,
+    as for adaptive traces; check_factor None switches it off): a point that misses tol there ends
+    its segment as the guard's stop does and is recomputed on a finer grid (:func:`_trace_half`).
+
+    opts : growth, multiple and max_grid of the next grid (:func:`contin.adapt.finer`); tol,
+        check_factor and check_above of the two-grid check
     suggest : optional ``suggest(problem, u, params) -> grid size`` for the stopped point (u and
         params of the wrapped problem); the next grid is the larger of it and the growth step
     """
