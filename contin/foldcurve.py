@@ -494,7 +494,8 @@ class _Checks:
         if not self.on:
             return "two-grid check of the augmented solve: off (check_factor None)"
         return (f"two-grid check of the augmented solve: {self.count} checks, worst accepted error {self.worst:.2g} "
-                f"(tol {self.opts.tol:.2g}), {self.refused} points refused and recomputed on a finer grid")
+                f"(tol {self.opts.tol:.2g}), {self.refused} points refused on their grid (recomputed on a finer one, or "
+                f"past max_grid the curve ends before them)")
 
 
 def _head(branch: Branch, k: int, message: str) -> Branch:

@@ -198,3 +198,22 @@ def test_two_grid_check_holds_every_point_to_tol(guard):
     assert checks >= len(on) - 2 and 0 < worst <= TOL and refused >= 1
     # the grid changes name the check as their reason
     assert any(line.startswith("grid 24 -> ") and "two-grid error" in line for line in on.audit)
+
+
+def test_a_point_no_grid_up_to_max_grid_passes_ends_the_curve_before_it():
+    """max_grid 24 (the start grid), guard 1e-4, tol 1e-8: the first point of the a > 0 half that
+    misses the two-grid check (checked on 48 = 2 x max_grid) cannot be recomputed on a finer grid,
+    so the half ends MX at the point before it; every stored point meets the closed forms to TOL."""
+    pb, lp = _fold()
+    opts = ContinuationOptions(bounds={"a": (A_MIN, A_MAX)}, max_steps=300, resolution_tol=1e-4,
+                               step=StepOptions(ds=0.1, ds_max=0.5))
+    c = trace_fold_curve(pb, lp, "a", opts, parameter="lam",
+                         regrid=SegmentRegrid(AdaptOptions(tol=TOL, max_grid=24)), branch_id="fold")
+    assert c.status == "MX" and "two-grid error" in c.message and "no finer grid (max_grid 24)" in c.message
+    assert set(c.grid.tolist()) == {24}
+    a = c.params["a"]
+    assert np.min(a) == pytest.approx(A_MIN, abs=1e-12) and 2.0 < np.max(a) < A_MAX
+    e_lam, e_u = _errors(c)
+    assert np.all(e_lam <= TOL) and np.all(e_u <= TOL)
+    (mx,) = [s for s in c.special_points if s.type == "MX"]
+    assert mx.params["a"] == pytest.approx(np.max(a), abs=0)
