@@ -443,16 +443,16 @@ class _Checks:
         return self.opts.check_factor is not None
 
     def first_failure(self, aug: Any, seg: Branch, parameter: str, second: str,
-                      theta: float) -> tuple[int, str] | None:
-        """Check the points of ``seg`` (one grid) in order: (index, reason) of the first whose
-        two-grid error exceeds tol, else None.  Points whose guard estimate is at most
-        check_above x tol are not checked (as :meth:`contin.adapt.Adaptor.solve_check`)."""
+                      theta: float, start: int = 0, stop: int | None = None) -> tuple[int, str] | None:
+        """Check the points start .. stop - 1 of ``seg`` (one grid) in order: (index, reason) of
+        the first whose two-grid error exceeds tol, else None.  Points whose guard estimate is at
+        most check_above x tol are not checked (as :meth:`contin.adapt.Adaptor.solve_check`)."""
         from contin.adapt import state_error
 
         tol = self.opts.tol
         n = int(aug.n)
         count, worst, where, n_f = 0, 0.0, None, None
-        for i in range(len(seg)):
+        for i in range(start, len(seg) if stop is None else min(stop, len(seg))):
             try:
                 x = seg.state(i)
             except KeyError:  # not saved (save_every): nothing to check
@@ -633,22 +633,34 @@ def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, 
             seg.special_points = [replace(s, grid=size) for s in seg.special_points]
         return seg
 
-    def checked(aug: Any, seg: Branch) -> tuple[Branch, int | None]:
-        """``seg`` up to its first point that fails the two-grid check (MX there), and that index."""
-        if checks is None or not checks.on or len(seg) == 0:
-            return seg, None
-        failure = checks.first_failure(aug, seg, parameter, second, opts.step.theta)
+    def checked(aug: Any, x0: Array, params: Mapping[str, float], o: ContinuationOptions, d: int,
+                t: Array | None) -> tuple[Branch, int | None]:
+        """:func:`run`, up to its first point that fails the two-grid check (MX there), and that
+        index.  The start point is checked first, on a one-step trace, so that a start that
+        fails costs no whole segment."""
+        if checks is None or not checks.on:
+            return run(aug, x0, params, o, d, t), None
+        probe = run(aug, x0, params, replace(o, max_steps=1), d, t)
+        if len(probe) == 0:
+            return probe, None
+        failure = checks.first_failure(aug, probe, parameter, second, opts.step.theta, stop=1)
+        if failure is not None:
+            return _head(probe, 0, failure[1]), 0
+        seg = probe if o.max_steps <= 1 else run(aug, x0, params, o, d, t)
+        failure = checks.first_failure(aug, seg, parameter, second, opts.step.theta, start=1) if len(seg) > 1 else None
         if failure is None:
             return seg, None
         k, reason = failure
         return _head(seg, k, reason), k
 
-    half = run(augmented, start, point.params, opts, direction, tangent)
+    if regrid is None:
+        half = run(augmented, start, point.params, opts, direction, tangent)
+    else:
+        half, k = checked(augmented, start, point.params, opts, direction, tangent)
     if start_tangent is not None and not start_tangent and len(half) > 0:
         start_tangent.append(np.array(half.tangent(0), float))
     if regrid is None:
         return half
-    half, k = checked(augmented, half)
     failed = k is not None  # the half's last point failed its two-grid check
     aug = augmented
     while under_resolved_stop(half) and len(half) >= 1 and not half.closed:
@@ -676,8 +688,7 @@ def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, 
             o = replace(opts, max_steps=budget, step=replace(opts.step, ds=ds))
             line = (f"grid {int(aug.grid_size)} -> {size} at {parameter} = {corr.x[-1]:.6g}, {second} = "
                     f"{corr.x[-2]:.6g}: {half.message}")
-            seg = run(other, corr.x[:-1], {**params, parameter: float(corr.x[-1])}, o, +1, tt)
-            seg, k = checked(other, seg)
+            seg, k = checked(other, corr.x[:-1], {**params, parameter: float(corr.x[-1])}, o, +1, tt)
             if len(seg) > 0 and k != 0:
                 seg.audit.insert(0, line)
                 break
