@@ -21,6 +21,10 @@ Segment-wise regridding (:class:`SegmentRegrid`, ``trace_fold_curve(..., regrid=
 the resolution guard stops a fold curve on grid N, its last accepted point and tangent are
 carried onto a finer grid (:meth:`FoldProblem.carry`) and the curve continues from there, so only
 the part that needs the finer grid pays for it; the points keep their grids (``Branch.grid``).
+Every point of a regridded curve also passes a two-grid check of its solve
+(:func:`augmented_two_grid_error`, ``AdaptOptions.check_factor``): the guard bounds how well the
+grid carries the state, not the error of the augmented solution, which next to a fold is that
+truncation amplified by the inverse of the augmented Jacobian.
 """
 
 from __future__ import annotations
@@ -334,7 +338,13 @@ class SegmentRegrid:
     (``Branch.grid``), with the grid changes in its audit.  The part before the stop is kept as
     computed (it met the guard there).
 
-    opts : growth, multiple and max_grid of the next grid (:func:`contin.adapt.finer`)
+    Every point of the curve also passes the two-grid check of its augmented solve
+    (:func:`augmented_two_grid_error`; ``opts.check_factor``, ``opts.check_above`` and ``opts.tol``,
+    as for adaptive traces; check_factor None switches it off): a point that misses tol there ends
+    its segment as the guard's stop does and is recomputed on a finer grid (:func:`_trace_half`).
+
+    opts : growth, multiple and max_grid of the next grid (:func:`contin.adapt.finer`); tol,
+        check_factor and check_above of the two-grid check
     suggest : optional ``suggest(problem, u, params) -> grid size`` for the stopped point (u and
         params of the wrapped problem); the next grid is the larger of it and the growth step
     """
@@ -354,6 +364,169 @@ class SegmentRegrid:
             if want is not None and math.isfinite(float(want)):
                 size = min(max(size, _round(float(want), self.opts.multiple)), self.opts.max_grid)
         return size
+
+
+#: Floor of the scale of a parameter's relative change in :func:`augmented_two_grid_error`: a
+#: parameter that passes through 0 along the curve (StretchedBratu's a at its start) has its
+#: change measured against max(|p|, PARAM_SCALE_FLOOR) there instead of a vanishing |p|.
+PARAM_SCALE_FLOOR = 1e-3
+
+
+def augmented_two_grid_error(augmented: Any, state: Array, tangent: Array, params: Mapping[str, float],
+                             parameter: str, theta: float, opts: AdaptOptions) -> tuple[float, int] | None:
+    """Two-grid error of a point of an augmented two-parameter curve (the analogue of
+    :func:`contin.adapt.two_grid_error` for a regridded fold curve): the point (state U = (u, phi,
+    p2), ``params[parameter]`` = p1) and its tangent (dU, dp1) are carried onto the check grid
+    (``check_factor`` times finer, :func:`contin.adapt.check_grid`) as :meth:`FoldProblem.carry`
+    does, and one Newton correction of the whole augmented system is done there, bordered by the
+    pseudo-arclength row of the carried tangent (the corrector's hyperplane; fixing p1 instead
+    would be singular where the curve turns in p1):
+
+        [G_U  G_p1] [dU ]   [-G(V, p1)]
+        [  t . ·  ] [dp1] = [    0    ]
+
+    The error is the largest of the state's relative error ||du|| / ||v + du|| in the wrapped
+    problem's ``solution_error`` norm (:func:`contin.adapt.solution_error`; relative max-norm
+    without the hook) and the relative changes |dp| / max(|p + dp|, PARAM_SCALE_FLOOR) of both
+    parameters.  The null vector's change is not measured (as the guard does not estimate it):
+    it enters through its effect on u and the parameters.
+
+    Returns (error, check grid), None when the check grid rounds to the point's grid; the error
+    is inf where the bordered Jacobian is singular or the correction is not finite.
+    """
+    from contin.adapt import check_grid, solution_error
+    from contin.extended import ExtendedSystem
+    from contin.linalg import factorize_bordered
+
+    factor = opts.check_factor
+    if factor is None:
+        return None
+    n_f = check_grid(augmented.problem, factor, opts)
+    if n_f is None:
+        return None
+    fine = augmented.with_grid(n_f)
+    x_f, t_f = augmented.carry(np.asarray(state, float), np.asarray(tangent, float)[:-1], fine)
+    system = ExtendedSystem(fine, params, parameter, theta)
+    system.n = x_f.size
+    big = system.pack(x_f, float(params[parameter]))
+    row = system.row(system.pack(t_f, float(tangent[-1])))
+    with np.errstate(all="ignore"):
+        jac, fp = system.jacobian(big)
+        fact = factorize_bordered(jac, fp, row)
+        if fact is None:
+            return math.inf, n_f
+        delta = fact.solve(np.concatenate([-system.residual(big), [0.0]]))
+    if not np.all(np.isfinite(delta)):
+        return math.inf, n_f
+    m = fine.n
+    u, du = x_f[:m], delta[:m]
+    q = {**system.params_at(big[-1]), fine.second: float(big[-2])}
+    errors = [solution_error(fine.problem, u, u + du, q)]
+    for j in (-2, -1):  # p2 (the last state entry), p1
+        errors.append(abs(float(delta[j])) / max(abs(float(big[j] + delta[j])), PARAM_SCALE_FLOOR))
+    e = max(errors)
+    return (e if math.isfinite(e) else math.inf), n_f
+
+
+@dataclass
+class _Checks:
+    """The two-grid checks of one regridded curve (:func:`trace_augmented`): how many points were
+    checked, the worst error among the accepted ones and how many were refused."""
+
+    opts: AdaptOptions
+    count: int = 0
+    worst: float = 0.0
+    refused: int = 0
+
+    @property
+    def on(self) -> bool:
+        return self.opts.check_factor is not None
+
+    def first_failure(self, aug: Any, seg: Branch, parameter: str, second: str,
+                      theta: float, start: int = 0, stop: int | None = None) -> tuple[int, str] | None:
+        """Check the points start .. stop - 1 of ``seg`` (one grid) in order: (index, reason) of
+        the first whose two-grid error exceeds tol, else None.  Points whose guard estimate is at
+        most check_above x tol are not checked (as :meth:`contin.adapt.Adaptor.solve_check`)."""
+        from contin.adapt import state_error
+
+        tol = self.opts.tol
+        n = int(aug.n)
+        count, worst, where, n_f = 0, 0.0, None, None
+        for i in range(start, len(seg) if stop is None else min(stop, len(seg))):
+            try:
+                x = seg.state(i)
+            except KeyError:  # not saved (save_every): nothing to check
+                continue
+            t = seg.tangent(i)
+            params = {k: float(v[i]) for k, v in seg.params.items()}
+            q = {**params, second: float(x[-1])}
+            if has(aug.problem, "error_estimate") and \
+                    state_error(aug.problem, x[:n], q) <= self.opts.check_above * tol:
+                continue
+            out = augmented_two_grid_error(aug, x, t, params, parameter, theta, self.opts)
+            if out is None:
+                continue
+            e, n_f = out
+            count += 1
+            self.count += 1
+            if e > tol:
+                self.refused += 1
+                self.worst = max(self.worst, worst)
+                self._line(seg, aug, count - 1, worst, where, n_f, parameter)
+                reason = (f"under-resolved at {parameter} = {params[parameter]:.6g}: two-grid error {e:.2g} of the "
+                          f"augmented solve > tol {tol:.2g} (check on grid {n_f}; {second} = {x[-1]:.6g})")
+                seg.audit.append(f"two-grid check: {reason}")
+                return i, reason
+            if e >= worst:
+                worst, where = e, params[parameter]
+        self.worst = max(self.worst, worst)
+        self._line(seg, aug, count, worst, where, n_f, parameter)
+        return None
+
+    @staticmethod
+    def _line(seg: Branch, aug: Any, count: int, worst: float, where: float | None, n_f: int | None,
+              parameter: str) -> None:
+        if count:
+            seg.audit.append(f"two-grid check on grid {int(aug.grid_size)} (check grid {n_f}): {count} points "
+                             f"passed, worst error {worst:.2g} (at {parameter} = {where:.6g})")
+
+    def summary(self) -> str:
+        if not self.on:
+            return "two-grid check of the augmented solve: off (check_factor None)"
+        return (f"two-grid check of the augmented solve: {self.count} checks, worst accepted error {self.worst:.2g} "
+                f"(tol {self.opts.tol:.2g}), {self.refused} points refused on their grid (recomputed on a finer one, or "
+                f"past max_grid the curve ends before them)")
+
+
+def _head(branch: Branch, k: int, message: str) -> Branch:
+    """Points 0..k of a one-grid ``branch`` (special points before k kept), ending MX at k with
+    ``message`` (an under-resolved stop, which :func:`_trace_half` continues on a finer grid)."""
+    keep = k + 1
+
+    def cut(a: Any) -> Any:
+        return None if a is None else a[:keep]
+
+    if branch.state_index is None:
+        states, state_index = branch.states[:keep], None
+    else:
+        mask = branch.state_index < keep
+        states, state_index = branch.states[mask], branch.state_index[mask]
+    x = branch.state(k)
+    end = SpecialPoint(type="MX", index=k, params={k_: float(v[k]) for k_, v in branch.params.items()},
+                       order_parameter=float(branch.observables["phi"][k]) if "phi" in branch.observables else math.nan,
+                       state=np.array(x, float), tangent=np.array(branch.tangent(k), float), note=message,
+                       grid=branch.grid_at(k))
+    return replace(
+        branch,
+        params={k_: v[:keep] for k_, v in branch.params.items()},
+        observables={k_: v[:keep] for k_, v in branch.observables.items()},
+        states=states, state_index=state_index, tangents=branch.tangents[:keep], ds=branch.ds[:keep],
+        newton_iterations=branch.newton_iterations[:keep], stable=cut(branch.stable),
+        n_unstable=cut(branch.n_unstable), eigenvalues=cut(branch.eigenvalues), grid=cut(branch.grid),
+        sizes=cut(branch.sizes),
+        special_points=[s for s in branch.special_points if s.index < k and s.type not in ("EP", "MX")] + [end],
+        status="MX", message=message, closed=False, audit=list(branch.audit),
+    )
 
 
 def _chain(first: Branch, second: Branch) -> Branch:
@@ -405,24 +578,39 @@ def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second
                    bounds={k: v for k, v in options.bounds.items() if k != second})
     if regrid is not None and index != len(start) - 1:
         raise ValueError("segment-wise regridding needs the second parameter as the last state entry")
-    halves = []
+    halves: list[Branch] = []
+    checks = None if regrid is None else _Checks(regrid.opts)
+    first: list[Array] = []  # the first half's start tangent on the start grid (before any regridding)
     for direction in ((1, -1) if both else (1,)):
-        tangent = halves[0].tangent(0) if mirror_start and halves else None
+        tangent = first[0] if mirror_start and first else None
         half = _trace_half(augmented, start, point, second, index, opts, lo, hi, parameter=parameter,
-                           direction=direction, tangent=tangent, branch_id=branch_id, kind=kind, regrid=regrid)
+                           direction=direction, tangent=tangent, branch_id=branch_id, kind=kind, regrid=regrid,
+                           checks=checks, start_tangent=first)
         halves.append(half)
         if half.closed or (mirror_start and len(half) < 2):  # nothing to mirror: no second half
             break
     from contin.continuation import join
 
-    return halves[0] if len(halves) == 1 else join(halves[1], halves[0])
+    out = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
+    if checks is not None:
+        out.audit.append(checks.summary())
+    return out
 
 
 def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, index: int,
                 opts: ContinuationOptions, lo: float, hi: float, *, parameter: str, direction: int,
-                tangent: Array | None, branch_id: str, kind: str, regrid: SegmentRegrid | None) -> Branch:
+                tangent: Array | None, branch_id: str, kind: str, regrid: SegmentRegrid | None,
+                checks: _Checks | None = None, start_tangent: list[Array] | None = None) -> Branch:
     """One half of :func:`trace_augmented`: a trace, and with ``regrid`` its continuations on
-    finer grids while the resolution guard stops it."""
+    finer grids while the resolution guard stops it.
+
+    With ``regrid`` and ``checks`` on (``AdaptOptions.check_factor``), every point of a segment
+    also passes the two-grid check of its augmented solve (:func:`augmented_two_grid_error`, run
+    on the traced segment in order): at the first point that fails it the segment ends (MX,
+    under-resolved) and that point is carried onto a finer grid and corrected there, as the
+    guard's stop carries its last point; a carried start point that fails is carried onto a finer
+    grid still.  A point no grid up to max_grid passes is dropped (the half ends MX at the point
+    before it).  ``start_tangent`` (a list) receives the first segment's start tangent."""
     from contin.adapt import under_resolved_stop
     from contin.continuation import trace
     from contin.corrector import correct
@@ -445,9 +633,35 @@ def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, 
             seg.special_points = [replace(s, grid=size) for s in seg.special_points]
         return seg
 
-    half = run(augmented, start, point.params, opts, direction, tangent)
+    def checked(aug: Any, x0: Array, params: Mapping[str, float], o: ContinuationOptions, d: int,
+                t: Array | None) -> tuple[Branch, int | None]:
+        """:func:`run`, up to its first point that fails the two-grid check (MX there), and that
+        index.  The start point is checked first, on a one-step trace, so that a start that
+        fails costs no whole segment."""
+        if checks is None or not checks.on:
+            return run(aug, x0, params, o, d, t), None
+        probe = run(aug, x0, params, replace(o, max_steps=1), d, t)
+        if len(probe) == 0:
+            return probe, None
+        failure = checks.first_failure(aug, probe, parameter, second, opts.step.theta, stop=1)
+        if failure is not None:
+            return _head(probe, 0, failure[1]), 0
+        seg = probe if o.max_steps <= 1 else run(aug, x0, params, o, d, t)
+        failure = checks.first_failure(aug, seg, parameter, second, opts.step.theta, start=1) if len(seg) > 1 else None
+        if failure is None:
+            return seg, None
+        k, reason = failure
+        return _head(seg, k, reason), k
+
+    if regrid is None:
+        half = run(augmented, start, point.params, opts, direction, tangent)
+    else:
+        half, k = checked(augmented, start, point.params, opts, direction, tangent)
+    if start_tangent is not None and not start_tangent and len(half) > 0:
+        start_tangent.append(np.array(half.tangent(0), float))
     if regrid is None:
         return half
+    failed = k is not None  # the half's last point failed its two-grid check
     aug = augmented
     while under_resolved_stop(half) and len(half) >= 1 and not half.closed:
         last = len(half) - 1
@@ -474,15 +688,24 @@ def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, 
             o = replace(opts, max_steps=budget, step=replace(opts.step, ds=ds))
             line = (f"grid {int(aug.grid_size)} -> {size} at {parameter} = {corr.x[-1]:.6g}, {second} = "
                     f"{corr.x[-2]:.6g}: {half.message}")
-            seg = run(other, corr.x[:-1], {**params, parameter: float(corr.x[-1])}, o, +1, tt)
-            if len(seg) > 0:
+            seg, k = checked(other, corr.x[:-1], {**params, parameter: float(corr.x[-1])}, o, +1, tt)
+            if len(seg) > 0 and k != 0:
                 seg.audit.insert(0, line)
                 break
-            # the carried point itself is under-resolved on this grid (its start check): finer still
+            # the carried point itself is under-resolved on this grid (its start check, or its
+            # two-grid check): finer still
+            if k == 0:
+                half.audit.append(f"{kind} not continued on grid {size}: {seg.message}")
             seg = None
             size = regrid.next_grid(other.problem, corr.x[: other.n], {**q, parameter: float(corr.x[-1])})
         if seg is None:
             break
         half = _chain(half, seg)
+        failed = k is not None
         aug = other
+    if failed and len(half) >= 2:
+        # the last point failed its two-grid check and no finer grid took it: the half ends at
+        # the point before it (every stored point passed)
+        half = _head(half, len(half) - 2, f"{half.message}; no finer grid (max_grid "
+                                          f"{regrid.opts.max_grid}) resolves it: the curve ends at the point before")
     return half

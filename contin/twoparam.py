@@ -26,7 +26,9 @@ Adaptive grids (``continue_point(..., regrid=SegmentRegrid(...))``, the CLI's
 ``contin continue --tol``): the Moore-Spence curves -- LP and the fold curve of a BP that the
 second parameter unfolds -- are regridded segment-wise (:func:`contin.foldcurve.trace_augmented`):
 where the resolution guard stops a half, its last accepted point continues on a finer grid and
-every point keeps its grid (``Branch.grid``).  BP curves (:mod:`contin.bpcurve`: reduced
+every point keeps its grid (``Branch.grid``); every point also passes the two-grid check of its
+augmented solve (:func:`contin.foldcurve.augmented_two_grid_error`, ``AdaptOptions.check_factor``),
+and one that misses tol there is recomputed on a finer grid.  BP curves (:mod:`contin.bpcurve`: reduced
 coordinates whose symmetric/antisymmetric bases belong to one grid) and Hopf curves
 (:mod:`contin.hopfcurve`: another augmented layout, no grid transfer of its blocks) have no
 regridding yet: asking for it raises :class:`NotAvailable`.

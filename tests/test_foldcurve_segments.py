@@ -5,6 +5,8 @@ solution compressed into a layer of width ~ 1/a (closed forms, independent of th
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -137,3 +139,81 @@ def test_io_round_trip_of_the_per_point_grid_column(segmented, tmp_path):
     r = CliRunner().invoke(main, ["diagram", str(path), "-x", "lam", "-y", "a", "-o", str(png)], catch_exceptions=False)
     assert r.exit_code == 0, r.output
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# --------------------------------------------------------------------------- two-grid check
+
+def _loose_curve(check_factor, guard):
+    """The fold curve regridded at tol TOL with the resolution guard at ``guard`` (looser than
+    TOL, or off): only the two-grid check of the augmented solve can hold the points to TOL."""
+    pb, lp = _fold()
+    opts = ContinuationOptions(bounds={"a": (A_MIN, A_MAX)}, max_steps=300, resolution_tol=guard,
+                               step=StepOptions(ds=0.1, ds_max=0.5))
+    regrid = SegmentRegrid(AdaptOptions(tol=TOL, check_factor=check_factor))
+    return pb, trace_fold_curve(pb, lp, "a", opts, parameter="lam", regrid=regrid, branch_id="fold")
+
+
+def _errors(c):
+    """Relative errors of lam (closed form lam*/(1 + a)) and of the state (the exact fold state on
+    the point's grid, max-norm) at every point."""
+    a, lam = c.params["a"], c.params["lam"]
+    e_lam = np.abs(lam / (BRATU_FOLD / (1.0 + a)) - 1.0)
+    e_u = []
+    for i in range(len(c)):
+        on = StretchedBratu("cheb", int(c.grid[i]))
+        exact = on.fold_state(float(a[i]))
+        e_u.append(np.max(np.abs(c.state(i)[: on.n] - exact)) / np.max(np.abs(exact)))
+    return e_lam, np.array(e_u)
+
+
+@pytest.mark.parametrize("guard", [1e-4, None])
+def test_two_grid_check_holds_every_point_to_tol(guard):
+    """Guard at 1e-4 (or off), tol 1e-8: without the check the a > 3.5 points stay on cheb 24 with
+    lam up to 5.8e-8 and the state up to 3.6e-7 off the closed forms; with it (check_factor 2)
+    they are recomputed on a finer grid and every point meets both to TOL."""
+    from contin.foldcurve import augmented_two_grid_error, fold_start
+
+    pb, off = _loose_curve(None, guard)
+    assert off.status == "EP", off.message
+    e_lam, e_u = _errors(off)
+    assert np.sum(e_lam > TOL) >= 1 and np.sum(e_u > TOL) >= 1
+    assert "two-grid check of the augmented solve: off (check_factor None)" in off.audit
+    # the check itself flags exactly such a point: its two-grid error exceeds both true errors
+    i = int(np.argmax(e_lam))
+    fold, _ = fold_start(pb, _fold()[1], "a")
+    fold = fold.with_grid(int(off.grid[i]))
+    p = {"lam": float(off.params["lam"][i]), "a": float(off.params["a"][i])}
+    e, n_f = augmented_two_grid_error(fold, off.state(i), off.tangent(i), p, "lam", 1.0, AdaptOptions(tol=TOL))
+    assert n_f == 48 and e > max(TOL, e_lam[i], e_u[i])
+
+    _, on = _loose_curve(2.0, guard)
+    assert on.status == "EP", on.message
+    a = on.params["a"]
+    assert np.min(a) == pytest.approx(A_MIN, abs=1e-12) and np.max(a) == pytest.approx(A_MAX, abs=1e-12)
+    e_lam, e_u = _errors(on)
+    assert np.all(e_lam <= TOL) and np.all(e_u <= TOL), (e_lam.max(), e_u.max())
+    assert int(np.max(on.grid)) > 24
+    (summary,) = [line for line in on.audit if line.startswith("two-grid check of the augmented solve: ")]
+    checks, worst, refused = (float(w) for w in re.findall(r": (\d+) checks, worst accepted error (\S+) .*?, (\d+) points", summary)[0])
+    assert checks >= len(on) - 2 and 0 < worst <= TOL and refused >= 1
+    # the grid changes name the check as their reason
+    assert any(line.startswith("grid 24 -> ") and "two-grid error" in line for line in on.audit)
+
+
+def test_a_point_no_grid_up_to_max_grid_passes_ends_the_curve_before_it():
+    """max_grid 24 (the start grid), guard 1e-4, tol 1e-8: the first point of the a > 0 half that
+    misses the two-grid check (checked on 48 = 2 x max_grid) cannot be recomputed on a finer grid,
+    so the half ends MX at the point before it; every stored point meets the closed forms to TOL."""
+    pb, lp = _fold()
+    opts = ContinuationOptions(bounds={"a": (A_MIN, A_MAX)}, max_steps=300, resolution_tol=1e-4,
+                               step=StepOptions(ds=0.1, ds_max=0.5))
+    c = trace_fold_curve(pb, lp, "a", opts, parameter="lam",
+                         regrid=SegmentRegrid(AdaptOptions(tol=TOL, max_grid=24)), branch_id="fold")
+    assert c.status == "MX" and "two-grid error" in c.message and "no finer grid (max_grid 24)" in c.message
+    assert set(c.grid.tolist()) == {24}
+    a = c.params["a"]
+    assert np.min(a) == pytest.approx(A_MIN, abs=1e-12) and 2.0 < np.max(a) < A_MAX
+    e_lam, e_u = _errors(c)
+    assert np.all(e_lam <= TOL) and np.all(e_u <= TOL)
+    (mx,) = [s for s in c.special_points if s.type == "MX"]
+    assert mx.params["a"] == pytest.approx(np.max(a), abs=0)

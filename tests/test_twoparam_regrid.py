@@ -245,6 +245,23 @@ def test_cli_tol_regrids_to_the_bound(runs, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_cli_no_solve_check_switches_the_two_grid_check_off(runs, tmp_path):
+    """--tol checks every point's augmented solve on a twice finer grid (the curve's audit counts the
+    checks); --no-solve-check switches the check off (AdaptOptions.check_factor = None)."""
+    fixed, _ = runs
+    audits = {}
+    for flag in ((), ("--no-solve-check",)):
+        out = tmp_path / f"c{len(flag)}.h5"
+        r = invoke("continue", fixed, "--from", "LP1", "--free", "a", *BOUNDS, "--tol", TOL, *flag, "-o", out)
+        assert r.exit_code == 0, r.output
+        (c,), _ = io.load(out)
+        _check_against_closed_form(c, START)
+        (audits[flag],) = [line for line in c.audit if line.startswith("two-grid check of the augmented solve: ")]
+    assert audits[("--no-solve-check",)].endswith(": off (check_factor None)")
+    checks = int(audits[()].split(": ")[1].split(" checks")[0])
+    assert checks >= 10 and "worst accepted error" in audits[()]
+
+
 def test_cli_tol_starts_on_the_adaptive_points_grid(runs, tmp_path):
     _, adaptive = runs
     branches, meta = io.load(adaptive)
@@ -283,6 +300,8 @@ def test_cli_tol_bad_input(runs, monkeypatch, tmp_path):
     fixed, _ = runs
     one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--max-grid", 64),
                    "--max-grid needs --tol")
+    one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--no-solve-check"),
+                   "--no-solve-check needs --tol")
     one_error_line(invoke("continue", fixed, "--from", "LP1", "--free", "a", "--tol", TOL, "--max-grid", 16),
                    "--max-grid (16) is below the grid of LP1 (24)")
     r = invoke("continue", fixed, "--from", "LP1", "--free", "a", "--tol", "0")
@@ -304,12 +323,63 @@ def test_cli_tol_bad_input(runs, monkeypatch, tmp_path):
                    "adaptive grids are not available for BP/Hopf curves (HB2 is a Hopf point)")
 
 
+def _fold_at_fixed_second(problem, u0, params, free: str, tol: float = 1e-12, iterations: int = 30) -> float:
+    """Reference fold location by an independent Newton solve of the fold conditions
+    F(u, p) = 0, J(u, p) phi = 0, phi . phi0 = 1 on ``problem``'s fixed grid with every parameter
+    but ``free`` fixed (the second parameter held at its bound: no continuation, no regridding,
+    no guard).  Starts from u0 and the null vector of J there; the Jacobian (dense central
+    differences of F_u phi along phi) only drives convergence, the root is fixed by the
+    residual, converged here to ``tol`` relative."""
+    import scipy.linalg as sla
+    import scipy.sparse as sp
+
+    p = dict(params)
+    jac = sp.csr_matrix(problem.jacobian(u0, p)).toarray()
+    _, _, vt = np.linalg.svd(jac)
+    phi = vt[-1] / np.linalg.norm(vt[-1])
+    c = phi.copy()
+    n = u0.size
+    x = np.concatenate([u0, phi, [p[free]]])
+
+    def residual(x):
+        q = {**p, free: float(x[-1])}
+        u, v = x[:n], x[n:2 * n]
+        return np.concatenate([problem.residual(u, q), sp.csr_matrix(problem.jacobian(u, q)) @ v, [c @ v - 1.0]])
+
+    for _ in range(iterations):
+        q = {**p, free: float(x[-1])}
+        u, v = x[:n], x[n:2 * n]
+        J = sp.csr_matrix(problem.jacobian(u, q)).toarray()
+        h = 1e-6 * max(1.0, np.max(np.abs(u)))
+        Jv = (sp.csr_matrix(problem.jacobian(u + h * v, q)).toarray() - sp.csr_matrix(problem.jacobian(u - h * v, q)).toarray()) / (2 * h)
+        hp = 1e-7 * max(1.0, abs(q[free]))
+        fp = (problem.residual(u, {**q, free: q[free] + hp}) - problem.residual(u, {**q, free: q[free] - hp})) / (2 * hp)
+        jp = ((sp.csr_matrix(problem.jacobian(u, {**q, free: q[free] + hp})) - sp.csr_matrix(problem.jacobian(u, {**q, free: q[free] - hp}))) @ v) / (2 * hp)
+        big = np.zeros((2 * n + 1, 2 * n + 1))
+        big[:n, :n], big[:n, -1] = J, fp
+        big[n:2 * n, :n], big[n:2 * n, n:2 * n], big[n:2 * n, -1] = Jv, J, jp
+        big[-1, n:2 * n] = c
+        dx = sla.solve(big, -residual(x))
+        x = x + dx
+        if abs(dx[-1]) <= tol * abs(x[-1]) and np.max(np.abs(dx[:n])) <= tol * np.max(np.abs(x[:n])):
+            break
+    else:
+        raise AssertionError("reference Newton did not converge")
+    return float(x[-1])
+
+
+@pytest.mark.slow
 def test_cli_tol_on_the_gpcf_banded_fold(monkeypatch, tmp_path):
     """gPCF: the fold of the nu = 0.16 banded branch (scene gpcf-keypoints, fixed cheb 32)
-    continued in nu with --tol 1e-8: the half towards small nu (the band densifies, H grows) is
-    regridded 32 -> 48 where the guard stops it, and both halves reach their bounds; every point
-    meets tol on its grid, and the nu = 0.17 end is the fold the one-parameter trace on a fixed
-    cheb 64 locates (an independent solve; 4e-12 measured)."""
+    continued in nu with --tol 1e-8: every point passes the two-grid check of its augmented solve
+    (contin.foldcurve.augmented_two_grid_error), which the start point on cheb 32 misses (3.5e-8;
+    its guard estimate meets tol), so both halves start on cheb 48; the half towards small nu (the
+    band densifies, H grows) is regridded 48 -> 80 where a point misses the check, and both halves
+    reach their bounds.  Every point meets tol on its grid; the nu = 0.17 end is the fold the
+    one-parameter trace on a fixed cheb 64 locates (an independent solve; 4e-12 measured), and
+    the nu = 0.14 end is the fold of a Newton solve of the fold conditions at nu = 0.14 on a fixed
+    cheb 96 (1e-11 measured; 3.3e-7 without the check, whose guard estimates all met 1e-8).
+    ~13 s."""
     from dataclasses import replace
 
     from problems.couette.keypoints import banded_fold, fold_options
@@ -328,13 +398,23 @@ def test_cli_tol_on_the_gpcf_banded_fold(monkeypatch, tmp_path):
     (c,), _ = io.load(out)
     nu, g = c.params["nu"], c.grid
     assert c.status == "EP" and min(nu) == pytest.approx(0.14, abs=1e-12) and max(nu) == pytest.approx(0.17, abs=1e-12)
-    assert sorted(set(g.tolist())) == [32, 48]
+    assert sorted(set(g.tolist())) == [48, 80]
     order = np.argsort(-nu)  # from nu = 0.17 down to 0.14: the grid only grows
     assert np.all(np.diff(g[order]) >= 0)
     for i in range(len(c)):
         on = CouetteProblem("cheb", int(g[i]))
         p = {k: float(v[i]) for k, v in c.params.items()}
         assert on.error_estimate(c.state(i)[: on.size], p) <= TOL
+    (summary,) = [line for line in c.audit if line.startswith("two-grid check of the augmented solve: ")]
+    assert "points refused" in summary and " 0 points refused" not in summary
     _, ref = banded_fold(CouetteProblem("cheb", 64), 0.17, 0.8, replace(fold_options(0.17, 0.8), resolution_tol=None))
     end = int(np.argmax(nu))
     assert c.params["H"][end] == pytest.approx(ref.params["H"], rel=TOL)
+    # the nu = 0.14 end against the fold on a fixed cheb 96 at nu = 0.14
+    end = int(np.argmin(nu))
+    fine = CouetteProblem("cheb", 96)
+    coarse = CouetteProblem("cheb", int(g[end]))
+    p = {k: float(v[end]) for k, v in c.params.items()}
+    u0 = coarse.transfer(c.state(end)[: coarse.size], fine)
+    H_ref = _fold_at_fixed_second(fine, u0, p, "H")
+    assert c.params["H"][end] == pytest.approx(H_ref, rel=TOL)

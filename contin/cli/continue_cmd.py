@@ -14,7 +14,9 @@ of an adaptive run's file, else the file's grid; a point that misses REL there i
 first finer grid that meets it), the resolution guard is set to REL for the
 curve, and where it stops a half of the curve that half continues on a finer grid from its last
 accepted point (segment-wise regridding, :class:`contin.foldcurve.SegmentRegrid`), up to N; the
-file keeps every point's grid.  Fold curves only (LP, and a BP that NAME unfolds): for Hopf and
+file keeps every point's grid.  Every point also passes the two-grid check of its augmented solve
+(:func:`contin.foldcurve.augmented_two_grid_error`, the analogue of a trace's solve check; a point
+that misses REL there is recomputed on a finer grid); ``--no-solve-check`` switches it off.  Fold curves only (LP, and a BP that NAME unfolds): for Hopf and
 BP curves --tol is an error.  Without --tol nothing changes: the fixed grid of the file and the
 run's guard.
 """
@@ -64,11 +66,15 @@ def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
 @click.option("--max-grid", type=click.IntRange(min=4), default=None, metavar="N",
               help="With --tol: the largest grid [default: the run's adaptive max_grid, else 512]; past it the "
                    "curve ends with MX.")
+@click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
+              help="With --tol: accept a point of the curve by the resolution guard alone, without the two-grid "
+                   "check of its augmented solve (AdaptOptions.check_factor = None; faster, but points next to a "
+                   "fold can miss REL).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="HDF5 file of the curve.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 def continue_command(file: str, label: str, second: str, branch_id: str | None, bounds: tuple[str, ...],
                      max_steps: int, ds: float | None, ds_max: float | None, tol: float | None, max_grid: int | None,
-                     output: str | None, as_json: bool) -> None:
+                     no_solve_check: bool, output: str | None, as_json: bool) -> None:
     """Continue the point LABEL of FILE in two parameters (the branch's and --free NAME)."""
     import dataclasses
 
@@ -83,6 +89,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         fail(f"--ds ({ds:g}) must not exceed --ds-max ({ds_max:g})")
     if max_grid is not None and tol is None:
         fail("--max-grid needs --tol (the grid is fixed without it)")
+    if no_solve_check and tol is None:
+        fail("--no-solve-check needs --tol (the check belongs to adaptive grids)")
     box = parse_bounds(bounds)
     if output is not None:  # checked before any computing
         from contin.cli._runctl import check_hdf5_output
@@ -111,7 +119,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     problem = rebuild_problem({**meta, "path": file})
     regrid = None
     if tol is not None:
-        problem, options, regrid = _adaptive_setup(problem, point, options, tol, max_grid, meta, file)
+        problem, options, regrid = _adaptive_setup(problem, point, options, tol, max_grid, meta, file,
+                                                   solve_check=not no_solve_check)
     elif point.grid is not None and int(getattr(problem, "grid_size", point.grid)) != int(point.grid):
         fail(f"{point.name} was computed on grid {point.grid} (an adaptive run; the file's grid is "
              f"{problem.grid_size}): continue it with --tol REL, which starts on the point's own grid")
@@ -170,9 +179,11 @@ def _grids(curve: Any) -> str:
 
 
 def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid: int | None,
-                    meta: Any, file: str) -> tuple[Any, Any, Any]:
+                    meta: Any, file: str, solve_check: bool = True) -> tuple[Any, Any, Any]:
     """``--tol``: the problem on the point's own grid, the options with the guard at tol (and no
-    adaptive tracing: the curve regrids segment-wise instead), and the SegmentRegrid."""
+    adaptive tracing: the curve regrids segment-wise instead), and the SegmentRegrid.  Its
+    check_factor is the run's (AdaptOptions' default 2 where the run switched the check off:
+    only ``--no-solve-check`` switches it off for the curve)."""
     import dataclasses
 
     from contin.adapt import missing_hooks, on_grid
@@ -195,6 +206,10 @@ def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid
         except (TypeError, ValueError):
             base = AdaptOptions()
     refine = dataclasses.replace(base, tol=tol, max_grid=max_grid if max_grid is not None else base.max_grid)
+    if not solve_check:
+        refine = dataclasses.replace(refine, check_factor=None)
+    elif refine.check_factor is None:
+        refine = dataclasses.replace(refine, check_factor=AdaptOptions().check_factor)
     start = int(problem.grid_size)
     if refine.max_grid < start:
         fail(f"--max-grid ({refine.max_grid}) is below the grid of {point.name} ({start})")
