@@ -254,3 +254,35 @@ def test_readme_table_gpcf_runs(tmp_path, settings, points, beyond, worst):
     assert sum(len(b["exceeding"]) for b in doc["branches"]) == beyond
     assert max(b["max_error"] for b in doc["branches"]) == pytest.approx(worst, rel=0.05)
     assert not any(b["unchecked"] for b in doc["branches"])
+
+
+def test_singular_start_of_a_switched_branch_is_listed_apart_not_failed(tmp_path):
+    """gPCF nu = 0.63 (n = 1): the switched branch's first point is the BP itself, the exactly
+    uniform state (nu constant to rounding), where J on the check grid is singular to rounding
+    (sigma_min / sigma_max ~ 1e-18): the fixed-parameter Newton solve drifts along the kernel by
+    ~6e-5, which is not an error of the stored point.  verify lists it as singular and passes;
+    every other point is checked."""
+    from contin.adapt import on_grid
+    from contin.restart import rebuild_problem
+
+    out = tmp_path / "p.h5"
+    r = run("trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1", "-s", "H_max=60",
+            "--no-stability", "-q", "-o", out)
+    assert r.exit_code == 0, r.output
+    branches, meta = io.load(out)
+    band = next(b for b in branches if b.id == "n1.1")
+    pb = rebuild_problem(meta)
+    coarse = on_grid(pb, band.grid_at(0))
+    u0 = np.asarray(band.state(0), float)
+    nu = u0[: coarse.N + 1]
+    assert np.ptp(nu) <= 4 * np.finfo(float).eps  # the uniform state: exact on every grid
+    p = {**{k: v for k, v in meta["parameters"].items() if isinstance(v, (int, float))},
+         **{k: float(v[0]) for k, v in band.params.items()}}
+    fine = on_grid(pb, fine_grid(band.grid_at(0), 2.0, None))
+    s = np.linalg.svd(fine.dense_jacobian(coarse.transfer(u0, fine), p), compute_uv=False)
+    assert s[-1] / s[0] < 1e-14
+    check = verify_branch(pb, band, p)
+    assert [c.index for c in check.singular] == [0] and "switched at BP" in check.singular[0].message
+    assert len(check.checked) == len(band) - 1 and not check.exceeding and check.ok
+    r = run("verify", out)
+    assert r.exit_code == 0, r.output
