@@ -105,7 +105,7 @@ from contin.atomic import OutputLock, check_target, publish, write_bytes
 from contin.branch import Branch, SpecialPoint, first_crossing
 from contin.filecheck import BadDataset, check_branch, check_special_point, first_bad_row
 from contin.jsonout import dumps as _json_dumps
-from contin.options import ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
+from contin.options import AdaptOptions, ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
 if TYPE_CHECKING:
     import h5py
@@ -245,8 +245,9 @@ def options_from_dict(d: Mapping[str, Any]) -> ContinuationOptions:
     """Rebuild :class:`ContinuationOptions` from the ``options`` attribute of a file."""
     d = dict(d)
     kw: dict[str, Any] = {}
-    for key, cls in (("newton", NewtonOptions), ("step", StepOptions), ("detection", DetectionOptions)):
-        if key in d:
+    for key, cls in (("newton", NewtonOptions), ("step", StepOptions), ("detection", DetectionOptions),
+                     ("adapt", AdaptOptions)):
+        if isinstance(d.get(key), Mapping):
             kw[key] = cls(**d.pop(key))
     if "bounds" in d:
         kw["bounds"] = {k: (float(lo), float(hi)) for k, (lo, hi) in d.pop("bounds").items()}

@@ -226,6 +226,38 @@ def test_cli_without_tol_the_curve_stops_under_resolved(runs, tmp_path):
     assert "regrid" not in meta.get("extra", {})
 
 
+def test_stored_adaptive_settings_are_read_back_and_not_applied_to_the_curve(runs, tmp_path):
+    """A file's adaptive settings come back as AdaptOptions (io.options_from_dict), and `contin
+    continue` without --tol does not hand them to the tracer (an augmented curve changes grid only
+    segment-wise): the fixed run's file with an adaptive run's options continues exactly as
+    without them (same curve; before, the tracer refused: FoldProblem has no error_estimate)."""
+    import json
+    import shutil
+
+    import h5py
+
+    settings = AdaptOptions(tol=1e-6, max_grid=256)
+    back = io.options_from_dict(io._options_dict(ContinuationOptions(adapt=settings)))
+    assert back.adapt == settings
+    fixed, _ = runs
+    edited = tmp_path / "edited.h5"
+    shutil.copy(fixed, edited)
+    with h5py.File(edited, "r+") as f:
+        o = json.loads(f.attrs["options"])
+        o["adapt"] = io._options_dict(ContinuationOptions(adapt=settings))["adapt"]
+        f.attrs["options"] = json.dumps(o)
+    curves = []
+    for src in (fixed, edited):
+        out = tmp_path / f"c_{src.stem}.h5"
+        r = invoke("continue", src, "--from", "LP1", "--free", "a", "--bounds", "a=-0.5:1", "--bounds", "lam=0:8",
+                   "--ds", "0.1", "--ds-max", "0.5", "-o", out)
+        assert r.exit_code == 0, r.output
+        (c,), _ = io.load(out)
+        curves.append(c)
+    assert np.array_equal(curves[0].params["a"], curves[1].params["a"])
+    assert np.array_equal(curves[0].params["lam"], curves[1].params["lam"])
+
+
 def test_cli_tol_regrids_to_the_bound(runs, tmp_path):
     fixed, _ = runs
     out = tmp_path / "c.h5"

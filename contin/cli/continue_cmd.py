@@ -115,11 +115,14 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     step = dataclasses.replace(step, ds=new_ds, ds_max=new_max, ds_min=min(step.ds_min, new_ds))
     run_bounds = {k: v for k, v in options.bounds.items() if k == first}
     run_bounds.update(box)
-    options = dataclasses.replace(options, step=step, bounds=run_bounds, max_steps=max_steps)
+    # the run's adaptive settings are not the curve's: an augmented curve changes grid only
+    # segment-wise (--tol, SegmentRegrid), never point by point in the tracer
+    run_adapt = options.adapt
+    options = dataclasses.replace(options, step=step, bounds=run_bounds, max_steps=max_steps, adapt=None)
     problem = rebuild_problem({**meta, "path": file})
     regrid = None
     if tol is not None:
-        problem, options, regrid = _adaptive_setup(problem, point, options, tol, max_grid, meta, file,
+        problem, options, regrid = _adaptive_setup(problem, point, options, run_adapt, tol, max_grid, meta, file,
                                                    solve_check=not no_solve_check)
     elif point.grid is not None and int(getattr(problem, "grid_size", point.grid)) != int(point.grid):
         fail(f"{point.name} was computed on grid {point.grid} (an adaptive run; the file's grid is "
@@ -150,8 +153,7 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     if as_json:
         doc_extra: dict[str, Any] = {"from": point.name, "branch": branch.id, "free": [first, second]}
         if regrid is not None:
-            grids = [] if curve.grid is None else sorted({int(g) for g in curve.grid})
-            doc_extra["regrid"] = {"tol": tol, "max_grid": regrid.opts.max_grid, "grids": grids}
+            doc_extra["regrid"] = {"tol": tol, "max_grid": regrid.opts.max_grid, "grids": _grid_sizes(curve)}
         doc = run_document(scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                            discretization=meta.get("discretization", {}), branches=[curve],
                            notes=[], extra=doc_extra,
@@ -171,17 +173,20 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         raise click.exceptions.Exit(EXIT_INCOMPLETE)
 
 
+def _grid_sizes(curve: Any) -> list[int]:
+    """The grid sizes along a curve regridded segment-wise, ascending ([] without a grid column)."""
+    return [] if curve.grid is None else sorted({int(g) for g in curve.grid})
+
+
 def _grids(curve: Any) -> str:
-    """The grid sizes along a curve regridded segment-wise, e.g. '24, 36, 56'."""
-    if curve.grid is None or len(curve.grid) == 0:
-        return "the start grid"
-    return ", ".join(str(int(g)) for g in sorted(set(curve.grid.tolist())))
+    """:func:`_grid_sizes` as text, e.g. '24, 36, 56'."""
+    return ", ".join(map(str, _grid_sizes(curve))) or "the start grid"
 
 
-def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid: int | None,
+def _adaptive_setup(problem: Any, point: Any, options: Any, run_adapt: Any, tol: float, max_grid: int | None,
                     meta: Any, file: str, solve_check: bool = True) -> tuple[Any, Any, Any]:
-    """``--tol``: the problem on the point's own grid, the options with the guard at tol (and no
-    adaptive tracing: the curve regrids segment-wise instead), and the SegmentRegrid.  Its
+    """``--tol``: the problem on the point's own grid, the options with the guard at tol, and the
+    SegmentRegrid from the run's adaptive settings ``run_adapt`` (None: the defaults).  Its
     check_factor is the run's (AdaptOptions' default 2 where the run switched the check off:
     only ``--no-solve-check`` switches it off for the curve)."""
     import dataclasses
@@ -199,12 +204,7 @@ def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid
         fail(f"--tol needs a problem with the grid hooks grid_size, with_grid, transfer, error_estimate; the problem "
              f"of scene {meta.get('scene', '')!r} in {file} ({type(problem).__name__}) lacks {', '.join(missing)}")
     problem = on_grid(problem, point.grid)
-    base = options.adapt if options.adapt is not None else AdaptOptions()
-    if isinstance(base, dict):  # io.options_from_dict keeps the stored adapt settings as a dict
-        try:
-            base = AdaptOptions(**base)
-        except (TypeError, ValueError):
-            base = AdaptOptions()
+    base = run_adapt if run_adapt is not None else AdaptOptions()
     refine = dataclasses.replace(base, tol=tol, max_grid=max_grid if max_grid is not None else base.max_grid)
     if not solve_check:
         refine = dataclasses.replace(refine, check_factor=None)
@@ -213,5 +213,5 @@ def _adaptive_setup(problem: Any, point: Any, options: Any, tol: float, max_grid
     start = int(problem.grid_size)
     if refine.max_grid < start:
         fail(f"--max-grid ({refine.max_grid}) is below the grid of {point.name} ({start})")
-    options = dataclasses.replace(options, adapt=None, resolution_tol=tol)
+    options = dataclasses.replace(options, resolution_tol=tol)
     return problem, options, SegmentRegrid(refine)
