@@ -310,8 +310,6 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
     Elsewhere nothing changes (the same operations as without the hook).
     None when factor N rounds to N; inf when the fine J is exactly singular or the
     result is not finite."""
-    from contin.linalg import dense_factorization, factorize
-
     n_f = check_grid(problem, factor, opts)
     if n_f is None:
         return None
@@ -323,10 +321,7 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
         if f is None:  # (no hook, rounding negligible for tol, or the hook declined)
             precise = None
             f = np.asarray(fine.residual(v, p), dtype=float)
-        jac = fine.jacobian(v, p)
-        if has(fine, "dense_jacobian") and dense_factorization(jac):
-            jac = fine.dense_jacobian(v, p)
-        fact = factorize(jac)
+        fact = state_factorization(fine, v, p)
         if fact is None:
             return math.inf
         delta = fact.solve(-f)
@@ -342,6 +337,17 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
         if not np.all(np.isfinite(delta)):
             return math.inf
         return solution_error(fine, v, v + delta, p)
+
+
+def state_factorization(problem: Any, u: Array, p: Any) -> Any:
+    """LU of the problem's J(u, p) (None where exactly singular), taken from its optional
+    ``dense_jacobian`` hook where the factorization is dense anyway (``contin.problem``)."""
+    from contin.linalg import dense_factorization, factorize
+
+    jac = problem.jacobian(u, p)
+    if has(problem, "dense_jacobian") and dense_factorization(jac):
+        jac = problem.dense_jacobian(u, p)
+    return factorize(jac)
 
 
 #: Iterative-refinement steps of the two-grid check with the problem's ``precise_residual``

@@ -157,19 +157,14 @@ def _polish(fine: Any, u: Any, p: Mapping[str, Any], tol: float) -> Any:
     and the problem's ``rounding_error`` (if it has one) is at least ``contin.adapt.ROUNDING_SHARE``
     x tol, as in the tracer's two-grid check (:func:`contin.adapt.precise_residual`; without the
     ``rounding_error`` hook, always); else u unchanged.  A step that is not finite is dropped."""
-    from contin.adapt import precise_residual
+    from contin.adapt import precise_residual, state_factorization
 
     # (tol 0: without the rounding_error hook the rounding is not known to be negligible)
     precise = precise_residual(fine, u, p, tol if has(fine, "rounding_error") else 0.0)
     if precise is None:
         return u
-    from contin.linalg import dense_factorization, factorize
-
     with np.errstate(all="ignore"):
-        jac = fine.jacobian(u, p)
-        if has(fine, "dense_jacobian") and dense_factorization(jac):
-            jac = fine.dense_jacobian(u, p)
-        fact = factorize(jac)
+        fact = state_factorization(fine, u, p)
         if fact is None:
             return u
         for _ in range(POLISH_STEPS):
