@@ -501,53 +501,30 @@ class _Checks:
 def _head(branch: Branch, k: int, message: str) -> Branch:
     """Points 0..k of a one-grid ``branch`` (special points before k kept), ending MX at k with
     ``message`` (an under-resolved stop, which :func:`_trace_half` continues on a finer grid)."""
-    keep = k + 1
+    from contin.overlap import params_at, slice_branch
 
-    def cut(a: Any) -> Any:
-        return None if a is None else a[:keep]
-
-    if branch.state_index is None:
-        states, state_index = branch.states[:keep], None
-    else:
-        mask = branch.state_index < keep
-        states, state_index = branch.states[mask], branch.state_index[mask]
-    x = branch.state(k)
-    end = SpecialPoint(type="MX", index=k, params={k_: float(v[k]) for k_, v in branch.params.items()},
-                       order_parameter=float(branch.observables["phi"][k]) if "phi" in branch.observables else math.nan,
-                       state=np.array(x, float), tangent=np.array(branch.tangent(k), float), note=message,
+    end = SpecialPoint(type="MX", index=k, params=params_at(branch, k), order_parameter=float(branch.order_parameter[k]),
+                       state=np.array(branch.state(k), float), tangent=np.array(branch.tangent(k), float), note=message,
                        grid=branch.grid_at(k))
-    return replace(
-        branch,
-        params={k_: v[:keep] for k_, v in branch.params.items()},
-        observables={k_: v[:keep] for k_, v in branch.observables.items()},
-        states=states, state_index=state_index, tangents=branch.tangents[:keep], ds=branch.ds[:keep],
-        newton_iterations=branch.newton_iterations[:keep], stable=cut(branch.stable),
-        n_unstable=cut(branch.n_unstable), eigenvalues=cut(branch.eigenvalues), grid=cut(branch.grid),
-        sizes=cut(branch.sizes),
-        special_points=[s for s in branch.special_points if s.index < k and s.type not in ("EP", "MX")] + [end],
-        status="MX", message=message, closed=False, audit=list(branch.audit),
-    )
+    out = slice_branch(branch, 0, k)
+    out.special_points = [s for s in out.special_points if s.index < k and s.type not in ("EP", "MX")] + [end]
+    out.status, out.message, out.closed, out.audit = "MX", message, False, list(branch.audit)
+    return out
 
 
 def _chain(first: Branch, second: Branch) -> Branch:
     """One half from two segments traced in the same direction: ``second`` starts at ``first``'s
     last point (carried onto a finer grid), which replaces it; ``first``'s end (EP/MX) is dropped.
     Status and message are ``second``'s."""
-    from contin.continuation import join
+    from contin.jumps import concat
 
     end = len(first) - 1
     head = replace(first, special_points=[s for s in first.special_points
                                           if not (s.type in ("EP", "MX") and s.index >= end)])
-    out = join(head.reversed(), second)
-    out.status, out.message = second.status, second.message
+    out = concat(head, second)
+    out.status = second.status
     out.audit = list(first.audit) + list(second.audit)
     return out
-
-
-def _point_params(branch: Branch, i: int, second: str, index: int) -> dict[str, float]:
-    p = {k: float(v[i]) for k, v in branch.params.items()}
-    p[second] = float(branch.state(i)[index])
-    return p
 
 
 def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second: str, index: int,

@@ -136,16 +136,22 @@ def params_at(branch: Branch, i: int) -> dict[str, float]:
 
 
 def slice_branch(branch: Branch, i0: int, i1: int) -> Branch:
-    """Points i0..i1 (inclusive) of a fully stored branch, with the special points inside."""
+    """Points i0..i1 (inclusive) of a branch, with the special points and stored states inside
+    (a branch that saved every k-th state keeps its ``state_index``, shifted)."""
     keep = slice(i0, i1 + 1)
+    if branch.state_index is None:
+        states, state_index = branch.states[keep].copy(), None
+    else:
+        inside = (branch.state_index >= i0) & (branch.state_index <= i1)
+        states, state_index = branch.states[inside].copy(), branch.state_index[inside] - i0
     sps = [replace(s, index=s.index - i0) for s in branch.special_points if i0 <= s.index < i1 or
            (s.type in ("EP", "MX") and i0 <= s.index <= i1)]
     return replace(
         branch, params={k: v[keep].copy() for k, v in branch.params.items()},
         observables={k: v[keep].copy() for k, v in branch.observables.items()},
-        states=branch.states[keep].copy(), tangents=branch.tangents[keep].copy(),
+        states=states, tangents=branch.tangents[keep].copy(),
         ds=np.concatenate([[0.0], branch.ds[i0 + 1: i1 + 1]]), newton_iterations=branch.newton_iterations[keep].copy(),
-        special_points=sps, closed=branch.closed and i0 == 0 and i1 == len(branch) - 1, state_index=None,
+        special_points=sps, closed=branch.closed and i0 == 0 and i1 == len(branch) - 1, state_index=state_index,
         stable=None, n_unstable=None, eigenvalues=None,
         grid=None if branch.grid is None else branch.grid[keep].copy(),
         sizes=None if branch.sizes is None else branch.sizes[keep].copy())
