@@ -116,10 +116,13 @@ def run(request: SceneRequest) -> SceneResult:
 
 
 def problem_factory(parameters: Any, discretization: Any) -> CouetteProblem:
-    """The problem of a gpcf-keypoints file (its start grid; ``contin.adapt.on_grid`` the others):
-    for ``contin continue`` from its fold, ``contin stability``, ``contin verify``."""
-    return CouetteProblem(str(discretization.get("method") or "cheb"), int(discretization.get("intervals") or 32),
-                          engine=str(discretization.get("engine") or "numpy"))
+    """The problem of a gpcf-keypoints file (for ``contin continue`` from its fold, ``contin
+    stability``, ``contin verify``): the pitchfork scenes' factory, whose defaults (no-slip walls,
+    chi = jj, no Dufour term; numba only where it is installed) are this scene's; imported here so
+    that loading this scene table does not load every gPCF scene."""
+    from problems.couette.scenes import problem_factory as couette_factory
+
+    return couette_factory(parameters, discretization)
 
 
 FRSTAR_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 30.0}
