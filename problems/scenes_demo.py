@@ -44,11 +44,16 @@ def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -
     return out
 
 
-def _problem(cls: type, request: SceneRequest) -> Any:
+def _make(cls: type, method: str | None, grid: int) -> Any:
+    """``cls(method, grid)`` with a bad discretization as a SceneError (one line)."""
     try:
-        return cls(request.method or "cheb", request.grid or 32)
+        return cls(method or "cheb", grid)
     except ValueError as exc:
         raise SceneError(str(exc)) from None
+
+
+def _problem(cls: type, request: SceneRequest, default_grid: int = 32) -> Any:
+    return _make(cls, request.method, request.grid or default_grid)
 
 
 def _on_start_grid(pb: Any, state: Any) -> np.ndarray:
@@ -247,13 +252,6 @@ def start_swift_hohenberg(request: SceneRequest) -> DiagramStart:
 STRETCHED_BRATU_DEFAULTS = {"a": 0.0, "lam_min": 0.0, "lam_max": 4.0}
 
 
-def _stretched_bratu(method: str | None, grid: int | None) -> StretchedBratu:
-    try:
-        return StretchedBratu(method or "cheb", grid or 24)
-    except ValueError as exc:
-        raise SceneError(str(exc)) from None
-
-
 def run_stretched_bratu(request: SceneRequest) -> SceneResult:
     """The fold branch in lam at fixed a (from u = 0 at lam_min); its LP against lam*/(1 + a)."""
     p = _numbers(request, STRETCHED_BRATU_DEFAULTS, "stretched-bratu")
@@ -261,7 +259,7 @@ def run_stretched_bratu(request: SceneRequest) -> SceneResult:
         raise SceneError(f"a must be > -1, got {p['a']:g}")
     if p["lam_min"] >= BRATU_FOLD / (1.0 + p["a"]):
         raise SceneError(f"lam_min must lie below the fold lam*/(1 + a) = {BRATU_FOLD / (1.0 + p['a']):.6f}")
-    pb = _stretched_bratu(request.method, request.grid)
+    pb = _problem(StretchedBratu, request, default_grid=24)
     options = request.options_for(_bratu_options(p))
     done: list[Branch] = []
     if "0" in request.completed:
@@ -279,7 +277,7 @@ def run_stretched_bratu(request: SceneRequest) -> SceneResult:
 
 def stretched_bratu_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> StretchedBratu:
     """The problem of a stretched-bratu file, on its start grid (``contin.adapt.on_grid`` the others)."""
-    return _stretched_bratu(discretization.get("method"), int(discretization.get("intervals") or 24))
+    return _make(StretchedBratu, discretization.get("method"), int(discretization.get("intervals") or 24))
 
 
 LORENZ_DEFAULTS = {"sigma": 10.0, "beta": 8.0 / 3.0, "rho_min": 1.5, "rho_max": 40.0}
