@@ -30,7 +30,12 @@ tol the scene is also run with adaptive resolution (``SceneRequest.overrides['to
 the scene's start grid; ``special_tol`` = tol too, since the key points are special points), its
 key points are measured against the same reference, and the run is
 compared with the cheapest fixed (method, N) run whose worst key-point error meets the same tol
-(issue 14: achieved error <= tol, cost within 1.5x of that grid).  ``repeats`` > 1 times every
+(issue 14: achieved error <= tol, cost within 1.5x of that grid).  That request ("all") asks
+every state of the run for tol too, more than the fixed grids deliver (their states only pass
+the resolution guard, 3e-5).  A scene whose key points are special points of its traces
+(``Scene.special_key_points``) is also run asking the key points alone for tol ("key points":
+``special_tol`` = tol, the states at the scene's ``default_tol``, the fixed runs' guard), the
+request a user who wants a fold or branch point to tol makes (``contin trace --special-tol``).  ``repeats`` > 1 times every
 run that many times in interleaved rounds and keeps each run's smallest CPU time, so that a
 change of the machine's load shifts both sides of a cost ratio alike.
 """
@@ -102,6 +107,8 @@ class AdaptiveRow:
     fixed_method, fixed_grid, fixed_cpu : the cheapest fixed run whose worst error is <= tol
         (None / nan when no fixed run of the report meets it)
     ratio : cpu / fixed_cpu (nan without such a run)
+    request : what asked for tol: "all" (states and key points) or "key points" (the key points,
+        states at the scene's default_tol; module docstring)
     """
 
     tol: float
@@ -119,6 +126,11 @@ class AdaptiveRow:
     fixed_cpu: float
     ratio: float
     failed: str = ""
+    request: str = "all"
+
+
+#: The adaptive requests of ``contin accuracy --tols`` (module docstring).
+REQUESTS = ("all", "key points")
 
 
 @dataclass
@@ -250,20 +262,24 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
     with contextlib.suppress(ValueError):
         scene.run(_request(params, methods[0], min(int(g) for g in grids), overrides, engine))
     adaptive_method = "cheb" if "cheb" in methods else methods[0]
-    jobs: list[tuple[str, int | None, float | None]] = [(m, n, None) for m in methods for n in sorted(set(int(g) for g in grids))]
-    jobs += [(adaptive_method, None, float(t)) for t in tols]
+    jobs: list[tuple[str, int | None, float | None, str]] = [
+        (m, n, None, "") for m in methods for n in sorted(set(int(g) for g in grids))]
+    requests = REQUESTS if scene.special_key_points else REQUESTS[:1]
+    jobs += [(adaptive_method, None, float(t), request) for request in requests for t in tols]
     best: dict[int, Run] = {}
     for rnd in range(repeats):
-        for i, (method, n, tol) in enumerate(jobs):
+        for i, (method, n, tol, request) in enumerate(jobs):
             if i in best and best[i].failed:
                 continue
-            what = f"{method} N={n}" if tol is None else f"{method} tol={tol:g}"
+            what = f"{method} N={n}" if tol is None else f"{method} tol={tol:g} ({request})"
             if progress is not None:
                 progress(f"{scene.name}: {what}" + (f" (round {rnd + 1}/{repeats})" if repeats > 1 else ""))
             # the key points are special points: the accuracy asked for is theirs as well
             # (special_tol = tol; the tracer's default 1e-10 would locate them far beyond tol,
             # a different request from the fixed grid it is compared with)
-            ov = dict(overrides or {}) if tol is None else {"special_tol": tol, **dict(overrides or {}), "tol": tol}
+            # ("key points": the states at the scene's default tol, the fixed runs' guard)
+            ov = dict(overrides or {}) if tol is None else {
+                "special_tol": tol, **dict(overrides or {}), "tol": tol if request == "all" else scene.default_tol}
             try:
                 run = measure(scene, params, method, n, memory=memory and rnd == 0, overrides=ov, engine=engine)
             except ValueError as exc:
@@ -276,11 +292,11 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
     reference, source = references(fixed)
     report = AccuracyReport(scene.name, dict(params), reference, source, fixed)
     report.rows = tabulate(fixed, reference)
-    report.adaptive = [adaptive_row(best[i], job[2], report) for i, job in enumerate(jobs) if job[2] is not None]
+    report.adaptive = [adaptive_row(best[i], job[2], report, job[3]) for i, job in enumerate(jobs) if job[2] is not None]
     return report
 
 
-def adaptive_row(run: Run, tol: float, report: AccuracyReport) -> AdaptiveRow:
+def adaptive_row(run: Run, tol: float, report: AccuracyReport, request: str = "all") -> AdaptiveRow:
     """An adaptive run's key points against ``report``'s reference and cheapest fixed grid."""
     errors = {k: relative_error(run.values[k], ref) for k, ref in report.reference.items() if k in run.values}
     missing = [k for k in report.reference if k not in run.values]
@@ -292,7 +308,7 @@ def adaptive_row(run: Run, tol: float, report: AccuracyReport) -> AdaptiveRow:
     ratio = run.cpu / rec["cpu"] if rec["method"] and rec["cpu"] > 0 else math.nan
     return AdaptiveRow(tol, run.cpu, run.wall, run.newton_iterations, dict(run.values), errors, worst, worst_key,
                        bool(worst <= tol), run.grids_used, rec["method"], rec["grid"], rec["cpu"], ratio,
-                       failed=run.failed or (f"key point {missing[0]} not found" if missing else ""))
+                       failed=run.failed or (f"key point {missing[0]} not found" if missing else ""), request=request)
 
 
 def references(runs: Iterable[Run]) -> tuple[dict[str, float], str]:
@@ -403,12 +419,12 @@ def write_outputs(report: AccuracyReport, directory: str | Path, *, plots: bool 
     _publish_text(d / f"{stem}.json", json.dumps(_clean(report.to_json()), indent=1) + "\n")
     written.append(d / f"{stem}.json")
     if report.adaptive:
-        cols = ("tol", "worst_error", "worst_key", "met", "cpu", "wall", "newton_iterations", "grid_min", "grid_max",
+        cols = ("tol", "request", "worst_error", "worst_key", "met", "cpu", "wall", "newton_iterations", "grid_min", "grid_max",
                 "fixed_method", "fixed_grid", "fixed_cpu", "ratio", "failed")
         lines = [",".join(cols)]
         for a in report.adaptive:
             g = a.grids or (None, None)
-            cells = (a.tol, a.worst_error, a.worst_key, a.met, a.cpu, a.wall, a.newton_iterations, g[0], g[1],
+            cells = (a.tol, a.request, a.worst_error, a.worst_key, a.met, a.cpu, a.wall, a.newton_iterations, g[0], g[1],
                      a.fixed_method, a.fixed_grid, a.fixed_cpu, a.ratio, a.failed)
             lines.append(",".join(_csv_cell("" if c is None else c) for c in cells))
         _publish_text(d / f"{stem}_adaptive.csv", "\n".join(lines) + "\n")

@@ -344,10 +344,31 @@ def state_factorization(problem: Any, u: Array, p: Any) -> Any:
     ``dense_jacobian`` hook where the factorization is dense anyway (``contin.problem``)."""
     from contin.linalg import dense_factorization, factorize
 
-    jac = problem.jacobian(u, p)
-    if has(problem, "dense_jacobian") and dense_factorization(jac):
-        jac = problem.dense_jacobian(u, p)
-    return factorize(jac)
+    if not has(problem, "dense_jacobian"):
+        return factorize(problem.jacobian(u, p))
+    dense = _DENSE_DECIDED.get(problem) if _weakrefable(problem) else None
+    if dense is None:
+        # the structure of J is the grid's, not the point's: decided once per problem (a
+        # sparse J built only to be looked at cost ~0.35 ms per two-grid check of gPCF)
+        jac = problem.jacobian(u, p)
+        dense = dense_factorization(jac)
+        if _weakrefable(problem):
+            _DENSE_DECIDED[problem] = dense
+        if not dense:
+            return factorize(jac)
+    return factorize(problem.dense_jacobian(u, p) if dense else problem.jacobian(u, p))
+
+
+#: problem -> whether its J factorizes densely (state_factorization).
+_DENSE_DECIDED: weakref.WeakKeyDictionary[Any, bool] = weakref.WeakKeyDictionary()
+
+
+def _weakrefable(obj: Any) -> bool:
+    try:
+        weakref.ref(obj)
+    except TypeError:
+        return False
+    return True
 
 
 #: Iterative-refinement steps of the two-grid check with the problem's ``precise_residual``
@@ -465,6 +486,7 @@ class Adaptor:
         self.since_change = 0
         self.checks = 0  # two-grid checks done (solve_check)
         self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
+        self.special_checks = 0  # two-grid checks of located special points (contin.specialcheck)
         #: (points, snapshot) of the last refinement, to undo it at a two-grid floor (solve_floor)
         self._undo: tuple[int, tuple, int] | None = None
         #: the grid in force was raised by the two-grid check, not by the estimate: coarsening is
@@ -549,7 +571,8 @@ class Adaptor:
             err = max(err, e_v)
         return err
 
-    def pre_locate(self, system: Any, kind: str, a: Any, b: Any, special_tol: float) -> float | None:
+    def pre_locate(self, system: Any, kind: str, a: Any, b: Any, special_tol: float,
+                   checkable: bool = False) -> float | None:
         """Before locating an LP/BP bracketed by the points a, b (``_Point``: x, t): the
         estimate if the grid in force does not resolve it, so that the tracer refines first and
         locates once, on the finer grid; else None (locate here).
@@ -561,7 +584,10 @@ class Adaptor:
         H_2^c: 6.1e-8 and 1.5e-8).  This only saves a location: the located
         point's own estimate is still checked (``trace``), so a kernel that the ends misjudge
         as resolved is refined after the location as before.  Only the first refinement of a
-        chain is taken here (see below); ``special_refinable`` is honoured."""
+        chain is taken here (see below); ``special_refinable`` is honoured.  ``checkable``: the
+        located point will get a two-grid check of its position (a symmetry-breaking BP,
+        :func:`contin.specialcheck.check_located`): it is located here unless even the square of the estimate
+        exceeds special_tol (comment below)."""
         if kind not in ("LP", "BP") or not has(system.problem, "vector_error") or self._special is not None:
             # After a special-point refinement that has not yet produced a resolved point, the
             # located point's estimate decides (special_refinable's test for a grid-scale mode
@@ -576,7 +602,17 @@ class Adaptor:
             if e_a < err:
                 err, kernel = e_a, self.kernel
         self.kernel = kernel  # the refinement's grid (refine, ``vector``) follows the better resolved end
-        if err <= special_tol or not self.special_refinable(err):
+        if err <= special_tol:
+            return None
+        if checkable and err * err <= special_tol:
+            # A symmetry-breaking BP's position converges about as the square of its kernel
+            # (an eigenvalue's error, against its eigenvector's: gPCF H_1^c on cheb 8, kernel
+            # 3.9e-3, position 4.2e-6): locate here, and the located point's two-grid check
+            # (contin.specialcheck.check_located) decides; a failed check refines and locates again.  Not for an
+            # LP, whose position error is of the order of its tangent's tail (Bratu cheb 20:
+            # 2.6e-9 against 2.2e-8), so that the rule would locate twice.
+            return None
+        if not self.special_refinable(err):
             return None
         return err
 

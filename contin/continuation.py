@@ -578,7 +578,9 @@ def trace(
         return closure_start[key]
     if adaptor is not None:
         special_tol = min(options.adapt.tol, options.adapt.special_tol)
-        tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(tracer.system, kind, a, b, special_tol)
+        tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(
+            tracer.system, kind, a, b, special_tol,
+            checkable=kind == "BP" and tracer.anti is not None)
 
     def refine_first(why: _RefineFirst, cur: _Point, new: _Point, stepped: _Point,
                      direction_vec: Array) -> list[SpecialPoint] | None:
@@ -763,6 +765,19 @@ def trace(
                 if e_sp > err:
                     err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
+            if err > special_tol:
+                # the kernel's tail over-states the position's error: measure it (a two-grid
+                # check of the located points, contin.specialcheck) before refining for it
+                from contin.specialcheck import check_located
+
+                checked = check_located(adaptor, system, found, tracer.anti is not None)
+                if checked is not None:
+                    kinds = "/".join(sorted({sp.type for sp in found}))
+                    tracer.audit.append(
+                        f"located {kinds} at {parameter}={found[0].params[parameter]:.10g} on grid "
+                        f"{system.problem.grid_size}: kernel estimate {err:.2g}, two-grid error of its position "
+                        f"{checked:.2g} ({'meets' if checked <= special_tol else 'exceeds'} {special_tol:.2g})")
+                    err = checked
             if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err):

@@ -250,7 +250,11 @@ class Scene:
     grid (``Branch.grid``; ``problem_factory`` builds the start grid, ``contin.adapt.on_grid``
     the others).  Its profiles callable accepts states of any of its grids.  ``default_tol``:
     the tol of a run without --grid and --tol, chosen per scene so that it keeps the accuracy of
-    the scene's former fixed default grid.
+    the scene's former fixed default grid.  ``special_key_points``: the key points the scene
+    reports for ``contin accuracy`` (``extra['key_points']``) are special points of its traces
+    (BPs, LPs located by the tracer), so an accuracy can be asked of them alone
+    (``--special-tol``, ``AdaptOptions.special_tol``) while the states keep ``default_tol``:
+    ``contin accuracy --tols`` then runs that request too.
 
     ``start(request) -> DiagramStart`` (optional): the start point of the scene's automatic
     bifurcation diagram; ``contin trace SCENE --depth D`` then runs
@@ -266,6 +270,7 @@ class Scene:
     problem_factory: Callable[[Mapping[str, Any], Mapping[str, Any]], Any] | None = None
     adaptive: bool = False
     default_tol: float = 3e-5
+    special_key_points: bool = False
     start: Callable[[SceneRequest], DiagramStart] | None = None
 
 

@@ -247,7 +247,11 @@ def test_gpcf_keypoints_adaptive_meet_tol(gpcf):
         meets = [r.grid for r in rep.runs[:-1] if all(relative_error(r.values[k], rep.reference[k]) <= a.tol
                                                       for k in r.values)]
         assert a.fixed_grid == min(meets)
-    assert [a.fixed_grid for a in rep.adaptive] == [32, 32]  # cheb 32: fold error 1.6e-9
+    assert [a.fixed_grid for a in rep.adaptive] == [32, 32, 32, 32]  # cheb 32: fold error 1.6e-9
+    # both requests (the scene's key points are special points): everything at tol, then the
+    # key points alone (the states at the scene's default tol)
+    assert [(a.request, a.tol) for a in rep.adaptive] == [("all", 1e-4), ("all", 1e-8), ("key points", 1e-4),
+                                                          ("key points", 1e-8)]
 
 
 def test_cli_accuracy_tols_json_csv_and_table(tmp_path):
@@ -256,7 +260,10 @@ def test_cli_accuracy_tols_json_csv_and_table(tmp_path):
     assert r.exit_code == 0, r.output
     (row,) = json.loads(r.stdout)["adaptive"]
     assert row["tol"] == 1e-6 and row["met"] and row["worst_error"] <= 1e-6
-    assert (tmp_path / "accuracy_bratu_adaptive.csv").read_text().startswith("tol,worst_error")
+    # one request: bratu is not marked special_key_points (its states' default tol, 1e-10, would
+    # ask more of them than the request "all" does)
+    assert row["request"] == "all"
+    assert (tmp_path / "accuracy_bratu_adaptive.csv").read_text().startswith("tol,request,worst_error")
     assert "cheapest fixed" in r.stderr
 
 
@@ -274,7 +281,7 @@ def test_cli_accuracy_inaccurate_adaptive_run_exits_4(monkeypatch):
     r = CliRunner().invoke(main, ["accuracy", "bratu", "--methods", "cheb", "--grids", "16,32", "--tols", "1e-4",
                                   "--no-memory", "-q"])
     assert r.exit_code == 4
-    assert r.stderr.strip().startswith("inaccurate: adaptive run at tol 0.0001: achieved error 0.001")
+    assert r.stderr.strip().startswith("inaccurate: adaptive run at tol 0.0001 (all): achieved error 0.001")
 
 
 @pytest.mark.parametrize("args,message", [

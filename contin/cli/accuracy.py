@@ -46,7 +46,8 @@ def _split(text: str, kind: type, option: str) -> list[Any]:
 @click.option("--tols", default=None, metavar="LIST",
               help="Also run the scene with adaptive resolution at each tol (comma-separated, e.g. 1e-4,1e-6; "
                    "adaptive scenes only): achieved error against tol and cost against the cheapest fixed grid "
-                   "meeting it.  Exit 4 when an achieved error exceeds its tol.")
+                   "meeting it; scenes whose key points are special points also ask them alone (states at the "
+                   "scene's default tol, as the fixed grids' guard).  Exit 4 when an achieved error exceeds its tol.")
 @click.option("--repeats", default=1, show_default=True, type=click.IntRange(1, 100),
               help="Timing rounds, interleaved; each run keeps its smallest CPU time (fair cost ratios on a busy machine).")
 @resolution_tol_option
@@ -129,12 +130,12 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
                for x in recommend(report)]
         echo_err(table(rec, ("budget", "method", "N", "cpu s", "worst error")))
         if report.adaptive:
-            rows = [(f"{a.tol:.0e}", fmt(a.worst_error, 2), a.worst_key, "yes" if a.met else "NO",
+            rows = [(f"{a.tol:.0e}", a.request, fmt(a.worst_error, 2), a.worst_key, "yes" if a.met else "NO",
                      "-" if a.grids is None else f"{a.grids[0]}..{a.grids[1]}", f"{a.cpu:.3f}",
                      f"{a.fixed_method} {a.fixed_grid}" if a.fixed_method else "none",
                      fmt(a.fixed_cpu, 3) if a.fixed_method else "-", fmt(a.ratio, 3) if a.fixed_method else "-")
                     for a in report.adaptive]
-            echo_err(table(rows, ("tol", "achieved", "worst key point", "met", "grids", "cpu s",
+            echo_err(table(rows, ("tol", "asked of", "achieved", "worst key point", "met", "grids", "cpu s",
                                   "cheapest fixed", "its cpu s", "ratio")))
         for path in written:
             echo_err(f"wrote {path}")
@@ -143,5 +144,5 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
 
         for a in report.inaccurate:
             why = a.failed or f"achieved error {fmt(a.worst_error, 2)} at {a.worst_key} exceeds it"
-            click.echo(f"inaccurate: adaptive run at tol {a.tol:g}: {why}", err=True)
+            click.echo(f"inaccurate: adaptive run at tol {a.tol:g} ({a.request}): {why}", err=True)
         raise click.exceptions.Exit(EXIT_INACCURATE)

@@ -158,4 +158,5 @@ def run_frstar(request: SceneRequest) -> SceneResult:
 SCENES = {"gpcf-frstar": Scene("gpcf-frstar", "gPCF key point Fr*: the floating-plug limit on the first pitchfork's fold curve",
                                FRSTAR_DEFAULTS, run_frstar, x="H", y="G", adaptive=True),
           "gpcf-keypoints": Scene("gpcf-keypoints", "gPCF key points: H_1^c (nu=0.3) and the banded-branch fold at nu=0.16",
-                                  DEFAULTS, run, x="H", y="phi", adaptive=True, problem_factory=problem_factory)}
+                                  DEFAULTS, run, x="H", y="phi", adaptive=True, problem_factory=problem_factory,
+                                  special_key_points=True)}

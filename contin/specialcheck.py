@@ -1,0 +1,220 @@
+"""Two-grid checks of located special points: how far an LP or a BP lies from where a finer
+grid puts it, measured instead of inferred from the tail of its kernel.
+
+Adaptive resolution (``contin.adapt``) locates LPs and BPs on the grid in force and, where the
+kernel that fixes a point's position (an LP's tangent, a BP's null vector) has a coefficient
+tail above ``special_tol``, locates it again on a finer grid.  The tail over-states the error of
+the position: a BP is the eigenvalue-like quantity of its kernel, and its position converges
+faster than the kernel (gPCF's H_1^c on Chebyshev 8: kernel tail 3.9e-3, position error 4e-6
+relative).  The functions here measure the position's error directly, as
+:func:`contin.adapt.two_grid_error` measures a state's: the located point (state, kernel,
+parameter) is carried onto a grid ``check_factor`` times finer and one Newton step of the
+point's defining system is solved there; the step is the difference between the coarse point
+and the fine one to first order (the fine grid's own error subtracted: the error itself for
+spectral grids, 1 - factor^-q of it for FD of order q).
+
+- LP: one pseudo-arclength Newton step of the branch itself on the fine grid, bordered by the
+  located tangent (regular at a quadratic fold); p is stationary at the LP, so the step's dp is
+  the fold's parameter error to first order (:func:`fold_point_error`).  (The Moore-Spence fold
+  system would give the same to first order at several times the cost: a 2n + 1 system with
+  second derivatives.)
+- BP on an S-invariant branch (symmetry-breaking): along the branch x(alpha) (alpha the
+  arclength of the located tangent t), the system H(phi, alpha) = (J(x(alpha)) phi,
+  c.phi - 1) = 0 with Jacobian M = [[J, m], [c^T, 0]], m = d/dalpha (J phi) (a central
+  difference of J along t), is regular where the critical eigenvalue crosses zero with
+  non-zero speed.  The branch state at the BP's parameter is first corrected on the fine grid
+  with the same M (the correction orthogonal to c; the symmetric residual has no component
+  along the antisymmetric left kernel, so the border's multiplier vanishes).  Other BPs
+  (transcritical, or on branches without a symmetry) have no check: a fixed-parameter
+  correction next to them is ambiguous between the crossing branches, and they keep the
+  kernel-tail rule.
+
+The error of the position is the parameter's relative change |dp| / max(|p|,
+PARAM_SCALE_FLOOR); the state's relative change (the problem's ``solution_error`` norm,
+``contin.adapt.solution_error``) is reported beside it (the branch's states are checked
+against tol by the tracer's own two-grid checks).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from contin.options import AdaptOptions
+from contin.problem import Array
+
+#: Floor of a parameter's scale in the relative change (as in ``contin.foldcurve``).
+PARAM_SCALE_FLOOR = 1e-3
+
+#: Relative step of the central difference of J phi along the branch tangent.
+DIFFERENCE_STEP = 1e-6
+
+#: The BP check is conclusive only where the multiplier of the fine state's bordered correction
+#: (the residual's component along the left kernel, which the symmetric structure makes zero)
+#: is at most this fraction of the residual's size: otherwise the structure is not there.
+MULTIPLIER_SHARE = 1e-6
+#: ... or of ROUNDING_TERMS x eps x ||J|| ||u|| where the residual itself is at rounding level.
+ROUNDING_TERMS = 100.0
+
+
+@dataclass(frozen=True)
+class PointCheck:
+    """Result of a special point's two-grid check on the grid ``grid``: ``error``, the relative
+    error of the point's parameter (its position: |dp| / max(|p|, PARAM_SCALE_FLOOR));
+    ``parameter_shift`` dp; ``state_error``: the state's relative change (the solve's error,
+    which the branch's own two-grid checks bound by tol)."""
+
+    error: float
+    grid: int
+    parameter_shift: float
+    state_error: float = math.nan
+
+
+def _relative_shift(dp: float, p: float) -> float:
+    return abs(dp) / max(abs(p), PARAM_SCALE_FLOOR)
+
+
+def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
+                     tangent: Array, opts: AdaptOptions) -> PointCheck | None:
+    """Two-grid error of a located LP (state u, the branch's unit tangent (du, dp) there, dp ~ 0):
+    one Newton step of the extended system on the check grid, bordered by the pseudo-arclength
+    row of the carried tangent,
+
+        [J_f  F_p] [du]   [-F_f(u, p)]
+        [ t_u t_p] [dp] = [     0    ],
+
+    regular at a quadratic fold.  It lands on the fine branch at the point whose arclength
+    coordinate along t is the LP's; as p is stationary at the LP, the fine LP's parameter
+    differs from that point's by O(alpha^2) (alpha the two LPs' distance along the branch),
+    so dp is the LP's parameter error to first order (module docstring).  None without
+    ``check_factor`` or when the check grid rounds to the point's; error inf where the bordered
+    matrix is singular there or the step is not finite."""
+    from contin.adapt import check_grid, on_grid, solution_error
+    from contin.linalg import factorize_bordered
+
+    if opts.check_factor is None:
+        return None
+    n_f = check_grid(problem, opts.check_factor, opts)
+    if n_f is None:
+        return None
+    t = np.asarray(tangent, dtype=float)
+    fine = on_grid(problem, n_f)
+    u = np.asarray(problem.transfer(np.asarray(state, dtype=float), fine), dtype=float)
+    t_u = np.asarray(problem.transfer(t[:-1], fine), dtype=float)
+    p = float(params[parameter])
+    q = {k: float(v) for k, v in params.items()}
+    with np.errstate(all="ignore"):
+        fact = factorize_bordered(fine.jacobian(u, q), np.asarray(fine.dresidual_dp(u, q, parameter), dtype=float).ravel(),
+                                  np.append(t_u, float(t[-1])))
+        if fact is None:
+            return PointCheck(math.inf, n_f, math.inf)
+        delta = fact.solve(np.append(-np.asarray(fine.residual(u, q), dtype=float), 0.0))
+    if not np.all(np.isfinite(delta)):
+        return PointCheck(math.inf, n_f, math.inf)
+    dp = float(delta[-1])
+    q[parameter] = p + dp
+    e = _relative_shift(dp, p + dp)
+    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, solution_error(fine, u, u + delta[:-1], q))
+
+
+def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
+                       tangent: Array, kernel: Array, opts: AdaptOptions) -> PointCheck | None:
+    """Two-grid error of a located symmetry-breaking BP (state u on an S-invariant branch, the
+    branch's unit tangent (du, dp), J's antisymmetric null vector ``kernel``): the fine state
+    corrected with the bordered matrix M, then one Newton step of H(phi, alpha) (module
+    docstring).  None without ``check_factor``, when the check grid rounds to the point's, or
+    when the check is not conclusive (the bordered correction needs a multiplier: the point is
+    not on a symmetric branch as assumed); error inf where M is singular or a step not finite."""
+    from contin.adapt import check_grid, on_grid, solution_error
+    from contin.linalg import factorize_bordered, inf_norm
+
+    if opts.check_factor is None:
+        return None
+    n_f = check_grid(problem, opts.check_factor, opts)
+    if n_f is None:
+        return None
+    t = np.asarray(tangent, dtype=float)
+    fine = on_grid(problem, n_f)
+    move = problem.transfer
+    u = np.asarray(move(np.asarray(state, dtype=float), fine), dtype=float)
+    phi = np.asarray(move(np.asarray(kernel, dtype=float), fine), dtype=float)
+    t_u = np.asarray(move(t[:-1], fine), dtype=float)
+    t_p = float(t[-1])
+    norm2 = float(phi @ phi)
+    if not norm2 > 0:
+        return None
+    c = phi / norm2
+    p = float(params[parameter])
+    q = {k: float(v) for k, v in params.items()}
+
+    def jac(v: Array, at: float) -> Any:
+        return fine.jacobian(v, {**q, parameter: at})
+
+    # the step along the tangent: relative to the state's and the parameter's size
+    h = DIFFERENCE_STEP * max(1.0, float(np.max(np.abs(u))), abs(p)) / max(float(np.max(np.abs(t_u))), abs(t_p), 1e-300)
+    with np.errstate(all="ignore"):
+        m = (jac(u + h * t_u, p + h * t_p) @ phi - jac(u - h * t_u, p - h * t_p) @ phi) / (2.0 * h)
+        j0 = jac(u, p)
+        fact = factorize_bordered(j0, np.asarray(m, dtype=float).ravel(), np.append(c, 0.0))
+        if fact is None:
+            return PointCheck(math.inf, n_f, math.inf)
+        f = np.asarray(fine.residual(u, q), dtype=float)
+        corr = fact.solve(np.append(-f, 0.0))
+        if not np.all(np.isfinite(corr)):
+            return PointCheck(math.inf, n_f, math.inf)
+        # the multiplier's residual share, against the residual and, where that is at rounding
+        # level (an exact state: uniform shear), against the rounding of its terms ||J|| ||u||
+        f_size = float(np.max(np.abs(f), initial=0.0))
+        floor = ROUNDING_TERMS * float(np.finfo(float).eps) * inf_norm(j0) * float(np.max(np.abs(u), initial=0.0))
+        if abs(float(corr[-1])) * float(np.max(np.abs(m), initial=0.0)) > max(MULTIPLIER_SHARE * f_size, floor):
+            return None  # the residual has a component along the left kernel: not the symmetric case
+        u_f = u + corr[:-1]
+        r = np.asarray(jac(u_f, p) @ phi, dtype=float).ravel()
+        step = fact.solve(np.append(-r, 1.0 - float(c @ phi)))
+    if not np.all(np.isfinite(step)):
+        return PointCheck(math.inf, n_f, math.inf)
+    alpha = float(step[-1])
+    dp = alpha * t_p
+    q[parameter] = p + dp
+    e = _relative_shift(dp, p + dp)
+    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, solution_error(fine, u, u_f + alpha * t_u, q))
+
+
+def check_located(adaptor: Any, system: Any, points: list[Any], symmetric: bool) -> float | None:
+    """The measured error of where the located special points of one step lie (the worst over
+    ``points``), for the tracer's adaptive resolution (``adaptor``: its
+    ``contin.adapt.Adaptor``; ``system``: the extended system on the grid in force): each
+    point's two-grid check (an LP's parameter, :func:`fold_point_error`; a symmetry-breaking
+    BP's on an S-invariant branch, ``symmetric``, :func:`symmetric_bp_error`), combined with its
+    state's estimate.  None when some point has no check (another kind, a BP off a symmetric
+    branch, an inconclusive check, no ``check_factor``): the kernel estimate then decides.
+
+    The tracer calls it where the kernel estimate exceeds special_tol: that estimate
+    over-states the position's error (module docstring), and the check spares a refinement and
+    a second location where the position already meets it."""
+    from contin.adapt import DENSE_KERNEL_MAX, null_vector
+
+    opts = adaptor.opts
+    if opts.check_factor is None:
+        return None
+    worst = 0.0
+    for sp_ in points:
+        if sp_.tangent is None:
+            return None
+        x = system.pack(sp_.state, sp_.params[system.parameter])
+        if sp_.type == "LP":
+            check = fold_point_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent, opts)
+        elif sp_.type == "BP" and symmetric:
+            check = symmetric_bp_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent,
+                                       null_vector(system.state_jacobian(x, dense_ok=x.size - 1 <= DENSE_KERNEL_MAX)), opts)
+        else:
+            return None
+        if check is None:
+            return None
+        adaptor.special_checks += 1
+        worst = max(worst, adaptor.error(system, x), check.error)
+    return worst

@@ -1,0 +1,168 @@
+"""Two-grid checks of located special points (contin.specialcheck) on non-granular problems.
+
+References are computed in the tests, independently of the tracer and of the check:
+- Allen-Cahn u'' + lam (u - u^3) = 0 on [0, pi]: the pitchforks off u = 0 are the Dirichlet
+  eigenvalues of the discrete -d^2/dx^2; for fd2 on N intervals, lam_k(N) = (4/h^2) sin^2(k h/2),
+  h = pi/N, in closed form; for Chebyshev the finite eigenvalues of the generalized problem
+  J(0, lam) = A + lam B, by scipy.linalg.eig;
+- Bratu u'' + lam e^u = 0: the discrete fold lam*(N) is the maximum of lam over the discrete
+  solutions parametrized by their midpoint value s = u(1/2) (each one a scipy.optimize.root
+  solve of the residual with u(1/2) = s pinned), found by scipy.optimize.minimize_scalar.
+
+The check's parameter shift must be the difference of the coarse and the fine grid's special
+points: lam(2N) - lam(N), to first order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from scipy.optimize import minimize_scalar, root
+
+from contin.adapt import AdaptOptions, null_vector
+from contin.continuation import trace
+from contin.options import ContinuationOptions, StepOptions
+from contin.specialcheck import fold_point_error, symmetric_bp_error
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu
+
+
+def fd2_eigenvalue(k: int, n: int) -> float:
+    """The k-th Dirichlet eigenvalue of the 3-point -d^2/dx^2 on [0, pi] with n intervals."""
+    h = math.pi / n
+    return 4.0 / h**2 * math.sin(k * h / 2) ** 2
+
+
+def collocation_eigenvalue(pb: AllenCahn, near: float) -> float:
+    """The finite eigenvalue lam nearest ``near`` with J(0, lam) singular: J(0, lam) = A + lam B."""
+    zero = np.zeros(pb.n)
+    a = pb.jacobian(zero, {"lam": 0.0}).toarray()
+    b = pb.jacobian(zero, {"lam": 1.0}).toarray() - a
+    w = scipy.linalg.eig(a, -b, right=False)
+    w = w[np.isfinite(w) & (np.abs(w.imag) < 1e-9)].real
+    return float(w[np.argmin(np.abs(w - near))])
+
+
+def bp_check(pb: AllenCahn, lam: float, k: int):
+    """The check of the BP at lam on u = 0 (tangent along lam, kernel sin(kx) at the nodes)."""
+    zero = np.zeros(pb.n)
+    phi = null_vector(pb.jacobian(zero, {"lam": lam}))
+    tangent = np.append(np.zeros(pb.n), 1.0)
+    return symmetric_bp_error(pb, zero, {"lam": lam}, "lam", tangent, phi, AdaptOptions(tol=1e-6))
+
+
+@pytest.mark.parametrize("k,n", [(1, 16), (2, 16), (3, 24)])
+def test_symmetric_bp_check_fd2_is_the_next_grids_eigenvalue(k, n):
+    pb = AllenCahn("fd2", n)
+    coarse, fine = fd2_eigenvalue(k, n), fd2_eigenvalue(k, 2 * n)
+    check = bp_check(pb, coarse, k)
+    assert check is not None and check.grid == 2 * n
+    # the interpolated kernel is not the fine eigenvector: one Newton step leaves O(shift^2)
+    # (measured: 1e-7 .. 7e-6 of the shift)
+    assert check.parameter_shift == pytest.approx(fine - coarse, rel=1e-4)
+    assert check.error == pytest.approx(abs(fine - coarse) / fine, rel=1e-4)
+    assert check.state_error == 0.0  # u = 0 is exact on every grid
+
+
+def test_symmetric_bp_check_chebyshev():
+    """Chebyshev 12: lam_3 is off by 4e-7 relative, and the check (on cheb 24) measures it."""
+    coarse_pb = AllenCahn("cheb", 12)
+    coarse = collocation_eigenvalue(coarse_pb, 9.0)
+    fine = collocation_eigenvalue(AllenCahn("cheb", 24), 9.0)
+    assert 1e-8 < abs(coarse / fine - 1) < 1e-3  # a visible error, so the check has something to measure
+    check = bp_check(coarse_pb, coarse, 3)
+    assert check.parameter_shift == pytest.approx(fine - coarse, rel=1e-6)
+
+
+class ForcedAllenCahn(AllenCahn):
+    """u'' + lam (u - u^3) + EPS = 0: the forcing breaks u -> -u (an imperfect pitchfork)."""
+
+    EPS = 1e-4
+
+    def residual(self, u, p):
+        r = super().residual(u, p)
+        r[1:-1] += self.EPS
+        return r
+
+
+def test_symmetric_bp_check_declines_a_residual_along_the_left_kernel():
+    """Without the symmetry (a forced Allen-Cahn, whose u = 0 is no solution), the fine state's
+    bordered correction needs a multiplier (the residual has a component along the left
+    kernel): the check is not conclusive (None) -- it does not mistake the imperfect pitchfork
+    for a BP it can measure."""
+    pb = ForcedAllenCahn("cheb", 12)
+    assert isinstance(pb.with_grid(24), ForcedAllenCahn)
+    lam = collocation_eigenvalue(pb, 1.0)
+    phi = null_vector(pb.jacobian(np.zeros(pb.n), {"lam": lam}))
+    tangent = np.append(np.zeros(pb.n), 1.0)
+    assert symmetric_bp_error(pb, np.zeros(pb.n), {"lam": lam}, "lam", tangent, phi, AdaptOptions()) is None
+    # the same point without the forcing is measured
+    plain = AllenCahn("cheb", 12)
+    assert symmetric_bp_error(plain, np.zeros(pb.n), {"lam": lam}, "lam", tangent, phi, AdaptOptions()) is not None
+
+
+def discrete_bratu_fold(pb: Bratu) -> tuple[float, np.ndarray]:
+    """(lam*, fold state) of the discrete Bratu problem: max over s of lam(s), u(1/2) = s."""
+    mid = int(np.argmin(np.abs(pb.x - 0.5)))
+    assert abs(pb.x[mid] - 0.5) < 1e-14
+    guess = {"z": np.append(np.zeros(pb.n), 1.0)}
+
+    def solve(s: float) -> np.ndarray:
+        def f(z: np.ndarray) -> np.ndarray:
+            u, lam = z[:-1], z[-1]
+            return np.append(pb.residual(u, {"lam": lam}), u[mid] - s)
+
+        sol = root(f, guess["z"], method="hybr", options={"xtol": 1e-13})
+        assert np.max(np.abs(f(sol.x))) < 1e-11, sol.message  # (hybr may stop at its xtol)
+        guess["z"] = sol.x
+        return sol.x
+
+    for s in np.linspace(0.1, 1.2, 12):  # walk up the lower branch to near the fold (s* ~ 1.19)
+        solve(s)
+    best = minimize_scalar(lambda s: -solve(s)[-1], bounds=(0.9, 1.6), method="bounded",
+                           options={"xatol": 1e-9})
+    z = solve(best.x)
+    return float(z[-1]), z[:-1]
+
+
+@pytest.mark.parametrize("method,n", [("fd2", 16), ("cheb", 8)])
+def test_fold_check_is_the_next_grids_fold(method, n):
+    pb = Bratu(method, n)
+    coarse, _ = discrete_bratu_fold(pb)
+    fine, _ = discrete_bratu_fold(Bratu(method, 2 * n))
+    assert abs(fine / BRATU_FOLD - 1) < abs(coarse / BRATU_FOLD - 1)
+    o = ContinuationOptions(bounds={"lam": (0.1, 4.0)}, max_steps=200, step=StepOptions(ds=0.1, ds_max=0.3))
+    (lp,) = trace(pb, pb.initial(), {"lam": 0.1}, "lam", o).fold_points
+    assert lp.params["lam"] == pytest.approx(coarse, rel=1e-12)
+    check = fold_point_error(pb, lp.state, lp.params, "lam", lp.tangent, AdaptOptions())
+    assert check is not None and check.grid == 2 * n
+    # first order: the fold moves along the branch too (measured: 2e-4 .. 3.5e-4 of the shift)
+    assert check.parameter_shift == pytest.approx(fine - coarse, rel=2e-3)
+    assert check.error == pytest.approx(abs(fine - coarse) / abs(fine), rel=2e-3)
+
+
+def test_adaptive_trace_keeps_a_bp_whose_position_meets_special_tol():
+    """Allen-Cahn from cheb 8, tol = special_tol = 1e-6: the BP lam = 4's kernel estimate on cheb
+    12 (3.7e-4) exceeds special_tol, but its position passes the two-grid check, so it is not
+    located again on a finer grid; every BP within special_tol of k^2.  With special_tol 1e-10
+    the same point's check fails on cheb 12 and it is refined."""
+    def run(special_tol: float):
+        pb = AllenCahn("cheb", 8)
+        o = ContinuationOptions(bounds={"lam": (0.5, 10.0)}, max_steps=200, step=StepOptions(ds=0.3, ds_max=1.0),
+                                adapt=AdaptOptions(tol=1e-6, min_grid=8, special_tol=special_tol))
+        return trace(pb, pb.initial(), {"lam": 0.5}, "lam", o)
+
+    loose = run(1e-6)
+    bps = loose.points("BP")
+    assert [round(b.params["lam"]) for b in bps] == [1, 4, 9]
+    for k, bp in zip((1, 2, 3), bps):
+        assert abs(bp.params["lam"] / k**2 - 1) <= 1e-6
+    checked = [a for a in loose.audit if "two-grid error of its position" in a]
+    assert checked and all("meets" in a for a in checked)
+    assert bps[1].grid == 12 and abs(bps[1].params["lam"] / 4 - 1) > 1e-9  # kept on the coarse grid
+
+    tight = run(1e-10)
+    for k, bp in zip((1, 2, 3), tight.points("BP")):
+        assert abs(bp.params["lam"] / k**2 - 1) <= 1e-10
