@@ -47,9 +47,6 @@ import numpy as np
 from contin.options import AdaptOptions
 from contin.problem import Array
 
-#: Floor of a parameter's scale in the relative change (as in ``contin.foldcurve``).
-PARAM_SCALE_FLOOR = 1e-3
-
 #: Relative step of the central difference of J phi along the branch tangent.
 DIFFERENCE_STEP = 1e-6
 
@@ -75,6 +72,9 @@ class PointCheck:
 
 
 def _relative_shift(dp: float, p: float) -> float:
+    """|dp| / max(|p|, PARAM_SCALE_FLOOR): the floor of ``contin.foldcurve``'s two-grid check."""
+    from contin.foldcurve import PARAM_SCALE_FLOOR
+
     return abs(dp) / max(abs(p), PARAM_SCALE_FLOOR)
 
 
