@@ -25,7 +25,7 @@ import numpy as np
 
 from contin.extended import ExtendedSystem
 from contin.linalg import DenseLU, Factorization, factorize_bordered
-from contin.newton import DIVERGENCE_FACTOR, backtrack, max_norm, rounding_floor
+from contin.newton import DIVERGENCE_FACTOR, backtrack, converged, max_norm
 from contin.options import NewtonOptions
 from contin.problem import Array
 
@@ -75,7 +75,6 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
     # Python-level calls, so every attribute look-up and temporary outside the four parts
     # (residual, Jacobian, factorization, solve) shows (benchmarks.linear_algebra).
     residual, jacobian, admissible = system.residual, system.jacobian, system.admissible
-    tol, step_tol = options.tol, options.step_tol
     f = residual(x)
     r = max_norm(f)
     history = [r]
@@ -105,26 +104,16 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         dx = fact.solve(rhs)
         if project is not None:
             dx[:-1] = project(dx[:-1])
-        # The full step first, as backtrack's first trial (inlined: nearly every update is
-        # admissible, and the call and its tuple cost ~0.5 us); backtrack, which tries the full
-        # step again (admissibility is a pure test), only when it is not.
-        x_new = x + dx
-        lam = 1.0
-        if admissible(x_new) is not None:
-            x_new, lam, reason = backtrack(admissible, x, dx)
-            if reason is not None:
-                return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
+        x_new, lam, reason = backtrack(admissible, x, dx)
+        if reason is not None:
+            return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
         x_old, x = x, x_new
         f = residual(x)
         r = max_norm(f)
         history.append(r)
         if not math.isfinite(r) or r > diverged:
             return Correction(x, False, it, fact, row, history, f"Newton diverged (residual {r:.3g})")
-        # contin.newton.converged inlined (the same tests in the same order): the step test
-        # decides most unconverged iterations, without the call and the options look-ups
-        step = lam * max_norm(dx)
-        if ((step <= step_tol or step <= step_tol * max(1.0, max_norm(x)))
-                and (r <= tol or r <= rounding_floor(jac, x_old))):
+        if converged(options, r, lam, dx, x, jac, x_old):
             return Correction(x, True, it, fact, row, history, "converged")
         if give_up is not None:
             why = give_up(x, lam * dx)
