@@ -374,12 +374,31 @@ def chebyshev_coefficients(values: NDArray[np.float64]) -> NDArray[np.float64]:
     (f_0, ..., f_N, f_{N-1}, ..., f_1): numpy's FFT, because importing scipy.fft (and the
     scipy.special it pulls in) costs a process 0.1-0.3 s for this one transform.
     """
-    f = np.asarray(values, dtype=float)[..., ::-1]
+    f = np.asarray(values, dtype=float)
     n = f.shape[-1] - 1
-    a = np.fft.rfft(np.concatenate([f, f[..., -2:0:-1]], axis=-1), axis=-1).real[..., : n + 1] / n
+    if f.ndim == 1 or f.flags.c_contiguous:
+        # the even extension by one gather (a cached index per N): the adaptive tracer
+        # transforms every accepted point, and at small N the reversal, the slices and the
+        # concatenation cost more than the FFT.  take, not f[..., idx]: the same values in the
+        # same C-ordered layout as the concatenation (a fancy index lays 2-D rows out
+        # F-ordered, and row reductions of the coefficients round differently on strided rows)
+        even = f.take(_even_extension(n), axis=-1)
+    else:  # the concatenation keeps another layout of f (the coefficients' layout with it)
+        f = f[..., ::-1]
+        even = np.concatenate([f, f[..., -2:0:-1]], axis=-1)
+    a = np.fft.rfft(even, axis=-1).real[..., : n + 1] / n
     a[..., 0] *= 0.5
     a[..., -1] *= 0.5
     return a
+
+
+@lru_cache(maxsize=64)
+def _even_extension(n: int) -> NDArray[np.intp]:
+    """Indices of (f_N, ..., f_0, f_1, ..., f_{N-1}): the even extension of the reversed nodal
+    values f_0..f_N of :func:`chebyshev_coefficients` (read-only)."""
+    idx = np.concatenate([np.arange(n, -1, -1), np.arange(1, n)])
+    idx.flags.writeable = False
+    return idx
 
 
 def chebyshev_tail(values: NDArray[np.float64], modes: int = 4) -> float:
@@ -437,21 +456,45 @@ def chebyshev_tail_sum(absc: NDArray[np.float64], modes: int = 4) -> NDArray[np.
     whose envelope does not fall.
     """
     a = np.atleast_2d(np.asarray(absc, dtype=float))
+    if a.shape[-1] - 1 < 2 * modes:
+        return np.zeros(a.shape[0])
+    return tail_sum_rows(a, modes, a[:, -modes:].max(axis=1), a.max(axis=1))
+
+
+def tail_sum_rows(a: NDArray[np.float64], modes: int, last: NDArray[np.float64],
+                  largest: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`chebyshev_tail_sum` of the rows of the 2-D |a_0..a_N| ``a`` given their largest
+    last ``modes`` coefficients ``last`` and their largest coefficients ``largest`` (the
+    resolution estimate has both already: ``problems.couette.resolution``)."""
     n = a.shape[-1] - 1
     out = np.zeros(a.shape[0])
     if n < 2 * modes:
         return out
+    live = last > TAIL_SUM_NOISE * largest
+    if not np.count_nonzero(live):  # every tail is rounding noise: no fit (its rows would all be 0)
+        return out
     env = np.maximum.accumulate(a[:, ::-1], axis=1)[:, ::-1]
-    k = np.arange(n // 2, n + 1, dtype=float)
     logs = np.log(np.maximum(env[:, n // 2:], 1e-300))
-    km = k - k.mean()
-    slope = (logs - logs.mean(axis=1, keepdims=True)) @ km / float(km @ km)
-    at_n = np.exp(logs.mean(axis=1) + slope * (n - k.mean()))
-    live = (slope < 0) & (a[:, -modes:].max(axis=1) > TAIL_SUM_NOISE * a.max(axis=1))
+    km, km_km, n_from_mean = _envelope_fit(n)
+    # logs.mean(axis=1) is this sum divided by the count (numpy's _mean), taken once here
+    mean = np.add.reduce(logs, axis=1) / logs.shape[1]
+    slope = (logs - mean[:, None]) @ km / km_km
+    at_n = np.exp(mean + slope * n_from_mean)
+    live &= slope < 0
     slope = np.minimum(slope, -1e-12)  # rows with slope >= 0 are not live
     factor = np.minimum(np.exp(slope) / -np.expm1(slope), float(n))
     out[live] = (at_n * factor)[live]
     return out
+
+
+@lru_cache(maxsize=64)
+def _envelope_fit(n: int) -> tuple[NDArray[np.float64], float, np.float64]:
+    """The grid's constants of the envelope fit of :func:`tail_sum_rows`: k - mean(k) over
+    k = N/2 .. N (read-only), its squared norm and N - mean(k)."""
+    k = np.arange(n // 2, n + 1, dtype=float)
+    km = k - k.mean()
+    km.flags.writeable = False
+    return km, float(km @ km), n - k.mean()
 
 
 @lru_cache(maxsize=32)

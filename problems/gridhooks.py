@@ -53,9 +53,9 @@ class ResolutionHooks:
     def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
         """Estimated relative error of x: the measure of :mod:`problems.couette.resolution`
         (max of truncation and rounding) behind :meth:`under_resolved`."""
-        from problems.couette.resolution import resolution
+        from problems.couette.resolution import estimated_error
 
-        return resolution(self, x, p).error
+        return estimated_error(self, x, p)  # resolution(...).error without the Resolution
 
     def solution_error(self, x: Array, ref: Array, p: Mapping[str, Any]) -> float:
         """Relative error of state x against a reference solution ref on this grid, in the norm of
@@ -67,9 +67,9 @@ class ResolutionHooks:
     def rounding_error(self, x: Array, p: Mapping[str, Any]) -> float:
         """The part of :meth:`error_estimate` no finer grid lowers: the rounding error of nu
         against the distance to packing (``Resolution.rounding``, the precision limit)."""
-        from problems.couette.resolution import resolution
+        from problems.couette.resolution import estimated_rounding
 
-        return resolution(self, x, p).rounding
+        return estimated_rounding(self, x, p)  # resolution(...).rounding without the transform
 
     def vector_error(self, v: Array) -> float:
         """Estimated relative error of a perturbation v (a null vector at a branch point): the

@@ -132,3 +132,46 @@ def test_savage_band_ends_ep_at_the_resolution_limit_within_two_tol(tmp_path):
     chk = verify_branch(pb, b, {}, factor=1.5, max_grid=1024, tol=3e-5, indices=range(1, len(b)))
     assert not chk.unchecked
     assert chk.max_error <= 6e-5
+
+
+def _reference_coefficients(values):
+    """chebyshev_coefficients as first written (reversal and concatenation), for the layout test."""
+    f = np.asarray(values, dtype=float)[..., ::-1]
+    n = f.shape[-1] - 1
+    a = np.fft.rfft(np.concatenate([f, f[..., -2:0:-1]], axis=-1), axis=-1).real[..., : n + 1] / n
+    a[..., 0] *= 0.5
+    a[..., -1] *= 0.5
+    return a
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 8, 16, 33, 64])
+def test_chebyshev_coefficients_gather_is_the_concatenation_bit_for_bit(n):
+    # the cached-index gather gives the same values in the same memory layout (C rows for C
+    # input, F for F input): the tail estimate's row reductions round by layout
+    rng = np.random.default_rng(n)
+    for v in (rng.standard_normal(n + 1), rng.standard_normal((3, n + 1)),
+              np.asfortranarray(rng.standard_normal((3, n + 1)))):
+        got, ref = chebyshev_coefficients(v), _reference_coefficients(v)
+        assert got.tobytes() == ref.tobytes() and got.strides == ref.strides
+
+
+@pytest.mark.parametrize("method,n", [("cheb", 8), ("cheb", 16), ("cheb", 48), ("fd4", 64)])
+def test_fast_error_and_rounding_estimates_equal_the_resolution_object(method, n):
+    # estimated_error / estimated_rounding (the error_estimate / rounding_error hooks) are
+    # resolution(...).error / .rounding bit for bit, on resolved, layered and kinked states
+    from problems.couette.model import CouetteProblem
+    from problems.couette.resolution import estimated_error, estimated_rounding, resolution
+
+    pb = CouetteProblem(method, n)
+    p = pb.params({"nu": 0.3, "e": 0.8, "H": 10.0})
+    y = pb.grid.y
+    for d in (0.0 * y, 0.01 * np.cos(np.pi * y), 1e-3 * np.tanh(y / 0.1), 1e-3 * np.abs(y)):
+        x = pb.uniform_state(p)
+        nu, u, T, _, _ = pb.unpack(x)
+        nu += d
+        u += d
+        T += 0.5 * d
+        r = resolution(pb, x, p)
+        assert estimated_error(pb, x, p) == r.error and pb.error_estimate(x, p) == r.error
+        assert estimated_rounding(pb, x, p) == r.rounding and pb.rounding_error(x, p) == r.rounding
+        assert chebyshev_tail_sum(np.abs(r.coefficients))[0] <= r.tails[r.field]

@@ -103,7 +103,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from problems.discretization import Grid, chebyshev_coefficients, chebyshev_nodes, chebyshev_tail_sum
+from problems.discretization import Grid, chebyshev_coefficients, chebyshev_nodes, tail_sum_rows
 
 Array = NDArray[np.float64]
 
@@ -119,6 +119,8 @@ ROUNDING_FACTOR = 0.2
 
 #: Fields measured, in the order they are reported.
 FIELDS = ("nu", "T", "u")
+
+_EPS = float(np.finfo(float).eps)
 
 
 def tail(coefficients: Array, modes: int = TAIL_MODES) -> float:
@@ -261,7 +263,7 @@ def rounding_estimate(N: int, gap: float, limit: float, factor: float = ROUNDING
     if not gap > 0:
         return math.inf
     scale = N * N if method == "cheb" else FD_ROUNDING * N
-    return factor * float(np.finfo(float).eps) * scale * limit / gap
+    return factor * _EPS * scale * limit / gap
 
 
 def precision_reason(rounding: float, gap: float, limit: float, tol: float, method: str, N: int) -> str:
@@ -271,50 +273,103 @@ def precision_reason(rounding: float, gap: float, limit: float, tol: float, meth
             f"(> {tol:.2g}) on {method} {N}; finer grids only raise it")
 
 
+def _limit(problem: Any, p: Mapping[str, Any]) -> float:
+    """The packing limit nu_m: problems with their own closure (problems.disks) say where it
+    ends; gPCF's is chi's limit."""
+    from problems.couette.closures import packing_limit
+
+    own_limit = getattr(problem, "packing_limit", None)
+    # .real: np.real's value (the real part of a complex-step num) without its Python wrapper
+    return float(own_limit(p)) if callable(own_limit) else packing_limit(problem.chi, float(p["num"].real))
+
+
+def _measure(problem: Any, x: Array, p: Mapping[str, Any]) -> tuple[Array, Array, Array, float, float]:
+    """(Chebyshev coefficients of the FIELDS rows, their tails, their scales, gap, limit) of
+    state x: what :func:`resolution` and :func:`estimated_error` are computed from (nu's scale
+    not yet capped by the gap)."""
+    profiles = problem.profiles(np.asarray(x, dtype=float))
+    grid = problem.grid
+    limit = _limit(problem, p)
+    rows = [profiles[name] for name in FIELDS]
+    if grid.method != "cheb":
+        m = _to_chebyshev_matrix(grid)
+        rows = [m @ v for v in rows]
+    # the rows written into one array (np.stack's checks and copies cost more at small N)
+    stacked = np.empty((len(FIELDS), rows[0].size))
+    for i, v in enumerate(rows):
+        stacked[i] = v
+    # np.max's wrapper skipped: the same reduction (exact; NaN propagates as there)
+    gap = float(limit - np.maximum.reduce(stacked[0]))
+    # the three profiles' coefficients in one transform (rows: FIELDS; the same DCT-I as
+    # chebyshev_coefficients, row by row): the adaptive tracer estimates every accepted point
+    coeffs = chebyshev_coefficients(stacked)
+    absc = np.abs(coeffs)
+    # the last coefficients, or their extrapolated sum where they fall slowly (module docstring:
+    # slow decay); for a fast-falling spectrum the last coefficients are the larger
+    # (ufunc reductions: ndarray.max's Python wrapper costs more than these at small N)
+    last = np.maximum.reduce(absc[:, -TAIL_MODES:], axis=1)
+    scale_v = np.maximum.reduce(absc, axis=1)
+    tail_v = np.maximum(last, tail_sum_rows(absc, TAIL_MODES, last, scale_v))
+    return coeffs, tail_v, scale_v, gap, limit
+
+
+def _rounding(problem: Any, gap: float, limit: float) -> float:
+    """:func:`rounding_estimate` of ``problem``'s grid (a problem with another closure states its
+    own factor: problems.disks, 4.0, measured)."""
+    grid = problem.grid
+    return rounding_estimate(grid.intervals, gap, limit, float(getattr(problem, "rounding_factor", ROUNDING_FACTOR)),
+                             grid.method)
+
+
 def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) -> Resolution:
     """The resolution estimate of state x of a :class:`problems.couette.model.CouetteProblem` (or of any
     problem on a ``grid`` with ``profiles`` nu, u, T and a ``packing_limit(p)`` method, e.g. problems.disks).
 
-    ``tol`` only enters the grid suggestion.
+    ``tol`` only enters the grid suggestion.  :func:`estimated_error` is its ``error`` alone.
     """
-    from problems.couette.closures import packing_limit
-
-    profiles = problem.profiles(np.asarray(x, dtype=float))
-    grid = problem.grid
-    # problems with their own closure (problems.disks) say where it ends; gPCF's is chi's limit
-    own_limit = getattr(problem, "packing_limit", None)
-    limit = float(own_limit(p)) if callable(own_limit) else packing_limit(problem.chi, float(np.real(p["num"])))
-    if grid.method != "cheb":
-        m = _to_chebyshev_matrix(grid)
-        profiles = {k: m @ v for k, v in profiles.items()}
-    gap = float(limit - np.max(profiles["nu"]))
-    # the three profiles' coefficients in one transform (rows: FIELDS; the same DCT-I as
-    # chebyshev_coefficients, row by row): the adaptive tracer estimates every accepted point
-    coeffs = chebyshev_coefficients(np.stack([profiles[name] for name in FIELDS]))
-    absc = np.abs(coeffs)
-    # the last coefficients, or their extrapolated sum where they fall slowly (module docstring:
-    # slow decay); for a fast-falling spectrum the last coefficients are the larger
-    tail_v = np.maximum(absc[:, -TAIL_MODES:].max(axis=1), chebyshev_tail_sum(absc, TAIL_MODES))
-    scale_v = absc.max(axis=1)
+    coeffs, tail_v, scale_v, gap, limit = _measure(problem, x, p)
     tails = dict(zip(FIELDS, tail_v.tolist()))
     scales = dict(zip(FIELDS, scale_v.tolist()))
     scales["nu"] = min(scales["nu"], gap)
     errors = {k: tails[k] / scales[k] if scales[k] > 0 else math.inf for k in FIELDS}
     field = max(FIELDS, key=lambda k: errors[k])
     truncation = errors[field]
-    # a problem with another closure states its own factor (problems.disks: 4.0, measured)
-    rounding = rounding_estimate(grid.intervals, gap, limit, float(getattr(problem, "rounding_factor", ROUNDING_FACTOR)),
-                                 grid.method)
+    rounding = _rounding(problem, gap, limit)
+    grid = problem.grid
     return Resolution(max(truncation, rounding), field, tails, scales, gap, limit, grid.method, grid.intervals, tol,
                       coeffs[FIELDS.index(field)], truncation, rounding)
 
 
+def estimated_error(problem: Any, x: Array, p: Mapping[str, Any]) -> float:
+    """``resolution(problem, x, p).error`` without building the :class:`Resolution` (its dicts,
+    field name and coefficients): the adaptive tracer's ``error_estimate`` of every accepted
+    point.  The same operations on the same values (tested)."""
+    _, tail_v, scale_v, gap, limit = _measure(problem, x, p)
+    tails = tail_v.tolist()
+    scales = scale_v.tolist()
+    scales[0] = min(scales[0], gap)  # FIELDS[0] is nu
+    # max over the fields as resolution's max(FIELDS, key=...): the first largest (NaN as there)
+    truncation = max([t / s if s > 0 else math.inf for t, s in zip(tails, scales)])
+    return max(truncation, _rounding(problem, gap, limit))
+
+
+def estimated_rounding(problem: Any, x: Array, p: Mapping[str, Any]) -> float:
+    """``resolution(problem, x, p).rounding`` (module docstring: rounding) without the
+    transform: it needs only the gap nu_m - max nu (``ResolutionHooks.rounding_error``)."""
+    nu = problem.profiles(np.asarray(x, dtype=float))["nu"]
+    grid = problem.grid
+    limit = _limit(problem, p)
+    if grid.method != "cheb":
+        nu = _to_chebyshev_matrix(grid) @ nu
+    return _rounding(problem, float(limit - np.maximum.reduce(nu)), limit)
+
+
 def under_resolved(problem: Any, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
     """None if the estimated relative error of x (module docstring) is at most ``tol``, else the reason."""
-    r = resolution(problem, x, p, tol)
-    if r.error <= tol:
+    # the guard passes at nearly every point: the Resolution (for the reason) only where it fails
+    if estimated_error(problem, x, p) <= tol:
         return None
-    return r.reason(tol)
+    return resolution(problem, x, p, tol).reason(tol)
 
 
 def solution_error(problem: Any, x: Array, ref: Array, p: Mapping[str, Any]) -> float:
@@ -322,12 +377,9 @@ def solution_error(problem: Any, x: Array, ref: Array, p: Mapping[str, Any]) -> 
     max over nu, T, u of max|f(x) - f(ref)| / scale(f), the scales of :func:`resolution` taken
     on the nodal values of ref (nu's is min(max nu, nu_m - max nu): near a plug the closures
     feel an error in nu against the distance to packing)."""
-    from problems.couette.closures import packing_limit
-
     a = problem.profiles(np.asarray(x, dtype=float))
     b = problem.profiles(np.asarray(ref, dtype=float))
-    own_limit = getattr(problem, "packing_limit", None)
-    limit = float(own_limit(p)) if callable(own_limit) else packing_limit(problem.chi, float(np.real(p["num"])))
+    limit = _limit(problem, p)
     worst = 0.0
     for name in FIELDS:
         scale = float(np.max(np.abs(b[name])))
