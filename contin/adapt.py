@@ -780,7 +780,9 @@ class Adaptor:
         sys = tracer.system
         old = sys.problem
         cur = tracer.points[-1]
-        other = old.with_grid(int(size))
+        # on_grid: the instance the two-grid checks of this grid's points used (its per-instance
+        # set-up -- symmetry basis, structure decisions -- is reused)
+        other = on_grid(old, int(size))
         new_sys = ExtendedSystem(other, sys.params, sys.parameter, sys.theta)
         x = new_sys.pack(old.transfer(cur.x[:-1], other), cur.x[-1])
         new_sys.n = x.size - 1
