@@ -185,6 +185,12 @@ def coarser(problem: Any, opts: AdaptOptions) -> int | None:
 #: without the hook: a kink, whose two-grid differences scatter) the estimate decides instead.
 ROUNDING_SHARE = 0.01
 
+#: Floor of the scale of a parameter's relative change in the two-grid checks of augmented
+#: curves (contin.foldcurve.augmented_two_grid_error) and of located special points
+#: (contin.specialcheck): a parameter that passes through 0 (StretchedBratu's a at its start) has
+#: its change measured against max(|p|, PARAM_SCALE_FLOOR) there instead of a vanishing |p|.
+PARAM_SCALE_FLOOR = 1e-3
+
 #: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
 ESTIMATE_CACHE = 8
 

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from contin.adapt import PARAM_SCALE_FLOOR
 from contin.branch import Branch, SpecialPoint, relabel
 from contin.continuation import trace, trace_both
 from contin.extended import l2_norm
@@ -364,12 +365,6 @@ class SegmentRegrid:
             if want is not None and math.isfinite(float(want)):
                 size = min(max(size, _round(float(want), self.opts.multiple)), self.opts.max_grid)
         return size
-
-
-#: Floor of the scale of a parameter's relative change in :func:`augmented_two_grid_error`: a
-#: parameter that passes through 0 along the curve (StretchedBratu's a at its start) has its
-#: change measured against max(|p|, PARAM_SCALE_FLOOR) there instead of a vanishing |p|.
-PARAM_SCALE_FLOOR = 1e-3
 
 
 def augmented_two_grid_error(augmented: Any, state: Array, tangent: Array, params: Mapping[str, float],

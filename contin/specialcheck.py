@@ -72,8 +72,8 @@ class PointCheck:
 
 
 def _relative_shift(dp: float, p: float) -> float:
-    """|dp| / max(|p|, PARAM_SCALE_FLOOR): the floor of ``contin.foldcurve``'s two-grid check."""
-    from contin.foldcurve import PARAM_SCALE_FLOOR
+    """|dp| / max(|p|, PARAM_SCALE_FLOOR) (``contin.adapt``)."""
+    from contin.adapt import PARAM_SCALE_FLOOR
 
     return abs(dp) / max(abs(p), PARAM_SCALE_FLOOR)
 
