@@ -78,6 +78,23 @@ def _relative_shift(dp: float, p: float) -> float:
     return abs(dp) / max(abs(p), PARAM_SCALE_FLOOR)
 
 
+def _carried(problem: Any, state: Array, tangent: Array, opts: AdaptOptions) -> tuple[int, Any, Array, Array] | None:
+    """(check grid, the problem on it, the state and the tangent's state part carried there) for
+    a point's two-grid check; None without ``check_factor`` or where the check grid rounds to
+    the point's (``contin.adapt.check_grid``)."""
+    from contin.adapt import check_grid, on_grid
+
+    if opts.check_factor is None:
+        return None
+    n_f = check_grid(problem, opts.check_factor, opts)
+    if n_f is None:
+        return None
+    fine = on_grid(problem, n_f)
+    u = np.asarray(problem.transfer(np.asarray(state, dtype=float), fine), dtype=float)
+    t_u = np.asarray(problem.transfer(np.asarray(tangent, dtype=float)[:-1], fine), dtype=float)
+    return n_f, fine, u, t_u
+
+
 def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
                      tangent: Array, opts: AdaptOptions) -> PointCheck | None:
     """Two-grid error of a located LP (state u, the branch's unit tangent (du, dp) there, dp ~ 0):
@@ -93,18 +110,14 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
     so dp is the LP's parameter error to first order (module docstring).  None without
     ``check_factor`` or when the check grid rounds to the point's; error inf where the bordered
     matrix is singular there or the step is not finite."""
-    from contin.adapt import check_grid, on_grid, solution_error
+    from contin.adapt import solution_error
     from contin.linalg import factorize_bordered
 
-    if opts.check_factor is None:
+    carried = _carried(problem, state, tangent, opts)
+    if carried is None:
         return None
-    n_f = check_grid(problem, opts.check_factor, opts)
-    if n_f is None:
-        return None
+    n_f, fine, u, t_u = carried
     t = np.asarray(tangent, dtype=float)
-    fine = on_grid(problem, n_f)
-    u = np.asarray(problem.transfer(np.asarray(state, dtype=float), fine), dtype=float)
-    t_u = np.asarray(problem.transfer(t[:-1], fine), dtype=float)
     p = float(params[parameter])
     q = {k: float(v) for k, v in params.items()}
     with np.errstate(all="ignore"):
@@ -129,21 +142,15 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     docstring).  None without ``check_factor``, when the check grid rounds to the point's, or
     when the check is not conclusive (the bordered correction needs a multiplier: the point is
     not on a symmetric branch as assumed); error inf where M is singular or a step not finite."""
-    from contin.adapt import check_grid, on_grid, solution_error
+    from contin.adapt import solution_error
     from contin.linalg import factorize_bordered, inf_norm
 
-    if opts.check_factor is None:
+    carried = _carried(problem, state, tangent, opts)
+    if carried is None:
         return None
-    n_f = check_grid(problem, opts.check_factor, opts)
-    if n_f is None:
-        return None
-    t = np.asarray(tangent, dtype=float)
-    fine = on_grid(problem, n_f)
-    move = problem.transfer
-    u = np.asarray(move(np.asarray(state, dtype=float), fine), dtype=float)
-    phi = np.asarray(move(np.asarray(kernel, dtype=float), fine), dtype=float)
-    t_u = np.asarray(move(t[:-1], fine), dtype=float)
-    t_p = float(t[-1])
+    n_f, fine, u, t_u = carried
+    phi = np.asarray(problem.transfer(np.asarray(kernel, dtype=float), fine), dtype=float)
+    t_p = float(np.asarray(tangent, dtype=float)[-1])
     norm2 = float(phi @ phi)
     if not norm2 > 0:
         return None
