@@ -166,3 +166,26 @@ def test_adaptive_trace_keeps_a_bp_whose_position_meets_special_tol():
     tight = run(1e-10)
     for k, bp in zip((1, 2, 3), tight.points("BP")):
         assert abs(bp.params["lam"] / k**2 - 1) <= 1e-10
+
+
+def test_cli_trace_special_tol_keeps_a_checked_bp_and_says_so(tmp_path):
+    """`contin trace allen-cahn --tol 1e-6 --special-tol 1e-6`: lam = 4 is kept on its coarse
+    grid with its position checked (the audit line, in the file too), every BP within 1e-6 of
+    k^2 (exit 0)."""
+    from click.testing import CliRunner
+
+    from contin import io
+    from contin.cli import main
+
+    out = tmp_path / "ac.h5"
+    r = CliRunner().invoke(main, ["trace", "allen-cahn", "--tol", "1e-6", "--special-tol", "1e-6", "--no-stability",
+                                  "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "two-grid error of its position" in r.stderr
+    branches, _ = io.load(out)
+    base = next(b for b in branches if b.id == "0")
+    assert any("two-grid error of its position" in a and "(meets 1e-06)" in a for a in base.audit)
+    bps = base.points("BP")
+    assert [round(b.params["lam"]) for b in bps] == [1, 4, 9]
+    for k, bp in zip((1, 2, 3), bps):
+        assert abs(bp.params["lam"] / k**2 - 1) <= 1e-6
