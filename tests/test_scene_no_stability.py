@@ -7,7 +7,8 @@
 - disks-steady and nonlocal-shear (small runs through the CLI): ``contin verify`` exits 0 with
   every point checked, ``contin stability --point 0`` exits 1 with one ``Error:`` line, and the
   factory rebuilds a problem whose residual at every stored state is at Newton-tolerance level
-  (measured: 2.9e-13 and 1.2e-12; NewtonOptions.tol = 1e-10);
+  (measured: 2.9e-13 and 1.2e-12; NewtonOptions.tol = 1e-10); the same for nonlocal-cylinder
+  with report_eqs=1 (rounding of its third-order rows: 2.7e-9);
 - files whose branches come from several problems (disks-pitchfork corr=all,
   nonlocal-cylinder report_eqs=0) or no factory (nonlocal-muI) are refused in one line.
 """
@@ -89,12 +90,16 @@ def test_scene_flag_defaults_true():
         assert get_scene(name).stability is False, name
 
 
-@pytest.mark.parametrize("scene, args, branches", [
-    ("disks-steady", ("-s", "H=8"), 1),
+# residual bound: NewtonOptions.tol = 1e-10 (measured 2.9e-13 disks, 1.2e-12 plane shear); the
+# cylinder's third-order u rows on cheb 48 carry rounding ~1e-9 (measured 2.7e-9; the derived
+# operator's residual at the same states is 6e-3 to 4: the factory rebuilt the report's problem)
+@pytest.mark.parametrize("scene, args, branches, bound", [
+    ("disks-steady", ("-s", "H=8"), 1, 1e-10),
     ("nonlocal-shear", ("-s", "ell_min=2.5", "-s", "ell_max=4", "-s", "W_min=30", "-s", "W_max=50",
-                        "--max-steps", "6"), 7),
+                        "--max-steps", "6"), 7, 1e-10),
+    ("nonlocal-cylinder", ("-s", "report_eqs=1", "--max-steps", "8"), 1, 1e-8),
 ])
-def test_verify_and_factory(tmp_path, scene, args, branches):
+def test_verify_and_factory(tmp_path, scene, args, branches, bound):
     out = tmp_path / f"{scene}.h5"
     r = run("trace", scene, *args, "-o", out)
     assert r.exit_code == 0, r.output
@@ -109,7 +114,7 @@ def test_verify_and_factory(tmp_path, scene, args, branches):
     text = run("verify", out)
     assert text.exit_code == 0 and "checked" in text.stdout
     one_error_line(run("stability", out, "--point", "0"), "has no linear-stability operator")
-    assert max_residual(out) < 1e-10  # measured 2.9e-13 (disks), 1.2e-12 (non-local)
+    assert max_residual(out) < bound
 
 
 def test_files_of_several_problems_are_refused():
