@@ -12,7 +12,9 @@ branch before ``request.finished(branch)``, or leaves it to the CLI, which does 
 run when the scene has a ``problem_factory``.  A scene with ``Scene.stability = False`` has no
 linear-stability operator (its residual has algebraic rows -- boundary conditions, constraints --
 and no mass matrix or ``eigenproblem`` to say which rows are dynamics): the CLI runs no pass on
-it and ``contin stability`` refuses its files, rather than count those rows as unstable modes.
+it and ``contin stability`` refuses its files, rather than count those rows as unstable modes
+(``contin trace`` and ``contin sweep`` hand such a scene a request with ``stability=False``, so
+its own :meth:`SceneRequest.run_stability` calls do nothing either).
 
 Rebuilding the problem from a file.  ``Scene.problem_factory(parameters, discretization) ->
 problem`` (optional) rebuilds the problem instance from the ``parameters`` and
