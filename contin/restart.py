@@ -99,7 +99,9 @@ def rebuild_problem(meta: Mapping[str, Any]) -> Any:
     """The problem of a stored run, from its scene's ``problem_factory``.
 
     Raises ValueError saying what is missing: a file without a scene name (written by
-    ``contin.io.write`` without ``scene=``), an unknown scene, or a scene without a factory.
+    ``contin.io.write`` without ``scene=``), an unknown scene, a scene without a factory, or the
+    factory's own ValueError (e.g. a file whose branches come from several problems), prefixed
+    with the file.
     """
     from contin.scene import get_scene
 
@@ -115,4 +117,7 @@ def rebuild_problem(meta: Mapping[str, Any]) -> Any:
         raise ValueError(f"cannot rebuild the problem of {where}: {exc}") from None
     if scene.problem_factory is None:
         raise ValueError(f"cannot rebuild the problem of {where}: scene {name!r} has no problem_factory")
-    return scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
+    try:
+        return scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
+    except ValueError as exc:  # the factory's one sentence (bad parameters, a file of several problems)
+        raise ValueError(f"cannot rebuild the problem of {where}: {exc}") from None

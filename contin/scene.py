@@ -9,7 +9,12 @@ Stability.  ``request.stability`` (default True; ``contin trace --no-stability``
 asks for the linear-stability pass at k_x = k_z = 0 on every branch, ``request.kx`` for extra
 wavenumbers.  A scene either calls :meth:`SceneRequest.run_stability` (problem, branch) on each
 branch before ``request.finished(branch)``, or leaves it to the CLI, which does it after the
-run when the scene has a ``problem_factory``.
+run when the scene has a ``problem_factory``.  A scene with ``Scene.stability = False`` has no
+linear-stability operator (its residual has algebraic rows -- boundary conditions, constraints --
+and no mass matrix or ``eigenproblem`` to say which rows are dynamics): the CLI runs no pass on
+it and ``contin stability`` refuses its files, rather than count those rows as unstable modes
+(``contin trace`` and ``contin sweep`` hand such a scene a request with ``stability=False``, so
+its own :meth:`SceneRequest.run_stability` calls do nothing either).
 
 Rebuilding the problem from a file.  ``Scene.problem_factory(parameters, discretization) ->
 problem`` (optional) rebuilds the problem instance from the ``parameters`` and
@@ -256,6 +261,14 @@ class Scene:
     (``--special-tol``, ``AdaptOptions.special_tol``) while the states keep ``default_tol``:
     ``contin accuracy --tols`` then runs that request too.
 
+    ``stability`` (default True): the problem has a linear-stability operator (its own
+    ``eigenproblem``, or a mass matrix that makes J x = omega M x meaningful).  False: its
+    residual has algebraic rows the automatic M = I would count as dynamics, so a stability
+    result would be doubtful -- ``contin trace`` runs no stability pass on the scene (the request
+    it hands the scene has ``stability=False``; one ``note:`` line unless ``-q``) and ``contin
+    stability`` refuses its files with one ``Error:`` line, while ``problem_factory`` still
+    serves ``contin verify`` and ``contin continue``.
+
     ``start(request) -> DiagramStart`` (optional): the start point of the scene's automatic
     bifurcation diagram; ``contin trace SCENE --depth D`` then runs
     :func:`contin.diagram.explore` instead of ``run``.
@@ -271,6 +284,7 @@ class Scene:
     adaptive: bool = False
     default_tol: float = 3e-5
     special_key_points: bool = False
+    stability: bool = True
     start: Callable[[SceneRequest], DiagramStart] | None = None
 
 

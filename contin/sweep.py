@@ -355,13 +355,15 @@ def _resolution_tol(options: Mapping[str, Any]) -> float | None:
     return None if value == "off" else check_resolution_tol(value)
 
 
-def _request(params: Mapping[str, Any], options: Mapping[str, Any]) -> SceneRequest:
+def _request(params: Mapping[str, Any], options: Mapping[str, Any], scene_stability: bool = True) -> SceneRequest:
+    """The scene request of one task; no stability pass on a scene without a linear-stability
+    operator (``Scene.stability`` False), whatever the sweep's ``stability`` option."""
     overrides = {k: options[k] for k in ("max_steps", "ds", "ds_max") if k in options}
     return SceneRequest(
         params=dict(params),
         method=options.get("method"),
         grid=options.get("grid"),
-        stability=bool(options.get("stability", True)),
+        stability=bool(options.get("stability", True)) and scene_stability,
         kx=tuple(float(k) for k in options.get("kx", ())),
         overrides=overrides,
         engine=options.get("engine", "auto"),
@@ -415,7 +417,7 @@ def run_task(scene_name: str, params: Mapping[str, Any], options: Mapping[str, A
         with _quiet_scene_loading():
             scene = get_scene(scene_name)
         with resolution_override(_resolution_tol(options)) if "resolution_tol" in options else contextlib.nullcontext():
-            result = scene.run(_request(params, options))
+            result = scene.run(_request(params, options, scene_stability=scene.stability))
     except (SceneError, ValueError) as exc:
         base.update(status="error", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     except Exception as exc:  # noqa: BLE001 -- a crashing task is a result, never the end of a sweep

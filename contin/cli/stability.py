@@ -25,6 +25,22 @@ N_LEADING = 6
 DENSE_MAX = 2000
 
 
+def _refuse_without_stability(meta: dict[str, Any], file: str) -> None:
+    """One ``Error:`` line (exit 1) when the file's scene declares no linear-stability operator
+    (``Scene.stability = False``): its problem's algebraic rows would count as unstable modes.
+    An unknown scene is left to :func:`contin.restart.rebuild_problem`, which names it."""
+    from contin.scene import get_scene
+
+    name = str(meta.get("scene") or "")
+    try:
+        scene = get_scene(name) if name else None
+    except ValueError:
+        return
+    if scene is not None and not scene.stability:
+        fail(f"scene {name!r} of {file} has no linear-stability operator (its problem's boundary and constraint "
+             "rows have no mass matrix to tell them from dynamics), so the stability of its states is not computed")
+
+
 def parse_kx_spec(text: str) -> list[float]:
     """``a:b:n`` (n equally spaced values from a to b), ``k1,k2,...`` or one value.
 
@@ -218,6 +234,7 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
             io.check_writable(eig_path)
 
     branches, meta = io.load(file)
+    _refuse_without_stability(meta, file)
     ids = [b.id for b in branches]
     if branch_id is None:
         if len(branches) != 1:

@@ -82,7 +82,8 @@ def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
 def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress, quiet: bool) -> None:
     """The stability pass the scene left undone, through ``sc.problem_factory``.
 
-    Branches the scene left without stability columns get :meth:`SceneRequest.run_stability`
+    Nothing for a scene with ``stability=False`` (one ``note:`` line unless quiet).  Branches
+    the scene left without stability columns get :meth:`SceneRequest.run_stability`
     (k_x = k_z = 0, audit, and the extra ``--kx`` columns); a scene that computed stability
     itself is trusted with the extra wavenumbers too.  Fold curves and other multi-parameter
     branches are skipped (their states are not states of the problem).  Failures become
@@ -91,6 +92,10 @@ def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress,
     def missing(b: Any) -> bool:
         return len(b.free) == 1 and len(b) > 0 and b.n_unstable is None
 
+    if not sc.stability:  # no linear-stability operator (Scene.stability): a pass would be doubtful
+        if not quiet:
+            echo_err(f"note: scene {sc.name!r} has no linear-stability operator; branches are stored without stability")
+        return
     todo = [b for b in result.branches if missing(b)]
     if not todo:
         return
@@ -317,7 +322,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                       f"{len(branch)} points, {branch.status} {branch.message}".rstrip())
 
     request = scene_mod.SceneRequest(
-        params=params, method=method, grid=grid, stability=not no_stability, kx=kx_values,
+        params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
         completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
     try:
         with guard, sigterm_as_interrupt():
@@ -331,10 +336,10 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             raise click.exceptions.Exit(EXIT_TERMINATED) from None
         raise
     progress.done()
-    if request.stability:
+    if not no_stability:
         _stability_after_run(sc, request, result, progress, quiet)
     progress.close()
-    missing_kx = [f"{k:g}" for k in kx_values if k != 0 and request.stability
+    missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
                   and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
     if missing_kx:  # never a silent no-op: the README promises a column per --kx value
         echo_err(f"warning: --kx {','.join(missing_kx)} ignored: scene {scene!r} computed no stability "

@@ -9,6 +9,16 @@
   wall-bounded dense flow bands (pitchforks of uniform shear in H above phi_c).
 - ``disks-steady``: the steady shear band of seed 000 between bumpy walls (mean area fraction 0.24,
   e = 0.85), continued in H from a narrow gap.
+
+Rebuilding a file's problem (``Scene.problem_factory``, for ``contin verify`` and ``contin
+continue``): disks-steady, savage-rheology and disks-pitchfork with one pair correlation
+(``-s corr=cs|fv|gf``) store states of one problem, rebuilt here on the start grid of the run
+(``discretization``; ``contin.adapt.on_grid`` carries it to each point's own grid).
+disks-pitchfork with ``corr=all`` stores the branches of three closures (ids ``cs...``, ``fv...``,
+``gf...``): its factory refuses in one sentence.  disks-criticality stores no branches (its
+normal-form bends are computed inside the run) and has no factory.  None of the scenes has a linear-stability operator
+(the residual's algebraic rows -- y-momentum, the mass constraint, boundary rows -- have no mass
+matrix telling them from dynamics), so all are ``Scene(stability=False)``.
 """
 
 from __future__ import annotations
@@ -81,6 +91,21 @@ def _profiles(pb: DiskCouetteProblem):
     return lambda state: pb.profiles(pb.state_on(state))
 
 
+def _rebuilt(discretization: Mapping[str, Any], closure: DiskClosure, *, walls: str, grid: int) -> DiskCouetteProblem:
+    """The run's start problem: ``discretization`` as the scene stored it ({'method', 'intervals'};
+    a run's own ``--grid`` is stored as 'intervals'), ``grid`` when it names none."""
+    n = discretization.get("intervals", discretization.get("grid", grid))
+    return DiskCouetteProblem(str(discretization.get("method", "cheb")), int(n), walls=walls, closure=closure)
+
+
+def _corr(parameters: Mapping[str, Any], scene: str) -> str:
+    corr = str(parameters.get("corr", "cs"))
+    if corr not in G_MODELS:
+        raise SceneError(f"{scene}: corr = {corr!r} names no single pair correlation ({', '.join(G_MODELS)}), "
+                         "so the file's problem cannot be rebuilt")
+    return corr
+
+
 # ----------------------------------------------------------------------------- disks-pitchfork
 PITCHFORK_DEFAULTS: dict[str, Any] = {"nu": 0.5, "e": 0.8, "corr": "all", "modes": 3, "phi_inf": 0.9,
                                       "phi_f": 0.7, "m_f": 0.01, "banded_steps": 60}
@@ -145,6 +170,17 @@ def run_pitchfork(request: SceneRequest) -> SceneResult:
     assert pb is not None
     return SceneResult(branches=done, parameters={**s}, discretization={"method": pb.method, "intervals": pb.N},
                        y=pb.grid.y, profiles=_profiles(pb), notes=notes, extra=extra)
+
+
+def pitchfork_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> DiskCouetteProblem:
+    """The problem of a disks-pitchfork run with one pair correlation (no-slip walls, its G).
+
+    ``corr=all`` runs store branches of three problems (G = cs, fv, gf): refused in one sentence."""
+    if str(parameters.get("corr")) == "all":
+        raise SceneError("disks-pitchfork with corr = all stores the branches of three closures (G = cs, fv, gf; "
+                         "branch ids cs..., fv..., gf...), one problem each, so no single problem can be rebuilt; "
+                         "trace one closure with -s corr=cs|fv|gf to verify or continue its file")
+    return _rebuilt(discretization, DiskClosure(G=_corr(parameters, "disks-pitchfork")), walls="noslip", grid=64)
 
 
 # ----------------------------------------------------------------------------- disks-criticality
@@ -230,6 +266,10 @@ def run_criticality(request: SceneRequest) -> SceneResult:
                  "subcritical only in a thin layer above the threshold density (see docs/disks.md)")
     return SceneResult(branches=done, parameters={**s, "e_list": e_text},
                        discretization={"method": pb.method, "intervals": pb.N}, notes=notes, extra=extra)
+
+
+# No problem_factory: the scene stores no branches (SceneResult.branches is empty); its bends
+# and fold-route checks are normal-form computations and augmented solves inside the run.
 
 
 # ----------------------------------------------------------------------------- savage-rheology
@@ -333,6 +373,14 @@ def run_savage(request: SceneRequest) -> SceneResult:
                        y=pb.grid.y, profiles=_profiles(pb), notes=notes, extra=extra)
 
 
+def savage_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> DiskCouetteProblem:
+    """The problem of a savage-rheology run: Savage's contact closure (ESI normalization, its G),
+    no-slip walls; every branch (a0.k, band, band.n1.k) is a state of it (the branches carry
+    their own nu, a0, H columns)."""
+    closure = DiskClosure(G=_corr(parameters, "savage-rheology"), contact=True, normalization="esi")
+    return _rebuilt(discretization, closure, walls="noslip", grid=96)
+
+
 # ----------------------------------------------------------------------------- disks-steady
 STEADY_DEFAULTS: dict[str, Any] = {"nu": 0.24, "e": 0.85, "H": 128.0, "phi_w": 1.0, "ew": 0.5, "corr": "cs",
                                    "phi_inf": 0.9, "phi_f": 0.7, "m_f": 0.01}
@@ -378,21 +426,29 @@ def run_steady(request: SceneRequest) -> SceneResult:
                        y=pb.grid.y, profiles=_profiles(pb), notes=notes, extra=extra)
 
 
+def steady_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> DiskCouetteProblem:
+    """The problem of a disks-steady run: bumpy walls, Jenkins-Richman closure with its G."""
+    return _rebuilt(discretization, DiskClosure(G=_corr(parameters, "disks-steady")), walls="bumpy", grid=64)
+
+
 SCENES = {
     "disks-pitchfork": Scene(
         name="disks-pitchfork",
         summary="2-D disks (Jenkins-Richman): uniform-shear pitchforks at H_n^c = n pi psi for G = cs, fv, gf",
-        defaults=PITCHFORK_DEFAULTS, run=run_pitchfork, x="H", y="phi", adaptive=True),
+        defaults=PITCHFORK_DEFAULTS, run=run_pitchfork, x="H", y="phi", adaptive=True,
+        problem_factory=pitchfork_factory, stability=False),
     "disks-criticality": Scene(
         name="disks-criticality",
         summary="2-D disks: super/subcritical first pitchfork vs mean area fraction and e; tricritical area fraction",
-        defaults=CRITICALITY_DEFAULTS, run=run_criticality, x="H", y="phi"),
+        defaults=CRITICALITY_DEFAULTS, run=run_criticality, x="H", y="phi", stability=False),
     "savage-rheology": Scene(
         name="savage-rheology",
         summary="Savage's dense closure (ESI Table 2): p_con, sigma_con vs phi0, flow curves, banding above phi_c",
-        defaults=SAVAGE_DEFAULTS, run=run_savage, x="H", y="phi", adaptive=True),
+        defaults=SAVAGE_DEFAULTS, run=run_savage, x="H", y="phi", adaptive=True,
+        problem_factory=savage_factory, stability=False),
     "disks-steady": Scene(
         name="disks-steady",
         summary="seed 000's steady shear band of disks between bumpy walls (nu = 0.24, e = 0.85)",
-        defaults=STEADY_DEFAULTS, run=run_steady, x="H", y="phi", adaptive=True),
+        defaults=STEADY_DEFAULTS, run=run_steady, x="H", y="phi", adaptive=True,
+        problem_factory=steady_factory, stability=False),
 }

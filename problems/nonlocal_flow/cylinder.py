@@ -33,6 +33,7 @@ import scipy.sparse as sp
 from problems.discretization import make_grid
 
 from .closures import CriticalState, check_plane
+from .grids import NonlocalGridHooks
 
 Array = np.ndarray
 
@@ -46,7 +47,7 @@ DEFAULTS = {"W": 20.0, "ratio": 2.0, "ell": 3.0, "K": 0.63, "mu_w": 0.99 * 0.361
 OPERATORS = {"derived": (-3.0, 3.0, -1.0), "report": (1.0, -1.0, 1.0)}
 
 
-class CylindricalCouette:
+class CylindricalCouette(NonlocalGridHooks):
     """F(x, p) = 0 for cylindrical Couette flow; see the module docstring."""
 
     parameter_names = PARAMETERS
@@ -138,6 +139,11 @@ class CylindricalCouette:
         from contin.problem import complex_step_dp
 
         return complex_step_dp(self, x, p, name)
+
+    def with_grid(self, N: int) -> CylindricalCouette:
+        """The same model (method, critical state, operator) on N intervals (grid hooks:
+        :class:`problems.nonlocal_flow.grids.NonlocalGridHooks`)."""
+        return CylindricalCouette(self.grid.method, int(N), self.cs, operator=self.operator)
 
     def validate(self, p: Mapping[str, float]) -> None:
         check_plane(p["W"], p["K"], p["ell"], p["mu_w"], p["mu"])

@@ -33,6 +33,7 @@ import scipy.sparse as sp
 
 from problems.discretization import cell_integration_matrix, make_grid
 from problems.nonlocal_flow.closures import CriticalState, check_plane, mu_of_I
+from problems.nonlocal_flow.grids import NonlocalGridHooks, profile_tails
 
 Array = np.ndarray
 
@@ -49,23 +50,7 @@ DEFAULTS = {"W": 40.0, "ell": 3.0, "K": 1.65, "mu_w": 0.33, "mu": 0.3618, "phi_b
 #: Relative size below which a negative shear rate counts as discretization noise (admissible).
 NOISE = 1e-6
 
-#: Highest Chebyshev coefficients measured by :meth:`PlaneShear.under_resolved`.
-TAIL_MODES = 4
-
-
-def chebyshev_tail(values: Array) -> float:
-    """max |a_k| of the last TAIL_MODES Chebyshev coefficients of the interpolant through the
-    values at the ascending Gauss-Lobatto nodes (DCT-I, Trefethen 2000 ch. 8)."""
-    import scipy.fft as sfft
-
-    f = np.asarray(values, dtype=float)[::-1]
-    a = sfft.dct(f, type=1) / (f.size - 1)
-    a[0] *= 0.5
-    a[-1] *= 0.5
-    return float(np.max(np.abs(a[-TAIL_MODES:])))
-
-
-class PlaneShear:
+class PlaneShear(NonlocalGridHooks):
     """F(x, p) = 0 for plane shear; see the module docstring."""
 
     parameter_names = PARAMETERS
@@ -184,6 +169,11 @@ class PlaneShear:
         return complex_step_dp(self, x, p, name)
 
     # ------------------------------------------------------------------ hooks
+    def with_grid(self, N: int) -> PlaneShear:
+        """The same model (method, critical state, phi model) on N intervals (grid hooks:
+        :class:`problems.nonlocal_flow.grids.NonlocalGridHooks`)."""
+        return PlaneShear(self.grid.method, int(N), self.cs, phi_model=self.phi_model)
+
     def validate(self, p: Mapping[str, float]) -> None:
         check_plane(p["W"], p["K"], p["ell"], p["mu_w"], p["mu"])
         check_mean(p["phi_bar"], self.cs)
@@ -216,9 +206,7 @@ class PlaneShear:
         if self.grid.method != "cheb":
             return None
         phi, g, _ = self.split(x)
-        eg = chebyshev_tail(g) / max(float(np.max(np.abs(g))), 1e-300)
-        span = float(np.ptp(phi))
-        ephi = chebyshev_tail(phi) / span if span > 1e-12 else 0.0
+        ephi, eg = profile_tails(phi, g)
         worst = max(eg, ephi)
         if worst > tol:
             name = "gamma" if eg >= ephi else "phi"

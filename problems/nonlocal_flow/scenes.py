@@ -22,6 +22,17 @@
   the phi equation (report Fig. 4), for which P = U^2 P_1 and the profiles do not depend on U
   (checked along the branch).
 Branch ids are deterministic (``--resume`` reuses finished branches).
+
+Rebuilding a file's problem (``Scene.problem_factory``, for ``contin verify`` and ``contin
+continue``; the problems have the grid hooks of :mod:`problems.nonlocal_flow.grids`):
+``nonlocal-shear`` stores states of one problem (every branch is :class:`PlaneShear` with the
+file's critical state; the pairs and the uniform branch differ only in parameters, which the
+branches store as columns).  ``nonlocal-cylinder`` does with ``report_eqs=1`` (the report's
+operator alone); its default run stores branches of two operators (``derived.ratio``,
+``report.ratio``), and its factory refuses those files in one sentence.  ``nonlocal-muI`` has
+none: ``muI.U`` and ``phiI.U`` are states of two problems (the non-local phi equation and the
+local phi(I) law), whatever its parameters.  None has a linear-stability operator (the mean
+constraint and the boundary rows are algebraic), so all are ``Scene(stability=False)``.
 """
 
 from __future__ import annotations
@@ -269,6 +280,18 @@ def run_muI(request: SceneRequest) -> SceneResult:
     )
 
 
+def _grid_of(discretization: Mapping[str, Any]) -> tuple[str, int]:
+    """(method, intervals) of a stored run (the scenes' default grid is cheb 48)."""
+    return str(discretization.get("method", "cheb")), int(discretization.get("intervals", discretization.get("grid", 48)))
+
+
+def shear_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> PlaneShear:
+    """The problem of a nonlocal-shear run: plane shear with the file's critical state."""
+    method, n = _grid_of(discretization)
+    cs = critical_state({k: float(parameters.get(k, v)) for k, v in CS_DEFAULTS.items()})
+    return PlaneShear(method, n, cs)
+
+
 CYL_SCENE_DEFAULTS: dict[str, Any] = {**CYL_DEFAULTS, "mu_w": CYL_DEFAULTS["mu_w"], **CS_DEFAULTS,
                                       "ratio_min": 1.1, "ratio_max": 6.0, "report_eqs": 0.0}
 
@@ -318,6 +341,19 @@ def run_cylinder(request: SceneRequest) -> SceneResult:
     )
 
 
+def cylinder_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> CylindricalCouette:
+    """The problem of a nonlocal-cylinder run with ``report_eqs=1`` (the report's operator only).
+
+    A default run stores the branches of two operators (derived.ratio, report.ratio): refused."""
+    if float(parameters.get("report_eqs", 0.0)) != 1.0:
+        raise SceneError("nonlocal-cylinder with report_eqs = 0 stores the branches of two problems (the derived "
+                         "operator, derived.ratio, and the report's, report.ratio), so no single problem can be "
+                         "rebuilt; trace -s report_eqs=1 for a file of one problem")
+    method, n = _grid_of(discretization)
+    cs = critical_state({k: float(parameters.get(k, v)) for k, v in CS_DEFAULTS.items()})
+    return CylindricalCouette(method, n, cs, operator="report")
+
+
 SCENES = {
     "nonlocal-shear": Scene(
         name="nonlocal-shear",
@@ -326,6 +362,8 @@ SCENES = {
         run=run_shear,
         x="ell",
         y="delta",
+        problem_factory=shear_factory,
+        stability=False,
     ),
     "nonlocal-muI": Scene(
         name="nonlocal-muI",
@@ -334,6 +372,7 @@ SCENES = {
         run=run_muI,
         x="U",
         y="delta",
+        stability=False,  # and no problem_factory: muI.U and phiI.U are states of two problems
     ),
     "nonlocal-cylinder": Scene(
         name="nonlocal-cylinder",
@@ -342,5 +381,7 @@ SCENES = {
         run=run_cylinder,
         x="ratio",
         y="phi",
+        problem_factory=cylinder_factory,
+        stability=False,
     ),
 }

@@ -1,0 +1,70 @@
+"""Grid hooks of the non-local problems (``contin.adapt``'s ``grid_size``, ``with_grid``,
+``transfer``, ``error_estimate``), so that ``contin verify`` can re-solve their stored points on
+a finer grid.
+
+Both problems (:class:`problems.nonlocal_flow.plane.PlaneShear`,
+:class:`problems.nonlocal_flow.cylinder.CylindricalCouette`) lay out their states alike: two
+profiles on the grid (phi and g = W gamma, or phi and u) and the scalar P.  The estimate is the
+measure of plane shear's resolution guard: the tail of the profiles' Chebyshev coefficients,
+phi's relative to its variation across the gap and the second profile's relative to its maximum.
+On finite-difference grids there is no such estimate (NaN: ``contin verify`` reports the measured
+error only); the scenes are not adaptive (``Scene.adaptive`` is False), so no tracer relies on it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+Array = np.ndarray
+
+#: Highest Chebyshev coefficients measured (as plane shear's resolution guard).
+TAIL_MODES = 4
+
+
+def chebyshev_tail(values: Array) -> float:
+    """max |a_k| of the last TAIL_MODES Chebyshev coefficients of the interpolant through the
+    values at the ascending Gauss-Lobatto nodes (DCT-I, Trefethen 2000 ch. 8)."""
+    import scipy.fft as sfft
+
+    f = np.asarray(values, dtype=float)[::-1]
+    a = sfft.dct(f, type=1) / (f.size - 1)
+    a[0] *= 0.5
+    a[-1] *= 0.5
+    return float(np.max(np.abs(a[-TAIL_MODES:])))
+
+
+def profile_tails(phi: Array, other: Array) -> tuple[float, float]:
+    """(tail of phi / its variation (0 for a flat phi), tail of the other profile / its maximum)."""
+    span = float(np.ptp(phi))
+    e_phi = chebyshev_tail(phi) / span if span > 1e-12 else 0.0
+    e_other = chebyshev_tail(other) / max(float(np.max(np.abs(other))), 1e-300)
+    return e_phi, e_other
+
+
+class NonlocalGridHooks:
+    """Mixin for a problem with ``grid``, ``split(x) -> (phi, profile, P)`` and ``with_grid(N)``."""
+
+    @property
+    def grid_size(self) -> int:
+        """Number of grid intervals N."""
+        return int(self.grid.intervals)  # type: ignore[attr-defined]
+
+    def transfer(self, x: Array, other: Any) -> Array:
+        """A state carried onto ``other``'s grid: both profiles by this grid's interpolant, P
+        unchanged (linear in x)."""
+        phi, f, P = self.split(np.asarray(x, dtype=float))  # type: ignore[attr-defined]
+        y = other.grid.y
+        grid = self.grid  # type: ignore[attr-defined]
+        return np.concatenate([grid.interpolate(phi, y), grid.interpolate(f, y), [P]])
+
+    def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
+        """Estimated relative error of x: the larger of :func:`profile_tails` on Chebyshev grids,
+        NaN on finite-difference grids (module docstring)."""
+        if self.grid.method != "cheb":  # type: ignore[attr-defined]
+            return math.nan
+        phi, f, _ = self.split(np.asarray(x, dtype=float))  # type: ignore[attr-defined]
+        return max(profile_tails(phi, f))
