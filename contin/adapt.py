@@ -191,6 +191,13 @@ ROUNDING_SHARE = 0.01
 #: its change measured against max(|p|, PARAM_SCALE_FLOOR) there instead of a vanishing |p|.
 PARAM_SCALE_FLOOR = 1e-3
 
+#: An LP whose bracket's tangent estimate is at most this multiple of special_tol is located on
+#: the grid in force and left to its two-grid check (Adaptor.pre_locate): an LP's position error
+#: measured 0.07x (gPCF nu = 0.16 fold, cheb 32: 1.5e-9 against 2.1e-8) and 0.12x (Bratu cheb 20:
+#: 2.6e-9 against 2.2e-8) of its tangent's tail, so within 3x of special_tol it most often meets
+#: it; further off, refining first saves the second location.
+LP_LOCATE_MARGIN = 3.0
+
 #: Estimates remembered by an Adaptor (the last few points: a bracket's ends, the last accepted).
 ESTIMATE_CACHE = 8
 
@@ -591,9 +598,10 @@ class Adaptor:
         point's own estimate is still checked (``trace``), so a kernel that the ends misjudge
         as resolved is refined after the location as before.  Only the first refinement of a
         chain is taken here (see below); ``special_refinable`` is honoured.  ``checkable``: the
-        located point will get a two-grid check of its position (a symmetry-breaking BP,
-        :func:`contin.specialcheck.check_located`): it is located here unless even the square of the estimate
-        exceeds special_tol (comment below)."""
+        located point will get a two-grid check of its position (an LP, or a symmetry-breaking
+        BP: :func:`contin.specialcheck.check_located`): it is located here unless the
+        estimate's square (BP) or the estimate over LP_LOCATE_MARGIN (LP) exceeds special_tol
+        (comment below)."""
         if kind not in ("LP", "BP") or not has(system.problem, "vector_error") or self._special is not None:
             # After a special-point refinement that has not yet produced a resolved point, the
             # located point's estimate decides (special_refinable's test for a grid-scale mode
@@ -610,13 +618,14 @@ class Adaptor:
         self.kernel = kernel  # the refinement's grid (refine, ``vector``) follows the better resolved end
         if err <= special_tol:
             return None
-        if checkable and err * err <= special_tol:
-            # A symmetry-breaking BP's position converges about as the square of its kernel
-            # (an eigenvalue's error, against its eigenvector's: gPCF H_1^c on cheb 8, kernel
-            # 3.9e-3, position 4.2e-6): locate here, and the located point's two-grid check
-            # (contin.specialcheck.check_located) decides; a failed check refines and locates again.  Not for an
-            # LP, whose position error is of the order of its tangent's tail (Bratu cheb 20:
-            # 2.6e-9 against 2.2e-8), so that the rule would locate twice.
+        if checkable and self.opts.check_factor is not None and (
+                err * err <= special_tol if kind == "BP" else err <= LP_LOCATE_MARGIN * special_tol):
+            # The located point's two-grid check (contin.specialcheck.check_located) measures its
+            # position, which the kernel's tail over-states: locate here and let the check
+            # decide (a failed check refines and locates again).  A symmetry-breaking BP's
+            # position converges about as the square of its kernel (an eigenvalue's error
+            # against its eigenvector's: gPCF H_1^c on cheb 8, kernel 3.9e-3, position 4.2e-6);
+            # an LP's is a fraction of its tangent's tail (LP_LOCATE_MARGIN).
             return None
         if not self.special_refinable(err):
             return None

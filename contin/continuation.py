@@ -580,7 +580,7 @@ def trace(
         special_tol = min(options.adapt.tol, options.adapt.special_tol)
         tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(
             tracer.system, kind, a, b, special_tol,
-            checkable=kind == "BP" and tracer.anti is not None)
+            checkable=kind == "LP" or (kind == "BP" and tracer.anti is not None))
 
     def refine_first(why: _RefineFirst, cur: _Point, new: _Point, stepped: _Point,
                      direction_vec: Array) -> list[SpecialPoint] | None:
