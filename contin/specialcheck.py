@@ -47,6 +47,11 @@ import numpy as np
 from contin.options import AdaptOptions
 from contin.problem import Array
 
+#: A position check whose error is at most this (relative) is not acted on where the kernel's
+#: estimate met special_tol: below it the check's own rounding (its step solves a bordered
+#: system with condition ~ 1/distance next to the point) can exceed the discretization's part.
+POSITION_FLOOR = 1e-9
+
 #: Relative step of the central difference of J phi along the branch tangent.
 DIFFERENCE_STEP = 1e-6
 

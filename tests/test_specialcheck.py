@@ -189,3 +189,44 @@ def test_cli_trace_special_tol_keeps_a_checked_bp_and_says_so(tmp_path):
     assert [round(b.params["lam"]) for b in bps] == [1, 4, 9]
     for k, bp in zip((1, 2, 3), bps):
         assert abs(bp.params["lam"] / k**2 - 1) <= 1e-6
+
+
+def test_fd_bp_position_measured_where_the_kernel_estimate_is_blind():
+    """gPCF fd4 (problems.couette; the core test of the same rule is Allen-Cahn fd2 below): the
+    kernel estimate of an FD grid is the Chebyshev tail of its profiles, which does not see the
+    scheme's error (4.9e-8 on fd4 16, where H_1^c is 2.9e-5 off n pi psi).  The position check
+    runs on every located BP and refines until the measured error meets special_tol, although
+    it falls only 1.2x from fd4 16 to 32 (pre-asymptotic): H_1^c within 1e-6 (it was 1.4e-5 off,
+    on fd4 32, without a note)."""
+    from contin.options import DetectionOptions
+    from problems.couette import pitchfork as pf
+    from problems.couette.model import CouetteProblem
+
+    exact = pf.analytic_critical_gaps(0.3, 0.8, 1)[0]  # n pi psi
+    pb = CouetteProblem("fd4", 16)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    o = ContinuationOptions(bounds={"H": (0.8 * exact, 1.2 * exact)}, step=StepOptions(ds=0.1 * exact, ds_max=0.3 * exact),
+                            detection=DetectionOptions(), adapt=AdaptOptions(tol=1e-5, special_tol=1e-6))
+    (bp,) = pf.trace_base(pb, p, 0.8 * exact, o).branch_points
+    assert abs(bp.params["H"] / exact - 1) <= 1e-6
+    assert bp.grid > 32 and "not resolved" not in bp.note
+
+
+def test_fd2_bp_at_max_grid_is_flagged_not_silent():
+    """Allen-Cahn fd2 from 16, special_tol 1e-6: the BPs need ~N = 900 (second order: lam_1 is
+    off by ~(pi/N)^2/12), beyond max_grid 512, so each is stored with a note saying its position
+    is not resolved, and lam_1's measured error on fd2 512 is the closed form's difference to
+    fd2 1024 (lam_k(N) = (4/h^2) sin^2(k h/2))."""
+    pb = AllenCahn("fd2", 16)
+    o = ContinuationOptions(bounds={"lam": (0.5, 10.0)}, max_steps=200, step=StepOptions(ds=0.3, ds_max=1.0),
+                            adapt=AdaptOptions(tol=1e-6, min_grid=8, special_tol=1e-6))
+    b = trace(pb, pb.initial(), {"lam": 0.5}, "lam", o)
+    bps = b.points("BP")
+    assert [round(x.params["lam"]) for x in bps] == [1, 4, 9]
+    for bp in bps:
+        assert "position not resolved by refinement" in bp.note
+    first = bps[0]
+    assert first.grid == 512 and first.params["lam"] == pytest.approx(fd2_eigenvalue(1, 512), rel=1e-10)  # located
+    line = next(a for a in b.audit if a.startswith(f"located BP at lam={first.params['lam']:.10g} on grid 512"))
+    measured = float(line.split("two-grid error of its position ")[1].split()[0])
+    assert measured == pytest.approx(abs(fd2_eigenvalue(1, 1024) / fd2_eigenvalue(1, 512) - 1), rel=0.05)
