@@ -363,10 +363,20 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
 def state_factorization(problem: Any, u: Array, p: Any) -> Any:
     """LU of the problem's J(u, p) (None where exactly singular), taken from its optional
     ``dense_jacobian`` hook where the factorization is dense anyway (``contin.problem``)."""
-    from contin.linalg import dense_factorization, factorize
+    from contin.linalg import factorize
+
+    return factorize(factorizable_jacobian(problem, u, p))
+
+
+def factorizable_jacobian(problem: Any, u: Array, p: Any) -> Any:
+    """J(u, p) as it is best handed to ``contin.linalg.factorize`` (or, bordered, to
+    ``factorize_bordered``): from the problem's optional ``dense_jacobian`` hook where the
+    factorization is dense anyway (the same entries, without building a sparse J only to copy it
+    densely), else the problem's (sparse) ``jacobian``."""
+    from contin.linalg import dense_factorization
 
     if not has(problem, "dense_jacobian"):
-        return factorize(problem.jacobian(u, p))
+        return problem.jacobian(u, p)
     dense = _DENSE_DECIDED.get(problem) if _weakrefable(problem) else None
     if dense is None:
         # the structure of J is the grid's, not the point's: decided once per problem (a
@@ -376,8 +386,8 @@ def state_factorization(problem: Any, u: Array, p: Any) -> Any:
         if _weakrefable(problem):
             _DENSE_DECIDED[problem] = dense
         if not dense:
-            return factorize(jac)
-    return factorize(problem.dense_jacobian(u, p) if dense else problem.jacobian(u, p))
+            return jac
+    return problem.dense_jacobian(u, p) if dense else problem.jacobian(u, p)
 
 
 #: problem -> whether its J factorizes densely (state_factorization).

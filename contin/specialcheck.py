@@ -115,7 +115,7 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
     so dp is the LP's parameter error to first order (module docstring).  None without
     ``check_factor`` or when the check grid rounds to the point's; error inf where the bordered
     matrix is singular there or the step is not finite."""
-    from contin.adapt import solution_error
+    from contin.adapt import factorizable_jacobian, solution_error
     from contin.linalg import factorize_bordered
 
     carried = _carried(problem, state, tangent, opts)
@@ -126,7 +126,8 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
     p = float(params[parameter])
     q = {k: float(v) for k, v in params.items()}
     with np.errstate(all="ignore"):
-        fact = factorize_bordered(fine.jacobian(u, q), np.asarray(fine.dresidual_dp(u, q, parameter), dtype=float).ravel(),
+        fact = factorize_bordered(factorizable_jacobian(fine, u, q),
+                                  np.asarray(fine.dresidual_dp(u, q, parameter), dtype=float).ravel(),
                                   np.append(t_u, float(t[-1])))
         if fact is None:
             return PointCheck(math.inf, n_f, math.inf)
@@ -147,7 +148,7 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     docstring).  None without ``check_factor``, when the check grid rounds to the point's, or
     when the check is not conclusive (the bordered correction needs a multiplier: the point is
     not on a symmetric branch as assumed); error inf where M is singular or a step not finite."""
-    from contin.adapt import solution_error
+    from contin.adapt import factorizable_jacobian, solution_error
     from contin.linalg import factorize_bordered, inf_norm
 
     carried = _carried(problem, state, tangent, opts)
@@ -164,7 +165,7 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     q = {k: float(v) for k, v in params.items()}
 
     def jac(v: Array, at: float) -> Any:
-        return fine.jacobian(v, {**q, parameter: at})
+        return factorizable_jacobian(fine, v, {**q, parameter: at})
 
     # the step along the tangent: relative to the state's and the parameter's size
     h = DIFFERENCE_STEP * max(1.0, float(np.max(np.abs(u))), abs(p)) / max(float(np.max(np.abs(t_u))), abs(t_p), 1e-300)
