@@ -252,3 +252,22 @@ def test_slice_of_a_regridded_branch_keeps_each_points_grid():
         q = {"lam": float(part.params["lam"][j])}
         assert part.state(j).size == part.grid[j] + 1
         assert np.max(np.abs(point_problem(pb, part, j).residual(part.state(j), q))) < 1e-8
+
+
+def test_fd4_demo_does_not_coarsen_below_its_reference_scheme(tmp_path):
+    """The demo BVPs' fd4 estimate is the defect against fd6 on the same nodes, which needs 12
+    intervals: on fewer the estimate is inf, so the start grid is not coarsened to min_grid 8
+    (that stopped `contin trace bratu --method fd4 --tol 1e-6` with 'grid too small: fd6 needs at
+    least 12 intervals, got 8').  The fold within 1e-6 of lam*."""
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    assert math.isinf(Bratu("fd4", 8).error_estimate(np.zeros(9), {"lam": 1.0}))
+    out = tmp_path / "b.h5"
+    r = CliRunner().invoke(main, ["trace", "bratu", "--method", "fd4", "--tol", "1e-6", "--no-stability", "-q", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    (b,), _ = io.load(out)
+    (lp,) = b.fold_points
+    assert abs(lp.params["lam"] / BRATU_FOLD - 1) <= 1e-6
+    assert int(np.min(b.grid)) >= 12
