@@ -517,7 +517,6 @@ class Adaptor:
         self.since_change = 0
         self.checks = 0  # two-grid checks done (solve_check)
         self.checked: float | None = None  # the last solve_check's error (None: estimate decided)
-        self.special_checks = 0  # two-grid checks of located special points (contin.specialcheck)
         #: (points, snapshot) of the last refinement, to undo it at a two-grid floor (solve_floor)
         self._undo: tuple[int, tuple, int] | None = None
         #: the grid in force was raised by the two-grid check, not by the estimate: coarsening is

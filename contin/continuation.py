@@ -578,9 +578,10 @@ def trace(
         return closure_start[key]
     if adaptor is not None:
         special_tol = min(options.adapt.tol, options.adapt.special_tol)
+        from contin.specialcheck import has_position_check
+
         tracer.pre_locate = lambda kind, a, b: adaptor.pre_locate(
-            tracer.system, kind, a, b, special_tol,
-            checkable=kind == "LP" or (kind == "BP" and tracer.anti is not None))
+            tracer.system, kind, a, b, special_tol, checkable=has_position_check(kind, tracer.anti is not None))
 
     def refine_first(why: _RefineFirst, cur: _Point, new: _Point, stepped: _Point,
                      direction_vec: Array) -> list[SpecialPoint] | None:
@@ -759,9 +760,10 @@ def trace(
         if adaptor is not None and found:
             # Special points are located on the grid in force; one that grid does not resolve
             # (state, or the kernel fixing its position) is located again on a finer grid.
-            err, kernel = -math.inf, None
+            err, kernel, kernels = -math.inf, None, []
             for sp in found:
                 e_sp = adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
+                kernels.append(None if adaptor.kernel is None else adaptor.kernel[1])
                 if e_sp > err:
                     err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
@@ -774,15 +776,15 @@ def trace(
             # measurement exceeds special_tol beyond the check's own rounding (POSITION_FLOOR).
             from contin.specialcheck import POSITION_FLOOR, check_located
 
-            checked = check_located(adaptor, system, found, tracer.anti is not None)
+            checked = check_located(adaptor, system, found, tracer.anti is not None, kernels)
             kinds = "/".join(sorted({sp.type for sp in found}))
-            if checked is not None and (err > special_tol or checked > max(special_tol, POSITION_FLOOR)):
+            measured = checked is not None and (err > special_tol or checked > max(special_tol, POSITION_FLOOR))
+            if measured:
                 tracer.audit.append(
                     f"located {kinds} at {parameter}={found[0].params[parameter]:.10g} on grid "
                     f"{system.problem.grid_size}: kernel estimate {err:.2g}, two-grid error of its position "
                     f"{checked:.2g} ({'meets' if checked <= special_tol else 'exceeds'} {special_tol:.2g})")
                 err = checked
-            measured = checked is not None and err == checked
             if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err, measured=measured):

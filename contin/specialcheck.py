@@ -197,37 +197,47 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, solution_error(fine, u, u_f + alpha * t_u, q))
 
 
-def check_located(adaptor: Any, system: Any, points: list[Any], symmetric: bool) -> float | None:
+def has_position_check(kind: str, symmetric: bool) -> bool:
+    """Whether a located point of ``kind`` gets :func:`check_located`'s check: an LP, or a BP on
+    an S-invariant branch (``symmetric``; the tracer's symmetry-breaking test)."""
+    return kind == "LP" or (kind == "BP" and symmetric)
+
+
+def check_located(adaptor: Any, system: Any, points: list[Any], symmetric: bool,
+                  kernels: list[Array | None] | None = None) -> float | None:
     """The measured error of where the located special points of one step lie (the worst over
     ``points``), for the tracer's adaptive resolution (``adaptor``: its
     ``contin.adapt.Adaptor``; ``system``: the extended system on the grid in force): each
     point's two-grid check (an LP's parameter, :func:`fold_point_error`; a symmetry-breaking
     BP's on an S-invariant branch, ``symmetric``, :func:`symmetric_bp_error`), combined with its
-    state's estimate.  None when some point has no check (another kind, a BP off a symmetric
-    branch, an inconclusive check, no ``check_factor``): the kernel estimate then decides.
+    state's estimate.  None when some point has no check (:func:`has_position_check`, an
+    inconclusive check, no ``check_factor``): the kernel estimate then decides.  ``kernels``:
+    each point's BP null vector where the tracer already has it (``Adaptor.special_error``),
+    else None (computed here).
 
-    The tracer calls it where the kernel estimate exceeds special_tol: that estimate
-    over-states the position's error (module docstring), and the check spares a refinement and
-    a second location where the position already meets it."""
+    The tracer calls it on every located point: where the kernel estimate exceeds special_tol,
+    which over-states the position's error (module docstring), the check spares a refinement
+    and a second location where the position already meets it; where the estimate meets
+    special_tol, it catches a position the estimate does not see (an FD scheme's error)."""
     from contin.adapt import DENSE_KERNEL_MAX, null_vector
 
     opts = adaptor.opts
     if opts.check_factor is None:
         return None
     worst = 0.0
-    for sp_ in points:
-        if sp_.tangent is None:
+    for i, sp_ in enumerate(points):
+        if sp_.tangent is None or not has_position_check(sp_.type, symmetric):
             return None
         x = system.pack(sp_.state, sp_.params[system.parameter])
         if sp_.type == "LP":
             check = fold_point_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent, opts)
-        elif sp_.type == "BP" and symmetric:
-            check = symmetric_bp_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent,
-                                       null_vector(system.state_jacobian(x, dense_ok=x.size - 1 <= DENSE_KERNEL_MAX)), opts)
         else:
-            return None
+            kernel = None if kernels is None else kernels[i]
+            if kernel is None:
+                kernel = null_vector(system.state_jacobian(x, dense_ok=x.size - 1 <= DENSE_KERNEL_MAX))
+            check = symmetric_bp_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent,
+                                       kernel, opts)
         if check is None:
             return None
-        adaptor.special_checks += 1
         worst = max(worst, adaptor.error(system, x), check.error)
     return worst
