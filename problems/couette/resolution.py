@@ -313,6 +313,15 @@ def _measure(problem: Any, x: Array, p: Mapping[str, Any]) -> tuple[Array, Array
     return coeffs, tail_v, scale_v, gap, limit
 
 
+def _field_errors(tail_v: Array, scale_v: Array, gap: float) -> tuple[list[float], list[float], list[float]]:
+    """(tails, scales, tail / scale) per field in FIELDS order, nu's scale capped by the gap to
+    packing (module docstring); a zero scale gives an inf error."""
+    tails = tail_v.tolist()
+    scales = scale_v.tolist()
+    scales[0] = min(scales[0], gap)  # FIELDS[0] is nu
+    return tails, scales, [t / s if s > 0 else math.inf for t, s in zip(tails, scales)]
+
+
 def _rounding(problem: Any, gap: float, limit: float) -> float:
     """:func:`rounding_estimate` of ``problem``'s grid (a problem with another closure states its
     own factor: problems.disks, 4.0, measured)."""
@@ -328,10 +337,8 @@ def resolution(problem: Any, x: Array, p: Mapping[str, Any], tol: float = 1e-5) 
     ``tol`` only enters the grid suggestion.  :func:`estimated_error` is its ``error`` alone.
     """
     coeffs, tail_v, scale_v, gap, limit = _measure(problem, x, p)
-    tails = dict(zip(FIELDS, tail_v.tolist()))
-    scales = dict(zip(FIELDS, scale_v.tolist()))
-    scales["nu"] = min(scales["nu"], gap)
-    errors = {k: tails[k] / scales[k] if scales[k] > 0 else math.inf for k in FIELDS}
+    tail_l, scale_l, error_l = _field_errors(tail_v, scale_v, gap)
+    tails, scales, errors = dict(zip(FIELDS, tail_l)), dict(zip(FIELDS, scale_l)), dict(zip(FIELDS, error_l))
     field = max(FIELDS, key=lambda k: errors[k])
     truncation = errors[field]
     rounding = _rounding(problem, gap, limit)
@@ -345,11 +352,8 @@ def estimated_error(problem: Any, x: Array, p: Mapping[str, Any]) -> float:
     field name and coefficients): the adaptive tracer's ``error_estimate`` of every accepted
     point.  The same operations on the same values (tested)."""
     _, tail_v, scale_v, gap, limit = _measure(problem, x, p)
-    tails = tail_v.tolist()
-    scales = scale_v.tolist()
-    scales[0] = min(scales[0], gap)  # FIELDS[0] is nu
     # max over the fields as resolution's max(FIELDS, key=...): the first largest (NaN as there)
-    truncation = max([t / s if s > 0 else math.inf for t, s in zip(tails, scales)])
+    truncation = max(_field_errors(tail_v, scale_v, gap)[2])
     return max(truncation, _rounding(problem, gap, limit))
 
 
