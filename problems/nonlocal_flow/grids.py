@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from problems.discretization import chebyshev_coefficients
+
 Array = np.ndarray
 
 #: Highest Chebyshev coefficients measured (as plane shear's resolution guard).
@@ -27,14 +29,9 @@ TAIL_MODES = 4
 
 def chebyshev_tail(values: Array) -> float:
     """max |a_k| of the last TAIL_MODES Chebyshev coefficients of the interpolant through the
-    values at the ascending Gauss-Lobatto nodes (DCT-I, Trefethen 2000 ch. 8)."""
-    import scipy.fft as sfft
-
-    f = np.asarray(values, dtype=float)[::-1]
-    a = sfft.dct(f, type=1) / (f.size - 1)
-    a[0] *= 0.5
-    a[-1] *= 0.5
-    return float(np.max(np.abs(a[-TAIL_MODES:])))
+    values at the ascending Gauss-Lobatto nodes (``problems.discretization.chebyshev_coefficients``,
+    the DCT-I of Trefethen 2000 ch. 8)."""
+    return float(np.max(np.abs(chebyshev_coefficients(values)[-TAIL_MODES:])))
 
 
 def profile_tails(phi: Array, other: Array) -> tuple[float, float]:
