@@ -34,8 +34,10 @@ compared with the cheapest fixed (method, N) run whose worst key-point error mee
 every state of the run for tol too, more than the fixed grids deliver (their states only pass
 the resolution guard, 3e-5).  A scene whose key points are special points of its traces
 (``Scene.special_key_points``) is also run asking the key points alone for tol ("key points":
-``special_tol`` = tol, the states at the scene's ``default_tol``, the fixed runs' guard), the
-request a user who wants a fold or branch point to tol makes (``contin trace --special-tol``).  ``repeats`` > 1 times every
+``special_tol`` = tol, the states at the scene's ``default_tol`` judged by their estimate alone,
+``solve_check`` False: the fixed runs' guard, no more; the key points' positions keep their
+two-grid checks, ``contin.specialcheck``), the request a user who wants a fold or branch point
+to tol makes (``contin trace --special-tol T --no-solve-check``).  ``repeats`` > 1 times every
 run that many times in interleaved rounds and keeps each run's smallest CPU time, so that a
 change of the machine's load shifts both sides of a cost ratio alike.
 """
@@ -108,7 +110,7 @@ class AdaptiveRow:
         (None / nan when no fixed run of the report meets it)
     ratio : cpu / fixed_cpu (nan without such a run)
     request : what asked for tol: "all" (states and key points) or "key points" (the key points,
-        states at the scene's default_tol; module docstring)
+        states at the scene's default_tol by their estimate; module docstring)
     """
 
     tol: float
@@ -277,9 +279,12 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
             # the key points are special points: the accuracy asked for is theirs as well
             # (special_tol = tol; the tracer's default 1e-10 would locate them far beyond tol,
             # a different request from the fixed grid it is compared with)
-            # ("key points": the states at the scene's default tol, the fixed runs' guard)
+            # ("key points": the states at the scene's default tol and judged by their estimate
+            # alone, solve_check False: the fixed runs' guard; the key points' positions keep
+            # their two-grid checks, contin.specialcheck)
             ov = dict(overrides or {}) if tol is None else {
-                "special_tol": tol, **dict(overrides or {}), "tol": tol if request == "all" else scene.default_tol}
+                "special_tol": tol, **dict(overrides or {}), "tol": tol if request == "all" else scene.default_tol,
+                **({} if request == "all" else {"solve_check": False})}
             try:
                 run = measure(scene, params, method, n, memory=memory and rnd == 0, overrides=ov, engine=engine)
             except ValueError as exc:

@@ -670,11 +670,11 @@ class Adaptor:
 
     def solve_check(self, system: Any, x: Array) -> float | None:
         """The two-grid error of the point x (:func:`two_grid_error`) if it exceeds tol, else None
-        (also without ``check_factor`` or on max_grid).  Called for a candidate whose estimate
+        (also without ``check_factor``, with ``solve_check`` False, or on max_grid).  Called for a candidate whose estimate
         meets tol: the estimate does not see the amplification by ||J^-1|| next to a BP/LP."""
         factor = self.opts.check_factor
         self.checked = None
-        if factor is None or self.error(system, x) <= self.opts.check_above * self.opts.tol:
+        if factor is None or not self.opts.solve_check or self.error(system, x) <= self.opts.check_above * self.opts.tol:
             return None
         self.checks += 1
         e = two_grid_error(system.problem, x[:-1], system.params_at(x[-1]), factor, self.opts)

@@ -435,7 +435,7 @@ class _Checks:
 
     @property
     def on(self) -> bool:
-        return self.opts.check_factor is not None
+        return self.opts.check_factor is not None and self.opts.solve_check
 
     def first_failure(self, aug: Any, seg: Branch, parameter: str, second: str,
                       theta: float, start: int = 0, stop: int | None = None) -> tuple[int, str] | None:
@@ -487,7 +487,8 @@ class _Checks:
 
     def summary(self) -> str:
         if not self.on:
-            return "two-grid check of the augmented solve: off (check_factor None)"
+            return ("two-grid check of the augmented solve: off ("
+                    + ("check_factor None)" if self.opts.check_factor is None else "solve_check False)"))
         return (f"two-grid check of the augmented solve: {self.count} checks, worst accepted error {self.worst:.2g} "
                 f"(tol {self.opts.tol:.2g}), {self.refused} points refused on their grid (recomputed on a finer one, or "
                 f"past max_grid the curve ends before them)")

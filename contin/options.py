@@ -173,6 +173,11 @@ class AdaptOptions:
         defect) measures how well the grid carries the state, not the error of the discrete
         solution, which is that truncation amplified by ||J^-1|| next to a BP or LP (issue 14:
         3-150x on coarse gPCF grids).  None switches the check off (CLI ``--no-solve-check``).
+    solve_check : whether the two-grid check of ``check_factor`` judges each accepted state (and
+        each point of a regridded fold curve) besides its estimate; False (CLI
+        ``--no-solve-check``) accepts states by their estimate alone, as the fixed-grid guard does,
+        and keeps the two-grid checks of located special points' positions
+        (``contin.specialcheck``), which ``check_factor = None`` switches off as well.
     check_above : the check runs only where the estimate exceeds check_above * tol: a state whose
         estimate is lower would miss tol only through an amplification above 1 / check_above
         (the largest measured, error / estimate on the gPCF main job, was 3e2); states exact on
@@ -189,6 +194,7 @@ class AdaptOptions:
     special_tol: float = 1e-10
     check_factor: float | None = 2.0
     check_above: float = 1e-4
+    solve_check: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.tol) and self.tol > 0):

@@ -111,7 +111,7 @@ class SceneRequest:
         if ov.get("tol") is not None:
             adapt = AdaptOptions(tol=float(ov["tol"]))
             if ov.get("solve_check") is False:  # --no-solve-check
-                adapt = dataclasses.replace(adapt, check_factor=None)
+                adapt = dataclasses.replace(adapt, solve_check=False)
             if ov.get("special_tol") is not None:  # --special-tol
                 adapt = dataclasses.replace(adapt, special_tol=float(ov["special_tol"]))
             kw["adapt"] = dataclasses.replace(adapt, max_grid=int(ov["max_grid"])) if ov.get("max_grid") else adapt

@@ -230,3 +230,30 @@ def test_fd2_bp_at_max_grid_is_flagged_not_silent():
     line = next(a for a in b.audit if a.startswith(f"located BP at lam={first.params['lam']:.10g} on grid 512"))
     measured = float(line.split("two-grid error of its position ")[1].split()[0])
     assert measured == pytest.approx(abs(fd2_eigenvalue(1, 1024) / fd2_eigenvalue(1, 512) - 1), rel=0.05)
+
+
+def test_no_solve_check_keeps_the_position_checks():
+    """``AdaptOptions.solve_check=False`` (CLI ``--no-solve-check``) accepts states by their estimate
+    alone but still measures each located BP's position: Allen-Cahn fd2 from 16, tol 1e-4,
+    special_tol 3e-5 -- every BP ends on a grid whose closed-form eigenvalue lam_k(N) is within
+    3e-5 of lam_k(2N) (what the check measures), and no state was refused by a solve check.
+    With ``check_factor=None`` (every two-grid check off) the kernel's estimate, blind to the FD
+    scheme's error, leaves lam_1 on a grid where it misses that by far."""
+    def run(**kw):
+        pb = AllenCahn("fd2", 16)
+        o = ContinuationOptions(bounds={"lam": (0.5, 10.0)}, max_steps=200, step=StepOptions(ds=0.3, ds_max=1.0),
+                                adapt=AdaptOptions(tol=1e-4, min_grid=8, special_tol=3e-5, **kw))
+        return trace(pb, pb.initial(), {"lam": 0.5}, "lam", o)
+
+    b = run(solve_check=False)
+    bps = b.points("BP")
+    assert [round(x.params["lam"]) for x in bps] == [1, 4, 9]
+    for k, bp in zip((1, 2, 3), bps):
+        assert bp.params["lam"] == pytest.approx(fd2_eigenvalue(k, bp.grid), rel=1e-9)
+        assert abs(fd2_eigenvalue(k, 2 * bp.grid) / bp.params["lam"] - 1) <= 3e-5
+        assert "not resolved" not in bp.note
+    assert any("two-grid error of its position" in a for a in b.audit)
+    assert not any("two-grid error above tol" in a for a in b.audit)
+
+    blind = run(check_factor=None).points("BP")[0]
+    assert abs(fd2_eigenvalue(1, 2 * blind.grid) / blind.params["lam"] - 1) > 1e-4

@@ -282,7 +282,7 @@ def test_cli_tol_regrids_to_the_bound(runs, tmp_path):
 
 def test_cli_no_solve_check_switches_the_two_grid_check_off(runs, tmp_path):
     """--tol checks every point's augmented solve on a twice finer grid (the curve's audit counts the
-    checks); --no-solve-check switches the check off (AdaptOptions.check_factor = None)."""
+    checks); --no-solve-check switches the check off (AdaptOptions.solve_check = False)."""
     fixed, _ = runs
     audits = {}
     for flag in ((), ("--no-solve-check",)):
@@ -292,7 +292,7 @@ def test_cli_no_solve_check_switches_the_two_grid_check_off(runs, tmp_path):
         (c,), _ = io.load(out)
         _check_against_closed_form(c, START)
         (audits[flag],) = [line for line in c.audit if line.startswith("two-grid check of the augmented solve: ")]
-    assert audits[("--no-solve-check",)].endswith(": off (check_factor None)")
+    assert audits[("--no-solve-check",)].endswith(": off (solve_check False)")
     checks = int(audits[()].split(": ")[1].split(" checks")[0])
     assert checks >= 10 and "worst accepted error" in audits[()]
 

@@ -68,7 +68,7 @@ def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
                    "curve ends with MX.")
 @click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
               help="With --tol: accept a point of the curve by the resolution guard alone, without the two-grid "
-                   "check of its augmented solve (AdaptOptions.check_factor = None; faster, but points next to a "
+                   "check of its augmented solve (AdaptOptions.solve_check = False; faster, but points next to a "
                    "fold can miss REL).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="HDF5 file of the curve.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
@@ -207,9 +207,10 @@ def _adaptive_setup(problem: Any, point: Any, options: Any, run_adapt: Any, tol:
     base = run_adapt if run_adapt is not None else AdaptOptions()
     refine = dataclasses.replace(base, tol=tol, max_grid=max_grid if max_grid is not None else base.max_grid)
     if not solve_check:
-        refine = dataclasses.replace(refine, check_factor=None)
-    elif refine.check_factor is None:
-        refine = dataclasses.replace(refine, check_factor=AdaptOptions().check_factor)
+        refine = dataclasses.replace(refine, solve_check=False)
+    elif refine.check_factor is None or not refine.solve_check:
+        refine = dataclasses.replace(refine, check_factor=refine.check_factor or AdaptOptions().check_factor,
+                                     solve_check=True)
     start = int(problem.grid_size)
     if refine.max_grid < start:
         fail(f"--max-grid ({refine.max_grid}) is below the grid of {point.name} ({start})")

@@ -192,8 +192,8 @@ def stability_messages(branch: Any) -> list[str]:
                    "[default 1e-10: special points far more accurate than the branch].")
 @click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
               help="Adaptive resolution: accept a point by its error estimate alone, without the two-grid check "
-                   "of its solve (AdaptOptions.check_factor = None; faster, but points next to a BP or LP can miss "
-                   "tol: check them with contin verify).")
+                   "of its solve (AdaptOptions.solve_check = False; faster, but points next to a BP or LP can miss "
+                   "tol: check them with contin verify). The two-grid checks of located LPs' and BPs' positions stay.")
 @engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
