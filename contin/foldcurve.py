@@ -389,7 +389,7 @@ def augmented_two_grid_error(augmented: Any, state: Array, tangent: Array, param
     Returns (error, check grid), None when the check grid rounds to the point's grid; the error
     is inf where the bordered Jacobian is singular or the correction is not finite.
     """
-    from contin.adapt import check_grid, solution_error
+    from contin.adapt import check_grid, richardson, solution_error
     from contin.extended import ExtendedSystem
     from contin.linalg import factorize_bordered
 
@@ -419,7 +419,7 @@ def augmented_two_grid_error(augmented: Any, state: Array, tangent: Array, param
     errors = [solution_error(fine.problem, u, u + du, q)]
     for j in (-2, -1):  # p2 (the last state entry), p1
         errors.append(abs(float(delta[j])) / max(abs(float(big[j] + delta[j])), PARAM_SCALE_FLOOR))
-    e = max(errors)
+    e = richardson(augmented.problem, n_f) * max(errors)
     return (e if math.isfinite(e) else math.inf), n_f
 
 

@@ -130,6 +130,12 @@ class Problem(Protocol):
         Relative error of state x against a reference solution ref on the same grid, in the
         norm of error_estimate (``contin.verify`` re-solves stored points on a finer grid and
         measures them with it; default: the state's relative max-norm difference).
+    convergence_order : float  (optional)
+        The algebraic order q of the discretization error (finite differences: 2, 4, 6; inf
+        for spectral methods; absent: unknown, taken as spectral).  A two-grid measurement is
+        the difference e_c - e_f of the coarse and fine errors, e_f ~ e_c (N_c/N_f)^q; every
+        two-grid check divides it by 1 - (N_c/N_f)^q (Richardson), so that an fd2 result is not
+        passed at 3/4 of its error (``contin.adapt.richardson``).
     """
 
     parameter_names: tuple[str, ...]

@@ -66,7 +66,8 @@ ROUNDING_TERMS = 100.0
 @dataclass(frozen=True)
 class PointCheck:
     """Result of a special point's two-grid check on the grid ``grid``: ``error``, the relative
-    error of the point's parameter (its position: |dp| / max(|p|, PARAM_SCALE_FLOOR));
+    error of the point's parameter (its position: |dp| / max(|p|, PARAM_SCALE_FLOOR), divided by
+    1 - (N/N_f)^q for a discretization of order q, ``contin.adapt.richardson``);
     ``parameter_shift`` dp; ``state_error``: the state's relative change (the solve's error,
     which the branch's own two-grid checks bound by tol)."""
 
@@ -115,7 +116,7 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
     so dp is the LP's parameter error to first order (module docstring).  None without
     ``check_factor`` or when the check grid rounds to the point's; error inf where the bordered
     matrix is singular there or the step is not finite."""
-    from contin.adapt import factorizable_jacobian, solution_error
+    from contin.adapt import factorizable_jacobian, richardson, solution_error
     from contin.linalg import factorize_bordered
 
     carried = _carried(problem, state, tangent, opts)
@@ -136,8 +137,9 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
         return PointCheck(math.inf, n_f, math.inf)
     dp = float(delta[-1])
     q[parameter] = p + dp
-    e = _relative_shift(dp, p + dp)
-    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, solution_error(fine, u, u + delta[:-1], q))
+    scale = richardson(problem, n_f)
+    e = scale * _relative_shift(dp, p + dp)
+    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u + delta[:-1], q))
 
 
 def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
@@ -148,7 +150,7 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     docstring).  None without ``check_factor``, when the check grid rounds to the point's, or
     when the check is not conclusive (the bordered correction needs a multiplier: the point is
     not on a symmetric branch as assumed); error inf where M is singular or a step not finite."""
-    from contin.adapt import factorizable_jacobian, solution_error
+    from contin.adapt import factorizable_jacobian, richardson, solution_error
     from contin.linalg import factorize_bordered, inf_norm
 
     carried = _carried(problem, state, tangent, opts)
@@ -193,8 +195,9 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     alpha = float(step[-1])
     dp = alpha * t_p
     q[parameter] = p + dp
-    e = _relative_shift(dp, p + dp)
-    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, solution_error(fine, u, u_f + alpha * t_u, q))
+    scale = richardson(problem, n_f)
+    e = scale * _relative_shift(dp, p + dp)
+    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u_f + alpha * t_u, q))
 
 
 def has_position_check(kind: str, symmetric: bool) -> bool:

@@ -21,8 +21,10 @@ the largest relative max-norm difference of the profiles nu, T, u, nu's against 
 packing, the scaling of their ``error_estimate``), else the relative max-norm of the state.
 This is a two-grid (Richardson-type) estimate of the coarse point's error e_c: the difference is
 e_c - e_f with the fine solution's error e_f ~ e_c factor^-q for a method of order q, so it
-under-states e_c by the fraction factor^-q (fd2 at factor 2: error_i ~ 0.75 e_c, measured 0.75-0.8
-on Bratu against the closed form; Chebyshev: e_f is negligible and error_i = e_c to 2 digits).  The order parameter's difference
+under-states e_c by the fraction factor^-q (fd2 at factor 2: 0.75 e_c, measured 0.75-0.8 on Bratu
+against the closed form; Chebyshev: e_f is negligible); error_i is that difference divided by
+1 - (N/N_f)^q (``contin.adapt.richardson``, the problem's ``convergence_order``: e_c in the
+asymptotic range).  The order parameter's difference
 is reported as well.  Points whose fine solve fails, or that sit on the largest grid already, are
 reported as not checked, never dropped.
 
@@ -40,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.adapt import solution_error  # the norm the tracer's two-grid check shares
+from contin.adapt import richardson, solution_error  # the norm and scaling the tracer's two-grid checks share
 from contin.problem import has
 
 __all__ = ["BranchCheck", "PointCheck", "fine_grid", "solution_error", "verify_branch"]
@@ -265,7 +267,7 @@ def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, facto
             out.append(PointCheck(i, p, n, n_f, estimate, math.nan, math.nan, why, singular=bool(special)))
             continue
         u_f = _polish(fine, res.u, p, tol)
-        err = solution_error(fine, moved, u_f, p)
+        err = richardson(coarse, n_f) * solution_error(fine, moved, u_f, p)
         obs = abs(_observable(coarse, u, p) - _observable(fine, u_f, p))
         special = _special_at(branch, i) if err > tol and i == 0 else ""
         if special.startswith("the start of a branch switched at"):

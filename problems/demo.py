@@ -113,6 +113,12 @@ class _DirichletBVP:
         """Number of grid intervals N."""
         return self.grid.intervals
 
+    @property
+    def convergence_order(self) -> float:
+        """The grid's nominal order (fd2/fd4/fd6: 2, 4, 6; Chebyshev: inf): the contin hook that
+        scales two-grid differences to the coarse grid's error (``contin.adapt.richardson``)."""
+        return float(self.grid.order)
+
     def with_grid(self, intervals: int) -> _DirichletBVP:
         """The same problem on the grid of the same method with ``intervals`` intervals."""
         return type(self)(self.grid.method, int(intervals))

@@ -41,6 +41,12 @@ class ResolutionHooks:
         """Number of grid intervals N (the size adaptive resolution changes)."""
         return self.N  # type: ignore[attr-defined, no-any-return]
 
+    @property
+    def convergence_order(self) -> float:
+        """The grid's nominal order (fd2/fd4/fd6: 2, 4, 6; Chebyshev: inf): the contin hook that
+        scales two-grid differences to the coarse grid's error (``contin.adapt.richardson``)."""
+        return float(self.grid.order)  # type: ignore[attr-defined]
+
     def transfer(self, x: Array, other: Any) -> Array:
         """A state (or the state part of a tangent) carried onto ``other``'s grid: the profiles
         nu, u, T (and M with gravity) by this grid's interpolant, P unchanged; linear in x."""

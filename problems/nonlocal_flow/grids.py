@@ -50,6 +50,12 @@ class NonlocalGridHooks:
         """Number of grid intervals N."""
         return int(self.grid.intervals)  # type: ignore[attr-defined]
 
+    @property
+    def convergence_order(self) -> float:
+        """The grid's nominal order (fd2/fd4/fd6: 2, 4, 6; Chebyshev: inf): the contin hook that
+        scales two-grid differences to the coarse grid's error (``contin.adapt.richardson``)."""
+        return float(self.grid.order)  # type: ignore[attr-defined]
+
     def transfer(self, x: Array, other: Any) -> Array:
         """A state carried onto ``other``'s grid: both profiles by this grid's interpolant, P
         unchanged (linear in x)."""
