@@ -537,6 +537,14 @@ class Adaptor:
         #: band past H = 18.05, 4.7e-4 / 2.1e-4 / 1.8e-5 / 2.3e-6 on cheb 48 / 80 / 160 / 256 at
         #: H = 18.8, 1.2e-12 on cheb 80 at H = 18.06)
         self.stalled = False
+        #: (parameter where the grid was refined, parameter of the located special point that
+        #: asked for it): no coarsening until the point is located again (the tracer clears it)
+        #: or the branch has passed it.  Without the hold, steps shortened on the way back to
+        #: the point (bpdetect's halvings) let the cooldown expire, and an exact state (estimate
+        #: 0) coarsened the grid before the point was reached: the Brusselator's HB on fd2 840
+        #: went back to 560, was located there again, and its measured error, not falling,
+        #: ended the refinement ("position not resolved" on 560).
+        self.hold: tuple[float, float] | None = None
 
     def special_refinable(self, err: float, measured: bool = False) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
@@ -936,6 +944,11 @@ class Adaptor:
             return
         sys = tracer.system
         cur = tracer.points[-1]
+        if self.hold is not None:
+            start, point = self.hold
+            if (float(cur.x[-1]) - point) * (start - point) > 0:
+                return  # the special point the grid was refined for lies ahead (``hold``)
+            self.hold = None
         err = self.error(sys, cur.x)
         if not (coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts)
                 or (self.check_raised and err <= COARSEN_MARGIN * opts.tol)):

@@ -760,6 +760,7 @@ def trace(
         if adaptor is not None and found:
             # Special points are located on the grid in force; one that grid does not resolve
             # (state, or the kernel fixing its position) is located again on a finer grid.
+            adaptor.hold = None  # a special point is located: the hold of the last refinement ends
             err, kernel, kernels = -math.inf, None, []
             for sp in found:
                 e_sp = adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
@@ -790,6 +791,7 @@ def trace(
             elif adaptor.special_refinable(err, measured=measured):
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol), measured=measured) is None:
+                    adaptor.hold = (float(tracer.points[-1].x[-1]), float(found[0].params[parameter]))
                     steps -= 1
                     adopt_grid()
                     continue
