@@ -31,10 +31,12 @@ sec. 2.12 for the tail estimate the spectral problems use):
   the pseudo-arclength hyperplane of the transferred tangent, tangent re-solved) and the step is
   retried from there.  The same happens when a located BP's null vector or an LP's tangent is
   under-resolved (``vector_error``), so special points are located on a grid that resolves them;
-  a located LP or symmetry-breaking BP also has its *position* two-grid checked
+  a located LP, Hopf point or symmetry-breaking BP also has its *position* two-grid checked
   (``contin.specialcheck``): the measurement replaces the kernel's estimate where that exceeds
   special_tol (which it over-states), and refines where the estimate meets special_tol but the
-  measurement does not (an FD grid's kernel estimate does not see the scheme's error);
+  measurement does not (an FD grid's kernel estimate does not see the scheme's error; a Hopf
+  point has no kernel estimate); a grid so refined is not coarsened before the point is located
+  again (``Adaptor.hold``);
   a step that brackets an LP/BP whose kernel the bracket's ends already show under-resolved
   refines before the location (:meth:`Adaptor.pre_locate`: located once, not twice);
 - an accepted point whose estimate fell below ``coarsen_below * tol`` is moved to a coarser grid

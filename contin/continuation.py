@@ -768,8 +768,8 @@ def trace(
                 if e_sp > err:
                     err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
-            # The position of a located LP / symmetry-breaking BP is measured (a two-grid check,
-            # contin.specialcheck) as well as estimated from its kernel's tail, which over-states
+            # The position of a located LP / HB / symmetry-breaking BP is measured (a two-grid check,
+            # contin.specialcheck) as well as estimated from its kernel's tail (an HB has none), which over-states
             # it on spectral grids and does not see an FD scheme's error at all (the tail of FD
             # profiles interpolated onto Chebyshev nodes: gPCF fd4 16 -> 32 located H_2^c 2.3e-4
             # off with special_tol 1e-6, its kernel "resolved").  The measurement decides where

@@ -18,6 +18,10 @@
 - :class:`Isola`: x^2 + (lam - c)^2 - r^2 = 0 (scalar); a closed curve with folds at lam = c +- r.
 - :class:`COOxidation`: BifurcationKit's CO-oxidation model (two Hopf points, two folds in q2;
   BT points on its Hopf and fold curves in (q2, k)).
+- :class:`Brusselator`: the 1-D Brusselator (Prigogine & Lefever 1968) as a two-field BVP with a
+  mass matrix; its homogeneous state has a Hopf point at b_H = 1 + a^2 + (D1 + D2) lam_1 / L^2
+  (lam_1 = pi^2, or the grid's smallest Dirichlet eigenvalue of -d^2/dx^2): the non-granular
+  test problem of the two-grid check of Hopf points (``contin.specialcheck.hopf_point_error``).
 - :class:`Lorenz`: the Lorenz (1963) system; its equilibria C+- = (+-sqrt(beta (rho - 1)), ..,
   rho - 1) lose stability at a subcritical Hopf point rho_H = sigma (sigma + beta + 3) /
   (sigma - beta - 1) (470/19 at sigma = 10, beta = 8/3) with omega^2 = beta (sigma + rho_H).
@@ -705,7 +709,8 @@ class Brusselator(_DirichletBVP):
         for f in fields:
             g = f - (f[0] + (f[-1] - f[0]) * s)
             size = float(np.max(np.abs(f), initial=0.0))
-            out.append(np.zeros_like(g) if float(np.max(np.abs(g), initial=0.0)) <= self.ROUNDING_ULPS * EPS * size else g)
+            rounding = float(np.max(np.abs(g), initial=0.0)) <= self.ROUNDING_ULPS * EPS * size
+            out.append(np.zeros_like(g) if rounding else g)
         return out[0], out[1]
 
     def vector_error(self, v: Array) -> float:
