@@ -598,17 +598,17 @@ class Brusselator(_DirichletBVP):
 
     def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
         super().__init__(method, intervals)
-        m = self.n
-        self.fields = 2
+        self.nodes = self.n  # N + 1 per field
+        self.n = 2 * self.nodes  # unknowns
         diag = np.tile(self.interior.astype(float), 2)
         self._mass = sp.diags(diag, format="csr")
         self._bc2 = sp.diags(1.0 - diag, format="csr")
-        self._scalar_n = m
+        self._mid_weights: Array | None = None
 
     # --- the two fields -----------------------------------------------------------------------
     def split(self, x: Array) -> tuple[Array, Array]:
         x = np.asarray(x)
-        return x[:self._scalar_n], x[self._scalar_n:]
+        return x[:self.nodes], x[self.nodes:]
 
     def residual(self, x: Array, p: Mapping[str, float]) -> Array:
         u, v = self.split(x)
@@ -661,7 +661,7 @@ class Brusselator(_DirichletBVP):
 
     def homogeneous(self, p: Mapping[str, float]) -> Array:
         """The homogeneous state (a, b/a)."""
-        return np.concatenate([np.full(self._scalar_n, float(p["a"])), np.full(self._scalar_n, p["b"] / p["a"])])
+        return np.concatenate([np.full(self.nodes, float(p["a"])), np.full(self.nodes, p["b"] / p["a"])])
 
     def order_parameter(self, x: Array, p: Mapping[str, float]) -> float:
         return float(self._mid @ self.split(x)[1])
@@ -672,7 +672,10 @@ class Brusselator(_DirichletBVP):
 
     @property
     def _mid(self) -> Array:
-        return point_weights(self.grid, 0.0)
+        """Interpolation weights of x = 1/2 (computed once per grid)."""
+        if self._mid_weights is None:
+            self._mid_weights = point_weights(self.grid, 0.0)
+        return self._mid_weights
 
     def dirichlet_eigenvalue(self) -> float:
         """The smallest eigenvalue of this grid's -d^2/dx^2 with Dirichlet ends (interior block)."""

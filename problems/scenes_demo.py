@@ -321,7 +321,7 @@ def _brusselator_problem(discretization: Mapping[str, Any]) -> Brusselator:
 def _brusselator_profiles(pb: Brusselator, state: Any) -> dict[str, np.ndarray]:
     """u and v of a state of any grid of ``pb``'s method on ``pb``'s nodes."""
     x = np.asarray(state, dtype=float)
-    if x.size != 2 * pb.n:
+    if x.size != pb.n:
         x = on_grid(pb, x.size // 2 - 1).transfer(x, pb)
     u, v = pb.split(x)
     return {"u": u, "v": v}
