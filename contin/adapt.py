@@ -31,10 +31,12 @@ sec. 2.12 for the tail estimate the spectral problems use):
   the pseudo-arclength hyperplane of the transferred tangent, tangent re-solved) and the step is
   retried from there.  The same happens when a located BP's null vector or an LP's tangent is
   under-resolved (``vector_error``), so special points are located on a grid that resolves them;
-  a located LP or symmetry-breaking BP also has its *position* two-grid checked
+  a located LP, Hopf point or symmetry-breaking BP also has its *position* two-grid checked
   (``contin.specialcheck``): the measurement replaces the kernel's estimate where that exceeds
   special_tol (which it over-states), and refines where the estimate meets special_tol but the
-  measurement does not (an FD grid's kernel estimate does not see the scheme's error);
+  measurement does not (an FD grid's kernel estimate does not see the scheme's error; a Hopf
+  point has no kernel estimate); a grid so refined is not coarsened before the point is located
+  again (``Adaptor.hold``);
   a step that brackets an LP/BP whose kernel the bracket's ends already show under-resolved
   refines before the location (:meth:`Adaptor.pre_locate`: located once, not twice);
 - an accepted point whose estimate fell below ``coarsen_below * tol`` is moved to a coarser grid
@@ -555,6 +557,14 @@ class Adaptor:
         #: band past H = 18.05, 4.7e-4 / 2.1e-4 / 1.8e-5 / 2.3e-6 on cheb 48 / 80 / 160 / 256 at
         #: H = 18.8, 1.2e-12 on cheb 80 at H = 18.06)
         self.stalled = False
+        #: (parameter where the grid was refined, parameter of the located special point that
+        #: asked for it): no coarsening until the point is located again (the tracer clears it)
+        #: or the branch has passed it.  Without the hold, steps shortened on the way back to
+        #: the point (bpdetect's halvings) let the cooldown expire, and an exact state (estimate
+        #: 0) coarsened the grid before the point was reached: the Brusselator's HB on fd2 840
+        #: went back to 560, was located there again, and its measured error, not falling,
+        #: ended the refinement ("position not resolved" on 560).
+        self.hold: tuple[float, float] | None = None
 
     def special_refinable(self, err: float, measured: bool = False) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
@@ -954,6 +964,11 @@ class Adaptor:
             return
         sys = tracer.system
         cur = tracer.points[-1]
+        if self.hold is not None:
+            start, point = self.hold
+            if (float(cur.x[-1]) - point) * (start - point) > 0:
+                return  # the special point the grid was refined for lies ahead (``hold``)
+            self.hold = None
         err = self.error(sys, cur.x)
         if not (coarsen_worth(sys.problem, cur.x[:-1], sys.params_at(cur.x[-1]), err, opts)
                 or (self.check_raised and err <= COARSEN_MARGIN * opts.tol)):

@@ -760,6 +760,7 @@ def trace(
         if adaptor is not None and found:
             # Special points are located on the grid in force; one that grid does not resolve
             # (state, or the kernel fixing its position) is located again on a finer grid.
+            adaptor.hold = None  # a special point is located: the hold of the last refinement ends
             err, kernel, kernels = -math.inf, None, []
             for sp in found:
                 e_sp = adaptor.special_error(system, sp.type, system.pack(sp.state, sp.params[parameter]), sp.tangent)
@@ -767,8 +768,8 @@ def trace(
                 if e_sp > err:
                     err, kernel = e_sp, adaptor.kernel
             special_tol = min(options.adapt.tol, options.adapt.special_tol)
-            # The position of a located LP / symmetry-breaking BP is measured (a two-grid check,
-            # contin.specialcheck) as well as estimated from its kernel's tail, which over-states
+            # The position of a located LP / HB / symmetry-breaking BP is measured (a two-grid check,
+            # contin.specialcheck) as well as estimated from its kernel's tail (an HB has none), which over-states
             # it on spectral grids and does not see an FD scheme's error at all (the tail of FD
             # profiles interpolated onto Chebyshev nodes: gPCF fd4 16 -> 32 located H_2^c 2.3e-4
             # off with special_tol 1e-6, its kernel "resolved").  The measurement decides where
@@ -790,6 +791,7 @@ def trace(
             elif adaptor.special_refinable(err, measured=measured):
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol), measured=measured) is None:
+                    adaptor.hold = (float(tracer.points[-1].x[-1]), float(found[0].params[parameter]))
                     steps -= 1
                     adopt_grid()
                     continue

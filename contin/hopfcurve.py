@@ -26,7 +26,9 @@ function psi^T M phi / (|psi| |phi|) changes sign there (Govaerts 2000, sec. 4.3
 
 M is taken as constant (independent of u and p), as everywhere in contin's Hopf code.  The
 second derivatives the augmented Jacobian needs are central differences of the problem's
-Jacobian along v and w (as ``contin.foldcurve`` does along phi).
+Jacobian along v and w (as ``contin.foldcurve`` does along phi).  The augmented system itself
+(:class:`HopfCurveProblem`, :func:`hopf_basis`) lives in ``contin.hopfsystem``, which the
+two-grid check of located Hopf points (``contin.specialcheck``) shares.
 """
 
 from __future__ import annotations
@@ -37,170 +39,18 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from contin.branch import Branch, SpecialPoint
+from contin.hopfsystem import HopfCurveProblem, KappaTest, _mass, hopf_basis
 from contin.options import ContinuationOptions
 from contin.pointtests import Crossing
-from contin.problem import Array, has
+from contin.problem import Array
 from contin.testfunctions import signed_value
 
-#: Relative step of the central differences of J and F_p along v, w.
-FD_EPS = 1e-6
-#: Augmented systems with at most this many unknowns get a dense Jacobian.
-DENSE_AUGMENTED = 300
-
-
-def _mass(problem: Any, u: Array, q: Mapping[str, float], n: int) -> sp.csr_matrix:
-    if has(problem, "mass_matrix"):
-        return sp.csr_matrix(problem.mass_matrix(u, q), dtype=float)
-    return sp.identity(n, format="csr")
-
-
-class HopfCurveProblem:
-    """The augmented Hopf system as a contin Problem (state U = [u, v, w, kappa, p2])."""
-
-    def __init__(self, problem: Any, second: str, normalisation: Array, phase: Array, eps: float = FD_EPS) -> None:
-        self.problem = problem
-        self.second = second
-        self.parameter_names = tuple(problem.parameter_names)
-        self.c = np.asarray(normalisation, float)
-        self.d = np.asarray(phase, float)
-        self.n = self.c.size
-        self.eps = eps
-        self._m: sp.csr_matrix | None = None
-
-    def split(self, state: Array, p: Mapping[str, float]) -> tuple[Array, Array, Array, float, dict[str, float]]:
-        n = self.n
-        q = dict(p)
-        q[self.second] = float(state[3 * n + 1])
-        return state[:n], state[n:2 * n], state[2 * n:3 * n], float(state[3 * n]), q
-
-    def mass(self, u: Array, q: Mapping[str, float]) -> sp.csr_matrix:
-        if self._m is None:
-            self._m = _mass(self.problem, u, q, self.n)
-        return self._m
-
-    def residual(self, state: Array, p: Mapping[str, float]) -> Array:
-        u, v, w, kappa, q = self.split(state, p)
-        jac = self.problem.jacobian(u, q)
-        m = self.mass(u, q)
-        return np.concatenate([self.problem.residual(u, q), jac @ v - m @ w, jac @ w + kappa * (m @ v),
-                               [self.c @ v - 1.0, self.d @ v]])
-
-    def _step(self, u: Array, d: Array) -> float:
-        return self.eps * max(1.0, float(np.max(np.abs(u)))) / max(float(np.max(np.abs(d))), 1e-300)
-
-    def _hessian(self, u: Array, d: Array, q: Mapping[str, float]) -> Any:
-        """d/du (J d) by a central difference of J along d (sparse or dense as J comes)."""
-        h = self._step(u, d)
-        plus, minus = self.problem.jacobian(u + h * d, q), self.problem.jacobian(u - h * d, q)
-        if sp.issparse(plus) or sp.issparse(minus):
-            return (sp.csr_matrix(plus) - sp.csr_matrix(minus)) / (2 * h)
-        return (np.asarray(plus) - np.asarray(minus)) / (2 * h)
-
-    def _mixed(self, u: Array, d: Array, q: Mapping[str, float], name: str) -> Array:
-        """d/dp (J d) = d/du(F_p) d, by a central difference along d."""
-        h = self._step(u, d)
-        fp = self.problem.dresidual_dp
-        return (fp(u + h * d, q, name) - fp(u - h * d, q, name)) / (2 * h)
-
-    def jacobian(self, state: Array, p: Mapping[str, float]) -> sp.csr_matrix | Array:
-        """The augmented Jacobian: dense below :data:`DENSE_AUGMENTED` unknowns (assembling
-        scipy.sparse blocks costs far more than the dense arithmetic there), else sparse."""
-        u, v, w, kappa, q = self.split(state, p)
-        if 3 * self.n + 2 <= DENSE_AUGMENTED:
-            return self._dense_jacobian(u, v, w, kappa, q)
-        jac = sp.csr_matrix(self.problem.jacobian(u, q))
-        m = self.mass(u, q)
-        col = lambda a: sp.csr_matrix(np.asarray(a, float)[:, None])  # noqa: E731
-        row = sp.csr_matrix(self.c[None, :])
-        row_d = sp.csr_matrix(self.d[None, :])
-        blocks = [
-            [jac, None, None, None, col(self.problem.dresidual_dp(u, q, self.second))],
-            [self._hessian(u, v, q), jac, -m, None, col(self._mixed(u, v, q, self.second))],
-            [self._hessian(u, w, q), kappa * m, jac, col(m @ v), col(self._mixed(u, w, q, self.second))],
-            [None, row, None, None, None],
-            [None, row_d, None, None, None],
-        ]
-        return sp.bmat(blocks, format="csr")
-
-    def _dense_jacobian(self, u: Array, v: Array, w: Array, kappa: float, q: Mapping[str, float]) -> Array:
-        n = self.n
-
-        def dense(a: Any) -> Array:
-            return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
-
-        jac = dense(self.problem.jacobian(u, q))
-        m = dense(self.mass(u, q))
-        out = np.zeros((3 * n + 2, 3 * n + 2))
-        out[:n, :n] = jac
-        out[:n, -1] = self.problem.dresidual_dp(u, q, self.second)
-        out[n:2 * n, :n] = dense(self._hessian(u, v, q))
-        out[n:2 * n, n:2 * n] = jac
-        out[n:2 * n, 2 * n:3 * n] = -m
-        out[n:2 * n, -1] = self._mixed(u, v, q, self.second)
-        out[2 * n:3 * n, :n] = dense(self._hessian(u, w, q))
-        out[2 * n:3 * n, n:2 * n] = kappa * m
-        out[2 * n:3 * n, 2 * n:3 * n] = jac
-        out[2 * n:3 * n, 3 * n] = m @ v
-        out[2 * n:3 * n, -1] = self._mixed(u, w, q, self.second)
-        out[3 * n, n:2 * n] = self.c
-        out[3 * n + 1, n:2 * n] = self.d
-        return out
-
-    def dresidual_dp(self, state: Array, p: Mapping[str, float], name: str) -> Array:
-        u, v, w, _, q = self.split(state, p)
-        return np.concatenate([self.problem.dresidual_dp(u, q, name), self._mixed(u, v, q, name),
-                               self._mixed(u, w, q, name), [0.0, 0.0]])
-
-    def order_parameter(self, state: Array, p: Mapping[str, float]) -> float:
-        u, _, _, _, q = self.split(state, p)
-        if has(self.problem, "order_parameter"):
-            return float(self.problem.order_parameter(u, q))
-        return float(np.linalg.norm(u))
-
-    def observables(self, state: Array, p: Mapping[str, float]) -> dict[str, float]:
-        u, _, _, kappa, q = self.split(state, p)
-        out = dict(self.problem.observables(u, q)) if has(self.problem, "observables") else {}
-        out[self.second] = float(state[3 * self.n + 1])
-        out["kappa"] = kappa  # omega^2 on Hopf points, -lambda^2 on neutral saddles (finite: HDF5-safe)
-        return out
-
-    def admissible(self, state: Array, p: Mapping[str, float]) -> str | None:
-        u, _, _, _, q = self.split(state, p)
-        return self.problem.admissible(u, q) if has(self.problem, "admissible") else None
-
-    def under_resolved(self, state: Array, p: Mapping[str, float], tol: float) -> str | None:
-        if not has(self.problem, "under_resolved"):
-            return None
-        u, _, _, _, q = self.split(state, p)
-        reason = self.problem.under_resolved(u, q, tol)
-        return None if reason is None else f"{reason} (at {self.second} = {q[self.second]:.6g})"
-
-    def point_tests(self) -> list[Any]:
-        """BT: the sign change of kappa (module docstring)."""
-        return [KappaTest(self.n)]
-
-
-@dataclass(frozen=True)
-class KappaTest:
-    """Point test of a Hopf curve: kappa = omega^2 changes sign at a Bogdanov-Takens point."""
-
-    n: int
-    name: str = "bt"
-    kind: str = "BT"
-
-    def value(self, system: Any, x: Array) -> float:
-        return float(x[3 * self.n])
-
-    def crossings(self, va: float, vb: float) -> list[Crossing]:
-        if va == 0 or vb == 0 or (va > 0) == (vb > 0):
-            return []
-        return [("Bogdanov-Takens (kappa = omega^2 = 0)", float)]
-
-    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
-        return replace(sp_, data={**sp_.data, "kappa": float(x[3 * self.n])})
+#: the public API (the augmented system's classes are ``contin.hopfsystem``'s, listed here too:
+#: the Hopf-curve API they belong to)
+__all__ = ["HopfCurveProblem", "KappaTest", "as_hopf_curve", "fold_bt_test", "hopf_basis", "hopf_curve_start",
+           "trace_hopf_curve"]
 
 
 def hopf_curve_start(problem: Any, point: SpecialPoint, second: str) -> tuple[HopfCurveProblem, Array]:
@@ -208,10 +58,8 @@ def hopf_curve_start(problem: Any, point: SpecialPoint, second: str) -> tuple[Ho
 
     q (J q = i omega M q) is rotated by a phase so that Re q is orthogonal to Im q; then
     v = Re q / |Re q| (J v = -omega M Im q / |Re q|, so w = -omega Im q / |Re q|), c = v and
-    d = Im q / |Im q| give c . v = 1, d . v = 0.
+    d = Im q / |Im q| give c . v = 1, d . v = 0 (:func:`hopf_basis`).
     """
-    from contin.hopf import hopf_vectors
-
     if point.type != "HB":
         raise ValueError(f"a Hopf curve starts at an HB point, got {point.name} ({point.type})")
     omega = point.data.get("omega", math.nan)
@@ -219,20 +67,8 @@ def hopf_curve_start(problem: Any, point: SpecialPoint, second: str) -> tuple[Ho
         raise ValueError(f"{point.name} has no positive omega")
     u = np.asarray(point.state, float)
     params = dict(point.params)
-    jac = problem.jacobian(u, params)
-    n = u.size
-    m = _mass(problem, u, params, n)
-    q, _ = hopf_vectors(jac, m, omega)
-    # phase with Re q . Im q = 0: q e^{i t}, tan 2t = 2 a.b / (|a|^2 - |b|^2) ... solved numerically
-    a, b = q.real, q.imag
-    t = 0.5 * math.atan2(-2 * float(a @ b), float(a @ a - b @ b))
-    q = q * complex(math.cos(t), math.sin(t))
-    v = q.real.copy()
-    w = -omega * q.imag
-    scale = float(v @ v)
-    v, w = v / math.sqrt(scale), w / math.sqrt(scale)
+    v, w, d = hopf_basis(problem, u, params, omega)
     c = v.copy()  # c . v = 1
-    d = q.imag / np.linalg.norm(q.imag)  # d . v = 0 (Re q . Im q = 0)
     curve = HopfCurveProblem(problem, second, c, d)
     return curve, np.concatenate([u, v, w, [omega**2, params[second]]])
 

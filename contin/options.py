@@ -160,8 +160,8 @@ class AdaptOptions:
     multiple : grid sizes are rounded up to a multiple of this.
     cooldown : accepted steps after a grid change before coarsening is tried again.
     special_tol : largest relative error of a located special point's position: estimated by the
-        kernel that fixes it (a BP's null vector, an LP's tangent) and, for an LP or a
-        symmetry-breaking BP, measured by a two-grid check (``contin.specialcheck``, which decides
+        kernel that fixes it (a BP's null vector, an LP's tangent) and, for an LP, a Hopf point or
+        a symmetry-breaking BP, measured by a two-grid check (``contin.specialcheck``, which decides
         where both exist); the point is located again on a finer grid above min(tol, special_tol).  Default 1e-10: the states of a branch may carry
         tol = 3e-5, but BPs and LPs keep the accuracy of a fine fixed grid (gPCF H_n^c to ~1e-13
         at a cheb 16-32 kernel instead of 1e-8 at cheb 12; the kernel converges spectrally).

@@ -1,5 +1,5 @@
-"""Two-grid checks of located special points: how far an LP or a BP lies from where a finer
-grid puts it, measured instead of inferred from the tail of its kernel.
+"""Two-grid checks of located special points: how far an LP, a BP or a Hopf point lies from
+where a finer grid puts it, measured instead of inferred from the tail of its kernel.
 
 Adaptive resolution (``contin.adapt``) locates LPs and BPs on the grid in force and, where the
 kernel that fixes a point's position (an LP's tangent, a BP's null vector) has a coefficient
@@ -28,6 +28,12 @@ spectral grids, 1 - factor^-q of it for FD of order q).
   (transcritical, or on branches without a symmetry) have no check: a fixed-parameter
   correction next to them is ambiguous between the crossing branches, and they keep the
   kernel-tail rule.
+- HB (Hopf point): one Newton step of the Hopf defining system F = 0, J q = i omega M q,
+  c^H q = 1 in (u, q, omega, p), in the real form of ``contin.hopfsystem``, from the carried
+  state and critical eigenvector (:func:`hopf_point_error`).  A Hopf point has no kernel of J
+  whose tail could be estimated: without this check only its state's estimate judged it, and an
+  HB located on a coarse FD grid kept the scheme's O(h^2) error (Brusselator fd2 8: b_H 5e-4
+  off) without a note, whatever special_tol asked for.
 
 The error of the position is the parameter's relative change |dp| / max(|p|,
 PARAM_SCALE_FLOOR); the state's relative change (the problem's ``solution_error`` norm,
@@ -200,10 +206,83 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u_f + alpha * t_u, q))
 
 
+def hopf_point_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
+                     tangent: Array, omega: float, eigenvector: Array | None, opts: AdaptOptions) -> PointCheck | None:
+    """Two-grid error of a located Hopf point (state u, parameter p, frequency omega, the critical
+    eigenvector q with J q = i omega M q; M the problem's ``mass_matrix``, else I): u and q are
+    carried onto the check grid (the problem's linear ``transfer`` of Re q and Im q) and one
+    Newton step of the Hopf defining system in (u, q, omega, p) is solved there,
+
+        F(u, p) = 0,   J(u, p) q - i omega M q = 0,   c^H q = 1   (c: the carried q),
+
+    in the real form of :class:`contin.hopfsystem.HopfCurveProblem` (Govaerts, *Numerical
+    Methods for Bifurcations of Dynamical Equilibria*, SIAM 2000, sec. 4.4.2; Kuznetsov,
+    *Elements of Applied Bifurcation Theory*, 3rd ed., sec. 10.2): with q scaled so that
+    v = Re q has |v| = 1 and v . Im q = 0 (:func:`contin.hopfsystem.hopf_basis`) and w = M^-1 J v
+    = -omega Im q, the unknowns (u, v, w, kappa = omega^2, p) solve
+
+        F = 0,   J v - M w = 0,   J w + kappa M v = 0,   c . v = 1,   d . v = 0,
+
+    c = v_f / |v_f|^2 and d the carried w made orthogonal to v_f (v_f: the carried v), so the
+    two rows hold at the carried point (the real and imaginary part of c^H q = 1 up to the
+    phase, which d fixes).  Its Jacobian is regular at a Hopf point whose pair crosses with
+    non-zero speed (the derivatives of J q in u and p: central differences of J, as
+    :func:`symmetric_bp_error`'s m).  The step's dp is the Hopf parameter's error to first
+    order (the carried q is not the fine eigenvector: O(dp^2) remains).  ``eigenvector``: q on
+    the point's grid, or None (computed here by inverse iteration from J - i omega M,
+    :func:`contin.hopf.hopf_vectors`).  None without ``check_factor``, when the check grid rounds
+    to the point's, without a positive finite omega, for problems with their own
+    ``eigenproblem`` (their pencil is not (J, M)), or when no eigenvector is found; error inf
+    where the augmented Jacobian is singular or the step not finite."""
+    from contin.adapt import richardson, solution_error
+    from contin.hopfsystem import HopfCurveProblem, hopf_basis
+    from contin.linalg import factorize
+    from contin.problem import has
+
+    if not (math.isfinite(omega) and omega > 0) or has(problem, "eigenproblem"):
+        return None
+    carried = _carried(problem, state, tangent, opts)
+    if carried is None:
+        return None
+    n_f, fine, u, _ = carried
+    p = float(params[parameter])
+    q = {k: float(v) for k, v in params.items()}
+    try:
+        with np.errstate(all="ignore"):
+            v, w, _ = hopf_basis(problem, np.asarray(state, dtype=float), q, omega,
+                                 None if eigenvector is None else np.asarray(eigenvector, dtype=complex))
+    except (np.linalg.LinAlgError, RuntimeError, ValueError, ZeroDivisionError):
+        return None
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(w))):
+        return None
+    v_f = np.asarray(problem.transfer(v, fine), dtype=float)
+    w_f = np.asarray(problem.transfer(w, fine), dtype=float)
+    vv = float(v_f @ v_f)
+    d = w_f - (float(w_f @ v_f) / vv) * v_f if vv > 0 else w_f
+    dd = float(np.linalg.norm(d))
+    if not (vv > 0 and dd > 0):
+        return None
+    curve = HopfCurveProblem(fine, parameter, v_f / vv, d / dd)
+    x = np.concatenate([u, v_f, w_f, [omega * omega, p]])
+    with np.errstate(all="ignore"):
+        fact = factorize(curve.jacobian(x, q))
+        if fact is None:
+            return PointCheck(math.inf, n_f, math.inf)
+        delta = fact.solve(-np.asarray(curve.residual(x, q), dtype=float))
+    if not np.all(np.isfinite(delta)):
+        return PointCheck(math.inf, n_f, math.inf)
+    dp = float(delta[-1])
+    q[parameter] = p + dp
+    scale = richardson(problem, n_f)
+    e = scale * _relative_shift(dp, p + dp)
+    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u + delta[:u.size], q))
+
+
 def has_position_check(kind: str, symmetric: bool) -> bool:
-    """Whether a located point of ``kind`` gets :func:`check_located`'s check: an LP, or a BP on
-    an S-invariant branch (``symmetric``; the tracer's symmetry-breaking test)."""
-    return kind == "LP" or (kind == "BP" and symmetric)
+    """Whether a located point of ``kind`` gets :func:`check_located`'s check: an LP, a Hopf
+    point (HB), or a BP on an S-invariant branch (``symmetric``; the tracer's symmetry-breaking
+    test)."""
+    return kind in ("LP", "HB") or (kind == "BP" and symmetric)
 
 
 def check_located(adaptor: Any, system: Any, points: list[Any], symmetric: bool,
@@ -211,8 +290,9 @@ def check_located(adaptor: Any, system: Any, points: list[Any], symmetric: bool,
     """The measured error of where the located special points of one step lie (the worst over
     ``points``), for the tracer's adaptive resolution (``adaptor``: its
     ``contin.adapt.Adaptor``; ``system``: the extended system on the grid in force): each
-    point's two-grid check (an LP's parameter, :func:`fold_point_error`; a symmetry-breaking
-    BP's on an S-invariant branch, ``symmetric``, :func:`symmetric_bp_error`), combined with its
+    point's two-grid check (an LP's parameter, :func:`fold_point_error`; a Hopf point's,
+    :func:`hopf_point_error`; a symmetry-breaking BP's on an S-invariant branch,
+    ``symmetric``, :func:`symmetric_bp_error`), combined with its
     state's estimate.  None when some point has no check (:func:`has_position_check`, an
     inconclusive check, no ``check_factor``): the kernel estimate then decides.  ``kernels``:
     each point's BP null vector where the tracer already has it (``Adaptor.special_error``),
@@ -234,6 +314,11 @@ def check_located(adaptor: Any, system: Any, points: list[Any], symmetric: bool,
         x = system.pack(sp_.state, sp_.params[system.parameter])
         if sp_.type == "LP":
             check = fold_point_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent, opts)
+        elif sp_.type == "HB":
+            # the HB's omega is the point test's (contin.hopf); its eigenvector is not stored, so
+            # hopf_point_error recomputes it on the point's grid (one LU of J - i omega M)
+            check = hopf_point_error(system.problem, sp_.state, sp_.params, system.parameter, sp_.tangent,
+                                     float(sp_.data.get("omega", math.nan)), None, opts)
         else:
             kernel = None if kernels is None else kernels[i]
             if kernel is None:

@@ -18,6 +18,10 @@
 - :class:`Isola`: x^2 + (lam - c)^2 - r^2 = 0 (scalar); a closed curve with folds at lam = c +- r.
 - :class:`COOxidation`: BifurcationKit's CO-oxidation model (two Hopf points, two folds in q2;
   BT points on its Hopf and fold curves in (q2, k)).
+- :class:`Brusselator`: the 1-D Brusselator (Prigogine & Lefever 1968) as a two-field BVP with a
+  mass matrix; its homogeneous state has a Hopf point at b_H = 1 + a^2 + (D1 + D2) lam_1 / L^2
+  (lam_1 = pi^2, or the grid's smallest Dirichlet eigenvalue of -d^2/dx^2): the non-granular
+  test problem of the two-grid check of Hopf points (``contin.specialcheck.hopf_point_error``).
 - :class:`Lorenz`: the Lorenz (1963) system; its equilibria C+- = (+-sqrt(beta (rho - 1)), ..,
   rho - 1) lose stability at a subcritical Hopf point rho_H = sigma (sigma + beta + 3) /
   (sigma - beta - 1) (470/19 at sigma = 10, beta = 8/3) with omega^2 = beta (sigma + rho_H).
@@ -39,6 +43,8 @@ from problems.discretization import (MIN_INTERVALS, Grid, chebyshev_coefficients
                                      make_grid)
 
 Array = np.ndarray
+
+EPS = float(np.finfo(float).eps)
 
 #: The Bratu fold (Gel'fand 1963; e.g. Mohsen, Comput. Math. Appl. 2014, to 16 digits).
 BRATU_FOLD = 3.513830719125162
@@ -565,3 +571,171 @@ class COOxidation:
                    "q4": [0, 0, z - p["k"] * s], "q5": [-2 * x * x, 0, 0], "q6": [0, -y, 0],
                    "k": [0, 0, -p["q4"] * s]}
         return np.array(columns[name], dtype=float)
+
+
+class Brusselator(_DirichletBVP):
+    """The 1-D Brusselator (Prigogine & Lefever 1968) as a two-field BVP on x in [0, 1]:
+
+        u_t = (D1/L^2) u_xx + a - (b + 1) u + u^2 v,   v_t = (D2/L^2) v_xx + b u - u^2 v,
+        u = a, v = b/a at both ends,
+
+    state [u at the nodes, v at the nodes] (2 (N + 1) unknowns), parameters b, a, D1, D2, L; the
+    mass matrix is the identity on the interior rows and zero on the boundary rows.  The
+    homogeneous state (a, b/a) solves it for every b (exact on every grid).  Its linearisation
+    on a Dirichlet eigenfunction of -d^2/dx^2 with eigenvalue lam_k (k^2 pi^2 in the continuum)
+    has trace b - 1 - a^2 - (D1 + D2) lam_k / L^2 and determinant
+    a^2 (1 + d1) + d2 (d1 + 1 - b) (d_i = D_i lam_k / L^2), so the first Hopf point (k = 1,
+    where that determinant is > 0) is at
+
+        b_H = 1 + a^2 + (D1 + D2) lam_1 / L^2,   omega_H^2 = a^2 (1 + d1 - d2) - d2^2
+
+    (:meth:`hopf_point`); on a grid lam_1 is the smallest eigenvalue of the discrete -d^2/dx^2
+    with Dirichlet ends (fd2: 4/h^2 sin^2(pi h / 2)), the same formula (the fields share the
+    operator, so the pencil splits mode by mode exactly).  At the defaults (a = 2, D1 = 0.02,
+    D2 = 0.01, L = 1) b_H = 5 + 0.03 pi^2 = 5.2961, omega_H = 2.094, the next Hopf point
+    (k = 2) at b = 6.18 and the first Turing instability (a real eigenvalue through 0) at
+    b = 14.7: the Hopf point is the first instability.
+    """
+
+    parameter_names = ("b", "a", "D1", "D2", "L")
+    PARAMS = {"a": 2.0, "D1": 0.02, "D2": 0.01, "L": 1.0}
+    #: A field's non-linear part at most this many ulps of the field is rounding (:meth:`_fields`).
+    ROUNDING_ULPS = 1e3
+
+    def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
+        super().__init__(method, intervals)
+        self.nodes = self.n  # N + 1 per field
+        self.n = 2 * self.nodes  # unknowns
+        diag = np.tile(self.interior.astype(float), 2)
+        self._mass = sp.diags(diag, format="csr")
+        self._bc2 = sp.diags(1.0 - diag, format="csr")
+        self._mid_weights: Array | None = None
+
+    # --- the two fields -----------------------------------------------------------------------
+    def split(self, x: Array) -> tuple[Array, Array]:
+        x = np.asarray(x)
+        return x[:self.nodes], x[self.nodes:]
+
+    def residual(self, x: Array, p: Mapping[str, float]) -> Array:
+        u, v = self.split(x)
+        a, b, l2 = p["a"], p["b"], p["L"] ** 2
+        inner = self.interior
+        fu = p["D1"] / l2 * (self._d2 @ u) + np.where(inner, a - (b + 1.0) * u + u * u * v, 0.0)
+        fv = p["D2"] / l2 * (self._d2 @ v) + np.where(inner, b * u - u * u * v, 0.0)
+        fu[~inner] = u[~inner] - a
+        fv[~inner] = v[~inner] - b / a
+        return np.concatenate([fu, fv])
+
+    def jacobian(self, x: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        u, v = self.split(x)
+        b, l2 = p["b"], p["L"] ** 2
+        inner = self.interior.astype(float)
+        return sp.csr_matrix(sp.bmat([
+            [p["D1"] / l2 * self._d2 + sp.diags(inner * (2.0 * u * v - (b + 1.0))), sp.diags(inner * u * u)],
+            [sp.diags(inner * (b - 2.0 * u * v)), p["D2"] / l2 * self._d2 - sp.diags(inner * u * u)],
+        ]) + self._bc2)
+
+    def mass_matrix(self, x: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        """The identity on the interior rows (dynamics), zero on the boundary rows (algebraic)."""
+        return self._mass
+
+    def dresidual_dp(self, x: Array, p: Mapping[str, float], name: str) -> Array:
+        u, v = self.split(x)
+        inner = self.interior
+        a, b, l2 = p["a"], p["b"], p["L"] ** 2
+        zero = np.zeros_like(u, dtype=float)
+        if name == "b":
+            fu, fv = np.where(inner, -u, 0.0), np.where(inner, u, -1.0 / a)
+        elif name == "a":
+            fu, fv = np.where(inner, 1.0, -1.0), np.where(inner, 0.0, b / a**2)
+        elif name == "D1":
+            fu, fv = self._d2 @ u / l2, zero
+        elif name == "D2":
+            fu, fv = zero, self._d2 @ v / l2
+        elif name == "L":
+            fu, fv = -2.0 * p["D1"] / l2 / p["L"] * (self._d2 @ u), -2.0 * p["D2"] / l2 / p["L"] * (self._d2 @ v)
+        else:
+            raise ValueError(f"unknown parameter {name!r}")
+        return np.concatenate([fu, fv])
+
+    def validate(self, p: Mapping[str, float]) -> None:
+        for name in self.parameter_names:
+            if not np.isfinite(p[name]):
+                raise ValueError(f"{name} must be finite, got {p[name]}")
+        if p["a"] == 0 or p["L"] <= 0:
+            raise ValueError(f"need a != 0 and L > 0, got a={p['a']}, L={p['L']}")
+
+    def homogeneous(self, p: Mapping[str, float]) -> Array:
+        """The homogeneous state (a, b/a)."""
+        return np.concatenate([np.full(self.nodes, float(p["a"])), np.full(self.nodes, p["b"] / p["a"])])
+
+    def order_parameter(self, x: Array, p: Mapping[str, float]) -> float:
+        return float(self._mid @ self.split(x)[1])
+
+    def observables(self, x: Array, p: Mapping[str, float]) -> dict[str, float]:
+        u, v = self.split(x)
+        return {"u_mid": float(self._mid @ u), "v_mid": float(self._mid @ v)}
+
+    @property
+    def _mid(self) -> Array:
+        """Interpolation weights of x = 1/2 (computed once per grid)."""
+        if self._mid_weights is None:
+            self._mid_weights = point_weights(self.grid, 0.0)
+        return self._mid_weights
+
+    def dirichlet_eigenvalue(self) -> float:
+        """The smallest eigenvalue of this grid's -d^2/dx^2 with Dirichlet ends (interior block)."""
+        inner = self.grid.d2[1:-1, 1:-1]
+        w = np.linalg.eigvals(-inner.toarray() if sp.issparse(inner) else -np.asarray(inner))
+        return float(np.min(w.real))
+
+    @staticmethod
+    def hopf_point(p: Mapping[str, float], lam: float = math.pi**2) -> tuple[float, float]:
+        """(b_H, omega_H) of the k = 1 Hopf point for the Dirichlet eigenvalue lam (class docstring)."""
+        a, l2 = p["a"], p["L"] ** 2
+        d1, d2 = p["D1"] * lam / l2, p["D2"] * lam / l2
+        return 1.0 + a * a + d1 + d2, math.sqrt(a * a * (1.0 + d1 - d2) - d2 * d2)
+
+    # --- grid hooks: the scalar grid's, field by field ---------------------------------------
+    def transfer(self, x: Array, other: Brusselator) -> Array:
+        """Each field carried by the grid's interpolant (linear, exact at the walls)."""
+        x = np.asarray(x, dtype=float)
+        cols = np.stack(self.split(x), axis=1)
+        return np.asarray(self.grid.interpolate(cols, other.grid.y), dtype=float).T.ravel()
+
+    def _fields(self, v: Array) -> tuple[Array, Array]:
+        """The two fields of v as the scalar estimates see them: on FD grids less their linear
+        part between the walls, which every scheme differentiates exactly, and a remainder at
+        the field's rounding level (ROUNDING_ULPS) taken as 0: the defect estimate of the
+        homogeneous state (a, b/a) is then 0, not rounding over rounding (fd4's D2 of a
+        Newton-corrected constant is ~1e-13, and so is its defect: estimate 1.3); Chebyshev
+        tails are relative to the whole field."""
+        fields = self.split(np.asarray(v, dtype=float))
+        if self.grid.method == "cheb":
+            return fields
+        s = self.grid.y + 0.5
+        out = []
+        for f in fields:
+            g = f - (f[0] + (f[-1] - f[0]) * s)
+            size = float(np.max(np.abs(f), initial=0.0))
+            rounding = float(np.max(np.abs(g), initial=0.0)) <= self.ROUNDING_ULPS * EPS * size
+            out.append(np.zeros_like(g) if rounding else g)
+        return out[0], out[1]
+
+    def vector_error(self, v: Array) -> float:
+        """The larger of the two fields' estimates (:meth:`_DirichletBVP.vector_error`)."""
+        return max(_DirichletBVP.vector_error(self, f) for f in self._fields(v))
+
+    def suggest_vector_grid(self, v: Array, tol: float) -> float:
+        return max(_field_suggestion(self, f, tol) for f in self._fields(v))
+
+    def suggest_grid(self, x: Array, p: Mapping[str, float], tol: float) -> float:
+        return self.suggest_vector_grid(x, tol)
+
+
+def _field_suggestion(pb: _DirichletBVP, f: Array, tol: float) -> float:
+    """:meth:`_DirichletBVP.suggest_vector_grid` of one field f of a multi-field problem (its
+    ``vector_error`` is the fields', not f's)."""
+    scalar = _DirichletBVP.__new__(_DirichletBVP)
+    scalar.grid = pb.grid
+    return _DirichletBVP.suggest_vector_grid(scalar, f, tol)

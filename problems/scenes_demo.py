@@ -17,6 +17,11 @@
   regridding).
 - ``lorenz``: the Lorenz equilibrium C+ for rho in [rho_min, rho_max] (sigma = 10, beta = 8/3 by
   default): a subcritical Hopf point (HB) at rho = 470/19 with omega and l1.
+- ``brusselator``: the 1-D Brusselator (problems.demo.Brusselator, fields u and v on x in [0, 1],
+  u = a, v = b/a at the ends): the homogeneous state traced in b over [b_min, b_max]; its first
+  Hopf point (HB) against the closed form b_H = 1 + a^2 + (D1 + D2) pi^2 / L^2.  Adaptive like
+  bratu (``--tol``, ``--special-tol``): the homogeneous state is exact on every grid, so the HB's
+  two-grid position check (``contin.specialcheck.hopf_point_error``) alone chooses its grid.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
 from contin.resume import switch_reusing
 from contin.scene import DiagramStart, Scene, SceneError, SceneRequest, SceneResult, scene_numbers
-from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Lorenz, StretchedBratu
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Brusselator, Lorenz, StretchedBratu
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -> dict[str, float]:
@@ -306,6 +311,53 @@ def run_lorenz(request: SceneRequest) -> SceneResult:
     return SceneResult(branches=done, parameters=p, notes=notes)
 
 
+BRUSSELATOR_DEFAULTS = {**Brusselator.PARAMS, "b_min": 4.0, "b_max": 6.0}
+
+
+def _brusselator_problem(discretization: Mapping[str, Any]) -> Brusselator:
+    return _make(Brusselator, discretization.get("method"), int(discretization.get("intervals") or 32))
+
+
+def _brusselator_profiles(pb: Brusselator, state: Any) -> dict[str, np.ndarray]:
+    """u and v of a state of any grid of ``pb``'s method on ``pb``'s nodes."""
+    x = np.asarray(state, dtype=float)
+    if x.size != pb.n:
+        x = on_grid(pb, x.size // 2 - 1).transfer(x, pb)
+    u, v = pb.split(x)
+    return {"u": u, "v": v}
+
+
+def run_brusselator(request: SceneRequest) -> SceneResult:
+    """The homogeneous state (a, b/a) from b_min to b_max; its HBs against the closed form."""
+    p = _numbers(request, BRUSSELATOR_DEFAULTS, "brusselator")
+    if not p["b_min"] < p["b_max"]:
+        raise SceneError(f"need b_min < b_max, got b_min={p['b_min']:g}, b_max={p['b_max']:g}")
+    if p["a"] == 0 or not p["L"] > 0 or not (p["D1"] >= 0 and p["D2"] >= 0):
+        raise SceneError(f"need a != 0, L > 0, D1, D2 >= 0, got a={p['a']:g}, L={p['L']:g}, D1={p['D1']:g}, "
+                         f"D2={p['D2']:g}")
+    pb = _problem(Brusselator, request)
+    params = {"b": p["b_min"], **{k: p[k] for k in ("a", "D1", "D2", "L")}}
+    options = request.options_for(ContinuationOptions(bounds={"b": (p["b_min"], p["b_max"])}, max_steps=200,
+                                                      step=StepOptions(ds=0.05, ds_max=0.25)))
+    done: list[Branch] = []
+    if "0" in request.completed:
+        branch = request.completed["0"]
+    else:
+        request.report("brusselator: tracing the homogeneous state")
+        branch = trace(pb, pb.homogeneous(params), params, "b", options, kind="homogeneous", progress=request.report)
+    _emit(request, done, branch)
+    notes = []
+    hopf = branch.points("HB")
+    if hopf:
+        b_h, omega_h = Brusselator.hopf_point(params)
+        hb = hopf[0]
+        notes.append(f"{hb.name}: b = {hb.params['b']:.15g} (closed form 1 + a^2 + (D1 + D2) pi^2 / L^2 = {b_h:.15g}, "
+                     f"relative error {hb.params['b'] / b_h - 1:.2g}, grid {hb.grid}), omega = "
+                     f"{hb.data.get('omega', math.nan):.12g} (closed form {omega_h:.12g})")
+    return SceneResult(branches=done, parameters=p, discretization=_dirichlet_discretization(pb), y=pb.x,
+                       profiles=lambda state: _brusselator_profiles(pb, state), notes=notes)
+
+
 SCENES = {
     "bratu": Scene(
         name="bratu",
@@ -350,6 +402,18 @@ SCENES = {
         adaptive=True,
         default_tol=1e-10,
         problem_factory=stretched_bratu_factory,
+    ),
+    "brusselator": Scene(
+        name="brusselator",
+        summary="1-D Brusselator, fields u, v on [0,1], Dirichlet (a, b/a): homogeneous state in b, Hopf point at "
+                "b_H = 1 + a^2 + (D1 + D2) pi^2 / L^2",
+        defaults=BRUSSELATOR_DEFAULTS,
+        run=run_brusselator,
+        x="b",
+        y="phi",
+        adaptive=True,
+        default_tol=1e-10,
+        problem_factory=lambda parameters, discretization: _brusselator_problem(discretization),
     ),
     "lorenz": Scene(
         name="lorenz",

@@ -188,12 +188,13 @@ def stability_messages(branch: Any) -> list[str]:
 @click.option("--special-tol", "special_tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None,
               metavar="REL",
               help="Adaptive resolution: largest estimated relative error of the kernel that fixes a located BP or "
-                   "LP (AdaptOptions.special_tol); the point is located again on a finer grid above min(tol, REL) "
+                   "LP, and of the two-grid checked position of an LP, HB or symmetry-breaking BP "
+                   "(AdaptOptions.special_tol); the point is located again on a finer grid above min(tol, REL) "
                    "[default 1e-10: special points far more accurate than the branch].")
 @click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
               help="Adaptive resolution: accept a point by its error estimate alone, without the two-grid check "
                    "of its solve (AdaptOptions.solve_check = False; faster, but points next to a BP or LP can miss "
-                   "tol: check them with contin verify). The two-grid checks of located LPs' and BPs' positions stay.")
+                   "tol: check them with contin verify). The two-grid checks of located LPs', HBs' and BPs' positions stay.")
 @engine_option
 @click.option("--resume", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Reuse the finished branches of an interrupted run (default -o: this file).")
