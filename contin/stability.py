@@ -411,9 +411,9 @@ def audit(branch: Branch) -> list[str]:
     change must equal the sum of the dimensions up to cancelling pairs: a BP of kernel
     dimension 2 changes ``n_unstable`` by 2 (or 0), one of dimension 3 by 3 or 1.
     Messages are human readable, one per disagreement; they replace the messages of any
-    earlier audit in ``branch.audit`` (the rejected-step diagnostics of
-    :mod:`contin.continuation`, which start with ``"step "``, are kept in front).  An empty
-    list means consistent.
+    earlier stability audit in ``branch.audit`` (:func:`is_stability_message`) and follow every
+    other line there (the tracer's: rejected steps, grid changes and two-grid checks of adaptive
+    resolution, located points' checks), which are kept.  An empty list means consistent.
 
     Point 0 of a switched branch (its parent's BP) counts with point 1's ``n_unstable``.
 
@@ -484,5 +484,16 @@ def audit(branch: Branch) -> list[str]:
                         f"({par} = {pv[c]:.6g} .. {pv[c + 1]:.6g}) with no BP/LP in between{kind}")
     for c in np.flatnonzero(nu < 0):
         messages.append(f"stability unknown at point {c} ({par} = {pv[c]:.6g}): the eigenproblem failed")
-    branch.audit = [m for m in branch.audit if m.startswith("step ")] + messages
+    branch.audit = [m for m in branch.audit if not is_stability_message(m)] + messages
     return messages
+
+
+def is_stability_message(line: str) -> bool:
+    """Whether an audit line is one of :func:`audit`'s messages (the forms it writes: an
+    ``n_unstable`` disagreement, an unknown stability, a special point without neighbours), so
+    that a repeated audit replaces them and keeps the tracer's lines (grid changes, checks: a
+    replacement that kept only the rejected-step lines dropped them from every file written
+    with a stability pass).  A ``"stability audit: "`` prefix (scenes that tag them) is allowed."""
+    line = line.removeprefix("stability audit: ")
+    return ("n_unstable " in line or line.startswith("stability unknown at point")
+            or ": stability unknown at points " in line or line.endswith("has no neighbouring points on the branch"))

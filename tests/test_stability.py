@@ -232,3 +232,30 @@ def test_audit_counts_point0_of_a_switched_branch_with_point1():
     b.n_unstable = np.array([0, 1, 2])  # a change later on is still reported
     (msg,) = audit(b)
     assert "between points 1 and 2" in msg
+
+
+def test_audit_keeps_the_tracers_lines_in_the_file(tmp_path):
+    """`contin trace brusselator --method fd4 --tol 1e-6 --special-tol 1e-8` (stability on, the
+    scene's pass through contin.stability.audit): the file keeps the tracer's audit lines --
+    the start grid, the HB's two-grid checks and the refinements -- after the stability audit,
+    which replaced every line but the rejected steps' (the file had none of them).  A second
+    audit replaces its own messages only."""
+    from click.testing import CliRunner
+
+    from contin import io
+    from contin.cli import main
+    from contin.stability import audit, is_stability_message
+
+    out = tmp_path / "bru.h5"
+    r = CliRunner().invoke(main, ["trace", "brusselator", "--method", "fd4", "--tol", "1e-6", "--special-tol", "1e-8",
+                                  "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    (branch,), _ = io.load(out)
+    assert branch.n_unstable is not None
+    assert any(a.startswith("start grid coarsened") for a in branch.audit)
+    assert sum(a.startswith("located HB") for a in branch.audit) >= 2
+    assert any(a.startswith("grid refined") for a in branch.audit)
+    kept = [a for a in branch.audit if not is_stability_message(a)]
+    branch.audit.append("n_unstable changes 0 -> 1 between points 3 and 4 (b = 1 .. 2) with no BP/LP in between")
+    messages = audit(branch)
+    assert branch.audit == kept + messages

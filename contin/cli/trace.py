@@ -151,11 +151,19 @@ def stability_summary(branch: Any) -> dict[str, Any] | None:
     return {"kx": kx, "kz": kz, "n_unstable": branch.n_unstable, "audit": stability_messages(branch)}
 
 
-def stability_messages(branch: Any) -> list[str]:
-    """The audit messages of the stability pass (not the rejected-step diagnostics that
-    :mod:`contin.continuation` stores as ``"step N: ..."``); a ``"stability audit: "`` prefix,
+def audit_lines(branch: Any) -> list[str]:
+    """The branch's audit lines for the terminal: the tracer's (grid changes, checks of located
+    points) and the stability pass's, not the rejected-step diagnostics that
+    :mod:`contin.continuation` stores as ``"step N: ..."``; a ``"stability audit: "`` prefix,
     which some scenes add, is removed."""
     return [m.removeprefix("stability audit: ") for m in branch.audit if not m.startswith("step ")]
+
+
+def stability_messages(branch: Any) -> list[str]:
+    """The audit messages of the stability pass alone (``contin.stability.is_stability_message``)."""
+    from contin.stability import is_stability_message
+
+    return [m for m in audit_lines(branch) if is_stability_message(m)]
 
 
 @main.command("trace")
@@ -369,7 +377,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         for note in result.notes:
             echo_err(f"note: {note}")
         for b in result.branches:
-            for message in stability_messages(b):
+            for message in audit_lines(b):
                 if not any(message in note for note in result.notes):  # the scene reported it already
                     echo_err(f"audit: branch {b.id}: {message}")
         if writer is not None:
