@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 
 import scipy.sparse as sp
 
-from contin.banded import BandedStructure, factorize_banded, structure_of
+from contin.banded import BAND_FRACTION, MAX_BORDER, BandedStructure, factorize_banded, structure_of
 from contin.lapack import flapack
 from contin.problem import Array
 from contin.sparsity import as_csc, canonical_csc, permutation_parity
@@ -179,6 +179,26 @@ def dense_factorization(jac: object, bordered: bool = False) -> bool:
     if bordered:  # the border's dense row and column are part of what factorize sees
         jac = bordered_matrix_pattern(jac)
     return structure(jac) == "dense"
+
+
+#: Orders up to which a problem's dense Jacobian (its ``dense_jacobian`` hook) is counted to decide
+#: :func:`dense_by_count` before a sparse J is built for :func:`dense_factorization` (a dense J
+#: of this order costs ~0.1 ms; a Chebyshev J on cheb 64, n = 326, is dense by its count).
+DENSE_PROBE_MAX = 400
+
+
+def dense_by_count(n: int, nnz: int) -> bool:
+    """True when :func:`factorize` treats *every* n x n matrix with nnz nonzeros as dense,
+    whatever their pattern: n below :data:`BANDED_MIN`, or more nonzeros than any
+    banded-plus-border structure holds (``contin.banded.analyze``: at most n^2 / BAND_FRACTION in
+    the band, 2 MAX_BORDER n in the border) with n within the dense sizes.  False: the pattern
+    decides (:func:`structure`).  Lets a problem's dense J, counted, spare building a sparse J
+    only to classify it (~0.6 ms for gPCF cheb 64, once per problem and per extended system)."""
+    if n < BANDED_MIN:
+        return True
+    if nnz <= n * n / BAND_FRACTION + 2 * MAX_BORDER * n:
+        return False
+    return n <= DENSE_LIMIT or (n <= DENSE_MAX and nnz >= DENSE_FILL * n * n)
 
 
 def factorize(a: object) -> Factorization | None:

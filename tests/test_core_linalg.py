@@ -203,3 +203,36 @@ def test_dense_lu_equals_scipy_on_random_and_singular_ish_matrices(case):
     sign, logabs = fact.det_sign_log()
     ref_sign, ref_log = np.linalg.slogdet(a)
     assert sign == ref_sign and logabs == pytest.approx(ref_log, rel=1e-12)
+
+
+def test_dense_by_count_never_overrules_the_pattern():
+    """dense_by_count(n, nnz) is True only where structure() says 'dense' for every pattern with
+    that count: a banded-plus-border matrix with the largest border contin.banded accepts (n = 200:
+    16 dense rows and columns, a band of 15 diagonals; a wider one makes its rows count as border
+    too) has fewer nonzeros than the bound and is left to the pattern ('banded'); random patterns
+    of every fill agree; a full Chebyshev-like matrix is dense by its count."""
+    import scipy.sparse as sp
+
+    from contin.linalg import dense_by_count, structure
+
+    n, k = 200, 16
+    m = n - k
+    rows, cols = [], []
+    for i in range(m):
+        for j in range(max(0, i - 7), min(m, i + 8)):
+            rows.append(i)
+            cols.append(j)
+    for b in range(m, n):  # the border: full rows and columns
+        rows += [b] * n + list(range(n))
+        cols += list(range(n)) + [b] * n
+    a = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    a.sum_duplicates()
+    assert structure(a) == "banded"
+    assert not dense_by_count(n, a.nnz)
+    rng = np.random.default_rng(1)
+    for fill in (0.01, 0.05, 0.1, 0.2, 0.3, 0.5, 0.9):
+        for size in (40, 70, 150, 400):
+            r = sp.random(size, size, density=fill, random_state=rng, format="csr") + sp.identity(size, format="csr")
+            if dense_by_count(size, r.nnz):
+                assert structure(r) == "dense", (fill, size)
+    assert dense_by_count(326, int(0.65 * 326**2))  # gPCF cheb 64's J
