@@ -486,6 +486,9 @@ def trace(
         f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
     except ValueError as exc:
         raise ValueError(f"start state with {u0.size} entries does not fit the problem ({exc})") from None
+    except ArithmeticError as exc:  # Python-float arithmetic of a problem (W**2 at W = 1e300)
+        raise ValueError(f"the residual cannot be evaluated at the start point ({type(exc).__name__}: {exc}): "
+                         f"a parameter is out of the problem's range") from None
     if f0.shape != u0.shape:
         raise ValueError(f"start state has {u0.size} entries but the residual has {f0.size}")
     n = u0.size

@@ -34,7 +34,7 @@ from contin.branch import Branch, relabel
 from contin.continuation import trace
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
 from contin.resume import switch_reusing
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, require_started, scene_numbers
 from problems.disks.closures import (
     G_MODELS, DiskClosure, critical_gaps, homogeneous_stresses, kn_in_time_units, savage_contact_stresses,
 )
@@ -328,7 +328,7 @@ def run_savage(request: SceneRequest) -> SceneResult:
                                                            detection=DetectionOptions(detect_branch_points=False,
                                                                                       detect_hopf=NO_HOPF)))
             br = trace(pb, pb.uniform_state(pp), pp, "a0", opts, branch_id=bid, kind=f"uniform shear phi0={phi0:g}")
-        _emit(request, done, br)
+        _emit(request, done, require_started(br, "savage-rheology"))
         S = br.observables["shear_stress"]
         a0s = br.parameter_values
         slope = np.polyfit(a0s, S, 1)[0]
@@ -408,7 +408,7 @@ def run_steady(request: SceneRequest) -> SceneResult:
             detection=DetectionOptions(locate_tol=1e-9, detect_hopf=NO_HOPF)))
         br = trace(pb, pb.initial_guess(p), p, "H", opts, branch_id="0", kind="bumpy-wall base",
                    progress=request.report)
-    _emit(request, done, br)
+    _emit(request, done, require_started(br, "disks-steady"))
     notes = [f"branch ends at H = {br.parameter_values[-1]:.6g} ({br.status}: {br.message})"]
     extra: dict[str, Any] = {}
     if br.parameter_values[-1] >= h_target * (1 - 1e-9):

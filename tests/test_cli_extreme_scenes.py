@@ -1,0 +1,105 @@
+"""Extreme parameters of the disks and non-local scenes, and problems whose Python-float
+arithmetic overflows (session 13 robustness sweep).
+
+Each case used to end in an unrelated or internal message: a branch whose start point does not
+converge has no points, and the scene then read its observables (``Error: asym_phi``, ``Error:
+shear_stress``, ``index -1 is out of bounds``, ``range object index out of range``); a residual
+computing ``W**2`` with Python floats raised OverflowError (``internal error``) at the start
+point or after a step ``--ds 1e300``; the non-local start-point message embedded the whole
+NewtonResult repr.  Now: one ``Error:`` line that says which branch could not start and why,
+and an overflowing step is a failed step (rejected and retried shorter).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from contin.cli import main
+from contin.cli._base import error_line
+from contin.continuation import trace
+from contin.corrector import correct
+from contin.extended import ExtendedSystem
+from contin.newton import newton
+from contin.options import ContinuationOptions, NewtonOptions, StepOptions
+
+
+@pytest.fixture(autouse=True)
+def real_scenes(monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+
+
+def one_error(args: list[str], tmp_path) -> str:
+    res = CliRunner().invoke(main, ["trace", *args, "--no-stability", "-q", "--max-steps", "3",
+                                    "-o", str(tmp_path / "x.h5")], catch_exceptions=False)
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1, (res.exit_code, res.stderr)
+    assert len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
+    assert "internal error" not in errors[0] and len(errors[0]) < 400, errors[0]
+    return errors[0]
+
+
+@pytest.mark.parametrize("args, expect", [
+    (["nonlocal-shear", "-s", "K=1e300"], "nonlocal-shear: branch uniform.ell could not start: start point under-resolved"),
+    (["nonlocal-muI", "-s", "W=1e300"], "nonlocal-muI: branch muI.U could not start"),
+    (["nonlocal-muI", "-s", "A_phi=1e-300"], "nonlocal-muI: branch phiI.U could not start: "),
+    (["nonlocal-cylinder", "-s", "W=1e-300"], "nonlocal-cylinder: branch derived.ratio could not start: Newton failed"),
+    (["savage-rheology", "--method", "fd2", "--grid", "4"], "savage-rheology: branch a0.0 could not start"),
+    (["disks-steady", "--method", "fd2", "--grid", "4"], "disks-steady: branch 0 could not start"),
+    (["disks-steady", "-s", "phi_w=1e-300"], "disks-steady: branch 0 could not start"),
+])
+def test_a_branch_that_cannot_start_is_named_with_its_reason(args, expect, tmp_path):
+    assert expect in one_error(args, tmp_path)
+
+
+def test_start_point_overflow_is_one_line_naming_the_range(tmp_path):
+    line = one_error(["nonlocal-cylinder", "-s", "W=1e300"], tmp_path)
+    assert "the residual cannot be evaluated at the start point (OverflowError" in line
+
+
+def test_the_newton_failure_of_a_start_point_is_its_message_not_its_repr(tmp_path):
+    line = one_error(["nonlocal-muI", "-s", "K=1e300"], tmp_path)
+    assert "NewtonResult" not in line and "array(" not in line
+
+
+def test_arithmetic_errors_are_named_as_such():
+    line = error_line(ZeroDivisionError("float division by zero"))
+    assert line.startswith("arithmetic failure (ZeroDivisionError: float division by zero)")
+    assert "out of the model's range" in line
+
+
+class _Overflowing:
+    """u - p = 0 whose residual computes exp(p) with Python floats: OverflowError above p ~ 709."""
+
+    def residual(self, u, p):
+        math.exp(p["p"])
+        return np.array([u[0] - p["p"]])
+
+    def jacobian(self, u, p):
+        return np.array([[1.0]])
+
+    def dresidual_dp(self, u, p, name):
+        return np.array([-1.0])
+
+    parameter_names = ("p",)
+
+
+def test_newton_and_corrector_report_an_overflowing_residual_as_a_failed_solve():
+    pb = _Overflowing()
+    res = newton(pb, np.array([0.0]), {"p": 1e3})
+    assert not res.converged and "OverflowError" in res.message
+    system = ExtendedSystem(pb, {"p": 0.0}, "p", 0.5)
+    system.n = 1
+    c = correct(system, np.array([1e3, 1e3]), np.array([0.0, 1.0]), NewtonOptions())
+    assert not c.converged and "OverflowError" in c.message
+
+
+def test_a_step_into_overflow_is_rejected_and_retried_shorter():
+    # --ds 1e300 used to end every such run with 'internal error (OverflowError ...)'
+    opts = ContinuationOptions(bounds={"p": (0.0, 800.0)}, max_steps=50,
+                               step=StepOptions(ds=1e300, ds_max=1e300, ds_min=1e-6))
+    br = trace(_Overflowing(), np.array([0.0]), {"p": 0.0}, "p", opts)
+    assert len(br) > 1 and br.params["p"].max() < 710
