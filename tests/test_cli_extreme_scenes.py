@@ -103,3 +103,29 @@ def test_a_step_into_overflow_is_rejected_and_retried_shorter():
                                step=StepOptions(ds=1e300, ds_max=1e300, ds_min=1e-6))
     br = trace(_Overflowing(), np.array([0.0]), {"p": 0.0}, "p", opts)
     assert len(br) > 1 and br.params["p"].max() < 710
+
+
+# ----------------------------------------------------------------------------- disks: Luding's global fit
+def test_global_fit_far_from_phi_f_is_finite_and_equals_its_limit():
+    # exp(-(nu - phi_f)/m_f) overflowed far below phi_f: w_nu = inf/inf = nan, psi nan, and
+    # 'contin trace disks-pitchfork -s corr=gf -s m_f=1e-300' said 'psi is not finite (no
+    # shear-banding pitchfork)' with exit 0, where G_GF is G_CS there (H_1^c = 15.87).
+    from problems.disks.closures import DiskClosure, critical_gaps, pair_correlation
+    from problems.disks.model import DEFAULTS
+
+    cs = pair_correlation(np.float64(0.5), "cs", 0.8, 0.9)
+    for nu in (np.float64(0.5), np.float64(0.5) + 1e-20j):  # complex steps too
+        g, g_nu = pair_correlation(nu, "gf", 0.8, 0.9, 0.7, 1e-300)
+        assert np.isfinite(g) and np.isfinite(g_nu)
+        assert (np.real(g), np.real(g_nu)) == cs
+    fv = pair_correlation(np.float64(0.85), "fv", 0.8, 0.9)
+    assert pair_correlation(np.float64(0.85), "gf", 0.8, 0.9, 0.7, 1e-300) == fv
+    p = {**DEFAULTS, "nu": 0.5, "e": 0.8, "m_f": 1e-300}
+    h_gf, h_cs = critical_gaps(p, DiskClosure(G="gf"), 1), critical_gaps(p, DiskClosure(G="cs"), 1)
+    assert math.isfinite(h_gf[0]) and abs(h_gf[0] - h_cs[0]) < 1e-12 * h_cs[0]
+
+
+@pytest.mark.parametrize("value", ["1e300", "-1", "0", "0.9"])
+def test_global_fit_freezing_fraction_outside_0_phi_inf_is_refused(value, tmp_path):
+    line = one_error(["disks-pitchfork", "-s", "corr=gf", "-s", f"phi_f={value}"], tmp_path)
+    assert "the freezing area fraction phi_f" in line and "must lie in (0, phi_inf = 0.9)" in line
