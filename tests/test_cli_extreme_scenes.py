@@ -129,3 +129,14 @@ def test_global_fit_far_from_phi_f_is_finite_and_equals_its_limit():
 def test_global_fit_freezing_fraction_outside_0_phi_inf_is_refused(value, tmp_path):
     line = one_error(["disks-pitchfork", "-s", "corr=gf", "-s", f"phi_f={value}"], tmp_path)
     assert "the freezing area fraction phi_f" in line and "must lie in (0, phi_inf = 0.9)" in line
+
+
+def test_disks_steady_smooth_walls_say_why(tmp_path):
+    # used to be 'branch 0: ... initial guess is inadmissible: state has non-finite entries' after
+    # a numpy RuntimeWarning line
+    res = CliRunner().invoke(main, ["trace", "disks-steady", "-s", "phi_w=0", "--no-stability", "-q",
+                                    "-o", str(tmp_path / "x.h5")], catch_exceptions=False)
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.exit_code == 1 and len(lines) == 1, res.stderr
+    assert lines[0] == ("Error: disks-steady: phi_w = 0 (smooth walls) transmits no shear, so there is no sheared "
+                        "steady state; use phi_w > 0")

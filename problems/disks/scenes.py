@@ -392,6 +392,9 @@ def run_steady(request: SceneRequest) -> SceneResult:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
     if not s["H"] > 2.0:
         raise SceneError(f"parameter H = {s['H']:g} must be > 2 (the run starts at H = 2)")
+    if s["phi_w"] == 0:  # it used to end 'initial guess is inadmissible: state has non-finite entries'
+        raise SceneError("disks-steady: phi_w = 0 (smooth walls) transmits no shear, so there is no sheared "
+                         "steady state; use phi_w > 0")
     closure = DiskClosure(G=s["corr"])
     pb = _problem(request, closure, walls="bumpy", grid=64)
     p = _params(pb, {k: v for k, v in s.items() if k != "corr"})
