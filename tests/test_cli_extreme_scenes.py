@@ -140,3 +140,30 @@ def test_disks_steady_smooth_walls_say_why(tmp_path):
     assert res.exit_code == 1 and len(lines) == 1, res.stderr
     assert lines[0] == ("Error: disks-steady: phi_w = 0 (smooth walls) transmits no shear, so there is no sheared "
                         "steady state; use phi_w > 0")
+
+
+# ----------------------------------------------------------------------------- damaged files
+@pytest.mark.parametrize("dataset, value, expect", [
+    ("grid/y", np.nan, "dataset grid/y holds a non-finite value at row 2"),
+    ("branches/0/grid", 0, "dataset branches/0/grid holds a grid size outside 1..65536"),
+    ("branches/0/grid", 10**9, "dataset branches/0/grid holds a grid size outside 1..65536"),
+])
+def test_reader_refuses_a_nan_profile_grid_and_impossible_point_grids(dataset, value, expect, tmp_path):
+    # NaN in grid/y drew profiles with gaps and exit 0; a grid column of 0 made verify say
+    # 'grid too small: cheb needs at least 4 intervals, got 0' instead of naming the damage
+    import h5py
+
+    good = tmp_path / "b.h5"
+    res = CliRunner().invoke(main, ["trace", "bratu", "--no-stability", "-q", "--max-steps", "5", "-o", str(good)],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    with h5py.File(good, "r+") as f:
+        a = f[dataset][()]
+        a[2] = value
+        f[dataset][...] = a
+    for cmd in (["info", str(good)], ["verify", str(good)],
+                ["profiles", str(good), "--at", "lam=0.1", "-o", str(tmp_path / "p.png")]):
+        res = CliRunner().invoke(main, cmd, catch_exceptions=False)
+        lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+        assert res.exit_code == 1 and len(lines) == 1, (cmd, res.stderr)
+        assert "is damaged: " + expect in lines[0], lines[0]
