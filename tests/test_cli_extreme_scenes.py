@@ -167,3 +167,47 @@ def test_reader_refuses_a_nan_profile_grid_and_impossible_point_grids(dataset, v
         lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
         assert res.exit_code == 1 and len(lines) == 1, (cmd, res.stderr)
         assert "is damaged: " + expect in lines[0], lines[0]
+
+
+def _relabelled(tmp_path, scene_args, scene):
+    import h5py
+
+    path = tmp_path / f"{scene_args[0]}_as_{scene}.h5"
+    res = CliRunner().invoke(main, ["trace", *scene_args, "--no-stability", "-q", "--max-steps", "3", "-o", str(path)],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    with h5py.File(path, "r+") as f:
+        f.attrs["scene"] = scene
+    return path
+
+
+@pytest.mark.parametrize("made_by, named, command, expect", [
+    # states of another size: 'Error: index 39 is out of bounds for axis 0 with size 13'
+    (["bratu"], "disks-steady", "verify", "have no 'nu', 'e', 'H'"),
+    # the same size, a parameter the problem reads is missing: 'Error: num'
+    (["disks-steady"], "pitchfork", "verify", "the run's parameters have no 'num', which the rebuilt problem needs"),
+    # the same size: a stability table of the wrong problem, exit 0
+    (["disks-steady"], "pitchfork", "stability", "have no 'num', which the rebuilt problem needs"),
+])
+def test_a_file_of_another_scene_is_refused_in_one_line(made_by, named, command, expect, tmp_path):
+    path = _relabelled(tmp_path, made_by, named)
+    args = [command, str(path)] + (["--point", "1"] if command == "stability" else [])
+    res = CliRunner().invoke(main, args, catch_exceptions=False)
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(lines) == 1, (res.exit_code, res.stderr)
+    assert expect in lines[0] and "Traceback" not in res.stderr, lines[0]
+
+
+def test_verify_refuses_states_that_do_not_fit_their_grid(tmp_path):
+    # per-point grid column edited (8 -> 16): 'Error: index 39 is out of bounds' before
+    import h5py
+
+    path = _relabelled(tmp_path, ["disks-steady"], "disks-steady")
+    with h5py.File(path, "r+") as f:
+        g = f["branches/0/grid"][()]
+        f["branches/0/grid"][...] = 2 * g
+    res = CliRunner().invoke(main, ["verify", str(path)], catch_exceptions=False)
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(lines) == 1, (res.exit_code, res.stderr)
+    assert "entries but the problem rebuilt for it (grid 16) has" in lines[0]
+    assert "the file's scene or discretization does not match its states" in lines[0]
