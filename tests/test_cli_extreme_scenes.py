@@ -211,3 +211,54 @@ def test_verify_refuses_states_that_do_not_fit_their_grid(tmp_path):
     assert res.exit_code == 1 and len(lines) == 1, (res.exit_code, res.stderr)
     assert "entries but the problem rebuilt for it (grid 16) has" in lines[0]
     assert "the file's scene or discretization does not match its states" in lines[0]
+
+
+# ----------------------------------------------------------------------------- contin continue -o
+def _fold_run(tmp_path):
+    path = tmp_path / "sb.h5"
+    res = CliRunner().invoke(main, ["trace", "stretched-bratu", "--grid", "24", "--resolution-tol", "1e-8", "--stop-at",
+                                    "LP1", "--no-stability", "-q", "-o", str(path)], catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    return path
+
+
+CONTINUE = ["--from", "LP1", "--free", "a", "--bounds", "a=-0.5:1", "--bounds", "lam=0:8", "--max-steps", "3"]
+
+
+def test_continue_refuses_to_overwrite_its_own_input(tmp_path):
+    # 'contin continue sb.h5 ... -o sb.h5' replaced the run with the curve, exit 0
+    from contin import io
+
+    src = _fold_run(tmp_path)
+    before = src.read_bytes()
+    res = CliRunner().invoke(main, ["continue", str(src), *CONTINUE, "-o", str(src)], catch_exceptions=False)
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(lines) == 1, res.stderr
+    assert "is the input file" in lines[0] and "would replace the run it starts from" in lines[0]
+    assert src.read_bytes() == before
+    assert [b.id for b in io.load(src)[0]] == ["0"]
+
+
+def test_continue_refuses_an_output_another_run_is_writing(tmp_path):
+    # the curve was written into a file whose lock another contin run held (trace refuses that)
+    import subprocess
+    import sys
+
+    src = _fold_run(tmp_path)
+    out = tmp_path / "busy.h5"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from contin.atomic import OutputLock; "
+                               "OutputLock(sys.argv[1]).acquire(); print('held', flush=True); time.sleep(60)", str(out)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        res = CliRunner().invoke(main, ["continue", str(src), *CONTINUE, "-o", str(out)], catch_exceptions=False)
+    finally:
+        holder.kill()
+        holder.wait()
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(lines) == 1, res.stderr
+    assert "is being written by another contin run" in lines[0]
+    assert not out.exists()
+    res = CliRunner().invoke(main, ["continue", str(src), *CONTINUE, "-o", str(out)], catch_exceptions=False)
+    assert res.exit_code == 0 and out.exists(), res.stderr  # and the lock is released after the command
+    assert not (tmp_path / ".busy.h5.lock").exists()
