@@ -262,3 +262,16 @@ def test_continue_refuses_an_output_another_run_is_writing(tmp_path):
     res = CliRunner().invoke(main, ["continue", str(src), *CONTINUE, "-o", str(out)], catch_exceptions=False)
     assert res.exit_code == 0 and out.exists(), res.stderr  # and the lock is released after the command
     assert not (tmp_path / ".busy.h5.lock").exists()
+
+
+def test_first_crossing_neither_overflows_nor_misses_an_underflowing_crossing():
+    import warnings
+
+    from contin.branch import first_crossing
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # 'overflow encountered in multiply' for --at H=1e300
+        assert first_crossing(np.array([2.0, 43.0]), 1e300) is None
+        assert first_crossing(np.array([1e200, 3e200]), -1e200) is None
+    hit = first_crossing(np.array([1e-200, -1e-200]), 0.0)  # the product underflowed to -0.0: None
+    assert hit is not None and hit[:2] == (0, 1) and hit[3] == 1
