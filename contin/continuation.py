@@ -78,6 +78,15 @@ SAME_POINT = 1e-3
 #: Appended to a failure at the first point: a wrong Jacobian is the usual cause.
 JACOBIAN_HINT = "; check the Jacobian with contin.problem.check_jacobian"
 
+#: Failures that happen before any Jacobian is used: the hint would send the user the wrong way
+#: ('initial guess is inadmissible: state has non-finite entries; check the Jacobian ...').
+_NOT_THE_JACOBIAN = ("initial guess is inadmissible", "residual is not finite at the initial guess",
+                     "the residual or Jacobian raised")
+
+
+def _jacobian_hint(reason: str) -> str:
+    return "" if reason.startswith(_NOT_THE_JACOBIAN) else JACOBIAN_HINT
+
 #: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
 Unconfirmed = tuple[SpecialPoint, str, str]
 
@@ -524,7 +533,7 @@ def trace(
     tracer.audit.extend(grid_lines)
     tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
-        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{JACOBIAN_HINT}"
+        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{_jacobian_hint(start.message)}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
         say(msg)
         return tracer.build(parameter, "MX", msg, False, n, **meta)
@@ -653,7 +662,7 @@ def trace(
                 status = "MX"
                 message = f"step failed at {parameter}={cur.x[-1]:.10g} with ds at ds_min={sopt.ds_min:g}: {reason}"
                 if len(tracer.points) == 1:  # not one step from the start: most often a wrong Jacobian
-                    message += JACOBIAN_HINT
+                    message += _jacobian_hint(reason)
                 break
             ds = reduced_step(ds, sopt)
             continue

@@ -275,3 +275,10 @@ def test_first_crossing_neither_overflows_nor_misses_an_underflowing_crossing():
         assert first_crossing(np.array([1e200, 3e200]), -1e200) is None
     hit = first_crossing(np.array([1e-200, -1e-200]), 0.0)  # the product underflowed to -0.0: None
     assert hit is not None and hit[:2] == (0, 1) and hit[3] == 1
+
+
+def test_a_start_guess_that_is_inadmissible_does_not_blame_the_jacobian(tmp_path):
+    # 'initial guess is inadmissible: normal stress P = 0 <= 0; check the Jacobian with
+    # contin.problem.check_jacobian': no Jacobian was used yet
+    line = one_error(["nonlocal-muI", "-s", "A_phi=1e-300"], tmp_path)
+    assert "initial guess is inadmissible" in line and "check the Jacobian" not in line
