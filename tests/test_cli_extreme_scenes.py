@@ -282,3 +282,9 @@ def test_a_start_guess_that_is_inadmissible_does_not_blame_the_jacobian(tmp_path
     # contin.problem.check_jacobian': no Jacobian was used yet
     line = one_error(["nonlocal-muI", "-s", "A_phi=1e-300"], tmp_path)
     assert "initial guess is inadmissible" in line and "check the Jacobian" not in line
+
+
+def test_savage_negative_contact_scale_is_refused(tmp_path):
+    # -s a0_over_kn=-1 ran to exit 0 with negative contact pressures (a0_band = -1 was refused)
+    line = one_error(["savage-rheology", "-s", "a0_over_kn=-1"], tmp_path)
+    assert "a0_over_kn = -1 must be >= 0" in line

@@ -284,6 +284,9 @@ def run_savage(request: SceneRequest) -> SceneResult:
     if not s["phi_c"] < s["nu_band"]:
         raise SceneError(f"parameter nu_band = {s['nu_band']:g} <= phi_c = {s['phi_c']:g}: the dense (contact) closure "
                          "has no contact part there; the banding question is asked above phi_c")
+    if not s["a0_over_kn"] >= 0:  # was accepted: negative contact stresses and flow curves, exit 0
+        raise SceneError(f"parameter a0_over_kn = {s['a0_over_kn']:g} must be >= 0 (Savage's contact pressure scale a0 "
+                         "in units of k_n; a0_band is checked the same way)")
     closure = DiskClosure(G=s["corr"], contact=True, normalization="esi")
     # cheb 96: the banded dense plug nears phi_inf within ~2 H_1^c (the resolution guard ends it there)
     pb = _problem(request, closure, grid=96)
