@@ -87,6 +87,7 @@ _NOT_THE_JACOBIAN = ("initial guess is inadmissible", "residual is not finite at
 def _jacobian_hint(reason: str) -> str:
     return "" if reason.startswith(_NOT_THE_JACOBIAN) else JACOBIAN_HINT
 
+
 #: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
 Unconfirmed = tuple[SpecialPoint, str, str]
 
