@@ -288,3 +288,15 @@ def test_savage_negative_contact_scale_is_refused(tmp_path):
     # -s a0_over_kn=-1 ran to exit 0 with negative contact pressures (a0_band = -1 was refused)
     line = one_error(["savage-rheology", "-s", "a0_over_kn=-1"], tmp_path)
     assert "a0_over_kn = -1 must be >= 0" in line
+
+
+@pytest.mark.parametrize("args, expect", [
+    # scipy: 'The function value at x=2.0020040080160324e+297 is NaN; solver cannot continue.'
+    (["disks-criticality", "-s", "phi_inf=1e300"], "maximum area fraction phi_inf = 1e+300 must lie in (0, 1)"),
+    # numpy: 'Maximum allowed size exceeded'
+    (["disks-criticality", "-s", "dnu=1e-300"], "area fractions; at most 1000"),
+    # 'parameter H = -1e+300 is out of range; it must satisfy 0 < H < inf'
+    (["gravity-unfolding", "-s", "window=1e300"], "window = 1e+300 must be below the pitchfork's H_c = 13.0685"),
+])
+def test_range_parameters_of_criticality_and_unfolding_scenes(args, expect, tmp_path):
+    assert expect in one_error(args, tmp_path)

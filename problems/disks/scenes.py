@@ -189,6 +189,10 @@ CRITICALITY_DEFAULTS: dict[str, Any] = {"corr": "cs", "nu_min": 0.05, "nu_max": 
                                         "m_f": 0.01, "fold_checks": 1}
 
 
+#: Largest number of area fractions disks-criticality computes per e (the default is 17).
+MAX_CRITICALITY_POINTS = 1000
+
+
 def run_criticality(request: SceneRequest) -> SceneResult:
     from problems.disks.criticality import bend_by_branch, pitchfork_bend, threshold_density, tricritical
 
@@ -206,6 +210,13 @@ def run_criticality(request: SceneRequest) -> SceneResult:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
     if not 0 < s["nu_min"] < s["nu_max"] < s["phi_inf"] or not s["dnu"] > 0:
         raise SceneError("need 0 < nu_min < nu_max < phi_inf and dnu > 0")
+    if not s["phi_inf"] < 1:  # phi_inf = 1e300 ended in scipy's 'The function value at x=2e+297 is NaN'
+        raise SceneError(f"maximum area fraction phi_inf = {s['phi_inf']:g} must lie in (0, 1)")
+    count = math.floor((s["nu_max"] - s["nu_min"]) / s["dnu"] + 1e-9) + 1
+    if count > MAX_CRITICALITY_POINTS:  # dnu = 1e-300 ended in numpy's 'Maximum allowed size exceeded'
+        raise SceneError(f"nu_min = {s['nu_min']:g} to nu_max = {s['nu_max']:g} in steps dnu = {s['dnu']:g} are "
+                         f"{count:.3g} area fractions; at most {MAX_CRITICALITY_POINTS} (each is a normal-form "
+                         "computation per e): raise dnu")
     closure = DiskClosure(G=s["corr"])
     pb = _problem(request, closure, grid=24)
     extra_p = {k: s[k] for k in ("phi_inf", "phi_f", "m_f")}
