@@ -291,7 +291,9 @@ def first_crossing(values: np.ndarray, value: float) -> tuple[int, int, float, i
     the whole column (more than one past a fold); None if the column never reaches ``value``.
     """
     d = np.asarray(values, dtype=float) - value
-    hits = np.flatnonzero((d[:-1] == 0) | (d[:-1] * d[1:] < 0))
+    # signs, not the product: d[:-1] * d[1:] overflowed (a RuntimeWarning line before 'Error: ... does not
+    # reach H = 1e+300') and underflowed to -0.0 (a crossing between 1e-200 and -1e-200 was missed)
+    hits = np.flatnonzero((d[:-1] == 0) | (np.sign(d[:-1]) * np.sign(d[1:]) < 0))
     if d.size and d[-1] == 0 and not hits.size:
         hits = np.array([d.size - 1])
     if not hits.size:

@@ -78,6 +78,16 @@ SAME_POINT = 1e-3
 #: Appended to a failure at the first point: a wrong Jacobian is the usual cause.
 JACOBIAN_HINT = "; check the Jacobian with contin.problem.check_jacobian"
 
+#: Failures that happen before any Jacobian is used: the hint would send the user the wrong way
+#: ('initial guess is inadmissible: state has non-finite entries; check the Jacobian ...').
+_NOT_THE_JACOBIAN = ("initial guess is inadmissible", "residual is not finite at the initial guess",
+                     "the residual or Jacobian raised")
+
+
+def _jacobian_hint(reason: str) -> str:
+    return "" if reason.startswith(_NOT_THE_JACOBIAN) else JACOBIAN_HINT
+
+
 #: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
 Unconfirmed = tuple[SpecialPoint, str, str]
 
@@ -486,6 +496,9 @@ def trace(
         f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
     except ValueError as exc:
         raise ValueError(f"start state with {u0.size} entries does not fit the problem ({exc})") from None
+    except ArithmeticError as exc:  # Python-float arithmetic of a problem (W**2 at W = 1e300)
+        raise ValueError(f"the residual cannot be evaluated at the start point ({type(exc).__name__}: {exc}): "
+                         f"a parameter is out of the problem's range") from None
     if f0.shape != u0.shape:
         raise ValueError(f"start state has {u0.size} entries but the residual has {f0.size}")
     n = u0.size
@@ -521,7 +534,7 @@ def trace(
     tracer.audit.extend(grid_lines)
     tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
-        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{JACOBIAN_HINT}"
+        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{_jacobian_hint(start.message)}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
         say(msg)
         return tracer.build(parameter, "MX", msg, False, n, **meta)
@@ -650,7 +663,7 @@ def trace(
                 status = "MX"
                 message = f"step failed at {parameter}={cur.x[-1]:.10g} with ds at ds_min={sopt.ds_min:g}: {reason}"
                 if len(tracer.points) == 1:  # not one step from the start: most often a wrong Jacobian
-                    message += JACOBIAN_HINT
+                    message += _jacobian_hint(reason)
                 break
             ds = reduced_step(ds, sopt)
             continue

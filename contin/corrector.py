@@ -25,7 +25,7 @@ import numpy as np
 
 from contin.extended import ExtendedSystem
 from contin.linalg import DenseLU, Factorization, factorize_bordered
-from contin.newton import DIVERGENCE_FACTOR, backtrack, converged, max_norm
+from contin.newton import DIVERGENCE_FACTOR, arithmetic_failure, backtrack, converged, max_norm
 from contin.options import NewtonOptions
 from contin.problem import Array
 
@@ -48,7 +48,11 @@ def correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOp
             give_up: Callable[[Array, Array], str | None] | None = None) -> Correction:
     """Bordered Newton from ``x_pred`` on [F(x); row . (x - x_pred)] = 0 (see :func:`_correct`)."""
     with np.errstate(all="ignore"):
-        return _correct(system, x_pred, row, options, project, give_up)
+        try:
+            return _correct(system, x_pred, row, options, project, give_up)
+        except ArithmeticError as exc:  # Python-float arithmetic of a problem (W**2 at W = 1e300)
+            return Correction(np.array(x_pred, dtype=float), False, 0, None, row, [],
+                              arithmetic_failure(exc, "the predicted point"))
 
 
 def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonOptions,

@@ -13,7 +13,8 @@ Checked per branch (S = len(ds) points): every parameter, observable, ``newton_i
 entries lie in [0, S) and each profile has one row per entry.  Finite as the writer requires:
 states, tangents, ds, free parameters, observables that are not NaN everywhere, profiles;
 fixed parameters may be inf, not NaN.  Special points: index in [0, S) of their branch, free
-parameters and located states (up to ``state_size``) finite.
+parameters and located states (up to ``state_size``) finite.  The per-point ``grid`` column of an
+adaptive run lies in 1..MAX_GRID, and ``grid/y`` (the profiles' abscissa) is finite.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
+from contin.limits import MAX_GRID
 
 
 class BadDataset(ValueError):
@@ -87,6 +90,9 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
     grid = getattr(branch, "grid", None)
     if grid is not None:
         _rows(f"{group}/grid", grid, s, what)
+        if s and not (1 <= int(np.min(grid)) and int(np.max(grid)) <= MAX_GRID):
+            # a grid of 0 made 'contin verify' say 'grid too small: cheb needs at least 4 intervals, got 0'
+            raise BadDataset(f"dataset {group}/grid holds a grid size outside 1..{MAX_GRID}")
     index = getattr(branch, "state_index", None)
     if index is None:
         _rows(f"{group}/states", branch.states, s, what)
@@ -110,6 +116,13 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
             if name != "index":
                 _rows(f"{group}/profiles/{name}", arr, idx.size, f"dataset {group}/profile_index")
                 _finite(f"{group}/profiles/{name}", arr)
+
+
+def check_profile_grid(y: Any) -> None:
+    """Raise :class:`BadDataset` if ``grid/y`` (the abscissa of every stored profile) is not finite."""
+    if y is not None and first_bad_row(np.ravel(y)) is not None:
+        raise BadDataset(f"dataset grid/y holds a non-finite value at row {first_bad_row(np.ravel(y))} "
+                         f"(the writer stores only finite values there)")
 
 
 def check_special_point(row: int, branch: Any, sp: Any) -> None:

@@ -103,7 +103,7 @@ import numpy as np
 from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
-from contin.filecheck import BadDataset, check_branch, check_special_point, first_bad_row
+from contin.filecheck import BadDataset, check_branch, check_profile_grid, check_special_point, first_bad_row
 from contin.jsonout import dumps as _json_dumps
 from contin.options import AdaptOptions, ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
@@ -841,6 +841,7 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
             meta["y"] = f["grid/y"][()] if "grid/y" in f else None
+            check_profile_grid(meta["y"])  # NaN there drew profiles with gaps, exit 0
             groups = sorted(f["branches"].values(), key=lambda g: int(g.attrs["position"]))
             branches = [_read_branch(g) for g in groups]
             profiles = {}

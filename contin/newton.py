@@ -98,7 +98,22 @@ def newton(problem: Any, u0: Array, params: Mapping[str, float], options: Newton
     warnings of diverging iterates are silenced: divergence is detected and reported instead.
     """
     with np.errstate(all="ignore"):
-        return _newton(problem, u0, params, options)
+        try:
+            return _newton(problem, u0, params, options)
+        except ArithmeticError as exc:  # Python-float arithmetic of a problem (W**2 at W = 1e300)
+            return NewtonResult(np.array(u0, dtype=float).ravel(), False, 0, [], arithmetic_failure(exc, "the initial guess"))
+
+
+def arithmetic_failure(exc: ArithmeticError, where: str) -> str:
+    """The failure message of a solve whose residual or Jacobian raised ``exc``.
+
+    numpy arrays give inf/nan (caught as a non-finite residual), but a problem computing with
+    Python floats raises OverflowError (``W**2`` at W = 1e300, reached by a step ``--ds 1e300``)
+    or ZeroDivisionError.  That is a failed solve, as a non-finite residual is: the step is
+    rejected and retried shorter, and a start point reports it in one line.
+    """
+    return (f"the residual or Jacobian raised {type(exc).__name__} ({exc}) near {where}: "
+            "values out of the problem's range")
 
 
 def _newton(problem: Any, u0: Array, params: Mapping[str, float], options: NewtonOptions) -> NewtonResult:

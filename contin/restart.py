@@ -121,3 +121,6 @@ def rebuild_problem(meta: Mapping[str, Any]) -> Any:
         return scene.problem_factory(dict(meta.get("parameters", {})), dict(meta.get("discretization", {})))
     except ValueError as exc:  # the factory's one sentence (bad parameters, a file of several problems)
         raise ValueError(f"cannot rebuild the problem of {where}: {exc}") from None
+    except KeyError as exc:  # 'Error: num': a file whose scene attribute names another scene
+        raise ValueError(f"cannot rebuild the problem of {where}: its parameters have no {exc.args[0]!r}, which "
+                         f"scene {name!r} needs (is it a file of another scene?)") from None

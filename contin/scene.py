@@ -329,6 +329,18 @@ def scene_numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str
     return out
 
 
+def require_started(branch: Any, scene: str) -> Any:
+    """``branch`` if it has a point; else a :class:`SceneError` saying why it could not start.
+
+    A trace whose start point does not converge (extreme parameters, a grid far too coarse)
+    returns a branch of no points with the reason in ``message``.  A scene that goes on to read
+    its observables or last point would fail on the empty arrays with an unrelated message
+    (``Error: asym_phi``, ``index -1 is out of bounds``); it calls this first instead."""
+    if len(branch) == 0:
+        raise SceneError(f"{scene}: branch {branch.id} could not start: {branch.message}")
+    return branch
+
+
 _log = logging.getLogger("contin.scene")
 
 #: Entry points that failed to load at the last :func:`available_scenes` call:

@@ -238,6 +238,10 @@ def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, facto
     check_problem(problem)
     opts = newton_options if newton_options is not None else NewtonOptions()
     fixed = {k: v for k, v in params.items()}
+    missing = [n for n in getattr(problem, "parameter_names", ()) if n not in fixed and n not in branch.params]
+    if missing:  # 'Error: num' from inside the problem: a file whose scene attribute names another scene
+        raise ValueError(f"branch {branch.id}: the run's parameters have no {', '.join(map(repr, missing))}, which "
+                         "the rebuilt problem needs (is it a file of another scene?)")
     rows = range(len(branch)) if indices is None else [range(len(branch))[i] for i in indices]
     out = []
     for i in rows:
@@ -249,6 +253,13 @@ def verify_branch(problem: Any, branch: Any, params: Mapping[str, Any], *, facto
             raise
         p = {**fixed, **{k: float(v[i]) for k, v in branch.params.items()}}
         coarse = on_grid(problem, branch.grid_at(i))
+        size = getattr(coarse, "size", None)  # as contin continue / stability check it
+        if isinstance(size, int) and size != u.size:
+            # a file whose scene or discretization attribute disagrees with its states: the
+            # problem read them out of bounds ('Error: index 39 is out of bounds for axis 0')
+            raise ValueError(f"the state of branch {branch.id} point {i} has {u.size} entries but the problem "
+                             f"rebuilt for it (grid {coarse.grid_size}) has {size} unknowns: the file's scene or "
+                             f"discretization does not match its states")
         n = int(coarse.grid_size)
         n_f = fine_grid(n, factor, max_grid)
         estimate = float(coarse.error_estimate(u, p))

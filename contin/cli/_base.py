@@ -35,6 +35,9 @@ def error_line(exc: BaseException) -> str:
         msg = str(exc)
         if isinstance(exc, KeyError) and len(exc.args) == 1:
             msg = str(exc.args[0])
+    elif isinstance(exc, ArithmeticError):  # Python-float overflow or 0-division of a model's formulas
+        msg = (f"arithmetic failure ({type(exc).__name__}: {exc}): a parameter or step is probably out of the "
+               "model's range; rerun with --debug for the traceback")
     else:
         msg = f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for the traceback"
     return re.sub(r"\s*\n\s*", " ", msg).strip()

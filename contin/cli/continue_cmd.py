@@ -47,6 +47,19 @@ def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _refuse_own_input(file: str, output: str) -> None:
+    """``-o`` naming the input file: the curve file would replace the run it comes from."""
+    import os
+
+    try:
+        same = os.path.samefile(file, output)
+    except OSError:  # the output does not exist yet
+        same = False
+    if same:
+        fail(f"-o {output} is the input file {file}: the curve would replace the run it starts from; "
+             "choose another output")
+
+
 @main.command("continue")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--from", "label", required=True, metavar="LABEL", help="Special point to start from (LP1, BP2, ...).")
@@ -97,6 +110,13 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
 
         check_hdf5_output(output)  # -o x.png wrote HDF5 into a .png
         io.check_writable(output)
+        _refuse_own_input(file, output)
+        from contin.atomic import OutputLock
+
+        # one writer per output, as for trace: a curve written into a file another contin run is
+        # writing was silently replaced by (or replaced) that run's next checkpoint.  Released
+        # when the command ends (or by the kernel, when the process dies).
+        click.get_current_context().call_on_close(OutputLock(output).acquire().release)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
     first = branch.parameter

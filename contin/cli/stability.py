@@ -270,6 +270,11 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
     if isinstance(size, int) and size != state.size:
         fail(f"the state has {state.size} entries but the problem rebuilt from {file} has {size} unknowns "
              f"(discretization {meta.get('discretization')})")
+    missing = [n for n in getattr(problem, "parameter_names", ()) if n not in params]
+    if missing:  # a file whose scene attribute names another scene, with states of the same size: a
+        # stability table of the wrong problem came out with exit 0
+        fail(f"the parameters of {file} have no {', '.join(map(repr, missing))}, which the rebuilt problem needs "
+             "(is it a file of another scene?)")
 
     growth, speed, n_unst, leading = [], [], [], {}
     mode = None

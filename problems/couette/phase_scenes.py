@@ -137,6 +137,9 @@ def run_unfolding(request: SceneRequest) -> SceneResult:
     branches = [base]
     relabel(branches)
     bp = next(b for b in base.branch_points if b.index == bp.index)  # the same point, labelled
+    if not s["window"] < bp.params["H"]:  # -s window=1e300 said 'parameter H = -1e+300 is out of range'
+        raise SceneError(f"window = {s['window']:g} must be below the pitchfork's H_c = {bp.params['H']:.6g} "
+                         "(the branches are traced on H_c - window .. H_c + window, and H > 0)")
     for G in [0.0, *Gs]:
         request.report(f"gravity-unfolding: branches near {bp.name} at G = {G:g}")
         branches += branches_near_bp(pb, base, bp, G, s["window"])

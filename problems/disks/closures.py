@@ -64,9 +64,19 @@ def pair_correlation(nu, model: str, e, phi_inf, phi_f=0.7, m_f=0.01):
     g_fv_nu = r / (2.0 * (1.0 + e) * nu * (r - 1.0) ** 2)
     if model == "fv":
         return g_fv, g_fv_nu
-    x = np.exp(-(nu - phi_f) / m_f)
-    w = 1.0 / (1.0 + x)  # logistic weight of the free-volume branch
-    w_nu = x / (m_f * (1.0 + x) ** 2)
+    a = -(nu - phi_f) / m_f
+    if np.any(np.real(a) > 350.0):
+        # Far below phi_f in units of m_f (phi_f = 1e300, or m_f = 1e-300): x = exp(a) overflowed
+        # and w_nu = inf/inf = nan made psi nan, so disks-pitchfork said 'no pitchfork' and exited 0.
+        # There y = 1/x = exp(-a): w = y/(1 + y), and x/(1 + x)^2 = y/(1 + y)^2 is the same formula.
+        # Elsewhere (every physical case) y = x and nothing changes.  Complex steps pass through.
+        far = np.real(a) > 350.0
+        y = np.exp(np.where(far, -a, a))
+        w = np.where(far, y / (1.0 + y), 1.0 / (1.0 + y))
+    else:
+        y = np.exp(a)
+        w = 1.0 / (1.0 + y)  # logistic weight of the free-volume branch
+    w_nu = y / (m_f * (1.0 + y) ** 2)
     return g_cs + (g_fv - g_cs) * w, g_cs_nu + (g_fv_nu - g_cs_nu) * w + (g_fv - g_cs) * w_nu
 
 
@@ -216,6 +226,9 @@ def check_closure_parameters(p, closure: DiskClosure) -> None:
                          "(G_FV and the contact pressure are infinite at phi_inf)")
     if closure.G == "gf" and not float(np.real(p["m_f"])) > 0:
         raise ValueError(f"the width m_f = {float(np.real(p['m_f'])):g} of the global fit must be > 0")
+    if closure.G == "gf" and not 0.0 < float(np.real(p["phi_f"])) < inf:
+        raise ValueError(f"the freezing area fraction phi_f = {float(np.real(p['phi_f'])):g} of the global fit must lie "
+                         f"in (0, phi_inf = {inf:g}), where it switches from G_CS to G_FV")
     if closure.contact:
         pc = float(np.real(p["phi_c"]))
         if not 0.0 < pc < inf:

@@ -160,12 +160,13 @@ class DiskCouetteProblem(ResolutionHooks):
         G0 = float(f.G[0])
         t0 = float(f.f2[0] / f.f5[0])
         gamma = 1.0
-        for _ in range(50):  # fixed point: S = f2 sqrt(T) gamma = H s_w slip, slip = (1 - gamma)/2
-            sw = p["phi_w"] * G0 * np.sqrt(t0) / _SQRT_2PI
-            gamma = H * sw / (float(f.f2[0]) * np.sqrt(t0) + H * sw)
-            cs, cd = p["phi_w"] * G0 / _SQRT_2PI, (1 - p["ew"] ** 2) * G0 / _SQRT_2PI
-            slip = 0.5 * (1.0 - gamma)
-            t0 = (float(f.f2[0]) * gamma**2 + 2.0 * H * cs * slip**2) / (float(f.f5[0]) + 2.0 * cd / H)
+        with np.errstate(all="ignore"):  # extreme parameters give a non-finite guess: Newton says so
+            for _ in range(50):  # fixed point: S = f2 sqrt(T) gamma = H s_w slip, slip = (1 - gamma)/2
+                sw = p["phi_w"] * G0 * np.sqrt(t0) / _SQRT_2PI
+                gamma = H * sw / (float(f.f2[0]) * np.sqrt(t0) + H * sw)
+                cs, cd = p["phi_w"] * G0 / _SQRT_2PI, (1 - p["ew"] ** 2) * G0 / _SQRT_2PI
+                slip = 0.5 * (1.0 - gamma)
+                t0 = (float(f.f2[0]) * gamma**2 + 2.0 * H * cs * slip**2) / (float(f.f5[0]) + 2.0 * cd / H)
         tr = self.closure.transport(np.array([nu0]), np.array([t0]), p)
         return self.pack(np.full(self.n, nu0), gamma * self.grid.y, np.full(self.n, t0), float(tr.p[0]))
 

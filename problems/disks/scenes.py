@@ -34,7 +34,7 @@ from contin.branch import Branch, relabel
 from contin.continuation import trace
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
 from contin.resume import switch_reusing
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, require_started, scene_numbers
 from problems.disks.closures import (
     G_MODELS, DiskClosure, critical_gaps, homogeneous_stresses, kn_in_time_units, savage_contact_stresses,
 )
@@ -189,6 +189,10 @@ CRITICALITY_DEFAULTS: dict[str, Any] = {"corr": "cs", "nu_min": 0.05, "nu_max": 
                                         "m_f": 0.01, "fold_checks": 1}
 
 
+#: Largest number of area fractions disks-criticality computes per e (the default is 17).
+MAX_CRITICALITY_POINTS = 1000
+
+
 def run_criticality(request: SceneRequest) -> SceneResult:
     from problems.disks.criticality import bend_by_branch, pitchfork_bend, threshold_density, tricritical
 
@@ -206,6 +210,13 @@ def run_criticality(request: SceneRequest) -> SceneResult:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
     if not 0 < s["nu_min"] < s["nu_max"] < s["phi_inf"] or not s["dnu"] > 0:
         raise SceneError("need 0 < nu_min < nu_max < phi_inf and dnu > 0")
+    if not s["phi_inf"] < 1:  # phi_inf = 1e300 ended in scipy's 'The function value at x=2e+297 is NaN'
+        raise SceneError(f"maximum area fraction phi_inf = {s['phi_inf']:g} must lie in (0, 1)")
+    count = math.floor((s["nu_max"] - s["nu_min"]) / s["dnu"] + 1e-9) + 1
+    if count > MAX_CRITICALITY_POINTS:  # dnu = 1e-300 ended in numpy's 'Maximum allowed size exceeded'
+        raise SceneError(f"nu_min = {s['nu_min']:g} to nu_max = {s['nu_max']:g} in steps dnu = {s['dnu']:g} are "
+                         f"{count:.3g} area fractions; at most {MAX_CRITICALITY_POINTS} (each is a normal-form "
+                         "computation per e): raise dnu")
     closure = DiskClosure(G=s["corr"])
     pb = _problem(request, closure, grid=24)
     extra_p = {k: s[k] for k in ("phi_inf", "phi_f", "m_f")}
@@ -284,6 +295,9 @@ def run_savage(request: SceneRequest) -> SceneResult:
     if not s["phi_c"] < s["nu_band"]:
         raise SceneError(f"parameter nu_band = {s['nu_band']:g} <= phi_c = {s['phi_c']:g}: the dense (contact) closure "
                          "has no contact part there; the banding question is asked above phi_c")
+    if not s["a0_over_kn"] >= 0:  # was accepted: negative contact stresses and flow curves, exit 0
+        raise SceneError(f"parameter a0_over_kn = {s['a0_over_kn']:g} must be >= 0 (Savage's contact pressure scale a0 "
+                         "in units of k_n; a0_band is checked the same way)")
     closure = DiskClosure(G=s["corr"], contact=True, normalization="esi")
     # cheb 96: the banded dense plug nears phi_inf within ~2 H_1^c (the resolution guard ends it there)
     pb = _problem(request, closure, grid=96)
@@ -328,7 +342,7 @@ def run_savage(request: SceneRequest) -> SceneResult:
                                                            detection=DetectionOptions(detect_branch_points=False,
                                                                                       detect_hopf=NO_HOPF)))
             br = trace(pb, pb.uniform_state(pp), pp, "a0", opts, branch_id=bid, kind=f"uniform shear phi0={phi0:g}")
-        _emit(request, done, br)
+        _emit(request, done, require_started(br, "savage-rheology"))
         S = br.observables["shear_stress"]
         a0s = br.parameter_values
         slope = np.polyfit(a0s, S, 1)[0]
@@ -392,6 +406,9 @@ def run_steady(request: SceneRequest) -> SceneResult:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
     if not s["H"] > 2.0:
         raise SceneError(f"parameter H = {s['H']:g} must be > 2 (the run starts at H = 2)")
+    if s["phi_w"] == 0:  # it used to end 'initial guess is inadmissible: state has non-finite entries'
+        raise SceneError("disks-steady: phi_w = 0 (smooth walls) transmits no shear, so there is no sheared "
+                         "steady state; use phi_w > 0")
     closure = DiskClosure(G=s["corr"])
     pb = _problem(request, closure, walls="bumpy", grid=64)
     p = _params(pb, {k: v for k, v in s.items() if k != "corr"})
@@ -408,7 +425,7 @@ def run_steady(request: SceneRequest) -> SceneResult:
             detection=DetectionOptions(locate_tol=1e-9, detect_hopf=NO_HOPF)))
         br = trace(pb, pb.initial_guess(p), p, "H", opts, branch_id="0", kind="bumpy-wall base",
                    progress=request.report)
-    _emit(request, done, br)
+    _emit(request, done, require_started(br, "disks-steady"))
     notes = [f"branch ends at H = {br.parameter_values[-1]:.6g} ({br.status}: {br.message})"]
     extra: dict[str, Any] = {}
     if br.parameter_values[-1] >= h_target * (1 - 1e-9):

@@ -45,7 +45,7 @@ import numpy as np
 from contin.branch import Branch, relabel
 from contin.continuation import trace_both
 from contin.options import ContinuationOptions, StepOptions
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_numbers
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, require_started, scene_numbers
 
 from .closures import CriticalState, PlaneShearAnalytic
 from .cylinder import DEFAULTS as CYL_DEFAULTS
@@ -86,8 +86,9 @@ def _checked(problem: Any, p: Mapping[str, float]) -> None:
 
 
 class _Emitter:
-    def __init__(self, request: SceneRequest) -> None:
+    def __init__(self, request: SceneRequest, scene: str) -> None:
         self.request = request
+        self.scene = scene
         self.done: list[Branch] = []
 
     def run(self, branch_id: str, make: Any) -> Branch:
@@ -95,7 +96,7 @@ class _Emitter:
             branch = self.request.completed[branch_id]
         else:
             self.request.report(f"tracing {branch_id}")
-            branch = make()
+            branch = require_started(make(), self.scene)  # the scene reads its observables next
         self.done.append(branch)
         relabel(self.done)
         self.request.finished(branch)
@@ -130,7 +131,7 @@ def run_shear(request: SceneRequest) -> SceneResult:
         raise SceneError(f"need 0 < ell_min <= ell <= ell_max, got {s['ell_min']:g}, {s['ell']:g}, {s['ell_max']:g}")
     if not (0 < s["W_min"] <= s["W"] <= s["W_max"]):
         raise SceneError(f"need 0 < W_min <= W <= W_max, got {s['W_min']:g}, {s['W']:g}, {s['W_max']:g}")
-    em = _Emitter(request)
+    em = _Emitter(request, "nonlocal-shear")
     notes: list[str] = []
     extra: dict[str, Any] = {}
 
@@ -180,7 +181,7 @@ def _solve(pb: PlaneShear, p: Mapping[str, float]) -> np.ndarray:
 
     res = newton(pb, pb.initial(p), p)
     if not res.converged:
-        raise SceneError(f"Newton did not converge at the start point ({res})")
+        raise SceneError(f"Newton did not converge at the start point: {res.message}")
     return res.u
 
 
@@ -226,7 +227,7 @@ def run_muI(request: SceneRequest) -> SceneResult:
         raise SceneError(f"the phi(I) slope A_phi must be > 0, got {s['A_phi']:g}")
     if not (0 < s["U_min_phiI"] < s["U_max"]):
         raise SceneError(f"need 0 < U_min_phiI < U_max, got {s['U_min_phiI']:g}, {s['U_max']:g}")
-    em = _Emitter(request)
+    em = _Emitter(request, "nonlocal-muI")
     notes: list[str] = []
     extra: dict[str, Any] = {}
 
@@ -306,7 +307,7 @@ def run_cylinder(request: SceneRequest) -> SceneResult:
     _checked(CylindricalCouette(cs=cs), p)
     if not (1.0 < s["ratio_min"] <= s["ratio"] <= s["ratio_max"]):
         raise SceneError(f"need 1 < ratio_min <= ratio <= ratio_max, got {s['ratio_min']:g}, {s['ratio']:g}, {s['ratio_max']:g}")
-    em = _Emitter(request)
+    em = _Emitter(request, "nonlocal-cylinder")
     notes: list[str] = []
     extra: dict[str, Any] = {}
     problems: dict[str, CylindricalCouette] = {}
