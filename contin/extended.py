@@ -121,6 +121,8 @@ class ExtendedSystem:
                 # matrix has its n + 1 dense row and column besides (linalg.dense_by_count)
                 probe = np.asarray(self._dense_jacobian(u, q), dtype=float)  # type: ignore[misc]
                 if dense_by_count(u.size + 1, int(np.count_nonzero(probe)) + 2 * u.size + 1):
+                    if scratch and self._dense_out:
+                        self._scratch = probe  # as a scratch J: the next scratch call writes into it
                     fp = np.asarray(self.problem.dresidual_dp(u, q, self.parameter), dtype=float).ravel()
                     return probe, fp
             if not dense_factorization(self.state_jacobian(x, q), bordered=True):
