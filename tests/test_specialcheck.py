@@ -277,3 +277,47 @@ def test_fd2_bp_positions_meet_special_tol_against_the_continuum_or_say_so(speci
     assert [round(x.params["lam"]) for x in bps] == [1, 4, 9]
     for k, bp in zip((1, 2, 3), bps):
         assert abs(bp.params["lam"] / k**2 - 1) <= special_tol or "position not resolved" in bp.note
+
+
+def test_three_grid_error_recovers_the_observed_order():
+    """p(M) = p* + C M^-r through grids 16, 32, 64: three_grid_error is |p* - p(16)| / |p(16)|
+    for any observed order r (1.3: pre-asymptotic against a nominal 4; 4; 6), where the nominal
+    order's Richardson estimate under-states a slow convergence; shifts that do not converge
+    monotonically give the far shift scaled with the nominal order."""
+    from contin.specialcheck import PointCheck, three_grid_error
+
+    p_star, c = 2.0, 0.3
+
+    def p(m, r):
+        return p_star + c * m ** -r
+
+    for r in (1.3, 4.0, 6.0):
+        near = PointCheck(math.nan, 32, p(32, r) - p(16, r))
+        far = PointCheck(math.nan, 64, p(64, r) - p(16, r))
+        exact = abs(p_star - p(16, r)) / p(16, r)
+        assert three_grid_error(p(16, r), 16, near, far, 4.0) == pytest.approx(exact, rel=1e-9)
+    r = 1.3
+    nominal = abs(p(32, r) - p(16, r)) / (1 - 2.0**-4) / p(16, r)
+    assert nominal < 0.7 * abs(p_star - p(16, r)) / p(16, r)  # what the two grids alone said (0.63x)
+    wobble = PointCheck(math.nan, 64, -0.5 * (p(32, r) - p(16, r)))  # the far shift turns back
+    assert three_grid_error(p(16, r), 16, PointCheck(math.nan, 32, p(32, r) - p(16, r)), wobble, 4.0) == (
+        pytest.approx(abs(wobble.parameter_shift) / (1 - 4.0**-4) / p(16, r)))
+
+
+def test_fd_bp_in_the_pre_asymptotic_range_is_refined_not_passed():
+    """gPCF fd4 (problems.couette): H_1^c on fd4 16 is 2.9e-5 off n pi psi, but fd4 16 -> 32 is
+    pre-asymptotic (the error falls 2x, not 16x), so the two-grid check scaled with the nominal
+    order says 1.7e-5; at special_tol 2e-5 it passed there, 2.9e-5 off with no note.  The check
+    on a third grid (fd4 64) finds the observed order and 8e-5: refined to fd4 32, 1.4e-5 off."""
+    from contin.options import DetectionOptions
+    from problems.couette import pitchfork as pf
+    from problems.couette.model import CouetteProblem
+
+    exact = pf.analytic_critical_gaps(0.3, 0.8, 1)[0]  # n pi psi
+    pb = CouetteProblem("fd4", 16)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    o = ContinuationOptions(bounds={"H": (0.8 * exact, 1.2 * exact)}, step=StepOptions(ds=0.1 * exact, ds_max=0.3 * exact),
+                            detection=DetectionOptions(), adapt=AdaptOptions(tol=1e-4, special_tol=2e-5))
+    (bp,) = pf.trace_base(pb, p, 0.8 * exact, o).branch_points
+    assert abs(bp.params["H"] / exact - 1) <= 2e-5
+    assert bp.grid >= 32 and "not resolved" not in bp.note
