@@ -300,3 +300,24 @@ def test_savage_negative_contact_scale_is_refused(tmp_path):
 ])
 def test_range_parameters_of_criticality_and_unfolding_scenes(args, expect, tmp_path):
     assert expect in one_error(args, tmp_path)
+
+
+def test_a_reader_closing_stderr_does_not_stop_the_run(tmp_path):
+    # 'contin trace pitchfork ... 2>&1 | head -1': the second progress line raised BrokenPipeError
+    # and the run ended (exit 1, 'incomplete: the run failed: Broken pipe', 2 of 7 branches)
+    import os
+    import subprocess
+    import sys
+
+    from contin import io
+
+    out = tmp_path / "pf.h5"
+    env = {k: v for k, v in os.environ.items() if k not in ("CONTIN_SCENES", "CONTIN_DEBUG")}
+    proc = subprocess.Popen([sys.executable, "-m", "contin", "trace", "pitchfork", "--grid", "24", "--max-steps", "20",
+                             "--no-stability", "-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, env=env)
+    assert proc.stderr.readline().strip()  # the first progress line, then the reader goes away
+    proc.stderr.close()
+    assert proc.wait(timeout=120) == 3  # the run's own exit code: some banded branches end MX on cheb 24
+    branches, meta = io.load(out)
+    assert meta["complete"] and len(branches) == 7
