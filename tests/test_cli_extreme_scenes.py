@@ -321,3 +321,9 @@ def test_a_reader_closing_stderr_does_not_stop_the_run(tmp_path):
     assert proc.wait(timeout=120) == 3  # the run's own exit code: some banded branches end MX on cheb 24
     branches, meta = io.load(out)
     assert meta["complete"] and len(branches) == 7
+
+
+def test_nonlocal_shear_wall_friction_beyond_its_branch_is_named(tmp_path):
+    # 'Error: start value mu_w=0.3617 lies outside its bounds (0, 0.354564)', after 2 branches
+    line = one_error(["nonlocal-shear", "-s", "mu_w=0.3617"], tmp_path)
+    assert "mu_w = 0.3617 must be below 0.98 mu = 0.354564" in line
