@@ -327,3 +327,18 @@ def test_nonlocal_shear_wall_friction_beyond_its_branch_is_named(tmp_path):
     # 'Error: start value mu_w=0.3617 lies outside its bounds (0, 0.354564)', after 2 branches
     line = one_error(["nonlocal-shear", "-s", "mu_w=0.3617"], tmp_path)
     assert "mu_w = 0.3617 must be below 0.98 mu = 0.354564" in line
+
+
+def test_max_grid_below_the_scenes_start_grid_holds_from_the_start(tmp_path):
+    # disks-pitchfork starts on cheb 64: with a tol no grid meets the start stayed there and the
+    # branch ended 'under-resolved ... on the maximum grid 64 (AdaptOptions.max_grid = 16)'
+    from contin import io
+
+    out = tmp_path / "mg.h5"
+    res = CliRunner().invoke(main, ["trace", "disks-pitchfork", "-s", "corr=cs", "--tol", "1e-30", "--max-grid", "16",
+                                    "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    assert res.exit_code == 3, res.stderr
+    (b,), _ = io.load(out)
+    assert "on the maximum grid 16 (AdaptOptions.max_grid = 16)" in b.message
+    assert any("start grid lowered 64 -> 16" in m for m in b.audit)
+    assert b.grid is None or int(np.max(b.grid)) <= 16
