@@ -342,3 +342,17 @@ def test_max_grid_below_the_scenes_start_grid_holds_from_the_start(tmp_path):
     assert "on the maximum grid 16 (AdaptOptions.max_grid = 16)" in b.message
     assert any("start grid lowered 64 -> 16" in m for m in b.audit)
     assert b.grid is None or int(np.max(b.grid)) <= 16
+
+
+def test_repeated_user_zero_values_give_one_point_per_crossing(tmp_path):
+    # 'contin trace bratu --uz lam=1,1,1' stored UZ1, UZ2, UZ3 at the same point (and 3 more past the fold)
+    from contin import io
+    from contin.options import ContinuationOptions
+
+    assert ContinuationOptions(user_zeros={"lam": (1.0, 1.0, 2.0, 1.0)}).user_zeros == {"lam": (1.0, 2.0)}
+    out = tmp_path / "uz.h5"
+    res = CliRunner().invoke(main, ["trace", "bratu", "--uz", "lam=1,1,1", "--no-stability", "-q", "-o", str(out)],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    (b,), _ = io.load(out)
+    assert len([sp for sp in b.special_points if sp.type == "UZ"]) == 2  # lam = 1 below and above the fold
