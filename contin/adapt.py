@@ -495,6 +495,15 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
     if not res.converged:
         return problem, np.asarray(u0, dtype=float), lines
     u = res.u
+    if problem.grid_size > opts.max_grid:
+        # A scene's start grid above the user's --max-grid (disks-pitchfork starts on cheb 64): a
+        # tol no grid meets kept the start there, stored points on 64 and ended 'under-resolved ...
+        # on the maximum grid 64 (AdaptOptions.max_grid = 16)'.  The cap holds from the start.
+        other = problem.with_grid(opts.max_grid)
+        trial = newton(other, problem.transfer(u, other), params, newton_options)
+        if trial.converged:
+            lines.append(f"start grid lowered {problem.grid_size} -> {opts.max_grid} (AdaptOptions.max_grid)")
+            problem, u = other, trial.u
     err = est(problem, u, params)
     while err > opts.tol:
         n_new = finer(problem, u, params, opts)

@@ -273,7 +273,7 @@ class ContinuationOptions:
             vals = tuple(float(v) for v in ([values] if isinstance(values, int | float) else values))
             if not all(math.isfinite(v) for v in vals):
                 raise ValueError(f"user_zeros for {name!r} must be finite numbers, got {values!r}")
-            zeros[str(name)] = vals
+            zeros[str(name)] = tuple(dict.fromkeys(vals))  # '--uz lam=1,1,1' located each crossing 3 times
         object.__setattr__(self, "user_zeros", zeros)
         for name, fn in self.events.items():
             if not callable(fn):

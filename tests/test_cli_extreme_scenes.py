@@ -300,3 +300,59 @@ def test_savage_negative_contact_scale_is_refused(tmp_path):
 ])
 def test_range_parameters_of_criticality_and_unfolding_scenes(args, expect, tmp_path):
     assert expect in one_error(args, tmp_path)
+
+
+def test_a_reader_closing_stderr_does_not_stop_the_run(tmp_path):
+    # 'contin trace pitchfork ... 2>&1 | head -1': the second progress line raised BrokenPipeError
+    # and the run ended (exit 1, 'incomplete: the run failed: Broken pipe', 2 of 7 branches)
+    import os
+    import subprocess
+    import sys
+
+    from contin import io
+
+    out = tmp_path / "pf.h5"
+    env = {k: v for k, v in os.environ.items() if k not in ("CONTIN_SCENES", "CONTIN_DEBUG")}
+    proc = subprocess.Popen([sys.executable, "-m", "contin", "trace", "pitchfork", "--grid", "24", "--max-steps", "20",
+                             "--no-stability", "-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, env=env)
+    assert proc.stderr.readline().strip()  # the first progress line, then the reader goes away
+    proc.stderr.close()
+    assert proc.wait(timeout=120) == 3  # the run's own exit code: some banded branches end MX on cheb 24
+    branches, meta = io.load(out)
+    assert meta["complete"] and len(branches) == 7
+
+
+def test_nonlocal_shear_wall_friction_beyond_its_branch_is_named(tmp_path):
+    # 'Error: start value mu_w=0.3617 lies outside its bounds (0, 0.354564)', after 2 branches
+    line = one_error(["nonlocal-shear", "-s", "mu_w=0.3617"], tmp_path)
+    assert "mu_w = 0.3617 must be below 0.98 mu = 0.354564" in line
+
+
+def test_max_grid_below_the_scenes_start_grid_holds_from_the_start(tmp_path):
+    # disks-pitchfork starts on cheb 64: with a tol no grid meets the start stayed there and the
+    # branch ended 'under-resolved ... on the maximum grid 64 (AdaptOptions.max_grid = 16)'
+    from contin import io
+
+    out = tmp_path / "mg.h5"
+    res = CliRunner().invoke(main, ["trace", "disks-pitchfork", "-s", "corr=cs", "--tol", "1e-30", "--max-grid", "16",
+                                    "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    assert res.exit_code == 3, res.stderr
+    (b,), _ = io.load(out)
+    assert "on the maximum grid 16 (AdaptOptions.max_grid = 16)" in b.message
+    assert any("start grid lowered 64 -> 16" in m for m in b.audit)
+    assert b.grid is None or int(np.max(b.grid)) <= 16
+
+
+def test_repeated_user_zero_values_give_one_point_per_crossing(tmp_path):
+    # 'contin trace bratu --uz lam=1,1,1' stored UZ1, UZ2, UZ3 at the same point (and 3 more past the fold)
+    from contin import io
+    from contin.options import ContinuationOptions
+
+    assert ContinuationOptions(user_zeros={"lam": (1.0, 1.0, 2.0, 1.0)}).user_zeros == {"lam": (1.0, 2.0)}
+    out = tmp_path / "uz.h5"
+    res = CliRunner().invoke(main, ["trace", "bratu", "--uz", "lam=1,1,1", "--no-stability", "-q", "-o", str(out)],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    (b,), _ = io.load(out)
+    assert len([sp for sp in b.special_points if sp.type == "UZ"]) == 2  # lam = 1 below and above the fold

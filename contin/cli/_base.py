@@ -80,6 +80,38 @@ class ContinCommand(click.Command):
 ContinGroup.command_class = ContinCommand  # every @main.command()
 
 
+class _SinkOnBrokenPipe:
+    """``sys.stderr`` that becomes a sink once its reader has gone.
+
+    Progress, notes and tables go to stderr; with ``contin trace ... 2>&1 | head -1`` the second
+    progress line raised BrokenPipeError, which ended the run (exit 1, 'incomplete: the run failed:
+    Broken pipe', 2 of 7 branches traced).  A reader that stopped reading is no reason to stop
+    computing: the output file and the exit code still report the run.
+    """
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self._gone = False
+
+    def write(self, text: str) -> int:
+        if not self._gone:
+            try:
+                return self._stream.write(text)  # type: ignore[no-any-return]
+            except BrokenPipeError:
+                self._gone = True
+        return len(text)
+
+    def flush(self) -> None:
+        if not self._gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._gone = True
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
 def _one_line_formatter(logging: Any) -> Any:
     """``level: message`` lines (the logging module is passed in: it is imported lazily)."""
 
@@ -115,6 +147,8 @@ def main(debug: bool, verbose: int) -> None:
 
     Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 143 SIGTERM.
     """
+    if not isinstance(sys.stderr, _SinkOnBrokenPipe):
+        sys.stderr = _SinkOnBrokenPipe(sys.stderr)  # type: ignore[assignment]
     _setup_logging(verbose)  # BLAS threads: ContinCommand.invoke, when a command runs
 
 

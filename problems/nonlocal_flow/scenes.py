@@ -66,6 +66,10 @@ SHEAR_DEFAULTS: dict[str, Any] = {
 ANALYTIC_TOL = 1e-8
 
 
+#: The pairs' mu_w branches run over 0 <= mu_w <= MU_W_SPAN mu (zeta^2 = (1 - mu_w/mu)/ell^2 > 0).
+MU_W_SPAN = 0.98
+
+
 def numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, float]:
     """Defaults merged with the user's values, each a finite number (SceneError otherwise)."""
     return scene_numbers(request, defaults, scene)
@@ -131,6 +135,10 @@ def run_shear(request: SceneRequest) -> SceneResult:
         raise SceneError(f"need 0 < ell_min <= ell <= ell_max, got {s['ell_min']:g}, {s['ell']:g}, {s['ell_max']:g}")
     if not (0 < s["W_min"] <= s["W"] <= s["W_max"]):
         raise SceneError(f"need 0 < W_min <= W <= W_max, got {s['W_min']:g}, {s['W']:g}, {s['W_max']:g}")
+    for name in ("mu_w", "mu_w2"):  # -s mu_w=0.3617 said 'start value mu_w=0.3617 lies outside its bounds (0, 0.354564)'
+        if not s[name] < MU_W_SPAN * s["mu"]:
+            raise SceneError(f"{name} = {s[name]:g} must be below {MU_W_SPAN:g} mu = {MU_W_SPAN * s['mu']:g}: each pair "
+                             f"is continued in mu_w from 0 to {MU_W_SPAN:g} mu through its own value")
     em = _Emitter(request, "nonlocal-shear")
     notes: list[str] = []
     extra: dict[str, Any] = {}
@@ -149,7 +157,7 @@ def run_shear(request: SceneRequest) -> SceneResult:
     for k, (K, mu_w) in enumerate(pairs, start=1):
         p = _plane_params(s, K, mu_w)
         ranges = {"ell": (s["ell_min"], s["ell_max"], 0.1),
-                  "mu_w": (0.0, 0.98 * s["mu"], 0.01),
+                  "mu_w": (0.0, MU_W_SPAN * s["mu"], 0.01),
                   "W": (s["W_min"], s["W_max"], 1.0)}
         asym = 0.0
         for name, (lo, hi, ds) in ranges.items():
