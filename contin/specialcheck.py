@@ -107,6 +107,20 @@ def _carried(problem: Any, state: Array, tangent: Array, opts: AdaptOptions) -> 
     return n_f, fine, u, t_u
 
 
+def _point_check(problem: Any, fine: Any, n_f: int, parameter: str, q: dict[str, float], dp: float,
+                 u: Array, u_fine: Array) -> PointCheck:
+    """The PointCheck of a check's Newton step: the parameter's shift dp from q[parameter] (q is
+    moved to p + dp) and the state's change u -> u_fine on the check grid ``fine``, both divided
+    by 1 - (N/N_f)^q for a scheme of order q (:func:`contin.adapt.richardson`)."""
+    from contin.adapt import richardson, solution_error
+
+    p = float(q[parameter])
+    q[parameter] = p + dp
+    scale = richardson(problem, n_f)
+    e = scale * _relative_shift(dp, p + dp)
+    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u_fine, q))
+
+
 def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
                      tangent: Array, opts: AdaptOptions) -> PointCheck | None:
     """Two-grid error of a located LP (state u, the branch's unit tangent (du, dp) there, dp ~ 0):
@@ -122,7 +136,7 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
     so dp is the LP's parameter error to first order (module docstring).  None without
     ``check_factor`` or when the check grid rounds to the point's; error inf where the bordered
     matrix is singular there or the step is not finite."""
-    from contin.adapt import factorizable_jacobian, richardson, solution_error
+    from contin.adapt import factorizable_jacobian
     from contin.linalg import factorize_bordered
 
     carried = _carried(problem, state, tangent, opts)
@@ -130,7 +144,6 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
         return None
     n_f, fine, u, t_u = carried
     t = np.asarray(tangent, dtype=float)
-    p = float(params[parameter])
     q = {k: float(v) for k, v in params.items()}
     with np.errstate(all="ignore"):
         fact = factorize_bordered(factorizable_jacobian(fine, u, q),
@@ -141,11 +154,7 @@ def fold_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
         delta = fact.solve(np.append(-np.asarray(fine.residual(u, q), dtype=float), 0.0))
     if not np.all(np.isfinite(delta)):
         return PointCheck(math.inf, n_f, math.inf)
-    dp = float(delta[-1])
-    q[parameter] = p + dp
-    scale = richardson(problem, n_f)
-    e = scale * _relative_shift(dp, p + dp)
-    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u + delta[:-1], q))
+    return _point_check(problem, fine, n_f, parameter, q, float(delta[-1]), u, u + delta[:-1])
 
 
 def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
@@ -156,7 +165,7 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     docstring).  None without ``check_factor``, when the check grid rounds to the point's, or
     when the check is not conclusive (the bordered correction needs a multiplier: the point is
     not on a symmetric branch as assumed); error inf where M is singular or a step not finite."""
-    from contin.adapt import factorizable_jacobian, richardson, solution_error
+    from contin.adapt import factorizable_jacobian
     from contin.linalg import factorize_bordered, inf_norm
 
     carried = _carried(problem, state, tangent, opts)
@@ -199,11 +208,7 @@ def symmetric_bp_error(problem: Any, state: Array, params: Mapping[str, float], 
     if not np.all(np.isfinite(step)):
         return PointCheck(math.inf, n_f, math.inf)
     alpha = float(step[-1])
-    dp = alpha * t_p
-    q[parameter] = p + dp
-    scale = richardson(problem, n_f)
-    e = scale * _relative_shift(dp, p + dp)
-    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u_f + alpha * t_u, q))
+    return _point_check(problem, fine, n_f, parameter, q, alpha * t_p, u, u_f + alpha * t_u)
 
 
 def hopf_point_error(problem: Any, state: Array, params: Mapping[str, float], parameter: str,
@@ -234,7 +239,6 @@ def hopf_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
     to the point's, without a positive finite omega, for problems with their own
     ``eigenproblem`` (their pencil is not (J, M)), or when no eigenvector is found; error inf
     where the augmented Jacobian is singular or the step not finite."""
-    from contin.adapt import richardson, solution_error
     from contin.hopfsystem import HopfCurveProblem, hopf_basis
     from contin.linalg import factorize
     from contin.problem import has
@@ -271,11 +275,7 @@ def hopf_point_error(problem: Any, state: Array, params: Mapping[str, float], pa
         delta = fact.solve(-np.asarray(curve.residual(x, q), dtype=float))
     if not np.all(np.isfinite(delta)):
         return PointCheck(math.inf, n_f, math.inf)
-    dp = float(delta[-1])
-    q[parameter] = p + dp
-    scale = richardson(problem, n_f)
-    e = scale * _relative_shift(dp, p + dp)
-    return PointCheck(e if math.isfinite(e) else math.inf, n_f, dp, scale * solution_error(fine, u, u + delta[:u.size], q))
+    return _point_check(problem, fine, n_f, parameter, q, float(delta[-1]), u, u + delta[:u.size])
 
 
 def has_position_check(kind: str, symmetric: bool) -> bool:
