@@ -795,6 +795,17 @@ def _read_special_points(g: h5py.Group) -> list[tuple[int, str, SpecialPoint]]:
     return out
 
 
+def check_parameters(parameters: Any) -> None:
+    """BadDataset when the run's ``parameters`` attribute holds a NaN: no scene writes one (the
+    command line refuses NaN settings), so it is damage, and a problem rebuilt from it
+    (``contin continue``, ``verify``, ``stability``) would compute with it."""
+    if not isinstance(parameters, Mapping):
+        return
+    for name, value in parameters.items():
+        if isinstance(value, float) and math.isnan(value):
+            raise BadDataset(f"attribute parameters holds NaN for {name!r}")
+
+
 def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
     """Read a run file: ``(branches, metadata)``.
 
@@ -840,6 +851,7 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                 meta[key] = str(a.get(key, ""))
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
+            check_parameters(meta["parameters"])  # a NaN there was shown by info and rebuilt into problems
             meta["y"] = f["grid/y"][()] if "grid/y" in f else None
             check_profile_grid(meta["y"])  # NaN there drew profiles with gaps, exit 0
             groups = sorted(f["branches"].values(), key=lambda g: int(g.attrs["position"]))

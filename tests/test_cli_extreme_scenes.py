@@ -169,6 +169,29 @@ def test_reader_refuses_a_nan_profile_grid_and_impossible_point_grids(dataset, v
         assert "is damaged: " + expect in lines[0], lines[0]
 
 
+def test_reader_refuses_a_nan_run_parameter(tmp_path):
+    # a NaN in the root attribute 'parameters' was shown by info (exit 0) and rebuilt into the
+    # problems of verify / stability / continue
+    import json
+
+    import h5py
+
+    good = tmp_path / "b.h5"
+    res = CliRunner().invoke(main, ["trace", "bratu", "--no-stability", "-q", "--max-steps", "5", "-o", str(good)],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    with h5py.File(good, "r+") as f:
+        params = json.loads(f.attrs["parameters"])
+        name = next(iter(params))
+        params[name] = float("nan")
+        f.attrs["parameters"] = json.dumps(params)
+    for cmd in (["info", str(good)], ["verify", str(good)], ["diagram", str(good), "-o", str(tmp_path / "d.png")]):
+        res = CliRunner().invoke(main, cmd, catch_exceptions=False)
+        lines = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+        assert res.exit_code == 1 and len(lines) == 1, (cmd, res.stderr)
+        assert f"is damaged: attribute parameters holds NaN for {name!r}" in lines[0], lines[0]
+
+
 def _relabelled(tmp_path, scene_args, scene):
     import h5py
 
