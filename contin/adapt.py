@@ -393,19 +393,18 @@ def factorizable_jacobian(problem: Any, u: Array, p: Any) -> Any:
     ``factorize_bordered``): from the problem's optional ``dense_jacobian`` hook where the
     factorization is dense anyway (the same entries, without building a sparse J only to copy it
     densely), else the problem's (sparse) ``jacobian``."""
-    from contin.linalg import DENSE_PROBE_MAX, dense_by_count, dense_factorization
+    from contin.linalg import counted_dense, dense_factorization
 
     if not has(problem, "dense_jacobian"):
         return problem.jacobian(u, p)
     dense = _DENSE_DECIDED.get(problem) if _weakrefable(problem) else None
-    if dense is None and np.asarray(u).size <= DENSE_PROBE_MAX:
-        # a small problem's dense J, counted, may decide without a sparse J (dense_by_count)
-        probe = np.asarray(problem.dense_jacobian(u, p), dtype=float)
-        if dense_by_count(probe.shape[0], int(np.count_nonzero(probe))):
+    if dense is None:
+        # a small problem's dense J, counted, may decide without a sparse J
+        probe = counted_dense(lambda: problem.dense_jacobian(u, p), np.asarray(u).size)
+        if probe is not None:
             if _weakrefable(problem):
                 _DENSE_DECIDED[problem] = True
             return probe
-    if dense is None:
         # the structure of J is the grid's, not the point's: decided once per problem (a
         # sparse J built only to be looked at cost ~0.35 ms per two-grid check of gPCF)
         jac = problem.jacobian(u, p)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from contin.linalg import DENSE_PROBE_MAX, dense_by_count, dense_factorization
+from contin.linalg import counted_dense, dense_factorization
 from contin.problem import Array, has
 
 
@@ -116,15 +116,13 @@ class ExtendedSystem:
         u = x[:-1]
         if not self._dense_decided:
             self._dense_decided = True
-            if dense and u.size <= DENSE_PROBE_MAX:
-                # a small problem's dense J, counted, may decide without a sparse J: the bordered
-                # matrix has its n + 1 dense row and column besides (linalg.dense_by_count)
-                probe = np.asarray(self._dense_jacobian(u, q), dtype=float)  # type: ignore[misc]
-                if dense_by_count(u.size + 1, int(np.count_nonzero(probe)) + 2 * u.size + 1):
-                    if scratch and self._dense_out:
-                        self._scratch = probe  # as a scratch J: the next scratch call writes into it
-                    fp = np.asarray(self.problem.dresidual_dp(u, q, self.parameter), dtype=float).ravel()
-                    return probe, fp
+            # a small problem's dense J, counted as the bordered matrix, may decide without a sparse J
+            probe = counted_dense(lambda: self._dense_jacobian(u, q), u.size, bordered=True) if dense else None  # type: ignore[misc]
+            if probe is not None:
+                if scratch and self._dense_out:
+                    self._scratch = probe  # as a scratch J: the next scratch call writes into it
+                fp = np.asarray(self.problem.dresidual_dp(u, q, self.parameter), dtype=float).ravel()
+                return probe, fp
             if not dense_factorization(self.state_jacobian(x, q), bordered=True):
                 self._dense_jacobian = None
         if dense and self._dense_jacobian is not None:

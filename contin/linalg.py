@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import scipy.sparse as sp
 
@@ -199,6 +199,19 @@ def dense_by_count(n: int, nnz: int) -> bool:
     if nnz <= n * n / BAND_FRACTION + 2 * MAX_BORDER * n:
         return False
     return n <= DENSE_LIMIT or (n <= DENSE_MAX and nnz >= DENSE_FILL * n * n)
+
+
+def counted_dense(dense_jacobian: Any, n: int, bordered: bool = False) -> Array | None:
+    """``dense_jacobian()`` (a problem's dense J of order n) where its count decides that it is
+    factorized densely (:func:`dense_by_count`; ``bordered``: as the bordered matrix of
+    :func:`factorize_bordered`, J with a dense row and column of n + 1 more entries); None where
+    n exceeds :data:`DENSE_PROBE_MAX` (not evaluated) or the pattern must decide."""
+    if n > DENSE_PROBE_MAX:
+        return None
+    probe = np.asarray(dense_jacobian(), dtype=float)
+    nnz = int(np.count_nonzero(probe))
+    dense = dense_by_count(n + 1, nnz + 2 * n + 1) if bordered else dense_by_count(n, nnz)
+    return probe if dense else None
 
 
 def factorize(a: object) -> Factorization | None:
