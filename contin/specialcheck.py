@@ -357,17 +357,14 @@ def three_grid_error(p: float, n: int, near: PointCheck, far: PointCheck, order:
     there r < order and this estimate is the larger.  Where the shifts are not monotone (no
     observed order), the far shift scaled with the nominal order is returned.  inf for a
     non-finite shift."""
-    from contin.adapt import PARAM_SCALE_FLOOR
-
     s1, s2 = near.parameter_shift, far.parameter_shift
     if not (math.isfinite(s1) and math.isfinite(s2)):
         return math.inf
-    scale = max(abs(p), PARAM_SCALE_FLOOR)
     d1, d2 = s1, s2 - s1  # p(near) - p(n), p(far) - p(near)
     a, b = n / near.grid, near.grid / far.grid
     if d1 * d2 <= 0 or abs(d2) >= abs(d1):
         # not (yet) converging monotonically: the point is at least the far shift off
-        return abs(s2) / (1.0 - (n / far.grid) ** order) / scale
+        return _relative_shift(s2 / (1.0 - (n / far.grid) ** order), p)
     # d1 / d2 = (1 - a^r) / (a^r (1 - b^r)) (n^-r - near^-r over near^-r - far^-r), increasing in r
     target = d1 / d2
 
@@ -376,9 +373,8 @@ def three_grid_error(p: float, n: int, near: PointCheck, far: PointCheck, order:
 
     lo, hi = 1e-3, 4.0 * order
     if ratio(hi) < target:  # faster than four times the nominal order: the nominal estimate
-        return abs(d1) / (1.0 - a**order) / scale
+        return _relative_shift(d1 / (1.0 - a**order), p)
     for _ in range(100):  # bisection in r (ratio is monotone); 2^-100 of the bracket
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ratio(mid) < target else (lo, mid)
-    r = 0.5 * (lo + hi)
-    return abs(d1) / (1.0 - a**r) / scale
+    return _relative_shift(d1 / (1.0 - a ** (0.5 * (lo + hi))), p)

@@ -195,13 +195,9 @@ def test_cli_trace_special_tol_keeps_a_checked_bp_and_says_so(tmp_path):
         assert abs(bp.params["lam"] / k**2 - 1) <= 1e-6
 
 
-def test_fd_bp_position_measured_where_the_kernel_estimate_is_blind():
-    """gPCF fd4 (problems.couette; the core test of the same rule is Allen-Cahn fd2 below): the
-    kernel estimate of an FD grid is the Chebyshev tail of its profiles, which does not see the
-    scheme's error (4.9e-8 on fd4 16, where H_1^c is 2.9e-5 off n pi psi).  The position check
-    runs on every located BP and refines until the measured error meets special_tol, although
-    it falls only 1.2x from fd4 16 to 32 (pre-asymptotic): H_1^c within 1e-6 (it was 1.4e-5 off,
-    on fd4 32, without a note)."""
+def gpcf_fd4_first_bp(adapt: AdaptOptions):
+    """(the BP, n pi psi) of gPCF uniform shear at nu = 0.3, e = 0.8 traced adaptively from fd4 16
+    over 0.8 .. 1.2 H_1^c (problems.couette; the core tests of the same rules are Allen-Cahn's)."""
     from contin.options import DetectionOptions
     from problems.couette import pitchfork as pf
     from problems.couette.model import CouetteProblem
@@ -210,8 +206,19 @@ def test_fd_bp_position_measured_where_the_kernel_estimate_is_blind():
     pb = CouetteProblem("fd4", 16)
     p = pb.params({"nu": 0.3, "e": 0.8})
     o = ContinuationOptions(bounds={"H": (0.8 * exact, 1.2 * exact)}, step=StepOptions(ds=0.1 * exact, ds_max=0.3 * exact),
-                            detection=DetectionOptions(), adapt=AdaptOptions(tol=1e-5, special_tol=1e-6))
+                            detection=DetectionOptions(), adapt=adapt)
     (bp,) = pf.trace_base(pb, p, 0.8 * exact, o).branch_points
+    return bp, exact
+
+
+def test_fd_bp_position_measured_where_the_kernel_estimate_is_blind():
+    """gPCF fd4 (problems.couette; the core test of the same rule is Allen-Cahn fd2 below): the
+    kernel estimate of an FD grid is the Chebyshev tail of its profiles, which does not see the
+    scheme's error (4.9e-8 on fd4 16, where H_1^c is 2.9e-5 off n pi psi).  The position check
+    runs on every located BP and refines until the measured error meets special_tol, although
+    it falls only 1.2x from fd4 16 to 32 (pre-asymptotic): H_1^c within 1e-6 (it was 1.4e-5 off,
+    on fd4 32, without a note)."""
+    bp, exact = gpcf_fd4_first_bp(AdaptOptions(tol=1e-5, special_tol=1e-6))
     assert abs(bp.params["H"] / exact - 1) <= 1e-6
     assert bp.grid > 32 and "not resolved" not in bp.note
 
@@ -309,15 +316,6 @@ def test_fd_bp_in_the_pre_asymptotic_range_is_refined_not_passed():
     pre-asymptotic (the error falls 2x, not 16x), so the two-grid check scaled with the nominal
     order says 1.7e-5; at special_tol 2e-5 it passed there, 2.9e-5 off with no note.  The check
     on a third grid (fd4 64) finds the observed order and 8e-5: refined to fd4 32, 1.4e-5 off."""
-    from contin.options import DetectionOptions
-    from problems.couette import pitchfork as pf
-    from problems.couette.model import CouetteProblem
-
-    exact = pf.analytic_critical_gaps(0.3, 0.8, 1)[0]  # n pi psi
-    pb = CouetteProblem("fd4", 16)
-    p = pb.params({"nu": 0.3, "e": 0.8})
-    o = ContinuationOptions(bounds={"H": (0.8 * exact, 1.2 * exact)}, step=StepOptions(ds=0.1 * exact, ds_max=0.3 * exact),
-                            detection=DetectionOptions(), adapt=AdaptOptions(tol=1e-4, special_tol=2e-5))
-    (bp,) = pf.trace_base(pb, p, 0.8 * exact, o).branch_points
+    bp, exact = gpcf_fd4_first_bp(AdaptOptions(tol=1e-4, special_tol=2e-5))
     assert abs(bp.params["H"] / exact - 1) <= 2e-5
     assert bp.grid >= 32 and "not resolved" not in bp.note
