@@ -108,9 +108,12 @@ def _correct(system: ExtendedSystem, x_pred: Array, row: Array, options: NewtonO
         dx = fact.solve(rhs)
         if project is not None:
             dx[:-1] = project(dx[:-1])
-        x_new, lam, reason = backtrack(admissible, x, dx)
-        if reason is not None:
-            return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
+        # The full step first, without backtrack's call: it is almost always admissible.
+        x_new, lam = x + dx, 1.0
+        if admissible(x_new) is not None:
+            x_new, lam, reason = backtrack(admissible, x, dx)
+            if reason is not None:
+                return Correction(x, False, it, fact, row, history, f"Newton iterate inadmissible: {reason}")
         x_old, x = x, x_new
         f = residual(x)
         r = max_norm(f)

@@ -277,7 +277,7 @@ def bordered_dense(jac: object, column: Array, row: Array, out: Array | None = N
         a = out
     else:
         a = np.empty((n + 1, n + 1), order="F")
-    a[:n, :n] = jac.toarray() if sp.issparse(jac) else jac  # type: ignore[attr-defined]
+    a[:n, :n] = jac if type(jac) is np.ndarray or not sp.issparse(jac) else jac.toarray()  # type: ignore[attr-defined]
     a[:n, n] = column
     a[n, :] = row
     return a
@@ -293,7 +293,7 @@ def factorize_bordered(jac: object, column: Array, row: Array, out: Array | None
     fresh (n+1)^2 allocation per iteration -- on a large grid its page faults cost as much as
     the copy itself (contin.corrector).  Any earlier factorization held in ``out`` is destroyed.
     """
-    if not sp.issparse(jac):
+    if type(jac) is np.ndarray or not sp.issparse(jac):  # the type test first: issparse is an ABC check
         return _dense_lu(bordered_dense(jac, column, row, out))
     n = jac.shape[0]  # type: ignore[attr-defined]
     if n + 1 >= BANDED_MIN:
