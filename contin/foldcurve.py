@@ -441,8 +441,9 @@ class _Checks:
                       theta: float, start: int = 0, stop: int | None = None) -> tuple[int, str] | None:
         """Check the points start .. stop - 1 of ``seg`` (one grid) in order: (index, reason) of
         the first whose two-grid error exceeds tol, else None.  Points whose guard estimate is at
-        most check_above x tol are not checked (as :meth:`contin.adapt.Adaptor.solve_check`)."""
-        from contin.adapt import state_error
+        most check_above x tol are not checked on grids where the estimate decides that
+        (:func:`contin.adapt.estimate_decides_check`; as :meth:`contin.adapt.Adaptor.solve_check`)."""
+        from contin.adapt import estimate_decides_check, state_error
 
         tol = self.opts.tol
         n = int(aug.n)
@@ -455,7 +456,7 @@ class _Checks:
             t = seg.tangent(i)
             params = {k: float(v[i]) for k, v in seg.params.items()}
             q = {**params, second: float(x[-1])}
-            if has(aug.problem, "error_estimate") and \
+            if has(aug.problem, "error_estimate") and estimate_decides_check(aug.problem) and \
                     state_error(aug.problem, x[:n], q) <= self.opts.check_above * tol:
                 continue
             out = augmented_two_grid_error(aug, x, t, params, parameter, theta, self.opts)

@@ -181,7 +181,9 @@ class AdaptOptions:
     check_above : the check runs only where the estimate exceeds check_above * tol: a state whose
         estimate is lower would miss tol only through an amplification above 1 / check_above
         (the largest measured, error / estimate on the gPCF main job, was 3e2); states exact on
-        their grid (estimate at rounding level, e.g. uniform shear) are not checked.
+        their grid (estimate at rounding level, e.g. uniform shear) are not checked.  On grids of
+        finite ``convergence_order`` (FD) every state is checked: their estimate need not see
+        the scheme's truncation error (``contin.adapt.estimate_decides_check``).
     """
 
     tol: float = 3e-5

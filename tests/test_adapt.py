@@ -144,6 +144,40 @@ def test_grid_hooks_transfer_is_spectrally_accurate():
     assert a.grid_size == 24 and a.with_grid(40).grid_size == 40
 
 
+class BlindBratu(Bratu):
+    """Bratu whose error estimate does not see the FD scheme's truncation (0 for every state), as
+    an estimate that measures how well a grid samples a state but not the scheme's error (gPCF's
+    FD estimate: the Chebyshev tail of the interpolated profiles)."""
+
+    def error_estimate(self, u, p):
+        return 0.0
+
+
+def bratu_lower_exact(x, lam):
+    """Bratu's lower-branch solution at lam (closed form, theta below the fold's 4.7987)."""
+    theta = brentq(lambda th: th**2 / (2 * math.cosh(th / 4) ** 2) - lam, 1e-9, 4.7987, xtol=1e-15)
+    return -2 * np.log(np.cosh((x - 0.5) * theta / 2) / np.cosh(theta / 4))
+
+
+@pytest.mark.parametrize("method", ["fd2", "fd4"])
+def test_fd_states_are_checked_even_where_the_estimate_is_blind(method):
+    """On an FD grid every accepted state gets its two-grid check, whatever its estimate says
+    (``contin.adapt.estimate_decides_check``): with an estimate blind to the scheme's error the
+    states were accepted unchecked on the coarsest grid (fd2 8: 1.2e-2 off the closed form at
+    tol 1e-4; fd4 8: 2.7e-4).  Now every stored state is within tol of the closed form."""
+    tol = 1e-4
+    pb = BlindBratu(method, 16)
+    o = ContinuationOptions(bounds={"lam": (0.5, 3.0)}, step=StepOptions(ds=0.1, ds_max=0.5),
+                            adapt=AdaptOptions(tol=tol, min_grid=8))
+    b = trace(pb, pb.initial(), {"lam": 0.5}, "lam", o)
+    assert b.status == "EP" and b.parameter_values[-1] == pytest.approx(3.0)
+    assert max(b.grid) > 8  # refined by the checks, not left on min_grid by the blind estimate
+    for i in range(len(b)):
+        grid = pb.with_grid(b.grid_at(i))
+        exact = bratu_lower_exact(grid.x, b.parameter_values[i])
+        assert np.max(np.abs(b.state(i) - exact)) / np.max(np.abs(exact)) <= tol
+
+
 @pytest.mark.parametrize("tol", [1e-4, 1e-6, 1e-8, 1e-10])
 def test_couette_critical_gap_meets_tol(tol):
     """gPCF uniform shear at nu = 0.3, e = 0.8: started on cheb 64, the start grid is coarsened (the
@@ -271,3 +305,34 @@ def test_fd4_demo_does_not_coarsen_below_its_reference_scheme(tmp_path):
     (lp,) = b.fold_points
     assert abs(lp.params["lam"] / BRATU_FOLD - 1) <= 1e-6
     assert int(np.min(b.grid)) >= 12
+
+
+def test_couette_fd4_branch_states_meet_tol(tmp_path):
+    """gPCF (problems.couette) fd4 at --tol 1e-4: its FD estimate (the Chebyshev tail of the
+    interpolated profiles) is ~1e-10 on the n = 1 branch, which once let the run coarsen to fd4
+    192 and store H = 34 .. 43 unchecked with errors up to 2.3e-3.  Every stored state of the
+    branch is now within tol of a cheb 128 reference (the same state solved on the finer grid)."""
+    from click.testing import CliRunner
+
+    from contin.adapt import solution_error
+    from contin.cli import main
+    from contin.newton import newton
+    from contin.options import NewtonOptions
+    from problems.couette.model import CouetteProblem
+
+    tol = 1e-4
+    out = tmp_path / "fd4.h5"
+    r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.3", "-s", "e=0.8", "--method", "fd4", "--tol",
+                                  str(tol), "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    branches, _ = io.load(out)
+    (b,) = [x for x in branches if x.id == "n1.1"]
+    assert b.status == "EP" and b.parameter_values[-1] == pytest.approx(43.12614677)
+    ref = CouetteProblem("cheb", 128)
+    for i in range(1, len(b)):  # (point 0 is the BP: J singular there, Newton stalls at rounding)
+        pb = CouetteProblem("fd4", b.grid_at(i))
+        p = pb.params({"nu": 0.3, "e": 0.8, "H": float(b.parameter_values[i])})
+        v = pb.transfer(b.state(i), ref)
+        sol = newton(ref, v, p, NewtonOptions())
+        assert sol.converged
+        assert solution_error(ref, v, sol.u, p) <= tol
