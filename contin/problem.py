@@ -74,12 +74,12 @@ class Problem(Protocol):
     inner_product_weights(u, p) -> (n,) array of positive floats
         Weights w with sum_i w_i |v_i|^2 approximating the continuous (L2) norm^2 of a state
         perturbation v (quadrature weights on a grid; see :func:`inner_product_weights`).
-        contin normalises the eigenvectors of its normal forms in this norm: the Hopf vector
-        q^H W q = 1 of the first Lyapunov coefficient (``contin.hopf``) and the null vector
-        phi^T W phi = 1 of a branch point (``contin.normalform``), so that l1 and the raw
-        cubic coefficients converge with the grid instead of scaling with the number of
-        nodes (Euclidean nodal values of a unit vector are O(1/sqrt(n))).  Absent: the
-        Euclidean norm (W = I), bitwise as before the hook.
+        contin measures the eigenvectors of its normal forms in this norm: the Hopf vector
+        q^H W q = 1 of the first Lyapunov coefficient l1 (``contin.hopf``), and a branch
+        point's amplitude along its null vector when the problem has no ``order_parameter``
+        (``contin.normalform``), so that l1 and the pitchfork's bend converge with the grid
+        instead of scaling like 1/n (the nodal values of a Euclidean unit vector are
+        O(1/sqrt(n))).  Absent: the Euclidean norm (W = I), bitwise as before the hook.
     validate(p) -> None
         Raise ``ValueError`` with one clear sentence for an invalid parameter set.
     admissible(u, p) -> str | None
