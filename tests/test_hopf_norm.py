@@ -147,3 +147,19 @@ def test_bad_weights_are_one_clear_error():
     bad.inner_product_weights = lambda u, q: np.array([1.0, 0.0])
     with pytest.raises(ValueError, match="positive finite weights"):
         first_lyapunov(bad, np.zeros(2), p, 1.0)
+
+
+def test_from_functions_takes_the_weights():
+    """``from_functions(..., inner_product_weights=w)`` (an array or a function) is the hook."""
+    from contin import from_functions
+
+    def F(u, p):
+        x, y = u
+        r2 = x * x + y * y
+        return np.array([p["mu"] * x - y + p["a"] * x * r2, x + p["mu"] * y + p["a"] * y * r2])
+
+    p = {"mu": 0.0, "a": -0.7}
+    for w in (np.full(2, 4.0), lambda u, q: np.full(2, 4.0)):
+        pb = from_functions(F, np.zeros(2), p, method="cs", inner_product_weights=w)
+        assert first_lyapunov(pb, np.zeros(2), p, 1.0) == pytest.approx(-0.35, rel=1e-6)
+    assert first_lyapunov(from_functions(F, np.zeros(2), p, method="cs"), np.zeros(2), p, 1.0) == pytest.approx(-1.4, rel=1e-6)
