@@ -188,8 +188,10 @@ def has(problem: Any, method: str) -> bool:
 
 
 def inner_product_weights(problem: Any, u: Array, p: Params) -> Array | None:
-    """The problem's ``inner_product_weights(u, p)`` as a float array checked to be n positive
-    finite weights, or None when the problem has no such hook (the Euclidean norm)."""
+    """The problem's state-norm weights ``inner_product_weights(u, p)``, or None (Euclidean).
+
+    A float array checked to be n positive finite weights (ValueError otherwise); None when the
+    problem has no such hook."""
     if not has(problem, "inner_product_weights"):
         return None
     w = np.asarray(problem.inner_product_weights(u, p), dtype=float)
