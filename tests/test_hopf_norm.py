@@ -163,3 +163,21 @@ def test_from_functions_takes_the_weights():
         pb = from_functions(F, np.zeros(2), p, method="cs", inner_product_weights=w)
         assert first_lyapunov(pb, np.zeros(2), p, 1.0) == pytest.approx(-0.35, rel=1e-6)
     assert first_lyapunov(from_functions(F, np.zeros(2), p, method="cs"), np.zeros(2), p, 1.0) == pytest.approx(-1.4, rel=1e-6)
+
+
+def test_the_granular_problems_weights():
+    """gPCF, the disks (with and without gravity's M) and the nonlocal problems: one weight per
+    unknown, > 0, each profile's summing to 1 (the gap) and 1 for the scalar P."""
+    from contin.problem import inner_product_weights
+    from problems.couette.model import CouetteProblem
+    from problems.disks.model import DiskCouetteProblem
+    from problems.nonlocal_flow.cylinder import CylindricalCouette
+    from problems.nonlocal_flow.plane import PlaneShear
+
+    for pb, profiles in ((CouetteProblem("cheb", 16), 3), (CouetteProblem("fd2", 16, gravity=True), 4),
+                         (DiskCouetteProblem("fd4", 16), 3), (DiskCouetteProblem("cheb", 12, gravity=True), 4),
+                         (PlaneShear("cheb", 16), 2), (CylindricalCouette("fd2", 16), 2)):
+        w = inner_product_weights(pb, np.zeros(pb.size), {})
+        assert w.shape == (pb.size,) and w.min() > 0 and w.sum() == pytest.approx(profiles + 1, rel=1e-13)
+        i_p = pb.i_P if hasattr(pb, "i_P") else 2 * pb.n
+        assert w[i_p] == 1.0
