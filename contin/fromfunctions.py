@@ -82,7 +82,8 @@ class FunctionProblem:
     def __init__(self, F: Residual, u0: Array, params: Mapping[str, float], *, jacobian: Callable | None = None,
                  dF_dp: Callable | None = None, sparsity: Any = None, method: str = "fd",
                  order_parameter: Callable | None = None, observables: Callable | None = None,
-                 mass_matrix: Any = None, symmetry: Callable | None = None, debug: bool = False) -> None:
+                 mass_matrix: Any = None, symmetry: Callable | None = None, debug: bool = False,
+                 inner_product_weights: Any = None) -> None:
         if method not in ("fd", "cs"):
             raise ValueError(f"method must be 'fd' (central differences) or 'cs' (complex step), got {method!r}")
         self.F = F
@@ -113,6 +114,9 @@ class FunctionProblem:
         if mass_matrix is not None:
             m = mass_matrix
             self.mass_matrix = m if callable(m) else (lambda u, p, _m=sp.csc_matrix(m): _m)
+        if inner_product_weights is not None:
+            w = inner_product_weights
+            self.inner_product_weights = w if callable(w) else (lambda u, p, _w=np.asarray(w, float): _w)
 
     def initial(self) -> Array:
         """The u0 given to :func:`from_functions`."""
@@ -188,6 +192,8 @@ def from_functions(F: Residual, u0: Array, params: Mapping[str, float], **kwargs
     method : 'fd' (central differences, default) or 'cs' (complex step; F must accept complex u, p)
     order_parameter, observables, symmetry : optional (u, p) -> float / dict / (u) -> S u
     mass_matrix : optional (n, n) matrix or (u, p) -> matrix (M du/dt = F) for stability
+    inner_product_weights : optional (n,) positive array or (u, p) -> array: quadrature weights of
+        a discretised PDE (``contin.problem``), the norm of l1's Hopf vector
     debug : compare a given jacobian (and dF_dp) once with differences; raise on a mismatch
     """
     return FunctionProblem(F, u0, params, **kwargs)

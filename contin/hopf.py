@@ -25,13 +25,22 @@ Reported numbers
                              - 2 p^H B(q, J^{-1} B(q, conj q))
                              + p^H B(conj q, (2 i omega M - J)^{-1} B(q, q)) ],
 
-    J q = i omega M q, J^T p = -i omega M^T p, q^H q = 1, p^H M q = 1, with B and C the second
-    and third derivatives of F in u (multilinear forms).  They are directional derivatives of
+    J q = i omega M q, J^T p = -i omega M^T p, q^H W q = 1, p^H M q = 1, with B and C the second
+    and third derivatives of F in u (multilinear forms).  B and C are directional derivatives of
     the problem's Jacobian by central differences, B(a, y) = [J(u + h a) - J(u - h a)] y / 2h
     and C(a, b, y) = d^2/dh_a dh_b J y, extended to complex arguments by multilinearity.
     l1 < 0: supercritical (stable cycles born); l1 > 0: subcritical.  For M = I this is
     Kuznetsov's formula exactly (f = M^{-1} F otherwise).  Problems with their own
     ``eigenproblem`` get omega from it and no l1 (their nonlinearity is not J's).
+
+Norm of q
+    W = diag(w) is the problem's ``inner_product_weights(u, p)`` (quadrature weights, so that
+    q^H W q approximates the L2 norm of the continuous eigenfunction); W = I without the hook
+    (q^H q = 1, Kuznetsov's normalisation, bitwise as before the hook).  Under q -> c q (and
+    p -> p / conj c) l1 scales by |c|^2, so l1 is a number only together with the norm of q:
+    with the Euclidean norm the nodal values of a discretised PDE's q are O(1/sqrt(n)) and l1
+    falls like 1/n under refinement (right sign, grid-dependent size); with the weights it
+    converges at the scheme's order (fd2 Brusselator: ``tests/test_hopf_norm.py``).
 """
 
 from __future__ import annotations
@@ -47,7 +56,7 @@ import scipy.sparse as sp
 from contin.branch import SpecialPoint
 from contin.options import HOPF_AUTO_MAX, DetectionOptions
 from contin.pointtests import Crossing
-from contin.problem import Array, has
+from contin.problem import Array, has, inner_product_weights
 
 CArray = np.ndarray
 log = logging.getLogger("contin")
@@ -188,8 +197,10 @@ def _mass(problem: Any, u: Array, params: dict[str, float], n: int) -> sp.csc_ma
     return sp.identity(n, format="csc")
 
 
-def hopf_vectors(jac: Any, mass: Any, omega: float, seed: int = 0) -> tuple[CArray, CArray]:
-    """q, p with J q = i omega M q, J^T p = -i omega M^T p, q^H q = 1, p^H M q = 1.
+def hopf_vectors(jac: Any, mass: Any, omega: float, seed: int = 0,
+                 weights: Array | None = None) -> tuple[CArray, CArray]:
+    """q, p with J q = i omega M q, J^T p = -i omega M^T p, q^H W q = 1, p^H M q = 1
+    (W = diag(weights), the identity when None).
 
     Inverse iteration with one sparse LU of J - i omega M (shifted by a rounding-level amount
     so that it is not exactly singular): three solves give the null vectors to rounding.
@@ -208,6 +219,8 @@ def hopf_vectors(jac: Any, mass: Any, omega: float, seed: int = 0) -> tuple[CArr
         q /= np.linalg.norm(q)
         r = lu.solve(r, trans="T")  # A^T r = ., r = conj(p) with J^T conj(p) = i omega M^T conj(p)
         r /= np.linalg.norm(r)
+    if weights is not None:
+        q = q / math.sqrt(float(np.vdot(q, weights * q).real))
     p = np.conj(r)
     pmq = np.vdot(p, np.asarray(mass @ q))
     if pmq == 0:
@@ -256,11 +269,12 @@ class _Forms:
 
 def first_lyapunov(problem: Any, u: Array, params: dict[str, float], omega: float) -> float:
     """First Lyapunov coefficient l1 at the Hopf point (u, p) with frequency omega (module
-    docstring: Kuznetsov's eq. (3.20) with q^H q = 1, generalized to a mass matrix)."""
+    docstring: Kuznetsov's eq. (3.20) with q^H W q = 1, W the problem's
+    ``inner_product_weights`` or I, generalized to a mass matrix)."""
     jac = problem.jacobian(u, params)
     n = jac.shape[0]
     mass = _mass(problem, u, params, n)
-    q, p = hopf_vectors(jac, mass, omega)
+    q, p = hopf_vectors(jac, mass, omega, weights=inner_product_weights(problem, u, params))
     forms = _Forms(problem, u, params)
     qb = np.conj(q)
     jc = sp.csc_matrix(jac, dtype=complex)

@@ -14,7 +14,10 @@ stencil (one bordered Newton solve per stencil point) and take central differenc
     g ~ g_lx (lambda - lambda_c) x + g_xxx x^3 / 6 + g_mu mu + g_xxmu mu x^2 / 2 + ...
 
 Re-expressed in the order-parameter deviation delta = Phi - Phi_c ~ kappa x with kappa the
-derivative of Phi along phi, the equilibria satisfy (after division by the cubic coefficient)
+derivative of Phi along phi (|phi| = |psi| = 1 Euclidean; without an ``order_parameter`` delta
+is the amplitude along phi in the problem's ``inner_product_weights`` norm, kappa =
+sqrt(sum w phi^2), or x itself without that hook), the equilibria satisfy (after division by
+the cubic coefficient)
 
     delta^3 - B delta + alpha + beta delta^2 = 0,
     B = -(a1/a3)(lambda - lambda_c),  alpha = (a0/a3) mu,  beta = (a2/a3) mu,
@@ -41,7 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from contin.problem import Array
+from contin.problem import Array, inner_product_weights
 
 
 @dataclass(frozen=True)
@@ -144,7 +147,9 @@ class PitchforkNormalForm:
     a3, a1 : cubic and (lambda - lambda_c) delta coefficients
     a0, a2 : per unfolding parameter mu, the imperfection coefficients of mu and mu delta^2
     a_quadratic : the delta^2 coefficient at mu = 0 (zero for a symmetric pitchfork)
-    kappa : d Phi / d x along the null vector (converts amplitude x to delta = Phi - Phi_c)
+    kappa : d Phi / d x along the null vector (converts amplitude x to delta = Phi - Phi_c);
+        without an order parameter |phi|_W (delta the amplitude in the problem's
+        ``inner_product_weights`` norm), or 1 without those either
     """
 
     parameter: str
@@ -188,9 +193,12 @@ class PitchforkNormalForm:
 
 
 def _order_parameter_slope(problem: object, state: Array, params: Mapping[str, float], phi: Array) -> float:
-    """d Phi(u + t phi)/dt at t = 0 by a central difference (Phi is a cheap scalar)."""
+    """d Phi(u + t phi)/dt at t = 0 by a central difference (Phi is a cheap scalar).  Without an
+    ``order_parameter`` Phi is the amplitude along phi in the problem's norm: |phi|_W =
+    sqrt(sum w phi^2) with its ``inner_product_weights`` w, else 1 (the Euclidean |phi| = 1)."""
     if not callable(getattr(problem, "order_parameter", None)):
-        return 1.0
+        weights = inner_product_weights(problem, state, params)
+        return 1.0 if weights is None else float(np.sqrt(weights @ (phi * phi)))
     h = 1e-6
     plus = problem.order_parameter(state + h * phi, params)
     minus = problem.order_parameter(state - h * phi, params)
@@ -229,6 +237,16 @@ def pitchfork_normal_form(
 
     Notes
     -----
+    Normalisation: |phi| = |psi| = 1 (Euclidean), so g = psi . F on the reduced solutions and
+    x is the Euclidean amplitude.  The reported ratios (``bend``, ``unfolding``) do not depend
+    on psi's scale, nor, through kappa, on phi's: delta = Phi - Phi_c with the problem's
+    ``order_parameter`` Phi, else the amplitude along phi in its ``inner_product_weights`` norm,
+    x sqrt(sum w phi^2) (a discretised PDE's L2 amplitude: the bend converges with the grid,
+    where the Euclidean x, ~ sqrt(n) times it, made the bend fall like 1/n; kappa = 1 without
+    either hook, as before it).  a3, a1, a0, a2 one by one carry psi's Euclidean,
+    sign-arbitrary scale: only their ratios are grid-independent (measured on Allen-Cahn in
+    ``tests/test_normalform.py``).
+
     Central differences of g on the stencil, with h = amplitude, k = parameter_step:
     g_xxx = [-g(3h) + 8g(2h) - 13g(h) + 13g(-h) - 8g(-2h) + g(-3h)] / (8h^3)   (O(h^4)),
     g_lx = [g_x(k) - g_x(-k)] / (2k), g_x = [-g(2h) + 8g(h) - 8g(-h) + g(-2h)] / (12h),

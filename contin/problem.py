@@ -71,6 +71,15 @@ class Problem(Protocol):
         An involution S with F(S u, p) = S F(u, p) (and S S = identity).
     inner(a, b) -> float
         The inner product used for step lengths; default is the Euclidean dot / n.
+    inner_product_weights(u, p) -> (n,) array of positive floats
+        Weights w with sum_i w_i |v_i|^2 approximating the continuous (L2) norm^2 of a state
+        perturbation v (quadrature weights on a grid; see :func:`inner_product_weights`).
+        contin measures the eigenvectors of its normal forms in this norm: the Hopf vector
+        q^H W q = 1 of the first Lyapunov coefficient l1 (``contin.hopf``), and a branch
+        point's amplitude along its null vector when the problem has no ``order_parameter``
+        (``contin.normalform``), so that l1 and the pitchfork's bend converge with the grid
+        instead of scaling like 1/n (the nodal values of a Euclidean unit vector are
+        O(1/sqrt(n))).  Absent: the Euclidean norm (W = I), bitwise as before the hook.
     validate(p) -> None
         Raise ``ValueError`` with one clear sentence for an invalid parameter set.
     admissible(u, p) -> str | None
@@ -176,6 +185,21 @@ def require_protocol(problem: Any) -> None:
 def has(problem: Any, method: str) -> bool:
     """True if ``problem`` provides the optional ``method``."""
     return callable(getattr(problem, method, None))
+
+
+def inner_product_weights(problem: Any, u: Array, p: Params) -> Array | None:
+    """The problem's state-norm weights ``inner_product_weights(u, p)``, or None (Euclidean).
+
+    A float array checked to be n positive finite weights (ValueError otherwise); None when the
+    problem has no such hook."""
+    if not has(problem, "inner_product_weights"):
+        return None
+    w = np.asarray(problem.inner_product_weights(u, p), dtype=float)
+    n = np.asarray(u).size
+    if w.shape != (n,) or not np.all(np.isfinite(w)) or not np.all(w > 0):
+        raise ValueError(f"inner_product_weights must be {n} positive finite weights "
+                         f"(got shape {w.shape}, min {np.min(w) if w.size else 'n/a'})")
+    return w
 
 
 def complex_step_dp(problem: Any, u: Array, p: Params, name: str, h: float = 1e-30) -> Array:

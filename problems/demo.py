@@ -113,6 +113,13 @@ class _DirichletBVP:
         if not np.isfinite(p["lam"]):
             raise ValueError(f"lam must be finite, got {p['lam']}")
 
+    def inner_product_weights(self, u: Array, p: Mapping[str, float]) -> Array:
+        """The grid's quadrature weights over x in [0, L] (trapezoid-like of the scheme's order
+        for FD, Clenshaw-Curtis for Chebyshev; all > 0, the walls included): sum w v^2 is the
+        L2 norm^2 of a perturbation v, the norm in which contin normalises the eigenvectors of
+        its normal forms (``contin.problem``), so that they converge with the grid."""
+        return self.length * self.grid.weights
+
     # --- grid hooks (adaptive resolution, contin.adapt) ---------------------------------------
     @property
     def grid_size(self) -> int:
@@ -664,6 +671,11 @@ class Brusselator(_DirichletBVP):
                 raise ValueError(f"{name} must be finite, got {p[name]}")
         if p["a"] == 0 or p["L"] <= 0:
             raise ValueError(f"need a != 0 and L > 0, got a={p['a']}, L={p['L']}")
+
+    def inner_product_weights(self, x: Array, p: Mapping[str, float]) -> Array:
+        """The grid's quadrature weights for each field: sum w |q|^2 = int |q_u|^2 + |q_v|^2 dx
+        (the L2 norm of the pair (u, v) on [0, 1]; l1 of the Hopf point converges with it)."""
+        return np.tile(self.length * self.grid.weights, 2)
 
     def homogeneous(self, p: Mapping[str, float]) -> Array:
         """The homogeneous state (a, b/a)."""

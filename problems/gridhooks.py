@@ -7,7 +7,7 @@ resolution measure, :mod:`problems.couette.resolution` (Chebyshev tails, nu's ag
 distance to packing, plus the rounding term that sets the precision limit).  This mixin gives
 both the contin hooks built on that (``contin.problem``: ``under_resolved``, ``grid_size``,
 ``transfer``, ``error_estimate``, ``solution_error``, ``rounding_error``, ``vector_error``,
-``suggest_grid``); each class keeps its own ``with_grid``.  The measure is imported where it is
+``suggest_grid``, ``inner_product_weights``); each class keeps its own ``with_grid``.  The measure is imported where it is
 used (it loads scipy.sparse), so defining a problem class stays light.
 """
 
@@ -35,6 +35,17 @@ class ResolutionHooks:
         from problems.couette.resolution import under_resolved
 
         return under_resolved(self, x, p, tol)
+
+    def inner_product_weights(self, x: Array, p: Mapping[str, Any] | None = None) -> Array:
+        """Weights of contin's state norm (``contin.problem``): the grid's quadrature weights on
+        each profile (nu, u, T and M; they sum to 1, the nondimensional gap width, so a profile
+        counts with its mean square over the gap) and 1 for the scalar P, which is what a
+        uniform profile of that value weighs: every piece of sum w x^2 has a grid-independent
+        limit, so normal-form eigenvectors normalised in it converge with the grid.  The fields
+        are nondimensional (nu a fraction, u and T in wall units) and count equally."""
+        w = np.asarray(self.grid.weights, dtype=float)  # type: ignore[attr-defined]
+        parts = [w, w, w, np.ones(1)] + ([w] if self.gravity else [])  # type: ignore[attr-defined]
+        return np.concatenate(parts)
 
     @property
     def grid_size(self) -> int:

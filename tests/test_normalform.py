@@ -197,3 +197,61 @@ def test_unfolding_fold_and_hysteresis():
     roots = np.roots([1.0, b, -hyst["lam"], a])
     assert np.allclose(roots, hyst["delta"], atol=1e-4)
     assert Unfolding(0.0, b1=1.0, b2=0.0, alpha1=2.0, beta1=-5.0, q5=0.0).hysteresis() is None
+
+
+class _Forward:
+    """A demo BVP with some of its hooks hidden (``order_parameter``, ``inner_product_weights``)."""
+
+    def __init__(self, problem, *, order_parameter=True, weights=True):
+        self.problem = problem
+        self.parameter_names = problem.parameter_names
+        if order_parameter:
+            self.order_parameter = problem.order_parameter
+        if weights:
+            self.inner_product_weights = problem.inner_product_weights
+
+    def residual(self, u, p):
+        return self.problem.residual(u, p)
+
+    def jacobian(self, u, p):
+        return self.problem.jacobian(u, p)
+
+    def dresidual_dp(self, u, p, name):
+        return self.problem.dresidual_dp(u, p, name)
+
+
+def _allen_cahn_bend(intervals, **hooks):
+    """Bend of Allen-Cahn's first pitchfork off u = 0 on fd2 (lam_c the grid's own smallest
+    Dirichlet eigenvalue of -d^2/dx^2 on [0, pi]: no location error enters)."""
+    from problems.demo import AllenCahn
+
+    pb = AllenCahn("fd2", intervals)
+    inner = pb.grid.d2[1:-1, 1:-1].toarray() / pb.length**2
+    lam = float(np.min(np.linalg.eigvalsh(-(inner + inner.T) / 2)))
+    return pitchfork_normal_form(_Forward(pb, **hooks), np.zeros(pb.n), {"lam": lam}, "lam")
+
+
+def test_branch_point_bend_converges_with_the_grid_in_the_weighted_norm():
+    """Without an order parameter delta is the amplitude along the null vector.  Euclidean
+    (|phi| = 1: x ~ sqrt(n) times the L2 amplitude) the bend falls like 1/n: 0.0934, 0.0468, 0.0234
+    on fd2 16/32/64.  In the problem's ``inner_product_weights`` norm delta is the L2 amplitude of
+    u = A sin x (|sin|_2^2 = pi/2, lam - 1 = (3/4) A^2) and the bend converges at order 2 to
+    3/(2 pi) = 0.4774648: 0.4759328, 0.4770815, 0.4773690 (errors 1.5e-3, 3.8e-4, 9.6e-5).  With the
+    order parameter u(pi/5) the hook changes nothing (kappa carries phi's scale): bitwise the
+    same coefficients, bend -> 3/(4 sin^2(pi/5))."""
+    import math
+
+    grids = (16, 32, 64)
+    euclid = [_allen_cahn_bend(n, order_parameter=False, weights=False).bend for n in grids]
+    assert euclid[0] / euclid[1] == pytest.approx(2.0, abs=0.01) and euclid[1] / euclid[2] == pytest.approx(2.0, abs=0.01)
+    weighted = [_allen_cahn_bend(n, order_parameter=False).bend for n in grids]
+    err = [abs(b - 3 / (2 * math.pi)) for b in weighted]
+    assert 1.95 < math.log2(err[0] / err[1]) < 2.05 and 1.95 < math.log2(err[1] / err[2]) < 2.05
+    assert err[2] < 1e-4
+    d1, d2 = weighted[1] - weighted[0], weighted[2] - weighted[1]
+    assert 1.95 < math.log2(d1 / d2) < 2.05
+    for n in grids:
+        with_op = _allen_cahn_bend(n)
+        without = _allen_cahn_bend(n, weights=False)
+        assert (with_op.a3, with_op.a1, with_op.kappa) == (without.a3, without.a1, without.kappa)
+    assert with_op.bend == pytest.approx(3 / (4 * math.sin(math.pi / 5) ** 2), rel=1e-3)

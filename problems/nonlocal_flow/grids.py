@@ -56,6 +56,14 @@ class NonlocalGridHooks:
         scales two-grid differences to the coarse grid's error (``contin.adapt.richardson``)."""
         return float(self.grid.order)  # type: ignore[attr-defined]
 
+    def inner_product_weights(self, x: Array, p: Mapping[str, Any] | None = None) -> Array:
+        """Weights of contin's state norm (``contin.problem``): the grid's quadrature weights
+        (sum 1: the gap-mean square in the nondimensional coordinate) on both profiles and 1 for
+        the scalar P (a uniform profile of that value), so that sum w x^2 has a grid-independent
+        limit and normal-form eigenvectors normalised in it converge with the grid."""
+        w = np.asarray(self.grid.weights, dtype=float)  # type: ignore[attr-defined]
+        return np.concatenate([w, w, np.ones(1)])
+
     def transfer(self, x: Array, other: Any) -> Array:
         """A state carried onto ``other``'s grid: both profiles by this grid's interpolant, P
         unchanged (linear in x)."""
