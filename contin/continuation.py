@@ -38,6 +38,11 @@ from typing import Any
 import numpy as np
 
 from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT
+
+#: The audit of a point stored although its two-grid check exceeded tol (the check was not
+#: lowered by refinement: a floor, a kink between nodes, or an FD grid not yet in its asymptotic
+#: range next to a BP); the command line shows these lines as warnings (``contin.cli.trace``).
+ACCEPTED_ABOVE_TOL = "accepted by its estimate"
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
@@ -694,7 +699,7 @@ def trace(
                     break
                 adaptor.stalled = False
                 if len(tracer.audit) < MAX_AUDIT:
-                    tracer.audit.append(f"step {steps + 1}: {parameter}={new.x[-1]:.10g} accepted by its estimate: two-grid "
+                    tracer.audit.append(f"step {steps + 1}: {parameter}={new.x[-1]:.10g} {ACCEPTED_ABOVE_TOL}: two-grid "
                                         f"error {err:.2g} > tol, not lowered by refinement ({stop})")
             elif refined:
                 adopt_grid()

@@ -157,3 +157,17 @@ def test_dense_plugs_need_no_grid_flag(tmp_path, nu, H_max, fold):
     if fold is not None:
         (lp,) = band.fold_points
         assert lp.params["H"] == pytest.approx(fold, abs=2e-3)
+
+
+def test_a_point_stored_above_tol_is_a_warning_also_with_q(tmp_path):
+    """Bratu fd2 at --tol 1e-4 next to its fold: a candidate whose two-grid error (3.7e-4) was not
+    lowered by refinement is stored on its estimate (the fixed-parameter error grows without bound
+    at a fold).  That was an audit line in the file only, hidden from the terminal like the
+    rejected steps; it is now a warning line (also with -q), and the file keeps it."""
+    out = tmp_path / "b.h5"
+    r = run("trace", "bratu", "--method", "fd2", "--tol", "1e-4", "-q", "-o", out)
+    assert r.exit_code == 0, r.output
+    warned = [ln for ln in r.output.splitlines() if ln.startswith("warning: branch 0: step ")]
+    assert warned and all("accepted by its estimate: two-grid error" in ln for ln in warned)
+    (b,), _ = io.load(out)
+    assert [ln for ln in b.audit if "accepted by its estimate" in ln] == [w.removeprefix("warning: branch 0: ") for w in warned]

@@ -159,6 +159,15 @@ def audit_lines(branch: Any) -> list[str]:
     return [m.removeprefix("stability audit: ") for m in branch.audit if not m.startswith("step ")]
 
 
+def doubtful_points(branch: Any) -> list[str]:
+    """The audit lines of points stored although their two-grid check exceeded tol
+    (``contin.continuation.ACCEPTED_ABOVE_TOL``): the terminal shows them as warnings, also
+    with ``-q`` (the stored state is less accurate than asked for)."""
+    from contin.continuation import ACCEPTED_ABOVE_TOL
+
+    return [m for m in branch.audit if m.startswith("step ") and ACCEPTED_ABOVE_TOL in m]
+
+
 def stability_messages(branch: Any) -> list[str]:
     """The audit messages of the stability pass alone (``contin.stability.is_stability_message``)."""
     from contin.stability import is_stability_message
@@ -382,6 +391,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                     echo_err(f"audit: branch {b.id}: {message}")
         if writer is not None:
             echo_err(f"wrote {writer.path}")
+    for b in result.branches:
+        for message in doubtful_points(b):
+            echo_err(f"warning: branch {b.id}: {message}")
     failed = [b for b in result.branches if b.status == "MX"]
     for b in failed:
         echo_err(f"warning: branch {b.id} ended with MX: {error_line(ValueError(b.message or 'failure'))}")
