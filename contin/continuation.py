@@ -749,6 +749,22 @@ def trace(
                 status, message = _guard_status(coarse), coarse
                 break
             land.x[-1] = bound  # exact up to rounding already; make it exact
+            if adaptor is not None:
+                # The landed point is a new state: the checks of the candidate beyond the bound
+                # are not its own (the fixed-grid guard above is off in adaptive runs).
+                err = adaptor.too_coarse(system, land.x)
+                if err is None:
+                    err = adaptor.solve_check(system, land.x)
+                if err is not None:
+                    what = "two-grid error" if adaptor.checked is not None else "estimate"
+                    stop = adaptor.refine(tracer, err, f"{what} above tol at the bound", options.newton)
+                    if stop is None:  # refined at the last point: the step to the bound is retried
+                        adopt_grid()
+                        steps -= 1
+                        continue
+                    if len(tracer.audit) < MAX_AUDIT:
+                        tracer.audit.append(f"step {steps}: {parameter}={bound:.10g} {ACCEPTED_ABOVE_TOL}: {what} "
+                                            f"{err:.2g} > tol at the bound, not lowered by refinement ({stop})")
             stepped, new = new, tracer.finish_point(land, cur.t)
             found, regridded = detect_or_refine(cur, new, stepped)
             if regridded:

@@ -336,3 +336,27 @@ def test_couette_fd4_branch_states_meet_tol(tmp_path):
         sol = newton(ref, v, p, NewtonOptions())
         assert sol.converged
         assert solution_error(ref, v, sol.u, p) <= tol
+
+
+class BumpBratu(Bratu):
+    """Bratu whose estimate is large within 0.02 of lam = 2 only (a feature there that falls like
+    N^-2): a state at lam = 2 needs N >= 64 for tol 1e-4, the states around it do not."""
+
+    def error_estimate(self, u, p):
+        base = super().error_estimate(u, p)
+        return max(base, 4e-3 * (8.0 / self.grid_size) ** 2) if abs(p["lam"] - 2.0) < 0.02 else base
+
+
+def test_the_point_landed_on_a_bound_is_checked():
+    """A step that crosses a bound is landed on it by a new correction; that landed state was
+    stored unchecked (its estimate 1.8e-3 on cheb 12 at tol 1e-4: the candidate beyond the bound
+    had passed).  Now it is judged like any candidate: refined at the last point until the bound
+    state's own estimate meets tol."""
+    pb = BumpBratu("cheb", 16)
+    o = ContinuationOptions(bounds={"lam": (0.5, 2.0)}, step=StepOptions(ds=0.4, ds_max=0.4),
+                            adapt=AdaptOptions(tol=1e-4, min_grid=8))
+    b = trace(pb, pb.initial(), {"lam": 0.5}, "lam", o)
+    assert b.status == "EP" and b.parameter_values[-1] == 2.0
+    last = pb.with_grid(b.grid_at(-1))
+    assert last.error_estimate(b.state(-1), {"lam": 2.0}) <= 1e-4 < 4e-3 * (8.0 / b.grid_at(0)) ** 2
+    assert any("above tol at the bound" in line for line in b.audit)
