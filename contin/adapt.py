@@ -1031,6 +1031,36 @@ class Adaptor:
             self._restore(tracer, keep)
             self.since_change = 0
 
+    def carry_point(self, tracer: Any, j: int, newton_options: Any) -> Any:
+        """The tracer's stored point j re-solved on the grid in force (a ``_Point`` with its
+        tangent and test functions there), or None where the correction fails: state and tangent
+        transferred from the point's own grid, corrected on the hyperplane normal to the tangent
+        (as :meth:`regrid`)."""
+        from contin.corrector import correct
+
+        sys = tracer.system
+        pt = tracer.points[j]
+        grid = tracer.grids[j]
+        src = sys.problem if grid is None else on_grid(sys.problem, int(grid))
+        if src is sys.problem:
+            x, t = np.array(pt.x, dtype=float), np.array(pt.t, dtype=float)
+        else:
+            x = sys.pack(src.transfer(pt.x[:-1], sys.problem), pt.x[-1])
+            t = sys.unit(sys.pack(src.transfer(pt.t[:-1], sys.problem), pt.t[-1]))
+        project = tracer.anti.symmetrize if tracer.anti is not None else None
+        if project is not None:
+            x = sys.pack(project(x[:-1]), x[-1])
+        corr = correct(sys, x, sys.row(t), newton_options, project)
+        if not corr.converged or sys.admissible(corr.x) is not None or corr.factorization is None:
+            return None
+        return tracer.finish_point(corr, t)
+
+    def forget_points(self) -> None:
+        """The tracer dropped stored points (a retreat): the per-point memory of refinements
+        (a stall is judged at the same point count; the undo of a two-grid floor) is void."""
+        self._state_refine = None
+        self._undo = None
+
     def carry(self, old: Any, new_system: Any, x: Array) -> Array:
         """A point x = (u, p) of the old problem carried onto the new system's grid."""
         if x.size - 1 == new_system.n:

@@ -328,6 +328,17 @@ class _Tracer:
         self.records.append(self.system.record(pt.x))
         self.grids.append(self.grid)
 
+    def truncate(self, keep: int, last: _Point) -> None:
+        """Keep the first ``keep`` points, the last of them replaced by ``last`` (that point
+        re-solved on the grid in force), and the special points located before it: a retreat
+        (``trace``: a refinement moved a special point behind the last point)."""
+        for seq in (self.points, self.ds, self.iterations, self.records, self.grids):
+            del seq[keep:]
+        self.points[-1] = last
+        self.records[-1] = self.system.record(last.x)
+        self.grids[-1] = self.grid
+        self.special = [sp for sp in self.special if sp.index < keep - 1]
+
     def end_point(self, type_: str, note: str, x: Array | None = None, t: Array | None = None) -> SpecialPoint:
         sys = self.system
         if x is None:
@@ -416,6 +427,16 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
     if reason.startswith(PRECISION_LIMIT + ": "):  # rounding, not the grid: a finer grid only raises it
         return f"{PRECISION_LIMIT} at {system.parameter} = {x[-1]:.6g}: {reason[len(PRECISION_LIMIT) + 2:]}"
     return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
+
+
+def _sign_changed(a: Any, b: Any) -> bool:
+    """Whether two values of a test function (a float, or a (sign, log) pair) have opposite,
+    nonzero signs."""
+    sa = a[0] if isinstance(a, tuple) else a
+    sb = b[0] if isinstance(b, tuple) else b
+    if sa is None or sb is None or sa == 0 or sb == 0 or not (math.isfinite(sa) and math.isfinite(sb)):
+        return False
+    return (sa > 0) != (sb > 0)
 
 
 def _guard_status(message: str) -> str:
@@ -608,14 +629,48 @@ def trace(
         (the located point's own check then notes it)."""
         assert adaptor is not None
         kernel = adaptor.kernel  # the bracket end's kernel that pre_locate judged (its grid suggestion)
+        old = tracer.points[-1]
         if adaptor.refine(tracer, why.error, f"{why.kind} bracketed, kernel under-resolved", options.newton,
                           vector=None if kernel is None else (kernel[1], special_tol)) is None:
+            retreat_behind(old)
             return None
         hook, tracer.pre_locate = tracer.pre_locate, None
         try:
             return _detect_checked(tracer, steps, cur, new, stepped, direction_vec, ds, sopt)
         finally:
             tracer.pre_locate = hook
+
+    def retreat_behind(old: _Point) -> bool:
+        """After a refinement at the last point for a special point ahead of it (``old``: the last
+        point on the previous grid): where an LP or BP test function has another sign there on the
+        finer grid, the finer grid's zero lies *behind* the point (an FD grid moves gPCF's H_n^c
+        down as it is refined: fd2 8 -> 16 bracketed BP1 at H = 13.85 .. 17.1, fd2 16 has it at
+        13.07), and tracing on from the point skipped it (``--method fd2 --tol 1e-4`` found none of
+        the three BPs).  The stored points are then re-solved on the finer grid from the last one
+        back until the sign is the old one, the tracer retreats to that point (the points after
+        it are dropped, and retraced on the finer grid) and True is returned; False if no test
+        function changed sign (or no stored point has the old sign: nothing to retreat to)."""
+        assert adaptor is not None
+        now = tracer.points[-1]
+        moved = [fn for kind, _, fn in tracer._test_functions() if _sign_changed(fn(old.tests), fn(now.tests))]
+        if not moved:
+            return False
+        for j in range(len(tracer.points) - 2, -1, -1):
+            back = adaptor.carry_point(tracer, j, options.newton)
+            if back is None:
+                return False
+            if not any(_sign_changed(fn(old.tests), fn(back.tests)) for fn in moved):
+                dropped = len(tracer.points) - 1 - j
+                tracer.truncate(j + 1, back)
+                adaptor.forget_points()
+                if len(tracer.audit) < MAX_AUDIT:
+                    tracer.audit.append(
+                        f"retreated {dropped} point(s) to {parameter}={back.x[-1]:.10g} on grid {tracer.grid}: a test "
+                        f"function changed sign at {parameter}={now.x[-1]:.10g} with the refinement, so the special "
+                        "point lies behind it on the finer grid")
+                adopt_grid()
+                return True
+        return False
 
     def adopt_grid() -> None:
         """Continue on the grid the tracer moved to (contin.adapt): its system, problem and size;
@@ -823,11 +878,13 @@ def trace(
             if err <= special_tol:
                 adaptor.special_resolved()
             elif adaptor.special_refinable(err, measured=measured):
+                old = tracer.points[-1]
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol), measured=measured) is None:
+                    adopt_grid()
+                    retreat_behind(old)
                     adaptor.hold = (float(tracer.points[-1].x[-1]), float(found[0].params[parameter]))
                     steps -= 1
-                    adopt_grid()
                     continue
             if err > special_tol:
                 grid = system.problem.grid_size

@@ -18,7 +18,7 @@ from contin import io
 from contin.adapt import AdaptOptions, check_problem
 from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
-from problems.demo import BRATU_FOLD, Bratu, ImperfectPitchfork
+from problems.demo import BRATU_FOLD, AllenCahn, Bratu, ImperfectPitchfork
 
 
 def bratu_mid(lam: float) -> float:
@@ -360,3 +360,42 @@ def test_the_point_landed_on_a_bound_is_checked():
     last = pb.with_grid(b.grid_at(-1))
     assert last.error_estimate(b.state(-1), {"lam": 2.0}) <= 1e-4 < 4e-3 * (8.0 / b.grid_at(0)) ** 2
     assert any("above tol at the bound" in line for line in b.audit)
+
+
+def test_a_bp_that_refinement_moves_behind_the_last_point_is_found():
+    """Allen-Cahn fd2 traced down from lam = 35: the start grid coarsens to fd2 8 (u = 0 is exact
+    on every grid), where the eigenvalue of mode 5 sits far below 25 (fd2 lowers it); the BP is
+    bracketed there, the grid refined at the last point -- and on the finer grid the BP lies
+    behind that point.  Tracing on from it skipped lam = 25 (BPs found: 16 and 9 only).  Now the
+    tracer retreats to the last stored point before the finer grid's zero and finds all three
+    BPs k^2 (within fd2's error)."""
+    pb = AllenCahn("fd2", 16)
+    o = ContinuationOptions(bounds={"lam": (5.0, 35.0)}, max_steps=200, step=StepOptions(ds=2.0, ds_max=4.0),
+                            adapt=AdaptOptions(tol=1e-4, min_grid=8))
+    b = trace(pb, pb.initial(), {"lam": 35.0}, "lam", o, direction=-1)
+    lams = [s.params["lam"] for s in b.points("BP")]
+    assert len(lams) == 3
+    for lam, k in zip(lams, (5, 4, 3)):
+        assert abs(lam - k * k) <= 1e-3 * k * k
+    assert any(line.startswith("retreated 1 point(s)") for line in b.audit)
+
+
+def test_couette_fd2_base_branch_finds_its_three_bps():
+    """gPCF (problems.couette) fd2 at --tol 1e-4: the uniform state is exact on every grid, so the
+    start grid coarsens to fd2 8; the first BP is bracketed there at H = 13.85 .. 17.1, and fd2 16
+    has it at 13.07 -- behind the point the grid was refined at.  The run found none of the three
+    BPs (``contin trace pitchfork --method fd2 --tol 1e-4``: 'modes 1, 2, 3 not found').  Now
+    H_1^c, H_2^c, H_3^c are found, each within fd2's error of n pi psi."""
+    from problems.couette import pitchfork as pf
+    from problems.couette.model import CouetteProblem
+
+    pb = CouetteProblem("fd2", 64)
+    p = pb.params({"nu": 0.3, "e": 0.8})
+    o = ContinuationOptions(bounds={"H": (2.0, 43.2)}, step=StepOptions(ds=1.0, ds_max=5.0),
+                            detection=DetectionOptions(), adapt=AdaptOptions(tol=1e-4))
+    b = pf.trace_base(pb, p, 2.0, o)
+    exact = pf.analytic_critical_gaps(0.3, 0.8, 3)
+    found = sorted(s.params["H"] for s in b.branch_points)
+    assert len(found) == 3
+    for h, h_exact in zip(found, exact):
+        assert abs(h / h_exact - 1) <= 1e-3
