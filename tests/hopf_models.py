@@ -7,6 +7,9 @@
   x' = 2 q1 z^2 - 2 q5 x^2 - q3 x y,  y' = q2 z - q6 y - q3 x y,  s' = q4 z - k q4 s.
 - 1-D Brusselator of BifurcationKit's tutorial (Lust 1997): n points, h = 1/n, Dirichlet values
   (alpha, beta/alpha), c_i = D_i / (l^2 h^2).
+- The Hopf normal form x' = mu x - y + a x r^2, y' = x + mu y + a y r^2 (Kuznetsov's l1 = 2 a).
+
+And :class:`Hidden`: a problem with some of its optional hooks hidden.
 """
 
 from __future__ import annotations
@@ -119,3 +122,49 @@ class BTNormalForm:
 
     def dresidual_dp(self, u, p, name):
         return np.array([0.0, 1.0]) if name == "b1" else np.array([0.0, u[0]])
+
+
+class HopfNormalForm:
+    """x' = mu x - y + a x r^2, y' = x + mu y + a y r^2: l1 = 2 a with q^H q = 1
+    (tests/test_hopf.py); with ``inner_product_weights`` = c (all components) when c is given."""
+
+    parameter_names = ("mu", "a")
+
+    def __init__(self, c: float | None = None):
+        if c is not None:
+            self.inner_product_weights = lambda u, p: np.full(2, c)
+
+    def residual(self, u, p):
+        x, y = u
+        r2 = x * x + y * y
+        return np.array([p["mu"] * x - y + p["a"] * x * r2, x + p["mu"] * y + p["a"] * y * r2])
+
+    def jacobian(self, u, p):
+        x, y = u
+        a, mu = p["a"], p["mu"]
+        return np.array([[mu + a * (3 * x * x + y * y), -1 + 2 * a * x * y],
+                         [1 + 2 * a * x * y, mu + a * (x * x + 3 * y * y)]])
+
+    def dresidual_dp(self, u, p, name):
+        return np.array([u[0], u[1]]) if name == "mu" else np.array([u[0], u[1]]) * (u @ u)
+
+
+class Hidden:
+    """``problem`` with only the hooks named in ``keep`` forwarded besides residual, jacobian and
+    dresidual_dp (e.g. keep=("mass_matrix",) hides ``inner_product_weights`` and
+    ``order_parameter``)."""
+
+    def __init__(self, problem, keep=()):
+        self.problem = problem
+        self.parameter_names = problem.parameter_names
+        for name in keep:
+            setattr(self, name, getattr(problem, name))
+
+    def residual(self, u, p):
+        return self.problem.residual(u, p)
+
+    def jacobian(self, u, p):
+        return self.problem.jacobian(u, p)
+
+    def dresidual_dp(self, u, p, name):
+        return self.problem.dresidual_dp(u, p, name)

@@ -16,7 +16,7 @@ from scipy.optimize import brentq, fsolve
 from contin.continuation import trace
 from contin.hopf import first_lyapunov, hopf_numbers
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
-from tests.hopf_models import AB, CO, Brusselator1D, Lorenz
+from tests.hopf_models import AB, CO, Brusselator1D, HopfNormalForm, Lorenz
 
 SIGMA, BETA = 10.0, 8.0 / 3.0
 
@@ -68,29 +68,11 @@ def test_first_lyapunov_of_the_hopf_normal_form():
     """x' = mu x - y + a x r^2, y' = x + mu y + a y r^2 at mu = 0: with J q = i q, q = (1, -i)/sqrt 2
     (q^H q = 1) and x = z q + conj(z q), r^2 = 2 |z|^2, so z' = (mu + i) z + 2 a |z|^2 z and
     Kuznetsov's l1 = Re c1 / omega = 2 a: super- (a < 0) and subcritical (a > 0)."""
-
-    class Normal:
-        parameter_names = ("mu", "a")
-
-        def residual(self, u, p):
-            x, y = u
-            r2 = x * x + y * y
-            return np.array([p["mu"] * x - y + p["a"] * x * r2, x + p["mu"] * y + p["a"] * y * r2])
-
-        def jacobian(self, u, p):
-            x, y = u
-            a, mu = p["a"], p["mu"]
-            return np.array([[mu + a * (3 * x * x + y * y), -1 + 2 * a * x * y],
-                             [1 + 2 * a * x * y, mu + a * (x * x + 3 * y * y)]])
-
-        def dresidual_dp(self, u, p, name):
-            return np.array([u[0], u[1]]) if name == "mu" else np.array([u[0], u[1]]) * (u @ u)
-
     for a in (-0.7, 0.4):
-        l1 = first_lyapunov(Normal(), np.zeros(2), {"mu": 0.0, "a": a}, 1.0)
+        l1 = first_lyapunov(HopfNormalForm(), np.zeros(2), {"mu": 0.0, "a": a}, 1.0)
         assert l1 == pytest.approx(2 * a, rel=1e-6)
 
-    class Slow(Normal):
+    class Slow(HopfNormalForm):
         """2 u' = F(u): time runs half as fast, omega = 1/2, and l1 = Re c1 / omega is unchanged."""
 
         def mass_matrix(self, u, p):

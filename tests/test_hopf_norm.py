@@ -16,27 +16,7 @@ import pytest
 
 from contin.hopf import first_lyapunov, hopf_vectors
 from problems.demo import Brusselator
-from tests.hopf_models import Lorenz
-
-
-class Euclidean:
-    """The problem with its ``inner_product_weights`` hidden (every other method forwarded)."""
-
-    def __init__(self, problem):
-        self.problem = problem
-        self.parameter_names = problem.parameter_names
-
-    def residual(self, u, p):
-        return self.problem.residual(u, p)
-
-    def jacobian(self, u, p):
-        return self.problem.jacobian(u, p)
-
-    def dresidual_dp(self, u, p, name):
-        return self.problem.dresidual_dp(u, p, name)
-
-    def mass_matrix(self, u, p):
-        return self.problem.mass_matrix(u, p)
+from tests.hopf_models import Hidden, HopfNormalForm, Lorenz
 
 
 def brusselator_l1(method: str, intervals: int, hide: bool = False) -> float:
@@ -45,7 +25,7 @@ def brusselator_l1(method: str, intervals: int, hide: bool = False) -> float:
     pb = Brusselator(method, intervals)
     par = dict(Brusselator.PARAMS)
     par["b"], omega = Brusselator.hopf_point(par, pb.dirichlet_eigenvalue())
-    return first_lyapunov(Euclidean(pb) if hide else pb, pb.homogeneous(par), par, omega)
+    return first_lyapunov(Hidden(pb, keep=("mass_matrix",)) if hide else pb, pb.homogeneous(par), par, omega)
 
 
 def test_brusselator_l1_converges_at_the_schemes_order_with_the_weights():
@@ -84,31 +64,6 @@ def test_ode_without_the_hook_is_bitwise_the_euclidean_l1():
     assert first_lyapunov(Lorenz(), u, p, math.sqrt(b * (s + rho))) == 0.0002655189728677612
 
 
-class NormalForm:
-    """x' = mu x - y + a x r^2, y' = x + mu y + a y r^2: l1 = 2 a with q^H q = 1
-    (tests/test_hopf.py); with ``inner_product_weights`` = c (all components)."""
-
-    parameter_names = ("mu", "a")
-
-    def __init__(self, c: float | None = None):
-        if c is not None:
-            self.inner_product_weights = lambda u, p: np.full(2, c)
-
-    def residual(self, u, p):
-        x, y = u
-        r2 = x * x + y * y
-        return np.array([p["mu"] * x - y + p["a"] * x * r2, x + p["mu"] * y + p["a"] * y * r2])
-
-    def jacobian(self, u, p):
-        x, y = u
-        a, mu = p["a"], p["mu"]
-        return np.array([[mu + a * (3 * x * x + y * y), -1 + 2 * a * x * y],
-                         [1 + 2 * a * x * y, mu + a * (x * x + 3 * y * y)]])
-
-    def dresidual_dp(self, u, p, name):
-        return np.array([u[0], u[1]]) if name == "mu" else np.array([u[0], u[1]]) * (u @ u)
-
-
 @pytest.mark.parametrize("c", [4.0, 0.25, 3.0, 0.1])
 def test_weights_scale_l1_exactly(c):
     """W = c I gives q^H q = 1/c, so l1 = l1_euclid / c = 2 a / c (the exact scaling law).  For
@@ -116,8 +71,8 @@ def test_weights_scale_l1_exactly(c):
     to max |q|) perturb u by the same vectors: bitwise l1_euclid / c.  Otherwise to the rounding of
     C's second differences (eps / h_C^2 ~ 1e-8 relative; measured 3e-9)."""
     p = {"mu": 0.0, "a": -0.7}
-    e = first_lyapunov(NormalForm(), np.zeros(2), p, 1.0)
-    w = first_lyapunov(NormalForm(c), np.zeros(2), p, 1.0)
+    e = first_lyapunov(HopfNormalForm(), np.zeros(2), p, 1.0)
+    w = first_lyapunov(HopfNormalForm(c), np.zeros(2), p, 1.0)
     assert e == pytest.approx(-1.4, rel=1e-6) and w == pytest.approx(-1.4 / c, rel=1e-6)
     if math.log(c, 4).is_integer():
         assert w == e / c
@@ -143,7 +98,7 @@ def test_hopf_vectors_weighted_normalisation():
 
 def test_bad_weights_are_one_clear_error():
     p = {"mu": 0.0, "a": -0.7}
-    bad = NormalForm()
+    bad = HopfNormalForm()
     bad.inner_product_weights = lambda u, q: np.array([1.0, 0.0])
     with pytest.raises(ValueError, match="positive finite weights"):
         first_lyapunov(bad, np.zeros(2), p, 1.0)

@@ -13,6 +13,7 @@ from contin.normalform import (
     pitchfork_unfolding,
 )
 from problems.discretization import make_grid
+from tests.hopf_models import Hidden
 
 
 class ImperfectPitchfork:
@@ -199,28 +200,7 @@ def test_unfolding_fold_and_hysteresis():
     assert Unfolding(0.0, b1=1.0, b2=0.0, alpha1=2.0, beta1=-5.0, q5=0.0).hysteresis() is None
 
 
-class _Forward:
-    """A demo BVP with some of its hooks hidden (``order_parameter``, ``inner_product_weights``)."""
-
-    def __init__(self, problem, *, order_parameter=True, weights=True):
-        self.problem = problem
-        self.parameter_names = problem.parameter_names
-        if order_parameter:
-            self.order_parameter = problem.order_parameter
-        if weights:
-            self.inner_product_weights = problem.inner_product_weights
-
-    def residual(self, u, p):
-        return self.problem.residual(u, p)
-
-    def jacobian(self, u, p):
-        return self.problem.jacobian(u, p)
-
-    def dresidual_dp(self, u, p, name):
-        return self.problem.dresidual_dp(u, p, name)
-
-
-def _allen_cahn_bend(intervals, **hooks):
+def _allen_cahn_bend(intervals, order_parameter=True, weights=True):
     """Bend of Allen-Cahn's first pitchfork off u = 0 on fd2 (lam_c the grid's own smallest
     Dirichlet eigenvalue of -d^2/dx^2 on [0, pi]: no location error enters)."""
     from problems.demo import AllenCahn
@@ -228,7 +208,8 @@ def _allen_cahn_bend(intervals, **hooks):
     pb = AllenCahn("fd2", intervals)
     inner = pb.grid.d2[1:-1, 1:-1].toarray() / pb.length**2
     lam = float(np.min(np.linalg.eigvalsh(-(inner + inner.T) / 2)))
-    return pitchfork_normal_form(_Forward(pb, **hooks), np.zeros(pb.n), {"lam": lam}, "lam")
+    keep = [name for name, on in (("order_parameter", order_parameter), ("inner_product_weights", weights)) if on]
+    return pitchfork_normal_form(Hidden(pb, keep=keep), np.zeros(pb.n), {"lam": lam}, "lam")
 
 
 def test_branch_point_bend_converges_with_the_grid_in_the_weighted_norm():
