@@ -603,8 +603,7 @@ class Adaptor:
         from cheb 8 to 16 at gPCF's H_1^c); a kernel that does not is a grid-scale mode (a
         discretization artefact that moves with the grid, which refinement would chase to
         max_grid: 3e-2, 6e-3, 2e-3, 1e-3 on cheb 80..288 on gPCF's nu = 0.5 banded branch).
-        The memory is cleared by a special point that meets tol (:meth:`special_resolved`) and by
-        one stored without meeting it (the next special point is judged afresh).
+        The memory is cleared by a special point that meets tol (:meth:`special_resolved`).
         ``measured``: err is the two-grid error of the point's position (comment below).
         """
         last = self._special

@@ -893,11 +893,6 @@ def trace(
                         f"kernel not resolved by refinement (estimate {err:.2g} > tol on grid {grid}): a grid artefact "
                         "or past max_grid")
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") + what) for sp in found]
-                # This point is stored as it is: the memory of its refinements must not judge the
-                # next special point (Allen-Cahn fd2 --tol 1e-4: BP1 left 3.1e-6 on fd2 512, and
-                # BP2's 6.1e-5 on 232 counted as "not falling", so BP2 and BP3 were stored 6.1e-5
-                # and 1.4e-3 off without one refinement)
-                adaptor.special_resolved()
         tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
