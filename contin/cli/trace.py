@@ -385,5 +385,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     failed = [b for b in result.branches if b.status == "MX"]
     for b in failed:
         echo_err(f"warning: branch {b.id} ended with MX: {error_line(ValueError(b.message or 'failure'))}")
-    if failed:
+    not_started = list(getattr(result, "not_started", []))
+    for line in not_started:
+        echo_err(f"warning: branch {error_line(ValueError(line.replace(': ', ' could not start (MX, not stored): ', 1)))}")
+    if failed or not_started:
         raise click.exceptions.Exit(EXIT_INCOMPLETE)

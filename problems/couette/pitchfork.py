@@ -510,6 +510,8 @@ def criticality(branch: Branch, H_c: float, phi_c: float, *, delta_max: float = 
     than 4 points only a and b are fitted).  kind = 'supercritical' for a > 0, 'subcritical' for
     a < 0 (physics.md section 4).
     """
+    if len(branch) == 0 or "phi" not in branch.observables:  # a switched branch that could not start (MX, no points)
+        return {"branch": branch.id, "a": math.nan, "kind": "unknown", "points": 0}
     d = branch.observables["phi"] - phi_c
     h = branch.parameter_values - H_c
     stop = len(branch)

@@ -161,6 +161,7 @@ class _Run:
         self.params = params
         self.done: list[Branch] = []
         self.notes: list[str] = []
+        self.not_started: list[str] = []
         self.kx_extra: dict[str, dict[str, Any]] = {}
 
     def cached(self, *ids: str) -> list[Branch] | None:
@@ -321,7 +322,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     if run.kx_extra:
         extra["stability_kx"] = run.kx_extra
     for row in crit:
-        if row["n"] == 1 and row["branch"].endswith(".1") and bp_list:
+        if row["n"] == 1 and row["branch"].endswith(".1") and bp_list and row["points"]:
             run.notes.append(f"pitchfork at H = {bp_list[0][1].params['H']:.10g} is {row['kind']} "
                              f"(H - H_c = a delta^2, a = {row['a']:.6g})")
     if st["walls"] == "noslip" and "H_c" in extra:
@@ -340,6 +341,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         profiles=lambda state: {k: v for k, v in pb.profiles(pf.state_on(pb, state)).items() if k in ("nu", "u", "T")},
         notes=run.notes,
         extra=extra,
+        not_started=run.not_started,
     )
 
 
@@ -373,7 +375,10 @@ def _diagram(run: _Run, p: dict[str, float], H_start: float, H_max: float, hc1: 
         run.notes.extend(pf.confirm_branch_points(pb, b, p, band_opts))
 
     def on_branch(b: Branch, source: Branch | None) -> None:
-        if len(b) == 0:  # a base branch that could not start: the scene says why
+        if len(b) == 0:  # nothing to store; the base branch's failure is one Error line (run_pitchfork)
+            if b.id != "0":  # a banded branch: it was dropped silently and the run exited 0 (qa14)
+                run.not_started.append(f"{b.id}: {b.message}")
+                run.notes.append(f"branch {b.id} could not start: {b.message}")
             return
         run.finish(b, stability_from=source)
         if b.id == "0":

@@ -1,0 +1,38 @@
+"""Robustness sweep, round 2 (session 14, qa14): extreme parameters of the gPCF scenes, the demo
+scenes' newer features, the Python API's argument checks, interrupted and concurrent runs.
+
+Each test names the command that misbehaved before its fix (a raw numpy/KeyError message, a
+silent loss with exit 0, a RuntimeWarning on stderr, ...).
+"""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from contin.cli import main
+
+
+@pytest.fixture(autouse=True)
+def real_scenes(monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+
+
+def run(args: list[str]):
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def test_pitchfork_banded_branches_that_cannot_start_are_named_and_exit_3(tmp_path):
+    """`contin trace pitchfork -s e=0.9999999 --grid 24` ended with `Error: phi` (the criticality fit
+    read the observables of a banded branch of no points); with that fixed the branches that could
+    not start were dropped silently, exit 0.  Now each is a warning with its reason, exit 3, and the
+    base branch is written."""
+    out = tmp_path / "pf.h5"
+    res = run(["trace", "pitchfork", "-s", "e=0.9999999", "--grid", "24", "--no-stability", "--max-steps", "20",
+               "-o", str(out)])
+    assert res.exit_code == 3, res.stderr
+    assert "Error:" not in res.stderr and "Traceback" not in res.stderr
+    warnings = [ln for ln in res.stderr.splitlines() if "could not start (MX, not stored)" in ln]
+    assert warnings and all(ln.startswith("warning: branch n") for ln in warnings), res.stderr
+    info = run(["info", str(out)])
+    assert info.exit_code == 0 and "uniform shear" in info.stderr + info.stdout
