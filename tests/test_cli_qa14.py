@@ -36,3 +36,14 @@ def test_pitchfork_banded_branches_that_cannot_start_are_named_and_exit_3(tmp_pa
     assert warnings and all(ln.startswith("warning: branch n") for ln in warnings), res.stderr
     info = run(["info", str(out)])
     assert info.exit_code == 0 and "uniform shear" in info.stderr + info.stdout
+
+
+@pytest.mark.parametrize("fr", ["1e-3", "0.3"])
+def test_gravity_whose_every_branch_cannot_start_is_one_error_line(fr, tmp_path):
+    """`contin trace gravity -s Fr=1e-3 --grid 24 -s max_grid=0` ended with `Error: zero-size array to
+    reduction operation minimum which has no identity` (classify took np.min of a 0-point branch)."""
+    res = run(["trace", "gravity", "-s", f"Fr={fr}", "--grid", "24", "-s", "max_grid=0", "--no-stability",
+               "--max-steps", "20", "-q", "-o", str(tmp_path / "g.h5")])
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(errors) == 1, res.stderr
+    assert errors[0].startswith("Error: gravity: branch 0 could not start: Newton failed at the start point H=1")
