@@ -47,3 +47,14 @@ def test_gravity_whose_every_branch_cannot_start_is_one_error_line(fr, tmp_path)
     errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
     assert res.exit_code == 1 and len(errors) == 1, res.stderr
     assert errors[0].startswith("Error: gravity: branch 0 could not start: Newton failed at the start point H=1")
+
+
+def test_jj_walls_isolated_branch_that_cannot_start_is_named_and_exit_3(tmp_path):
+    """`contin trace jj-walls -s nu=0.02 --grid 24` ended with `Error: phi`: the isolated symmetric
+    branch s1 was found (Newton converged from the slip guess) but its start point is under-resolved,
+    and the departure from the base branch read the observables of its 0 points."""
+    res = run(["trace", "jj-walls", "-s", "nu=0.02", "--grid", "24", "--no-stability", "--max-steps", "20",
+               "-o", str(tmp_path / "j.h5")])
+    assert res.exit_code == 3 and "Error:" not in res.stderr, res.stderr
+    assert ("warning: branch s1 could not start (MX, not stored): start point under-resolved at H = 198"
+            in res.stderr), res.stderr

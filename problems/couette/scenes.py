@@ -284,7 +284,9 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     banded: list[Branch] = []
     crit: list[dict[str, Any]] = []
     for k, bp in bp_list:
-        for b in (x for x in d.branches if x.id in (f"n{k}.1", f"n{k}.2")):
+        # a branch that could not start has no points (run.not_started names it; its departure and
+        # criticality fits read observables it does not have: jj-walls -s nu=0.02 ended 'Error: phi')
+        for b in (x for x in d.branches if x.id in (f"n{k}.1", f"n{k}.2") and len(x)):
             banded.append(b)
             crit.append({**pf.criticality(b, bp.params["H"], bp.order_parameter), "n": k})
 
@@ -439,6 +441,10 @@ def _jj_walls(run: _Run, base: Branch, bps: list, banded: list[Branch], options:
     else:
         request.report("jj-walls: looking for a symmetric branch off the base branch")
         iso, note = pf.isolated_symmetric_branch(pb, base, p, options, progress=request.report)
+        if iso is not None and len(iso) == 0:  # found, but its start point failed (under-resolved at nu = 0.02)
+            run.not_started.append(f"{iso.id}: {iso.message}")
+            note = f"{note.split(':')[0]} could not start: {iso.message}"
+            iso = None
         if iso is not None:
             run.notes += pf.confirm_branch_points(pb, iso, p, options)
             run.notes += [m for m in iso.audit if " re-traced with " in m]
