@@ -493,7 +493,11 @@ def trace(
     system = ExtendedSystem(problem, params, parameter, sopt.theta)
     u0 = np.array(u0, dtype=float).ravel()
     try:
-        f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
+        # Only the shape is checked here; a non-finite residual (inf/nan from a division by zero at
+        # extreme parameters) is the start point's Newton failure below, in one line, so numpy's
+        # RuntimeWarnings would only repeat it on stderr (qa14: nonlocal-cylinder -s W=1e-300).
+        with np.errstate(all="ignore"):
+            f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
     except ValueError as exc:
         raise ValueError(f"start state with {u0.size} entries does not fit the problem ({exc})") from None
     except ArithmeticError as exc:  # Python-float arithmetic of a problem (W**2 at W = 1e300)

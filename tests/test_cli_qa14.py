@@ -58,3 +58,22 @@ def test_jj_walls_isolated_branch_that_cannot_start_is_named_and_exit_3(tmp_path
     assert res.exit_code == 3 and "Error:" not in res.stderr, res.stderr
     assert ("warning: branch s1 could not start (MX, not stored): start point under-resolved at H = 198"
             in res.stderr), res.stderr
+
+
+@pytest.mark.parametrize("args, expect", [
+    (["nonlocal-cylinder", "-s", "W=1e-300"], "residual is not finite at the initial guess"),
+    (["nonlocal-muI", "-s", "A_phi=1e-300"], "initial guess is inadmissible"),
+])
+def test_a_non_finite_start_residual_prints_no_runtime_warning(args, expect, tmp_path):
+    """`contin trace nonlocal-cylinder -s W=1e-300` printed numpy's 'RuntimeWarning: divide by zero
+    encountered in divide' lines (with their source lines) above its one Error line: the start
+    point's shape probe evaluated the residual without np.errstate.  The failure itself is the
+    start point's Newton message."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        res = run(["trace", *args, "--no-stability", "-q", "--max-steps", "3", "-o", str(tmp_path / "x.h5")])
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(errors) == 1, res.stderr
+    assert expect in errors[0] and "RuntimeWarning" not in res.stderr, res.stderr
