@@ -77,3 +77,35 @@ def test_a_non_finite_start_residual_prints_no_runtime_warning(args, expect, tmp
     errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
     assert res.exit_code == 1 and len(errors) == 1, res.stderr
     assert expect in errors[0] and "RuntimeWarning" not in res.stderr, res.stderr
+
+
+def test_hopf_point_of_an_adaptive_run_is_continued_on_its_own_grid(tmp_path):
+    """`contin trace brusselator` (adaptive: HB1 on grid 12, file grid 32) then `contin continue
+    FILE --from HB1 --free a` said 'continue it with --tol REL', and with --tol 'adaptive grids are
+    not available for BP/Hopf curves ... (without --tol)': the HB could not be continued at all.
+    Now the curve runs on HB1's own grid; its ends on b = 4, 6 are the closed form
+    b = 1 + a^2 + (D1 + D2) k^2, k^2 the grid's smallest Dirichlet eigenvalue (HB1's own b)."""
+    import h5py
+    import numpy as np
+
+    from contin import io
+
+    src, out = tmp_path / "br.h5", tmp_path / "c.h5"
+    res = run(["trace", "brusselator", "--no-stability", "-q", "-o", str(src)])
+    assert res.exit_code == 0, res.stderr
+    branches, _ = io.load(str(src))
+    hb = branches[0].points("HB")[0]
+    assert hb.grid is not None and hb.grid != 32
+    res = run(["continue", str(src), "--from", "HB1", "--free", "a", "--max-steps", "30", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    curve = io.load(str(out))[0][0]
+    assert set(curve.grid.tolist()) == {hb.grid}
+    dk2 = hb.params["b"] - 1 - 4.0  # (D1 + D2) k^2 of HB1's grid, a = 2
+    ends = {round(sp.params["b"]): sp.params["a"] for sp in curve.points("EP")}
+    assert ends.keys() == {4, 6}
+    for b, a in ends.items():
+        assert abs(a - np.sqrt(b - 1 - dk2)) < 1e-8 * a
+    info = run(["info", str(out)])
+    assert info.exit_code == 0 and f"on the fixed grid {hb.grid} of HB1" in info.stderr + info.stdout
+    with h5py.File(out) as f:
+        assert f.attrs["scene"] == "brusselator"
