@@ -109,3 +109,19 @@ def test_hopf_point_of_an_adaptive_run_is_continued_on_its_own_grid(tmp_path):
     assert info.exit_code == 0 and f"on the fixed grid {hb.grid} of HB1" in info.stderr + info.stdout
     with h5py.File(out) as f:
         assert f.attrs["scene"] == "brusselator"
+
+
+def test_stretched_bratu_stability_does_not_count_the_boundary_rows(tmp_path):
+    """`contin trace stretched-bratu` printed a raw 'blas.py:146: UserWarning: ... no mass_matrix'
+    and stored n_unstable = 2 on the stable lower branch (3 past the fold): the two Dirichlet rows
+    counted as unstable modes, exit 0.  Bratu's lower branch is stable, its upper branch has one
+    unstable mode."""
+    from contin import io
+
+    out = tmp_path / "s.h5"
+    res = run(["trace", "stretched-bratu", "-q", "-o", str(out)])
+    assert res.exit_code == 0 and "Warning" not in res.stderr, res.stderr
+    branch = io.load(str(out))[0][0]
+    fold = branch.fold_points[0].index
+    assert set(branch.n_unstable[:fold].tolist()) == {0}
+    assert set(branch.n_unstable[fold + 1:].tolist()) == {1}
