@@ -125,3 +125,21 @@ def test_stretched_bratu_stability_does_not_count_the_boundary_rows(tmp_path):
     fold = branch.fold_points[0].index
     assert set(branch.n_unstable[:fold].tolist()) == {0}
     assert set(branch.n_unstable[fold + 1:].tolist()) == {1}
+
+
+def test_accuracy_measures_hopf_points_of_the_brusselator():
+    """`contin accuracy brusselator --methods cheb,fd2,fd4 --grids 8,16,32` ended 'Error: no key points:
+    ... found no BP/LP': the scene's key point is its Hopf point.  HBs are key points now; fd2
+    converges at order 2, fd4 above 3 from 16 to 32, Chebyshev to rounding on 16."""
+    import json
+
+    res = run(["accuracy", "brusselator", "--methods", "cheb,fd2,fd4", "--grids", "8,16,32", "--no-memory",
+               "--no-plots", "--json"])
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(res.stdout)
+    rows = [r for r in doc["rows"] if r["key"] == "0/HB1"]
+    assert len(rows) == 9
+    order = {(r["method"], r["grid"]): r["order"] for r in rows}
+    assert abs(order[("fd2", 32)] - 2) < 0.05 and order[("fd4", 32)] > 3
+    err = {(r["method"], r["grid"]): r["error"] for r in rows}
+    assert err[("cheb", 16)] < 1e-12
