@@ -143,3 +143,34 @@ def test_accuracy_measures_hopf_points_of_the_brusselator():
     assert abs(order[("fd2", 32)] - 2) < 0.05 and order[("fd4", 32)] > 3
     err = {(r["method"], r["grid"]): r["error"] for r in rows}
     assert err[("cheb", 16)] < 1e-12
+
+
+def test_python_warnings_are_one_warning_line():
+    """A Python warning reached the terminal in its two-line default format (file:line: UserWarning:
+    ... and the source line `return fn(*args, **kwargs)`).  The CLI prints it as one `warning:` line."""
+    import subprocess
+    import sys
+
+    code = ("import warnings, click\n"
+            "from contin.cli import main\n"
+            "@main.command('warn-once')\n"
+            "def warn_once():\n"
+            "    warnings.warn('something doubtful\\n  on two lines', UserWarning)\n"
+            "    warnings.warn('overflow encountered in exp', RuntimeWarning)\n"
+            "main(['warn-once'])\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.splitlines() == ["warning: something doubtful on two lines",
+                                       "warning: RuntimeWarning: overflow encountered in exp"], res.stderr
+
+
+def test_swift_hohenberg_trace_prints_no_mass_matrix_warning(tmp_path):
+    """`contin trace swift-hohenberg` (and --depth 1) printed the stability pass's 'the problem has no
+    mass_matrix ... may count as unstable' on every run: every row of Swift-Hohenberg is dynamic,
+    M = I is its mass matrix, now declared.  Same branch, same stability."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        res = run(["trace", "swift-hohenberg", "-q", "-o", str(tmp_path / "sh.h5")])
+    assert res.exit_code == 0 and res.stderr == "", res.stderr

@@ -150,6 +150,35 @@ def main(debug: bool, verbose: int) -> None:
     if not isinstance(sys.stderr, _SinkOnBrokenPipe):
         sys.stderr = _SinkOnBrokenPipe(sys.stderr)  # type: ignore[assignment]
     _setup_logging(verbose)  # BLAS threads: ContinCommand.invoke, when a command runs
+    _one_line_warnings(debug or bool(os.environ.get("CONTIN_DEBUG")))
+
+
+def _one_line_warnings(debug: bool) -> None:
+    """Python warnings as one ``warning: ...`` line each, like every other message of the CLI.
+
+    The default format is two lines, the second the source line that warned (``.../blas.py:146:
+    UserWarning: stability of branch 0: ...`` then ``  return fn(*args, **kwargs)``: session 14,
+    ``contin trace stretched-bratu``).  ``--debug`` adds the location.  Filters (``-W error``)
+    still apply; the previous hook is restored when the command ends (tests run many commands
+    in one process)."""
+    import warnings
+
+    previous = warnings.showwarning
+
+    def show(message: Any, category: type[Warning], filename: str, lineno: int, file: Any = None,
+             line: str | None = None) -> None:
+        kind = "" if category is UserWarning else f"{category.__name__}: "
+        where = f" ({filename}:{lineno})" if debug else ""
+        text = re.sub(r"\s*\n\s*", " ", f"{kind}{message}").strip()
+        try:
+            (file or sys.stderr).write(f"warning: {text}{where}\n")
+        except (OSError, ValueError):  # a closed stream: a warning is never worth a failure
+            pass
+
+    warnings.showwarning = show
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None:
+        ctx.call_on_close(lambda: setattr(warnings, "showwarning", previous))
 
 
 # --------------------------------------------------------------------------- helpers
