@@ -174,3 +174,20 @@ def test_swift_hohenberg_trace_prints_no_mass_matrix_warning(tmp_path):
         warnings.simplefilter("error", UserWarning)
         res = run(["trace", "swift-hohenberg", "-q", "-o", str(tmp_path / "sh.h5")])
     assert res.exit_code == 0 and res.stderr == "", res.stderr
+
+
+def test_stability_of_a_demo_scene_file_defaults_to_k_0(tmp_path):
+    """`contin stability br.h5 --point HB1` on a brusselator (or lorenz, stretched-bratu) file ended
+    'Error: this problem has no eigenproblem(u, p, kx, kz) method, so only kx = kz = 0 is available':
+    the default --kx 0:3:61 is gPCF's wavenumber range.  Without --kx such problems get k = 0; at the
+    Hopf point the growth rate is 0 (to rounding), a stated --kx 1 is still refused."""
+    import json
+
+    src = tmp_path / "br.h5"
+    assert run(["trace", "brusselator", "--no-stability", "-q", "-o", str(src)]).exit_code == 0
+    res = run(["stability", str(src), "--point", "HB1", "--json"])
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["kx"] == [0.0] and abs(doc["growth_rate"][0]) < 1e-9
+    res = run(["stability", str(src), "--point", "HB1", "--kx", "1"])
+    assert res.exit_code == 1 and "only kx = kz = 0 is available" in res.stderr
