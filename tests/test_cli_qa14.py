@@ -191,3 +191,20 @@ def test_stability_of_a_demo_scene_file_defaults_to_k_0(tmp_path):
     assert doc["kx"] == [0.0] and abs(doc["growth_rate"][0]) < 1e-9
     res = run(["stability", str(src), "--point", "HB1", "--kx", "1"])
     assert res.exit_code == 1 and "only kx = kz = 0 is available" in res.stderr
+
+
+def test_a_bp_that_the_second_parameter_keeps_is_not_traced_as_a_fold_curve(tmp_path):
+    """`contin continue pf.h5 --from BP2 --free e` (gPCF, the symmetric mode-2 pitchfork of uniform
+    shear, which e keeps) traced the BP locus as a Moore-Spence "fold curve" and reported cusps along
+    it (CP rows, some 'converged'), exit 0: psi . dF/de was rounding (2.4e-8 of |psi| |dF/de|, above
+    UNFOLD_TOL).  Now it is one Error line; the symmetry-breaking BP1 in e is still a BP curve."""
+    src = tmp_path / "pf.h5"
+    res = run(["trace", "pitchfork", "-s", "modes=1", "--grid", "32", "--no-stability", "-q", "-o", str(src)])
+    assert res.exit_code in (0, 3), res.stderr
+    res = run(["continue", str(src), "--from", "BP2", "--free", "e", "--bounds", "e=0.7:0.9", "--max-steps", "10",
+               "-o", str(tmp_path / "c.h5")])
+    assert res.exit_code == 1, res.stderr
+    assert "Error: 'e' does not unfold BP2" in res.stderr and "CP" not in res.stderr
+    res = run(["continue", str(src), "--from", "BP1", "--free", "e", "--bounds", "e=0.75:0.85", "--max-steps", "5",
+               "-o", str(tmp_path / "c1.h5")])
+    assert res.exit_code == 0 and "BP curve from BP1" in res.stderr, res.stderr
