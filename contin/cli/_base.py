@@ -43,6 +43,10 @@ def error_line(exc: BaseException) -> str:
     return re.sub(r"\s*\n\s*", " ", msg).strip()
 
 
+#: Exit code after Ctrl-C (SIGINT): 128 + 2, the shell's convention (SIGTERM: 143).
+EXIT_INTERRUPTED = 130
+
+
 class ContinGroup(click.Group):
     """A group whose commands turn any exception into one ``Error:`` line (exit 1)."""
 
@@ -55,7 +59,11 @@ class ContinGroup(click.Group):
         except Terminated:
             click.echo("Error: terminated by SIGTERM", err=True)
             raise click.exceptions.Exit(EXIT_TERMINATED) from None
-        except (click.ClickException, click.exceptions.Exit, click.Abort, KeyboardInterrupt):
+        except KeyboardInterrupt:  # Ctrl-C: one Error line and the shell's 128 + SIGINT, as SIGTERM gets
+            # 143 (click printed 'Aborted!' and exited 1, the code of bad input; session 14)
+            click.echo("Error: interrupted (Ctrl-C)", err=True)
+            raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
+        except (click.ClickException, click.exceptions.Exit, click.Abort):
             raise
         except Exception as exc:
             if ctx.params.get("debug") or os.environ.get("CONTIN_DEBUG"):
@@ -145,7 +153,7 @@ def _setup_logging(verbose: int) -> None:
 def main(debug: bool, verbose: int) -> None:
     """contin: numerical continuation and bifurcation diagrams.
 
-    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 143 SIGTERM.
+    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 130 Ctrl-C, 143 SIGTERM.
     """
     if not isinstance(sys.stderr, _SinkOnBrokenPipe):
         sys.stderr = _SinkOnBrokenPipe(sys.stderr)  # type: ignore[assignment]
