@@ -432,6 +432,26 @@ def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0
     return float(lo), float(hi)
 
 
+def start_state(u0: Any) -> Array:
+    """``u0`` as a flat float array; TypeError naming it for text, None or complex values.
+
+    ``np.array(u0, dtype=float)`` dropped the imaginary part of a complex start with only a
+    ComplexWarning (the trace then ran from another state) and failed on text with numpy's
+    'could not convert string to float' (session 14)."""
+    arr = np.asarray(u0)
+    if arr.dtype.kind == "c":
+        if np.any(arr.imag != 0):
+            raise TypeError("u0 (the start state) must be real, got complex values with nonzero imaginary parts")
+        arr = arr.real
+    elif arr.dtype.kind not in "biufO" or u0 is None:
+        raise TypeError(f"u0 (the start state) must be an array of real numbers, got {type(u0).__name__} "
+                        f"(dtype {arr.dtype})")
+    try:
+        return np.array(arr, dtype=float).ravel()
+    except (TypeError, ValueError) as exc:  # an object array holding text or None
+        raise TypeError(f"u0 (the start state) must be an array of real numbers ({exc})") from None
+
+
 @limited(lambda problem, u0, *args, **kwargs: np.size(u0))  # one BLAS thread on small problems (contin.blas)
 def trace(
     problem: Any,
@@ -489,9 +509,11 @@ def trace(
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
     require_protocol(problem)
+    if not isinstance(options, ContinuationOptions):  # a dict met "'dict' object has no attribute 'step'"
+        raise TypeError(f"options must be a ContinuationOptions, got {type(options).__name__}")
     sopt = options.step
     system = ExtendedSystem(problem, params, parameter, sopt.theta)
-    u0 = np.array(u0, dtype=float).ravel()
+    u0 = start_state(u0)
     try:
         # Only the shape is checked here; a non-finite residual (inf/nan from a division by zero at
         # extreme parameters) is the start point's Newton failure below, in one line, so numpy's

@@ -208,3 +208,50 @@ def test_a_bp_that_the_second_parameter_keeps_is_not_traced_as_a_fold_curve(tmp_
     res = run(["continue", str(src), "--from", "BP1", "--free", "e", "--bounds", "e=0.75:0.85", "--max-steps", "5",
                "-o", str(tmp_path / "c1.h5")])
     assert res.exit_code == 0 and "BP curve from BP1" in res.stderr, res.stderr
+
+
+def test_the_python_api_names_the_wrong_argument():
+    """README's library calls with wrong types met deep numpy/Python errors ('could not convert string
+    to float', "'<' not supported between 'str' and 'int'", "'dict' object has no attribute 'step'",
+    'sequence item 0: expected str instance'), or passed silently: max_steps=2.5, user_zeros
+    {'lam': '12'} (UZ at 1 and 2), a complex u0 (imaginary part dropped with a ComplexWarning),
+    lam='0.5'.  Now each is a TypeError/ValueError naming the argument."""
+    import numpy as np
+
+    from contin.continuation import trace
+    from contin.options import ContinuationOptions, NewtonOptions, StepOptions
+    from problems.demo import AllenCahn
+
+    pb = AllenCahn(method="cheb", intervals=16)
+    u0 = pb.initial()
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.3), bounds={"lam": (0.0, 3.0)}, max_steps=5)
+    cases = [
+        (lambda: trace(pb, u0, {"lam": "0.5"}, "lam", opts), TypeError, "parameter 'lam' must be a real number"),
+        (lambda: trace(pb, u0, {"lam": None}, "lam", opts), TypeError, "parameter 'lam' must be a real number"),
+        (lambda: trace(pb, u0, [0.5], "lam", opts), TypeError, "params must be a mapping"),
+        (lambda: trace(pb, "abc", {"lam": 0.5}, "lam", opts), TypeError, "u0 (the start state)"),
+        (lambda: trace(pb, None, {"lam": 0.5}, "lam", opts), TypeError, "u0 (the start state)"),
+        (lambda: trace(pb, u0 + 1j, {"lam": 0.5}, "lam", opts), TypeError, "u0 (the start state) must be real"),
+        (lambda: trace(pb, u0, {"lam": 0.5}, "lam", {"max_steps": 5}), TypeError, "options must be a ContinuationOptions"),
+        (lambda: trace(pb, u0, {"lam": 0.5}, "lam", ContinuationOptions(bounds={"mu": (0, 1)})), ValueError,
+         "bounds given for unknown parameter 'mu'"),
+        (lambda: ContinuationOptions(bounds={"lam": ("0", "3")}), TypeError, "bounds for 'lam' must be a real number"),
+        (lambda: ContinuationOptions(bounds={"lam": 3}), TypeError, "bounds for 'lam' must be a pair"),
+        (lambda: StepOptions(ds=0), ValueError, "ds=0"),
+        (lambda: StepOptions(ds="0.1"), TypeError, "StepOptions.ds must be a real number"),
+        (lambda: ContinuationOptions(max_steps=-1), ValueError, "max_steps must be >= 1"),
+        (lambda: ContinuationOptions(max_steps=2.5), TypeError, "max_steps must be a whole number"),
+        (lambda: ContinuationOptions(max_steps="10"), TypeError, "max_steps must be a whole number"),
+        (lambda: ContinuationOptions(user_zeros={"lam": "12"}), TypeError, "user_zeros for 'lam' must be numbers"),
+        (lambda: NewtonOptions(max_iterations=None), TypeError, "NewtonOptions.max_iterations"),
+        (lambda: AllenCahn(method="cheb", intervals=2.5), TypeError, "intervals must be a whole number"),
+    ]
+    for call, kind, text in cases:
+        with pytest.raises(kind, match=None) as info:
+            call()
+        assert text in str(info.value), (text, str(info.value))
+    # what stays accepted: numpy scalars, whole floats, a 1-label stop_at string, a list u0
+    ok = ContinuationOptions(max_steps=np.int64(5), bounds={"lam": (np.float64(0), 3)}, stop_at="LP1")
+    assert ok.max_steps == 5 and ok.stop_at == ("LP1",) and ContinuationOptions(max_steps=5.0).max_steps == 5
+    assert trace(pb, list(u0), {"lam": np.float64(0.5)}, "lam", opts).status == "EP"
+
