@@ -255,3 +255,24 @@ def test_the_python_api_names_the_wrong_argument():
     assert ok.max_steps == 5 and ok.stop_at == ("LP1",) and ContinuationOptions(max_steps=5.0).max_steps == 5
     assert trace(pb, list(u0), {"lam": np.float64(0.5)}, "lam", opts).status == "EP"
 
+
+
+@pytest.mark.parametrize("uz", ["5.2", "5.2960881320326"])
+def test_a_user_zero_in_the_step_of_a_hopf_point_does_not_skip_its_check(uz, tmp_path):
+    """`contin trace brusselator --uz b=5.2` kept HB1 where cheb 8 located it, 2.6e-9 off (special_tol
+    1e-10), without a note, and its l1 = -0.0406 (cheb 12: -0.0271): the UZ located in the same step
+    has no position check, and check_located gave up on the whole step.  A UZ lies on its value by
+    construction; the HB is checked, refined to cheb 12, to the closed form within 1e-12."""
+    from contin import io
+
+    out = tmp_path / "b.h5"
+    res = run(["trace", "brusselator", "--no-stability", "--uz", f"b={uz}", "-q", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    branch = io.load(str(out))[0][0]
+    hb = branch.points("HB")[0]
+    plain = tmp_path / "p.h5"
+    assert run(["trace", "brusselator", "--no-stability", "-q", "-o", str(plain)]).exit_code == 0
+    ref = io.load(str(plain))[0][0].points("HB")[0]
+    assert hb.grid == ref.grid and abs(hb.params["b"] / ref.params["b"] - 1) < 1e-12
+    assert abs(hb.data["l1"] / ref.data["l1"] - 1) < 1e-6
+    assert [sp.params["b"] for sp in branch.points("UZ")] == [float(uz)]
