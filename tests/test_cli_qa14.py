@@ -276,3 +276,16 @@ def test_a_user_zero_in_the_step_of_a_hopf_point_does_not_skip_its_check(uz, tmp
     assert hb.grid == ref.grid and abs(hb.params["b"] / ref.params["b"] - 1) < 1e-12
     assert abs(hb.data["l1"] / ref.data["l1"] - 1) < 1e-6
     assert [sp.params["b"] for sp in branch.points("UZ")] == [float(uz)]
+
+
+def test_stability_of_a_two_parameter_curve_is_refused_in_one_line(tmp_path):
+    """`contin stability c.h5 --point 3` on a fold or Hopf curve of a demo scene ended with numpy's
+    'Error: operands could not be broadcast together with shapes (13,) (67,)': the curve's augmented
+    states reached the problem."""
+    src, curve = tmp_path / "br.h5", tmp_path / "c.h5"
+    assert run(["trace", "brusselator", "--no-stability", "-q", "-o", str(src)]).exit_code == 0
+    assert run(["continue", str(src), "--from", "HB1", "--free", "a", "--max-steps", "10", "-o", str(curve)]).exit_code == 0
+    res = run(["stability", str(curve), "--point", "3"])
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code == 1 and len(errors) == 1, res.stderr
+    assert "is a two-parameter curve (hopf-curve, free b, a)" in errors[0] and "broadcast" not in errors[0]

@@ -249,6 +249,11 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         if branch_id not in ids:
             fail(f"no branch {branch_id!r} in {file}; branches: {', '.join(ids) or 'none'}")
         branch = branches[ids.index(branch_id)]
+    if len(branch.free) != 1:  # its states are augmented (u, phi, p2, ...): numpy's broadcast error
+        # ('operands could not be broadcast together with shapes (37,) (75,)') or a size mismatch before
+        fail(f"branch {branch.id} of {file} is a two-parameter curve ({branch.kind or 'curve'}, free {', '.join(branch.free)}): "
+             "its stored states are augmented systems, not states of the problem; stability applies to "
+             "one-parameter branches (the file the curve was continued from)")
 
     fixed = _numeric(dict(meta.get("parameters", {})))
     if point is not None:
