@@ -25,7 +25,9 @@ Reported numbers
                              - 2 p^H B(q, J^{-1} B(q, conj q))
                              + p^H B(conj q, (2 i omega M - J)^{-1} B(q, q)) ],
 
-    J q = i omega M q, J^T p = -i omega M^T p, q^H q = 1, p^H M q = 1, with B and C the second
+    J q = i omega M q, J^T p = -i omega M^T p, q^H q = 1 (q^H W q = 1 for a problem with the
+    optional hook ``quadrature_weights(u, p)`` = W, a discretized PDE's L2 weights: then l1
+    converges with the grid instead of scaling as 1/N), p^H M q = 1, with B and C the second
     and third derivatives of F in u (multilinear forms).  They are directional derivatives of
     the problem's Jacobian by central differences, B(a, y) = [J(u + h a) - J(u - h a)] y / 2h
     and C(a, b, y) = d^2/dh_a dh_b J y, extended to complex arguments by multilinearity.
@@ -261,6 +263,16 @@ def first_lyapunov(problem: Any, u: Array, params: dict[str, float], omega: floa
     n = jac.shape[0]
     mass = _mass(problem, u, params, n)
     q, p = hopf_vectors(jac, mass, omega)
+    if has(problem, "quadrature_weights"):
+        # l1 is cubic in q and linear in p: with q^H q = 1 a discretized PDE's l1 scales as 1/N
+        # (the Brusselator's HB: -0.0406 on cheb 8, -0.0271 on cheb 12, -1.1e-4 on fd2 2048;
+        # session 14).  Normalized in the problem's discrete L2 norm, q^H W q = 1 (p^H M q = 1
+        # kept), it converges with the grid.
+        w = np.asarray(problem.quadrature_weights(u, params), dtype=float)
+        s = math.sqrt(float(np.sum(w * np.abs(q) ** 2)))
+        if not (math.isfinite(s) and s > 0):
+            return math.nan
+        q, p = q / s, p * s
     forms = _Forms(problem, u, params)
     qb = np.conj(q)
     jc = sp.csc_matrix(jac, dtype=complex)

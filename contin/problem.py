@@ -71,6 +71,11 @@ class Problem(Protocol):
         An involution S with F(S u, p) = S F(u, p) (and S S = identity).
     inner(a, b) -> float
         The inner product used for step lengths; default is the Euclidean dot / n.
+    quadrature_weights(u, p) -> (n,) array
+        Positive weights of the discrete L2 inner product of a discretized PDE's unknowns
+        (quadrature weights per field).  The Hopf eigenvector is normalized with it for the
+        first Lyapunov coefficient l1 (``contin.hopf``), which then converges with the grid;
+        without it q^H q = 1 (exact for ODEs; for a PDE l1 then scales as 1/N).
     validate(p) -> None
         Raise ``ValueError`` with one clear sentence for an invalid parameter set.
     admissible(u, p) -> str | None

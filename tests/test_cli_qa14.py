@@ -289,3 +289,22 @@ def test_stability_of_a_two_parameter_curve_is_refused_in_one_line(tmp_path):
     errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
     assert res.exit_code == 1 and len(errors) == 1, res.stderr
     assert "is a two-parameter curve (hopf-curve, free b, a)" in errors[0] and "broadcast" not in errors[0]
+
+
+def test_first_lyapunov_coefficient_of_a_discretized_pde_converges_with_the_grid(tmp_path):
+    """The Brusselator's HB1 was reported with l1 = -0.0406 on cheb 8, -0.0271 on cheb 12, -0.00353 on
+    fd2 64, -1.1e-4 on fd2 2048 (exit 0): the Hopf eigenvector was normalized q^H q = 1, so l1 of a
+    discretized PDE scaled as 1/N.  With the problem's quadrature weights (q^H W q = 1) it is one
+    number, -0.2259, on every grid; an ODE's l1 (no weights) is unchanged (tests/test_hopf.py)."""
+    from contin import io
+
+    values = {}
+    for args in (["--grid", "8"], ["--grid", "32"], ["--method", "fd2", "--grid", "256"]):
+        out = tmp_path / f"b{'-'.join(args)}.h5"
+        res = run(["trace", "brusselator", "--no-stability", "-q", *args, "-o", str(out)])
+        assert res.exit_code == 0, res.stderr
+        values[" ".join(args)] = io.load(str(out))[0][0].points("HB")[0].data["l1"]
+    ref = values["--grid 32"]
+    assert ref == pytest.approx(-0.225894, rel=1e-5)
+    assert values["--grid 8"] == pytest.approx(ref, rel=1e-4)
+    assert values["--method fd2 --grid 256"] == pytest.approx(ref, rel=1e-4)
