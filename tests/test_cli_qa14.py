@@ -308,3 +308,16 @@ def test_first_lyapunov_coefficient_of_a_discretized_pde_converges_with_the_grid
     assert ref == pytest.approx(-0.225894, rel=1e-5)
     assert values["--grid 8"] == pytest.approx(ref, rel=1e-4)
     assert values["--method fd2 --grid 256"] == pytest.approx(ref, rel=1e-4)
+
+
+def test_brusselator_notes_compare_each_hopf_point_with_its_own_mode(tmp_path):
+    """`contin trace brusselator -s a=1.5` noted 'HB1: b = 4.434... (closed form ... = 3.546..., relative
+    error 0.25 ...)': the mode-1 Hopf point lies below b_min and HB1 is the exact mode-2 point; the note
+    compared every run's first HB with mode 1 (and said nothing of HB2)."""
+    res = run(["trace", "brusselator", "-s", "a=1.5", "--no-stability", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 0, res.stderr
+    notes = [ln for ln in res.stderr.splitlines() if ln.startswith("note: HB")]
+    assert len(notes) == 2 and "closed form of mode 2" in notes[0] and "closed form of mode 3" in notes[1], notes
+    for ln in notes:
+        err = float(ln.split("relative error ")[1].split(",")[0])
+        assert abs(err) <= 1e-10, ln
