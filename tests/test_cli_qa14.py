@@ -321,3 +321,14 @@ def test_brusselator_notes_compare_each_hopf_point_with_its_own_mode(tmp_path):
     for ln in notes:
         err = float(ln.split("relative error ")[1].split(",")[0])
         assert abs(err) <= 1e-10, ln
+
+
+def test_pitchfork_below_the_first_critical_gap_says_so(tmp_path):
+    """`contin trace pitchfork -s H_max=1e-3` ended 'Error: need ds_max >= |ds| >= ds_min > 0, got
+    ds_max=0.0001, ds=0.02' (the banded branches' fixed ds 0.02 above their ds_max 0.1 H_max), and
+    with H_max between that and H_1^c the run found no BP and said nothing."""
+    for h in ("1e-3", "5"):
+        res = run(["trace", "pitchfork", "-s", f"H_max={h}", "--grid", "24", "--no-stability", "-o",
+                   str(tmp_path / "h.h5")])
+        assert res.exit_code == 0 and "Error" not in res.stderr, res.stderr
+        assert "note: no pitchfork below H_max" in res.stderr and "H_1^c = pi psi = 13.06852933" in res.stderr

@@ -248,7 +248,9 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         # BP test function and skips both (H_max = 200 skipped modes 4, 6, 7, ...).
         base_ds_max = min(base_ds_max, BASE_STEPS_PER_MODE_GAP * hc1)
     base_opts = _options(request, H_lo, H_max, ds=min(0.05 * H_max, base_ds_max), ds_max=base_ds_max)
-    band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=(JJ_BASE_DS_MAX if jj else 0.1) * H_max)
+    band_ds_max = (JJ_BASE_DS_MAX if jj else 0.1) * H_max
+    # ds at most ds_max: -s H_max=1e-3 ended "Error: need ds_max >= |ds| >= ds_min > 0, got ds_max=0.0001, ds=0.02"
+    band_opts = _options(request, H_lo, H_max, ds=min(0.02, band_ds_max), ds_max=band_ds_max)
     extra: dict[str, Any] = {"H_max": H_max, "walls": st["walls"], "modes": modes}
 
     # ---- the diagram: base branch and the banded branches at its BPs (contin.diagram builds it;
