@@ -332,3 +332,19 @@ def test_pitchfork_below_the_first_critical_gap_says_so(tmp_path):
                    str(tmp_path / "h.h5")])
         assert res.exit_code == 0 and "Error" not in res.stderr, res.stderr
         assert "note: no pitchfork below H_max" in res.stderr and "H_1^c = pi psi = 13.06852933" in res.stderr
+
+
+def test_at_a_parameter_constant_along_the_branch_is_refused(tmp_path):
+    """`contin profiles br.h5 --at a=2` (a fixed parameter of a brusselator run) drew the profiles of
+    HB1 as 'at a=2', exit 0: every point matches a constant; `contin stability br.h5 --at a=2` took the
+    first point ('crosses a = 2 26 times').  Now one Error line naming the varying parameter."""
+    src = tmp_path / "br.h5"
+    assert run(["trace", "brusselator", "--no-stability", "-q", "-o", str(src)]).exit_code == 0
+    for args in (["profiles", str(src), "--at", "a=2", "-o", str(tmp_path / "p.png")],
+                 ["stability", str(src), "--at", "a=2"]):
+        res = run(args)
+        errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+        assert res.exit_code == 1 and len(errors) == 1, res.stderr
+        assert "a is constant" in errors[0] and "--at b=" in errors[0]
+    assert not (tmp_path / "p.png").exists()
+    assert run(["profiles", str(src), "--at", "b=5", "-o", str(tmp_path / "q.png")]).exit_code == 0

@@ -150,6 +150,10 @@ def state_at(problem: Any, branch: Any, name: str, value: float, fixed: dict[str
 
     if name not in branch.params:
         fail(f"branch {branch.id} of {file} has no parameter {name!r} (it has {', '.join(branch.params)})")
+    values = np.asarray(branch.params[name], dtype=float)
+    if len(values) and np.all(values == values[0]):  # every point "crossed" it: the first point was taken
+        fail(f"{name} is constant ({values[0]:g}) along branch {branch.id} of {file}: --at needs a parameter that "
+             f"varies along the branch, e.g. --at {branch.parameter}=...")
     crossing = first_crossing(branch.params[name], value)
     if crossing is None:
         fail(f"branch {branch.id} of {file} does not reach {name} = {value:g} "
