@@ -348,3 +348,23 @@ def test_at_a_parameter_constant_along_the_branch_is_refused(tmp_path):
         assert "a is constant" in errors[0] and "--at b=" in errors[0]
     assert not (tmp_path / "p.png").exists()
     assert run(["profiles", str(src), "--at", "b=5", "-o", str(tmp_path / "q.png")]).exit_code == 0
+
+
+def test_a_special_point_left_at_max_grid_does_not_block_the_refinement_of_the_next():
+    """`contin trace allen-cahn --method fd2 --tol 1e-5`: BP1 reached max_grid (fd2 512) unresolved,
+    and the adaptor's memory of its last measured error (3.1e-6) refused every later refinement:
+    BP2 stayed on fd2 232 (6.1e-5 off), BP3 on fd2 72, lam = 8.987 (1.4e-3 off, 140x tol) with the
+    note 'not falling with the grid'.  Now each is refined to max_grid: BP3 2.8e-5 off."""
+    from contin.continuation import trace
+    from contin.options import AdaptOptions, ContinuationOptions, StepOptions
+    from problems.demo import AllenCahn
+
+    pb = AllenCahn(method="fd2", intervals=32)
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=1.5), bounds={"lam": (0.5, 10.0)},
+                               adapt=AdaptOptions(tol=1e-5))
+    br = trace(pb, pb.initial(), {"lam": 0.5}, "lam", opts)
+    bps = br.branch_points
+    assert [round(b.params["lam"]) for b in bps] == [1, 4, 9]
+    for k, b in zip((1, 2, 3), bps):
+        assert b.grid == 512, (b.name, b.grid)
+        assert abs(b.params["lam"] / k**2 - 1) < 5e-5, (b.name, b.params["lam"])
