@@ -368,3 +368,25 @@ def test_a_special_point_left_at_max_grid_does_not_block_the_refinement_of_the_n
     for k, b in zip((1, 2, 3), bps):
         assert b.grid == 512, (b.name, b.grid)
         assert abs(b.params["lam"] / k**2 - 1) < 5e-5, (b.name, b.params["lam"])
+
+
+def test_resume_keeps_the_accuracy_of_the_stored_branches(tmp_path):
+    """`contin trace brusselator --method fd2 --tol 1e-6 -o F` then `--resume F --tol 1e-8` (or `--resume F`
+    alone, the scene's default tol 1e-10) recorded the finished tol-1e-6 branch as computed at the new
+    tol; a fixed-grid file resumed without --grid was continued adaptively.  Now the file's accuracy
+    is kept, and another --tol is refused like another --grid."""
+    from contin import io
+
+    f = tmp_path / "b.h5"
+    assert run(["trace", "brusselator", "--method", "fd2", "--tol", "1e-6", "--no-stability", "-q", "-o",
+                str(f)]).exit_code == 0
+    res = run(["trace", "brusselator", "--resume", str(f), "--tol", "1e-8", "--no-stability", "-q"])
+    assert res.exit_code == 1 and "was computed with --tol 1e-06, not 1e-08" in res.stderr, res.stderr
+    assert run(["trace", "brusselator", "--resume", str(f), "--no-stability", "-q"]).exit_code == 0
+    assert io.load(str(f))[1]["options"]["adapt"]["tol"] == 1e-6
+    fixed = tmp_path / "fixed.h5"
+    assert run(["trace", "bratu", "--grid", "16", "--no-stability", "-q", "-o", str(fixed)]).exit_code == 0
+    assert run(["trace", "bratu", "--resume", str(fixed), "--no-stability", "-q"]).exit_code == 0
+    assert io.load(str(fixed))[1]["options"]["adapt"] is None
+    res = run(["trace", "bratu", "--resume", str(fixed), "--tol", "1e-6", "--no-stability", "-q"])
+    assert res.exit_code == 1 and "was computed on a fixed grid" in res.stderr
