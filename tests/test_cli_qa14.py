@@ -390,3 +390,6 @@ def test_resume_keeps_the_accuracy_of_the_stored_branches(tmp_path):
     assert io.load(str(fixed))[1]["options"]["adapt"] is None
     res = run(["trace", "bratu", "--resume", str(fixed), "--tol", "1e-6", "--no-stability", "-q"])
     assert res.exit_code == 1 and "was computed on a fixed grid" in res.stderr
+    res = run(["trace", "bratu", "--resume", str(fixed), "--resolution-tol", "1e-3", "--no-stability", "-q"])
+    assert res.exit_code == 1 and "was computed with --resolution-tol 3e-05, not 1e-3" in res.stderr
+    assert run(["trace", "bratu", "--resume", str(fixed), "--resolution-tol", "3e-5", "--no-stability", "-q"]).exit_code == 0

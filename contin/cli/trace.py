@@ -349,6 +349,11 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
         _resume_accuracy(resume, meta.get("options"), overrides, tol=tol, special_tol=special_tol,
                          max_grid=max_grid, no_solve_check=no_solve_check)
+        before_rtol = (meta.get("options") or {}).get("resolution_tol", "unknown") \
+            if isinstance(meta.get("options"), dict) else "unknown"
+        if resolution_tol is not None and before_rtol != "unknown" and before_rtol != rtol:
+            fail(f"{resume!r} was computed with --resolution-tol {'off' if before_rtol is None else fmt(before_rtol)}, "
+                 f"not {resolution_tol}; resume with the same accuracy (or start a new run)")
         completed = {b.id: b for b in old}
         if output is None:
             output = resume
