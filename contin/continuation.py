@@ -1031,7 +1031,7 @@ def trace_both(
 def switch(
     problem: Any,
     branch: Branch,
-    point: SpecialPoint,
+    point: SpecialPoint | str,
     options: ContinuationOptions = ContinuationOptions(),
     *,
     directions: tuple[int, ...] = (+1, -1),
@@ -1039,7 +1039,7 @@ def switch(
     ds: float | None = None,
     symmetric: bool | None = None,
 ) -> list[Branch]:
-    """Trace the branches bifurcating at the BP ``point`` of ``branch``.
+    """Trace the branches bifurcating at the BP ``point`` of ``branch`` (or its label, e.g. ``"BP1"``).
 
     The first point of each half-branch comes from the algebraic bifurcation equation
     (:func:`contin.switching.departures`), or, at a BP whose kernel dimension d > 1 was recorded
@@ -1064,6 +1064,15 @@ def switch(
         If ``point`` is not a BP with a tangent, the BP is not simple (b = 0 in the ABE), or no
         direction gives a new branch (the reason per direction; never an empty list).
     """
+    if isinstance(point, str):  # a label: switch(pb, branch, "BP1", opts) met "'str' object has no attribute 'type'"
+        named = [sp for sp in branch.special_points if sp.name == point]
+        if not named:
+            raise ValueError(f"no point {point!r} on branch {branch.id}; its labels are "
+                             f"{', '.join(sp.name for sp in branch.special_points) or 'none'}")
+        point = named[0]
+    if not isinstance(point, SpecialPoint):
+        raise TypeError(f"point must be a SpecialPoint of the branch (e.g. branch.branch_points[0]) or its label, "
+                        f"got {type(point).__name__}")
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
     param = branch.parameter

@@ -393,3 +393,30 @@ def test_resume_keeps_the_accuracy_of_the_stored_branches(tmp_path):
     res = run(["trace", "bratu", "--resume", str(fixed), "--resolution-tol", "1e-3", "--no-stability", "-q"])
     assert res.exit_code == 1 and "was computed with --resolution-tol 3e-05, not 1e-3" in res.stderr
     assert run(["trace", "bratu", "--resume", str(fixed), "--resolution-tol", "3e-5", "--no-stability", "-q"]).exit_code == 0
+
+
+def test_switch_and_io_write_name_their_wrong_arguments(tmp_path):
+    """switch(pb, branch, None/'BP1', opts) met "'NoneType'/'str' object has no attribute 'type'";
+    io.write(path, branch) "'Branch' object is not iterable", io.write(path, [1, 2]) "object of type
+    'int' has no len()".  Now a label is looked up, a single Branch is written, the rest is a
+    TypeError naming the argument."""
+    from contin import io
+    from contin.continuation import switch, trace
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import AllenCahn
+
+    pb = AllenCahn(method="cheb", intervals=16)
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.3), bounds={"lam": (0.0, 3.0)})
+    br = trace(pb, pb.initial(), {"lam": 0.5}, "lam", opts)
+    with pytest.raises(TypeError, match="point must be a SpecialPoint"):
+        switch(pb, br, None, opts)
+    with pytest.raises(ValueError, match="no point 'BP9' on branch"):
+        switch(pb, br, "BP9", opts)
+    label = br.branch_points[0].name
+    assert [len(b) > 1 for b in switch(pb, br, label, opts)] == [True, True]
+    with pytest.raises(TypeError, match="branches must be a list of Branch objects"):
+        io.write(tmp_path / "x.h5", [1, 2])
+    with pytest.raises(TypeError, match="branches must be a list of Branch objects"):
+        io.write(tmp_path / "x.h5", "abc")
+    io.write(tmp_path / "one.h5", br)
+    assert [b.id for b in io.load(tmp_path / "one.h5")[0]] == [br.id]
