@@ -420,3 +420,25 @@ def test_switch_and_io_write_name_their_wrong_arguments(tmp_path):
         io.write(tmp_path / "x.h5", "abc")
     io.write(tmp_path / "one.h5", br)
     assert [b.id for b in io.load(tmp_path / "one.h5")[0]] == [br.id]
+
+
+def test_stability_of_a_branch_without_points_says_why(tmp_path):
+    """`contin stability F --branch bad --point 0` on a branch that could not start said 'point 0 is out
+    of range: branch bad of F has 0 points (0..-1)'; now it names the branch's failure."""
+    import numpy as np
+
+    from contin import io
+    from contin.continuation import trace
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import Bratu
+
+    pb = Bratu(method="cheb", intervals=16)
+    good = trace(pb, np.zeros(pb.n), {"lam": 0.0}, "lam",
+                 ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.3), bounds={"lam": (0.0, 4.0)}))
+    bad = trace(pb, np.full(pb.n, 50.0), {"lam": 90.0}, "lam",
+                ContinuationOptions(bounds={"lam": (0.0, 100.0)}), branch_id="bad")
+    assert len(bad) == 0
+    f = tmp_path / "e.h5"
+    io.write(f, [good, bad], scene="bratu", parameters={"lam_min": 0.0, "lam_max": 4.0})
+    res = run(["stability", str(f), "--branch", "bad", "--point", "0"])
+    assert res.exit_code == 1 and "branch bad of" in res.stderr and "has no stored points (MX: Newton failed" in res.stderr

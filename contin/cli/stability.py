@@ -91,6 +91,8 @@ def resolve_point(branch: Any, point: str, fixed: dict[str, float], file: str) -
     import numpy as np
 
     s = len(branch)
+    if s == 0:  # a branch that could not start ('point 0 is out of range: ... has 0 points (0..-1)')
+        fail(f"branch {branch.id} of {file} has no stored points ({branch.status}: {branch.message})")
     try:
         index = int(point)
     except ValueError:
