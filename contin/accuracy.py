@@ -5,7 +5,7 @@ not the eigenvalue pass) and its *key points* are collected:
 
 - ``SceneResult.extra['key_points']`` -- ``{name: value}`` -- if the scene provides it (the
   scene knows which numbers matter, e.g. the critical gaps H_n^c of gPCF); otherwise
-- every converged BP and LP of every branch, named ``"<branch id>/<type><k>"`` (k-th point
+- every converged BP, LP and HB of every branch, named ``"<branch id>/<type><k>"`` (k-th point
   of that type along the branch, in branch order) with the value of the branch's
   continuation parameter.  The same name on two grids is the same point as long as the
   scene labels its branches deterministically (contin scenes do).
@@ -172,7 +172,7 @@ def exact_points(result: SceneResult) -> dict[str, float]:
 
 
 def key_points(result: SceneResult) -> dict[str, float]:
-    """The scene's key points (module docstring): ``extra['key_points']`` or its BPs/LPs."""
+    """The scene's key points (module docstring): ``extra['key_points']`` or its BPs, LPs and HBs."""
     given = result.extra.get("key_points") if isinstance(result.extra, Mapping) else None
     if given:
         return {str(k): float(v) for k, v in given.items()}
@@ -182,7 +182,7 @@ def key_points(result: SceneResult) -> dict[str, float]:
             continue  # fold curves etc.: their special points are not one-parameter values
         counts: dict[str, int] = {}
         for sp in b.special_points:
-            if sp.type not in ("BP", "LP") or not sp.converged:
+            if sp.type not in ("BP", "LP", "HB") or not sp.converged:
                 continue
             counts[sp.type] = counts.get(sp.type, 0) + 1
             out[f"{b.id}/{sp.type}{counts[sp.type]}"] = float(sp.params[b.parameter])

@@ -458,6 +458,26 @@ def _check_bounds(problem: Any, options: ContinuationOptions, parameter: str, p0
     return float(lo), float(hi)
 
 
+def start_state(u0: Any) -> Array:
+    """``u0`` as a flat float array; TypeError naming it for text, None or complex values.
+
+    ``np.array(u0, dtype=float)`` dropped the imaginary part of a complex start with only a
+    ComplexWarning (the trace then ran from another state) and failed on text with numpy's
+    'could not convert string to float' (session 14)."""
+    arr = np.asarray(u0)
+    if arr.dtype.kind == "c":
+        if np.any(arr.imag != 0):
+            raise TypeError("u0 (the start state) must be real, got complex values with nonzero imaginary parts")
+        arr = arr.real
+    elif arr.dtype.kind not in "biufO" or u0 is None:
+        raise TypeError(f"u0 (the start state) must be an array of real numbers, got {type(u0).__name__} "
+                        f"(dtype {arr.dtype})")
+    try:
+        return np.array(arr, dtype=float).ravel()
+    except (TypeError, ValueError) as exc:  # an object array holding text or None
+        raise TypeError(f"u0 (the start state) must be an array of real numbers ({exc})") from None
+
+
 @limited(lambda problem, u0, *args, **kwargs: np.size(u0))  # one BLAS thread on small problems (contin.blas)
 def trace(
     problem: Any,
@@ -515,11 +535,17 @@ def trace(
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
     require_protocol(problem)
+    if not isinstance(options, ContinuationOptions):  # a dict met "'dict' object has no attribute 'step'"
+        raise TypeError(f"options must be a ContinuationOptions, got {type(options).__name__}")
     sopt = options.step
     system = ExtendedSystem(problem, params, parameter, sopt.theta)
-    u0 = np.array(u0, dtype=float).ravel()
+    u0 = start_state(u0)
     try:
-        f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
+        # Only the shape is checked here; a non-finite residual (inf/nan from a division by zero at
+        # extreme parameters) is the start point's Newton failure below, in one line, so numpy's
+        # RuntimeWarnings would only repeat it on stderr (qa14: nonlocal-cylinder -s W=1e-300).
+        with np.errstate(all="ignore"):
+            f0 = np.asarray(problem.residual(u0, system.params), dtype=float)
     except ValueError as exc:
         raise ValueError(f"start state with {u0.size} entries does not fit the problem ({exc})") from None
     except ArithmeticError as exc:  # Python-float arithmetic of a problem (W**2 at W = 1e300)
@@ -893,6 +919,14 @@ def trace(
                         f"kernel not resolved by refinement (estimate {err:.2g} > tol on grid {grid}): a grid artefact "
                         "or past max_grid")
                 found = [replace(sp, note=(sp.note + "; " if sp.note else "") + what) for sp in found]
+                if grid >= options.adapt.max_grid:
+                    # Stopped by the grid limit, not by an error that does not fall: the next special
+                    # point starts its own refinement history.  The memory of this one's last
+                    # measurement (3.1e-6 of allen-cahn's BP1 on fd2 512 = max_grid) refused every
+                    # later refinement (BP3 kept on fd2 72, 1.4e-3 off, with tol 1e-5 and "not
+                    # falling with the grid"; session 14).  After a refinement that did not lower
+                    # the error (a grid-scale artefact) the memory stays, as designed.
+                    adaptor.special_resolved()
         tracer.special.extend(found)
         step_len = system.norm(new.x - cur.x)
         travelled += step_len
@@ -1075,7 +1109,7 @@ def trace_both(
 def switch(
     problem: Any,
     branch: Branch,
-    point: SpecialPoint,
+    point: SpecialPoint | str,
     options: ContinuationOptions = ContinuationOptions(),
     *,
     directions: tuple[int, ...] = (+1, -1),
@@ -1083,7 +1117,7 @@ def switch(
     ds: float | None = None,
     symmetric: bool | None = None,
 ) -> list[Branch]:
-    """Trace the branches bifurcating at the BP ``point`` of ``branch``.
+    """Trace the branches bifurcating at the BP ``point`` of ``branch`` (or its label, e.g. ``"BP1"``).
 
     The first point of each half-branch comes from the algebraic bifurcation equation
     (:func:`contin.switching.departures`), or, at a BP whose kernel dimension d > 1 was recorded
@@ -1108,6 +1142,15 @@ def switch(
         If ``point`` is not a BP with a tangent, the BP is not simple (b = 0 in the ABE), or no
         direction gives a new branch (the reason per direction; never an empty list).
     """
+    if isinstance(point, str):  # a label: switch(pb, branch, "BP1", opts) met "'str' object has no attribute 'type'"
+        named = [sp for sp in branch.special_points if sp.name == point]
+        if not named:
+            raise ValueError(f"no point {point!r} on branch {branch.id}; its labels are "
+                             f"{', '.join(sp.name for sp in branch.special_points) or 'none'}")
+        point = named[0]
+    if not isinstance(point, SpecialPoint):
+        raise TypeError(f"point must be a SpecialPoint of the branch (e.g. branch.branch_points[0]) or its label, "
+                        f"got {type(point).__name__}")
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
     param = branch.parameter

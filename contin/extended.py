@@ -49,7 +49,10 @@ def _takes_out(fn: Any) -> bool:
 def validate_params(problem: Any, params: Mapping[str, float], parameter: str | None = None) -> dict[str, float]:
     """A full, float-valued copy of ``params``; ValueError naming any unknown or missing name."""
     names = tuple(problem.parameter_names)
-    unknown = sorted(set(params) - set(names))
+    if not isinstance(params, Mapping):  # a list of values met str.join: 'sequence item 0: expected str'
+        raise TypeError(f"params must be a mapping {{name: value}} of the problem's parameters ({', '.join(names)}), "
+                        f"got {type(params).__name__}")
+    unknown = sorted(set(params) - set(names), key=str)
     if unknown:
         raise ValueError(f"unknown parameter(s) {', '.join(unknown)}; the problem has {', '.join(names)}")
     missing = [k for k in names if k not in params]
@@ -58,8 +61,12 @@ def validate_params(problem: Any, params: Mapping[str, float], parameter: str | 
     if parameter is not None and parameter not in names:
         raise ValueError(f"unknown continuation parameter {parameter!r}; the problem has {', '.join(names)}")
     out: dict[str, float] = {}
+    from contin.options import real_number
+
     for k in names:
-        v = float(params[k])
+        # a str ('0.5', 'abc') or None is refused by name: float('0.5') passed silently and 'abc'
+        # gave "could not convert string to float" without saying which parameter (session 14)
+        v = real_number(params[k], f"parameter {k!r}")
         if math.isnan(v):
             raise ValueError(f"parameter {k} is NaN")
         out[k] = v

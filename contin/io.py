@@ -687,7 +687,14 @@ def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any)
     them: every parameter column of the first branch at its first point (the values a
     restart or a rebuilt problem starts from).
     """
+    if isinstance(branches, Branch):  # io.write(path, branch) met "'Branch' object is not iterable"
+        branches = [branches]
+    if isinstance(branches, str | bytes) or not hasattr(branches, "__iter__"):
+        raise TypeError(f"branches must be a list of Branch objects, got {type(branches).__name__}")
     branches = list(branches)
+    strays = [b for b in branches if not isinstance(b, Branch)]
+    if strays:
+        raise TypeError(f"branches must be a list of Branch objects, got a {type(strays[0]).__name__} among them")
     if not meta.get("parameters"):
         first = next((b for b in branches if len(b)), None)
         meta["parameters"] = {} if first is None else {k: float(v[0]) for k, v in first.params.items()}

@@ -7,10 +7,48 @@ Change a setting with :func:`dataclasses.replace`; every constructor validates a
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+
+def real_number(value: Any, what: str) -> float:
+    """``value`` as a float; TypeError naming ``what`` for anything that is not one real number
+    (a str, None, a complex, a sequence): before session 14 such values met a deep comparison
+    ('<' not supported between 'str' and 'int', bad operand type for abs())."""
+    if isinstance(value, numbers.Real):
+        return float(value)
+    if (not isinstance(value, str | bytes | complex | numbers.Complex) and value is not None
+            and hasattr(value, "__float__") and getattr(value, "shape", ()) == ()):  # 0-d numpy arrays
+        return float(value)
+    raise TypeError(f"{what} must be a real number, got {value!r} ({type(value).__name__})")
+
+
+def whole_number(value: Any, what: str) -> int:
+    """``value`` as an int (10.0 is 10); TypeError naming ``what`` otherwise (2.5, '10', None)."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return int(value)
+    if isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value) and float(value).is_integer():
+        return int(value)
+    raise TypeError(f"{what} must be a whole number, got {value!r} ({type(value).__name__})")
+
+
+def _check_field_types(obj: Any) -> None:
+    """The numeric fields of a frozen options dataclass, checked and stored as float / int by their
+    annotation (``float``, ``int``, ``float | None``, ``int | None``)."""
+    owner = type(obj).__name__
+    for f in fields(obj):
+        value = getattr(obj, f.name)
+        kind = str(f.type)
+        if value is None and kind.endswith("| None"):
+            continue
+        if kind in ("float", "float | None"):
+            object.__setattr__(obj, f.name, real_number(value, f"{owner}.{f.name}"))
+        elif kind in ("int", "int | None"):
+            object.__setattr__(obj, f.name, whole_number(value, f"{owner}.{f.name}"))
 
 
 @dataclass(frozen=True)
@@ -29,6 +67,7 @@ class NewtonOptions:
     max_iterations: int = 12
 
     def __post_init__(self) -> None:
+        _check_field_types(self)
         if not self.tol > 0:
             raise ValueError(f"NewtonOptions.tol must be > 0, got {self.tol}")
         if self.max_iterations < 1:
@@ -58,6 +97,7 @@ class StepOptions:
     predictor: str = "tangent"  # or "secant"
 
     def __post_init__(self) -> None:
+        _check_field_types(self)
         if not (self.ds_max >= abs(self.ds) >= self.ds_min > 0):
             raise ValueError(
                 f"need ds_max >= |ds| >= ds_min > 0, got ds_max={self.ds_max}, ds={self.ds}, ds_min={self.ds_min}"
@@ -125,6 +165,7 @@ class DetectionOptions:
     hopf_dense_max: int = 400
 
     def __post_init__(self) -> None:
+        _check_field_types(self)
         if self.hopf_eigs < 2 or self.hopf_dense_max < 2:
             raise ValueError(f"hopf_eigs and hopf_dense_max must be >= 2, got {self.hopf_eigs}, {self.hopf_dense_max}")
         if self.bp_eigenvalues is not None and self.bp_eigenvalues < 0:
@@ -199,6 +240,7 @@ class AdaptOptions:
     solve_check: bool = True
 
     def __post_init__(self) -> None:
+        _check_field_types(self)
         if not (math.isfinite(self.tol) and self.tol > 0):
             raise ValueError(f"AdaptOptions.tol must be a finite number > 0, got {self.tol}")
         if self.check_factor is not None and not (math.isfinite(self.check_factor) and self.check_factor > 1):
@@ -265,6 +307,9 @@ class ContinuationOptions:
     events: dict[str, Callable[..., float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        _check_field_types(self)
+        if isinstance(self.stop_at, str):  # stop_at=("LP1") is the string 'LP1': one label, not 'L', 'P', '1'
+            object.__setattr__(self, "stop_at", (self.stop_at,))
         object.__setattr__(self, "stop_at", tuple(self.stop_at))
         for label in self.stop_at:
             kind, count = label[:2], label[2:]
@@ -272,7 +317,11 @@ class ContinuationOptions:
                 raise ValueError(f"stop_at labels are {', '.join(k + '<k>' for k in STOP_KINDS)} with k >= 1, got {label!r}")
         zeros = {}
         for name, values in self.user_zeros.items():
-            vals = tuple(float(v) for v in ([values] if isinstance(values, int | float) else values))
+            if isinstance(values, str | bytes):  # '12' was iterated: UZ points at 1 and 2
+                raise TypeError(f"user_zeros for {name!r} must be numbers, got the string {values!r}")
+            if isinstance(values, numbers.Real):
+                values = [values]
+            vals = tuple(real_number(v, f"user_zeros for {name!r}") for v in values)
             if not all(math.isfinite(v) for v in vals):
                 raise ValueError(f"user_zeros for {name!r} must be finite numbers, got {values!r}")
             zeros[str(name)] = tuple(dict.fromkeys(vals))  # '--uz lam=1,1,1' located each crossing 3 times
@@ -284,9 +333,17 @@ class ContinuationOptions:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
         if self.resolution_tol is not None and not self.resolution_tol > 0:
             raise ValueError(f"resolution_tol must be > 0 (or None to switch the guard off), got {self.resolution_tol}")
-        for name, (lo, hi) in self.bounds.items():
+        if not isinstance(self.bounds, dict):
+            raise TypeError(f"bounds must be a dict {{name: (lo, hi)}}, got {type(self.bounds).__name__}")
+        pairs = {}
+        for name, pair in self.bounds.items():
+            if isinstance(pair, str | bytes) or not hasattr(pair, "__len__") or len(pair) != 2:
+                raise TypeError(f"bounds for {name!r} must be a pair (lo, hi) of numbers, got {pair!r}")
+            lo, hi = (real_number(v, f"bounds for {name!r}") for v in pair)
             if not lo < hi:
                 raise ValueError(f"bounds for {name!r} must satisfy lo < hi, got ({lo}, {hi})")
+            pairs[name] = (lo, hi)
+        object.__setattr__(self, "bounds", pairs)
 
     def __hash__(self) -> int:  # bounds is a dict; hash its items so options stay usable as keys
         return hash((self.newton, self.step, self.detection, tuple(sorted(self.bounds.items())),

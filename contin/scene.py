@@ -200,6 +200,9 @@ class SceneResult:
     profiles : maps a state vector to named profiles on ``y`` (e.g. nu, u, T)
     notes : human-readable findings ("uniform shear has no BP at nu = 0.15")
     extra : scene-specific JSON-serialisable results (tricritical density, ...)
+    not_started : ``"ID: reason"`` for each branch the scene set out to trace that could not
+        start (no point, so nothing is stored); the CLI warns about each and exits 3 (incomplete),
+        as for a branch that ended with MX
     """
 
     branches: list[Branch]
@@ -209,6 +212,7 @@ class SceneResult:
     profiles: Callable[[np.ndarray], dict[str, np.ndarray]] | None = None
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
+    not_started: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -618,6 +618,31 @@ def _single_threaded_children() -> Iterator[None]:
                 os.environ[v] = old
 
 
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask, which containers and ``taskset`` set;
+    ``os.cpu_count()`` counts the whole machine)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # not on Linux
+        return os.cpu_count() or 1
+
+
+def worker_count(jobs: int | None) -> tuple[int, str]:
+    """Local workers for ``jobs`` and a note when it was capped.
+
+    Every task is CPU-bound and single-threaded (BLAS pinned to one thread), so more workers
+    than usable CPUs only oversubscribe them: the tasks time-share the cores, each is slower,
+    and they all hold their memory at once.  ``-j 64`` on a 2-CPU machine therefore runs 2
+    workers (a note says so) instead of being refused: the sweep gives the same results, and
+    the user asked for "as parallel as possible", not for 64 processes.
+    """
+    cpus = usable_cpus()
+    if jobs is None or jobs <= cpus:
+        return (cpus if jobs is None else jobs), ""
+    return cpus, (f"note: -j {jobs} capped at {cpus} worker(s), the CPUs this process may use "
+                  f"(the tasks are CPU-bound: more workers would only oversubscribe them)")
+
+
 def _lost(task: Task, reason: str) -> TaskRecord:
     return TaskRecord(task.index, task.key, task.swept, "lost", reason, file="")
 
@@ -637,7 +662,8 @@ def run_sweep(
     spec : the sweep (:func:`load_sweep`).
     outdir : output directory; task files go to ``outdir/tasks``.
     executor : any ``concurrent.futures.Executor`` (e.g. Dask's ``client.get_executor()``);
-        None = a process pool of ``jobs`` workers (default: all CPUs) created and shut down here.
+        None = a process pool of ``jobs`` workers (default: all usable CPUs; more are capped at
+        that, :func:`worker_count`) created and shut down here.
     progress : called with one line per finished task (and one line about resumed tasks).
     retry_failed : recompute tasks whose file records a failure ('MX' or 'error').
 
@@ -743,7 +769,7 @@ def _run_sweep_locked(spec: SweepSpec, out: Path, taskdir: Path, executor: Execu
     try:
         with env:
             if own:
-                executor = ProcessPoolExecutor(max_workers=min(jobs or os.cpu_count() or 1, len(todo)),
+                executor = ProcessPoolExecutor(max_workers=min(worker_count(jobs)[0], len(todo)),
                                                mp_context=multiprocessing.get_context("spawn"),
                                                initializer=_die_with_parent, initargs=(os.getpid(),))
             assert executor is not None
@@ -898,7 +924,7 @@ def open_executor(scheduler: str | None, jobs: int | None = None) -> Iterator[Ex
     with contextlib.ExitStack() as stack:
         if scheduler == "local-dask":
             cluster = stack.enter_context(LocalCluster(
-                n_workers=jobs or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                n_workers=worker_count(jobs)[0], threads_per_worker=1, processes=True,
                 dashboard_address=None, silence_logs=logging.ERROR))
             client = stack.enter_context(Client(cluster))
         else:

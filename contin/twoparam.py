@@ -89,16 +89,29 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
 #: psi . dF/dp2 below this fraction of |psi| |dF/dp2| means p2 does not unfold the BP
 UNFOLD_TOL = 1e-8
 
+#: ... or below this fraction of |psi| (|J|_F |u| + |dF/dp2|).  Where p2 keeps the BP, dF/dp2 =
+#: -J du/dp2 lies in J's range and psi . dF/dp2 is only the rounding of J^T psi times |du/dp2|;
+#: when |dF/dp2| << |J| |du/dp2| that rounding passes the relative test.  gPCF's symmetric mode-2
+#: pitchfork on uniform shear in e: 2.4e-8 relative, 5e-13 on this scale, so `contin continue
+#: pf.h5 --from BP2 --free e` traced the BP locus as a "fold curve" with spurious cusps (CP, some
+#: "converged"), exit 0 (session 14).  Gravity G unfolding the mode-1 pitchfork: 0.42 and 1.3e-3.
+UNFOLD_ABS_TOL = 1e-10
+
 
 def _unfolds(problem: Any, point: SpecialPoint, second: str) -> bool:
-    """True if ``second`` unfolds the BP at first order: psi . dF/dp2 != 0 (relative UNFOLD_TOL)."""
+    """True if ``second`` unfolds the BP at first order: psi . dF/dp2 != 0 (relative UNFOLD_TOL,
+    and UNFOLD_ABS_TOL against the size of J u: not the rounding of a BP that p2 keeps)."""
     import scipy.sparse as sp
 
     u = np.asarray(point.state, float)
-    psi = null_vectors(sp.csc_matrix(problem.jacobian(u, point.params))).psi
+    jac = sp.csc_matrix(problem.jacobian(u, point.params))
+    psi = null_vectors(jac).psi
     fp = np.asarray(problem.dresidual_dp(u, point.params, second), float)
-    scale = float(np.linalg.norm(psi) * np.linalg.norm(fp))
-    return scale > 0.0 and abs(float(psi @ fp)) > UNFOLD_TOL * scale
+    dot = abs(float(psi @ fp))
+    norm_psi, norm_fp = float(np.linalg.norm(psi)), float(np.linalg.norm(fp))
+    scale = norm_psi * norm_fp
+    size = norm_psi * (float(sp.linalg.norm(jac)) * float(np.linalg.norm(u)) + norm_fp)
+    return scale > 0.0 and dot > UNFOLD_TOL * scale and dot > UNFOLD_ABS_TOL * size
 
 
 def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationOptions, *,

@@ -289,6 +289,13 @@ class StretchedBratu(Bratu):
             return np.where(self.interior, ds * np.exp(u) - self._d1 @ u, 0.0)
         raise ValueError(f"unknown parameter {name!r}")
 
+    def mass_matrix(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        """The identity on the interior rows (dynamics v_t = v'' - a v' + ...), zero on the two
+        Dirichlet rows (algebraic).  Without it the stability pass of the ``stretched-bratu`` scene
+        (which has a problem_factory) solved with M = I and counted the boundary rows v_0 = 0,
+        v_N = 0 as two unstable modes: the stable lower branch was stored as unstable (qa14)."""
+        return sp.diags(self.interior.astype(float), format="csr")
+
     def validate(self, p: Mapping[str, float]) -> None:
         super().validate(p)
         if not (np.isfinite(p["a"]) and p["a"] > -1.0):

@@ -532,6 +532,8 @@ def make_grid(method: str, intervals: int) -> Grid:
     """
     if method not in METHODS:
         raise ValueError(f"unknown discretization {method!r}; choose one of {', '.join(METHODS)}")
+    if isinstance(intervals, bool) or not isinstance(intervals, int | np.integer):  # 2.5 was "grid too small"
+        raise TypeError(f"intervals must be a whole number of grid intervals, got {intervals!r} ({type(intervals).__name__})")
     if intervals < MIN_INTERVALS[method]:
         raise ValueError(f"grid too small: {method} needs at least {MIN_INTERVALS[method]} intervals, got {intervals}")
     if method == "cheb" and intervals > MAX_CHEB_INTERVALS:

@@ -347,12 +347,15 @@ def run_brusselator(request: SceneRequest) -> SceneResult:
         branch = trace(pb, pb.homogeneous(params), params, "b", options, kind="homogeneous", progress=request.report)
     _emit(request, done, branch)
     notes = []
-    hopf = branch.points("HB")
-    if hopf:
-        b_h, omega_h = Brusselator.hopf_point(params)
-        hb = hopf[0]
-        notes.append(f"{hb.name}: b = {hb.params['b']:.15g} (closed form 1 + a^2 + (D1 + D2) pi^2 / L^2 = {b_h:.15g}, "
-                     f"relative error {hb.params['b'] / b_h - 1:.2g}, grid {hb.grid}), omega = "
+    diffusion = (p["D1"] + p["D2"]) * math.pi**2 / p["L"] ** 2
+    for hb in branch.points("HB"):
+        # Each HB against its own mode k: b_k = 1 + a^2 + (D1 + D2) k^2 pi^2 / L^2.  The note compared
+        # every run's first HB with k = 1, which lies below b_min for -s a=1.5 or -s b_min=6: "relative
+        # error 0.25" for the exact mode-2 point (session 14).
+        k = max(1, round(math.sqrt(max(hb.params["b"] - 1 - p["a"] ** 2, 0.0) / diffusion))) if diffusion > 0 else 1
+        b_h, omega_h = Brusselator.hopf_point(params, lam=(k * math.pi) ** 2)
+        notes.append(f"{hb.name}: b = {hb.params['b']:.15g} (closed form of mode {k}, 1 + a^2 + (D1 + D2) {k * k} pi^2 "
+                     f"/ L^2 = {b_h:.15g}, relative error {hb.params['b'] / b_h - 1:.2g}, grid {hb.grid}), omega = "
                      f"{hb.data.get('omega', math.nan):.12g} (closed form {omega_h:.12g})")
     return SceneResult(branches=done, parameters=p, discretization=_dirichlet_discretization(pb), y=pb.x,
                        profiles=lambda state: _brusselator_profiles(pb, state), notes=notes)

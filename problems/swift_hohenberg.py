@@ -57,6 +57,12 @@ class SwiftHohenberg:
             return u**3
         raise ValueError(f"unknown parameter {name!r}")
 
+    def mass_matrix(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        """The identity: every row is an equation u_t = F (the walls are in the stencil, there are
+        no algebraic rows).  Declared so that the stability pass does not warn that M = I may
+        count boundary rows as unstable (printed on every ``contin trace swift-hohenberg``)."""
+        return sp.identity(self.N, format="csr")
+
     def order_parameter(self, u: Array, p: Mapping[str, float] | None = None) -> float:
         """||u||_2 (BifurcationKit's ``n2 = norm(x)``)."""
         return float(np.linalg.norm(u))

@@ -180,6 +180,28 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path):
     assert not list(tmp_path.glob(".*.lock")) and not list(tmp_path.glob("*.tmp"))
 
 
+def test_ctrl_c_is_one_error_line_exit_130(tmp_path):
+    """qa14: Ctrl-C ended with click's 'Aborted!' and exit 1 (the code of bad input).  Now one Error
+    line and 130 (128 + SIGINT), after the note on the saved branches; the file reads as interrupted."""
+    out = tmp_path / "run.h5"
+    # SIGINT at its default in the child: a shell without job control starts background jobs with it
+    # ignored, and Python then never raises KeyboardInterrupt
+    proc = subprocess.Popen([sys.executable, "-m", "contin", "trace", "toy", "-s", "delay=0.5", "-s", "n=6", "-o",
+                             str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        wait_for(lambda: len(branch_ids(out)) >= 1, what="a published branch")
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    one_error(proc.returncode, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
+    assert "Aborted!" not in stderr and f"saved in {out} (continue with --resume {out})" in stderr
+    meta = io.load(out)[1]
+    assert meta["complete"] is False and meta["stopped"] == "interrupted"
+    assert "the run was interrupted; continue it with --resume" in run("info", str(out)).stdout
+
+
 def test_info_does_not_call_a_failed_run_interrupted(tmp_path):
     out = tmp_path / "run.h5"
     r = run("trace", "toy", "-s", "fail=crash", "-o", str(out))

@@ -371,3 +371,31 @@ def test_shipped_sweep_files_are_valid():
     checked = [name for name, spec in specs.items() if spec.scene in scenes and check_spec(spec)]
     assert "demo_bratu.toml" in checked
     assert specs["demo_bratu.toml"].n_tasks == 8
+
+
+def test_jobs_above_the_usable_cpus_are_capped_with_a_note(tmp_path, scenes, monkeypatch):
+    """qa14: `contin sweep -j 64` on a 2-CPU machine started 64 CPU-bound workers (max_workers =
+    min(jobs, tasks)): oversubscription.  Now the pool gets the usable CPUs, and one note says so."""
+    import contin.sweep as sweep_mod
+    from contin.cli import main
+
+    sizes = []
+    real_pool = sweep_mod.ProcessPoolExecutor
+
+    def pool(*args, **kwargs):
+        sizes.append(kwargs["max_workers"])
+        return real_pool(*args, **kwargs)
+
+    monkeypatch.setattr(sweep_mod, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(sweep_mod, "ProcessPoolExecutor", pool)
+    assert sweep_mod.worker_count(None) == (2, "") and sweep_mod.worker_count(2) == (2, "")
+    grid = SWEEP_TOML.replace("7.0]", "2.0, 3.0]").replace('fail = ["none", "mx", "crash"]', 'fail = ["none"]')
+    toml = _write(tmp_path / "s.toml", grid)
+    res = CliRunner().invoke(main, ["sweep", str(toml), "-o", str(tmp_path / "out"), "-j", "64"])
+    assert res.exit_code == 0, res.output
+    assert sizes == [2]
+    assert "note: -j 64 capped at 2 worker(s), the CPUs this process may use" in res.stderr
+    assert "Traceback" not in res.stderr
+    # the library caps as well (no note: it has no terminal)
+    run_sweep(_spec(grid={"a": [-1.0, 0.5, 3.0]}), tmp_path / "lib", jobs=1000)
+    assert sizes == [2, 2]

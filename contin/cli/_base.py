@@ -43,6 +43,10 @@ def error_line(exc: BaseException) -> str:
     return re.sub(r"\s*\n\s*", " ", msg).strip()
 
 
+#: Exit code after Ctrl-C (SIGINT): 128 + 2, the shell's convention (SIGTERM: 143).
+EXIT_INTERRUPTED = 130
+
+
 class ContinGroup(click.Group):
     """A group whose commands turn any exception into one ``Error:`` line (exit 1)."""
 
@@ -55,7 +59,11 @@ class ContinGroup(click.Group):
         except Terminated:
             click.echo("Error: terminated by SIGTERM", err=True)
             raise click.exceptions.Exit(EXIT_TERMINATED) from None
-        except (click.ClickException, click.exceptions.Exit, click.Abort, KeyboardInterrupt):
+        except KeyboardInterrupt:  # Ctrl-C: one Error line and the shell's 128 + SIGINT, as SIGTERM gets
+            # 143 (click printed 'Aborted!' and exited 1, the code of bad input; session 14)
+            click.echo("Error: interrupted (Ctrl-C)", err=True)
+            raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
+        except (click.ClickException, click.exceptions.Exit, click.Abort):
             raise
         except Exception as exc:
             if ctx.params.get("debug") or os.environ.get("CONTIN_DEBUG"):
@@ -145,11 +153,40 @@ def _setup_logging(verbose: int) -> None:
 def main(debug: bool, verbose: int) -> None:
     """contin: numerical continuation and bifurcation diagrams.
 
-    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 143 SIGTERM.
+    Exit codes: 0 success, 1 error, 2 usage error, 3 a branch ended with MX (failure), 130 Ctrl-C, 143 SIGTERM.
     """
     if not isinstance(sys.stderr, _SinkOnBrokenPipe):
         sys.stderr = _SinkOnBrokenPipe(sys.stderr)  # type: ignore[assignment]
     _setup_logging(verbose)  # BLAS threads: ContinCommand.invoke, when a command runs
+    _one_line_warnings(debug or bool(os.environ.get("CONTIN_DEBUG")))
+
+
+def _one_line_warnings(debug: bool) -> None:
+    """Python warnings as one ``warning: ...`` line each, like every other message of the CLI.
+
+    The default format is two lines, the second the source line that warned (``.../blas.py:146:
+    UserWarning: stability of branch 0: ...`` then ``  return fn(*args, **kwargs)``: session 14,
+    ``contin trace stretched-bratu``).  ``--debug`` adds the location.  Filters (``-W error``)
+    still apply; the previous hook is restored when the command ends (tests run many commands
+    in one process)."""
+    import warnings
+
+    previous = warnings.showwarning
+
+    def show(message: Any, category: type[Warning], filename: str, lineno: int, file: Any = None,
+             line: str | None = None) -> None:
+        kind = "" if category is UserWarning else f"{category.__name__}: "
+        where = f" ({filename}:{lineno})" if debug else ""
+        text = re.sub(r"\s*\n\s*", " ", f"{kind}{message}").strip()
+        try:
+            (file or sys.stderr).write(f"warning: {text}{where}\n")
+        except (OSError, ValueError):  # a closed stream: a warning is never worth a failure
+            pass
+
+    warnings.showwarning = show
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None:
+        ctx.call_on_close(lambda: setattr(warnings, "showwarning", previous))
 
 
 # --------------------------------------------------------------------------- helpers

@@ -109,7 +109,7 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
     finally:
         progress.close()
     if not report.reference:
-        raise ValueError(f"no key points: every run of scene {scene!r} failed or found no BP/LP "
+        raise ValueError(f"no key points: every run of scene {scene!r} failed or found no BP/LP/HB "
                          f"({'; '.join(sorted({r.failed for r in report.runs if r.failed})) or 'no special points'})")
     written = write_outputs(report, outdir, plots=not no_plots) if outdir is not None else []
     if as_json:

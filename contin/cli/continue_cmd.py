@@ -141,12 +141,21 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     options = dataclasses.replace(options, step=step, bounds=run_bounds, max_steps=max_steps, adapt=None)
     problem = rebuild_problem({**meta, "path": file})
     regrid = None
+    own_grid = None  # a point of an adaptive run, continued on its own (fixed) grid
     if tol is not None:
         problem, options, regrid = _adaptive_setup(problem, point, options, run_adapt, tol, max_grid, meta, file,
                                                    solve_check=not no_solve_check)
     elif point.grid is not None and int(getattr(problem, "grid_size", point.grid)) != int(point.grid):
-        fail(f"{point.name} was computed on grid {point.grid} (an adaptive run; the file's grid is "
-             f"{problem.grid_size}): continue it with --tol REL, which starts on the point's own grid")
+        from contin.adapt import missing_hooks, on_grid
+
+        if point.type not in ("HB", "BP") or missing_hooks(problem):
+            fail(f"{point.name} was computed on grid {point.grid} (an adaptive run; the file's grid is "
+                 f"{problem.grid_size}): continue it with --tol REL, which starts on the point's own grid")
+        # Hopf and BP curves cannot be regridded (--tol is refused for them), so the HB of an
+        # adaptive run (contin trace brusselator: HB1 on grid 12, file grid 32) could not be continued
+        # at all (qa14: each error sent the user to the other).  They run on the point's own grid.
+        problem = on_grid(problem, int(point.grid))
+        own_grid = int(point.grid)
     size = getattr(problem, "size", None)
     if isinstance(size, int) and point.state is not None and size != len(point.state):
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
@@ -155,6 +164,11 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
 
     if regrid is None:
         curve = continue_point(problem, branch, point, second, options)
+        if own_grid is not None:  # the file's discretization is the run's start grid: every point says its own
+            import numpy as np
+
+            curve.grid = np.full(len(curve), own_grid, dtype=np.int64)
+            curve.special_points = [dataclasses.replace(sp, grid=own_grid) for sp in curve.special_points]
     else:
         from contin.options import resolution_override
 
@@ -166,6 +180,9 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         if regrid is not None:
             notes.append(f"adaptive grids: tol {tol:g}, grids {_grids(curve)} (max {regrid.opts.max_grid})")
             extra["regrid"] = {"tol": tol, "max_grid": regrid.opts.max_grid}
+        if own_grid is not None:
+            notes.append(f"on the fixed grid {own_grid} of {point.name} (the run's start grid is "
+                         f"{meta.get('discretization', {}).get('intervals', '?')})")
         io.write(output, [curve], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=options,
                  notes=notes, extra=extra,

@@ -38,6 +38,16 @@ def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str
         if missing:
             fail(f"no branch {missing[0]!r} in {file}; branches: {', '.join(b.id for b in branches)}")
         branches = [b for b in branches if b.id in branch_ids]
+    import numpy as np
+
+    constant = [b for b in branches if name in b.params and len(b)
+                and np.all(np.asarray(b.params[name]) == np.asarray(b.params[name])[0])]
+    if constant and len(constant) == len([b for b in branches if name in b.params]):
+        # every point matched: the profile of some special point was drawn as "at" NAME=VALUE
+        b = constant[0]
+        fail(f"{name} is constant along the branches of {file} ({name} = {float(b.params[name][0]):g} on branch "
+             f"{b.id}): --at needs a parameter that varies along a branch, e.g. --at {b.parameter}=...")
+    branches = [b for b in branches if b not in constant]
     found = io.profiles_at(branches, meta, name, value)
     if not found:
         fail(f"no stored branch of {file} reaches {name}={value:g}")

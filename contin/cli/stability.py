@@ -41,6 +41,10 @@ def _refuse_without_stability(meta: dict[str, Any], file: str) -> None:
              "rows have no mass matrix to tell them from dynamics), so the stability of its states is not computed")
 
 
+#: ``--kx`` without a value, for problems with ``eigenproblem(u, p, kx, kz)``.
+DEFAULT_KX = "0:3:61"
+
+
 def parse_kx_spec(text: str) -> list[float]:
     """``a:b:n`` (n equally spaced values from a to b), ``k1,k2,...`` or one value.
 
@@ -87,6 +91,8 @@ def resolve_point(branch: Any, point: str, fixed: dict[str, float], file: str) -
     import numpy as np
 
     s = len(branch)
+    if s == 0:  # a branch that could not start ('point 0 is out of range: ... has 0 points (0..-1)')
+        fail(f"branch {branch.id} of {file} has no stored points ({branch.status}: {branch.message})")
     try:
         index = int(point)
     except ValueError:
@@ -146,6 +152,10 @@ def state_at(problem: Any, branch: Any, name: str, value: float, fixed: dict[str
 
     if name not in branch.params:
         fail(f"branch {branch.id} of {file} has no parameter {name!r} (it has {', '.join(branch.params)})")
+    values = np.asarray(branch.params[name], dtype=float)
+    if len(values) and np.all(values == values[0]):  # every point "crossed" it: the first point was taken
+        fail(f"{name} is constant ({values[0]:g}) along branch {branch.id} of {file}: --at needs a parameter that "
+             f"varies along the branch, e.g. --at {branch.parameter}=...")
     crossing = first_crossing(branch.params[name], value)
     if crossing is None:
         fail(f"branch {branch.id} of {file} does not reach {name} = {value:g} "
@@ -193,9 +203,10 @@ def _eigenfunction(problem: Any, state: Any, vec: Any, y: Any) -> tuple[Any, dic
 @click.option("--at", "at", default=None, metavar="NAME=VALUE",
               help="Instead of --point: the state where a parameter has this value (e.g. H=25), corrected by Newton; "
                    "the first crossing along the branch.")
-@click.option("--kx", "kx_spec", default="0:3:61", metavar="SPEC",
+@click.option("--kx", "kx_spec", default=None, metavar="SPEC",
               help="Streamwise wavenumbers: START:STOP:COUNT, a comma list, or one value "
-                   "(at most 10000 values, finite, |kx| <= 1e4).")
+                   "(at most 10000 values, finite, |kx| <= 1e4) [default: 0:3:61 for problems with a "
+                   "wavenumber family (eigenproblem), else 0].")
 @click.option("--kz", type=float, default=0.0, help="Spanwise wavenumber.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
@@ -217,7 +228,7 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
     if (point is None) == (at is None):
         fail("give exactly one of --point INDEX|LABEL and --at NAME=VALUE")
     at_spec = parse_at(at) if at is not None else None
-    kx_values = parse_kx_spec(kx_spec)
+    kx_values = parse_kx_spec(kx_spec if kx_spec is not None else DEFAULT_KX)
     if not (math.isfinite(kz) and abs(kz) <= MAX_ABS_KX):
         fail(f"--kz must be a finite number with |kz| <= {MAX_ABS_KX:g}, got {kz}")
     eig_path = None
@@ -244,6 +255,11 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         if branch_id not in ids:
             fail(f"no branch {branch_id!r} in {file}; branches: {', '.join(ids) or 'none'}")
         branch = branches[ids.index(branch_id)]
+    if len(branch.free) != 1:  # its states are augmented (u, phi, p2, ...): numpy's broadcast error
+        # ('operands could not be broadcast together with shapes (37,) (75,)') or a size mismatch before
+        fail(f"branch {branch.id} of {file} is a two-parameter curve ({branch.kind or 'curve'}, free {', '.join(branch.free)}): "
+             "its stored states are augmented systems, not states of the problem; stability applies to "
+             "one-parameter branches (the file the curve was continued from)")
 
     fixed = _numeric(dict(meta.get("parameters", {})))
     if point is not None:
@@ -276,6 +292,11 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         fail(f"the parameters of {file} have no {', '.join(map(repr, missing))}, which the rebuilt problem needs "
              "(is it a file of another scene?)")
 
+    if kx_spec is None and not hasattr(problem, "eigenproblem"):
+        # Only k = 0 exists for a problem without a wavenumber family (the demo scenes' Dirichlet
+        # problems, Lorenz): the default range 0:3:61 made `contin stability br.h5 --point HB1`
+        # fail with 'only kx = kz = 0 is available' unless --kx 0 was given (session 14).
+        kx_values = [0.0]
     growth, speed, n_unst, leading = [], [], [], {}
     mode = None
     for j, kx in enumerate(kx_values):

@@ -12,7 +12,8 @@ from contin.cli._base import EXIT_INCOMPLETE, echo_err, echo_json, main
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
               help="Output directory (task files in DIR/tasks, summary in DIR/summary.h5 and .json).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
-              help="Worker processes (default: all CPUs); Dask workers with --scheduler local-dask.")
+              help="Worker processes (default and at most: the CPUs this process may use; a larger N is "
+                   "capped, with a note); Dask workers with --scheduler local-dask.")
 @click.option("--scheduler", default=None, metavar="ADDRESS|local-dask",
               help="Run on Dask distributed: a scheduler address tcp://HOST:PORT, or local-dask for a "
                    "LocalCluster (needs pip install -e '.[dask]').")
@@ -33,9 +34,13 @@ def sweep_command(sweep_file: str, outdir: str, jobs: int | None, scheduler: str
       contin sweep results/sweeps/demo_bratu.toml -o out/bratu -j 4
     """
     from contin.cli._runctl import EXIT_TERMINATED, Progress, Terminated, sigterm_as_interrupt
-    from contin.sweep import load_sweep, open_executor, run_sweep
+    from contin.sweep import load_sweep, open_executor, run_sweep, worker_count
 
     spec = load_sweep(sweep_file)
+    if scheduler is None or scheduler == "local-dask":  # a remote scheduler has its own workers
+        jobs, capped = worker_count(jobs)
+        if capped and not quiet:
+            echo_err(capped)
     beat = Progress(enabled=not quiet)  # heartbeat between task lines on a non-terminal
 
     def progress(line: str) -> None:

@@ -79,6 +79,42 @@ def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
     return out
 
 
+def _resume_accuracy(resume: str, stored: Any, overrides: dict[str, Any], *, tol: float | None,
+                     special_tol: float | None, max_grid: int | None, no_solve_check: bool) -> None:
+    """``--resume``: the new branches are computed to the accuracy of the stored ones.
+
+    The file's adaptive settings (its options' ``adapt``) are taken over where the command does
+    not give them, and a different ``--tol``/``--special-tol``/``--max-grid`` is refused, as
+    another ``--grid`` is: ``--resume F --tol 1e-8`` of a tol-1e-6 run (or ``--resume F`` alone,
+    which meant the scene's default 1e-10) recorded the finished tol-1e-6 branches as computed at
+    the new tol (session 14).  A fixed-grid file stays fixed-grid; ``--tol`` on it is refused."""
+    if not isinstance(stored, dict) or "adapt" not in stored:  # options chosen inside the scene: unknown
+        return
+    adapt = stored.get("adapt")
+    if adapt is None:
+        if tol is not None or special_tol is not None or max_grid is not None:
+            fail(f"{resume!r} was computed on a fixed grid (no --tol); resume it without --tol, --special-tol, "
+                 "--max-grid (or start a new run)")
+        for key in ("tol", "special_tol", "max_grid", "solve_check"):
+            overrides.pop(key, None)
+        return
+    if "tol" not in overrides:
+        return
+    for key, flag, given in (("tol", "--tol", tol), ("special_tol", "--special-tol", special_tol),
+                             ("max_grid", "--max-grid", max_grid)):
+        before = adapt.get(key)
+        if before is None:
+            continue
+        if given is not None and float(given) != float(before):
+            fail(f"{resume!r} was computed with {flag} {fmt(before)}, not {fmt(given)}; resume with the same "
+                 "accuracy (or start a new run)")
+        overrides[key] = int(before) if key == "max_grid" else float(before)
+    if adapt.get("solve_check") is False:
+        overrides["solve_check"] = False
+    elif no_solve_check:
+        fail(f"{resume!r} was computed with the solve check; resume it without --no-solve-check (or start a new run)")
+
+
 def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress, quiet: bool) -> None:
     """The stability pass the scene left undone, through ``sc.problem_factory``.
 
@@ -320,6 +356,13 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                      f"discretization (or start a new run)")
         method = method if method is not None or "method" not in stored else str(stored["method"])
         grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
+        _resume_accuracy(resume, meta.get("options"), overrides, tol=tol, special_tol=special_tol,
+                         max_grid=max_grid, no_solve_check=no_solve_check)
+        before_rtol = (meta.get("options") or {}).get("resolution_tol", "unknown") \
+            if isinstance(meta.get("options"), dict) else "unknown"
+        if resolution_tol is not None and before_rtol != "unknown" and before_rtol != rtol:
+            fail(f"{resume!r} was computed with --resolution-tol {'off' if before_rtol is None else fmt(before_rtol)}, "
+                 f"not {resolution_tol}; resume with the same accuracy (or start a new run)")
         completed = {b.id: b for b in old}
         if output is None:
             output = resume
@@ -397,5 +440,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     failed = [b for b in result.branches if b.status == "MX"]
     for b in failed:
         echo_err(f"warning: branch {b.id} ended with MX: {error_line(ValueError(b.message or 'failure'))}")
-    if failed:
+    not_started = list(getattr(result, "not_started", []))
+    for line in not_started:
+        echo_err(f"warning: branch {error_line(ValueError(line.replace(': ', ' could not start (MX, not stored): ', 1)))}")
+    if failed or not_started:
         raise click.exceptions.Exit(EXIT_INCOMPLETE)

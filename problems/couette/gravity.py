@@ -298,6 +298,8 @@ def dense_side(problem: CouetteProblem, branch: Branch) -> str:
 def classify(problem: CouetteProblem, branch: Branch, H_min: float) -> str:
     """'isola' (closed), 'primary' (reaches the small-H bound, where the state is near-uniform),
     else 'floating-plug' / 'bottom-plug' by where the dense layer is (Phi = nu(1/2) vs nu(-1/2))."""
+    if len(branch) == 0:  # its start did not converge (qa14: np.min of no H raised a raw numpy error)
+        return "not started"
     if branch.closed:
         return "isola"
     H = branch.params["H"]

@@ -32,7 +32,7 @@ import numpy as np
 
 from contin.branch import relabel
 from contin.options import AdaptOptions
-from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_params
+from contin.scene import Scene, SceneError, SceneRequest, SceneResult, require_started, scene_params
 from problems.couette.gravity import RESOLUTION_TOL, GravitySettings, discover, gravity_problem
 from problems.couette.model import rebuilt_engine
 from problems.couette.pitchfork import state_on
@@ -104,6 +104,8 @@ def run_gravity(request: SceneRequest) -> SceneResult:
     settings = replace(settings, ds=o.step.ds, ds_max=o.step.ds_max, max_steps=o.max_steps)
     diagram = discover(pb, params, settings, progress=request.report)
     branches = diagram.branches
+    if branches and not any(len(b) for b in branches):  # nothing computed: say why in one line (qa14:
+        require_started(branches[0], "gravity")          # -s Fr=1e-3 was a raw numpy error, then an empty file)
     relabel(branches)
     if request.stability:
         for b in branches:  # the pass at k_x = 0, its audit, and the --kx columns with their Hopf points

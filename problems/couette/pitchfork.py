@@ -147,6 +147,9 @@ def mode_notes(base: Branch, hc1: float, H_lo: float, H_max: float) -> list[str]
         else:
             found.add(n)
     expected = [n for n in range(1, int(H_max / hc1) + 1) if H_lo < n * hc1 < H_max]
+    if not expected and not found:  # H_max below H_1^c: the run had no BP to find and said nothing (session 14)
+        notes.append(f"no pitchfork below H_max = {H_max:.6g}: the first, H_1^c = pi psi = {hc1:.10g}, lies above it; "
+                     "uniform shear only")
     missing = [n for n in expected if n not in found]
     if missing:
         shown = ", ".join(f"{n} (H = {n * hc1:.6g})" for n in missing[:12]) + (", ..." if len(missing) > 12 else "")
@@ -510,6 +513,8 @@ def criticality(branch: Branch, H_c: float, phi_c: float, *, delta_max: float = 
     than 4 points only a and b are fitted).  kind = 'supercritical' for a > 0, 'subcritical' for
     a < 0 (physics.md section 4).
     """
+    if len(branch) == 0 or "phi" not in branch.observables:  # a switched branch that could not start (MX, no points)
+        return {"branch": branch.id, "a": math.nan, "kind": "unknown", "points": 0}
     d = branch.observables["phi"] - phi_c
     h = branch.parameter_values - H_c
     stop = len(branch)

@@ -161,6 +161,7 @@ class _Run:
         self.params = params
         self.done: list[Branch] = []
         self.notes: list[str] = []
+        self.not_started: list[str] = []
         self.kx_extra: dict[str, dict[str, Any]] = {}
 
     def cached(self, *ids: str) -> list[Branch] | None:
@@ -247,7 +248,9 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         # BP test function and skips both (H_max = 200 skipped modes 4, 6, 7, ...).
         base_ds_max = min(base_ds_max, BASE_STEPS_PER_MODE_GAP * hc1)
     base_opts = _options(request, H_lo, H_max, ds=min(0.05 * H_max, base_ds_max), ds_max=base_ds_max)
-    band_opts = _options(request, H_lo, H_max, ds=0.02, ds_max=(JJ_BASE_DS_MAX if jj else 0.1) * H_max)
+    band_ds_max = (JJ_BASE_DS_MAX if jj else 0.1) * H_max
+    # ds at most ds_max: -s H_max=1e-3 ended "Error: need ds_max >= |ds| >= ds_min > 0, got ds_max=0.0001, ds=0.02"
+    band_opts = _options(request, H_lo, H_max, ds=min(0.02, band_ds_max), ds_max=band_ds_max)
     extra: dict[str, Any] = {"H_max": H_max, "walls": st["walls"], "modes": modes}
 
     # ---- the diagram: base branch and the banded branches at its BPs (contin.diagram builds it;
@@ -287,7 +290,9 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     banded: list[Branch] = []
     crit: list[dict[str, Any]] = []
     for k, bp in bp_list:
-        for b in (x for x in d.branches if x.id in (f"n{k}.1", f"n{k}.2")):
+        # a branch that could not start has no points (run.not_started names it; its departure and
+        # criticality fits read observables it does not have: jj-walls -s nu=0.02 ended 'Error: phi')
+        for b in (x for x in d.branches if x.id in (f"n{k}.1", f"n{k}.2") and len(x)):
             banded.append(b)
             crit.append({**pf.criticality(b, bp.params["H"], bp.order_parameter), "n": k})
 
@@ -325,7 +330,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     if run.kx_extra:
         extra["stability_kx"] = run.kx_extra
     for row in crit:
-        if row["n"] == 1 and row["branch"].endswith(".1") and bp_list:
+        if row["n"] == 1 and row["branch"].endswith(".1") and bp_list and row["points"]:
             run.notes.append(f"pitchfork at H = {bp_list[0][1].params['H']:.10g} is {row['kind']} "
                              f"(H - H_c = a delta^2, a = {row['a']:.6g})")
     if st["walls"] == "noslip" and "H_c" in extra:
@@ -344,6 +349,7 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
         profiles=lambda state: {k: v for k, v in pb.profiles(pf.state_on(pb, state)).items() if k in ("nu", "u", "T")},
         notes=run.notes,
         extra=extra,
+        not_started=run.not_started,
     )
 
 
@@ -377,7 +383,10 @@ def _diagram(run: _Run, p: dict[str, float], H_start: float, H_max: float, hc1: 
         run.notes.extend(pf.confirm_branch_points(pb, b, p, band_opts))
 
     def on_branch(b: Branch, source: Branch | None) -> None:
-        if len(b) == 0:  # a base branch that could not start: the scene says why
+        if len(b) == 0:  # nothing to store; the base branch's failure is one Error line (run_pitchfork)
+            if b.id != "0":  # a banded branch: it was dropped silently and the run exited 0 (qa14)
+                run.not_started.append(f"{b.id}: {b.message}")
+                run.notes.append(f"branch {b.id} could not start: {b.message}")
             return
         run.finish(b, stability_from=source)
         if b.id == "0":
@@ -438,6 +447,10 @@ def _jj_walls(run: _Run, base: Branch, bps: list, banded: list[Branch], options:
     else:
         request.report("jj-walls: looking for a symmetric branch off the base branch")
         iso, note = pf.isolated_symmetric_branch(pb, base, p, options, progress=request.report)
+        if iso is not None and len(iso) == 0:  # found, but its start point failed (under-resolved at nu = 0.02)
+            run.not_started.append(f"{iso.id}: {iso.message}")
+            note = f"{note.split(':')[0]} could not start: {iso.message}"
+            iso = None
         if iso is not None:
             run.notes += pf.confirm_branch_points(pb, iso, p, options)
             run.notes += [m for m in iso.audit if " re-traced with " in m]
