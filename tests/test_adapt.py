@@ -405,8 +405,9 @@ def test_each_special_point_is_refined_afresh():
     """Allen-Cahn fd2 at tol 1e-4 (special_tol 1e-10): BP1 is refined to max_grid 512 and stored
     there unresolved (its fd2 error 3.1e-6 > special_tol); the memory of that chain judged BP2's
     first measurement (6.1e-5 on fd2 232) as 'not falling', so BP2 and BP3 were stored without a
-    single refinement (BP3 1.4e-3 off on fd2 72).  Each BP now gets its own chain up to max_grid:
-    all three on fd2 512, where each is the discrete eigenvalue (4/h^2) sin^2(k h/2), h = pi/512."""
+    single refinement (BP3 1.4e-3 off on fd2 72).  A point stored on max_grid now clears that
+    memory (a chain that stalled below it keeps it: the artefact guard), so each BP gets its own
+    chain: all three on fd2 512, each the discrete eigenvalue (4/h^2) sin^2(k h/2), h = pi/512."""
     pb = AllenCahn("fd2", 32)
     o = ContinuationOptions(bounds={"lam": (0.5, 10.0)}, max_steps=300, step=StepOptions(ds=0.5, ds_max=1.5),
                             adapt=AdaptOptions(tol=1e-4))
