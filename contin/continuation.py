@@ -429,6 +429,10 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
     return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
 
 
+#: Stored points a retreat re-solves on the finer grid at most (``trace``'s retreat_behind).
+MAX_RETREAT = 20
+
+
 def _sign_changed(a: Any, b: Any) -> bool:
     """Whether two values of a test function (a float, or a (sign, log) pair) have opposite,
     nonzero signs."""
@@ -681,10 +685,10 @@ def trace(
         moved = [fn for kind, _, fn in tracer._test_functions() if _sign_changed(fn(old.tests), fn(now.tests))]
         if not moved:
             return False
-        for j in range(len(tracer.points) - 2, -1, -1):
+        for j in range(len(tracer.points) - 2, max(len(tracer.points) - 2 - MAX_RETREAT, -1), -1):
             back = adaptor.carry_point(tracer, j, options.newton)
             if back is None:
-                return False
+                break
             if not any(_sign_changed(fn(old.tests), fn(back.tests)) for fn in moved):
                 dropped = len(tracer.points) - 1 - j
                 tracer.truncate(j + 1, back)
@@ -696,6 +700,11 @@ def trace(
                         "point lies behind it on the finer grid")
                 adopt_grid()
                 return True
+        if len(tracer.audit) < MAX_AUDIT:  # said, not silent: a special point may lie behind
+            tracer.audit.append(
+                f"a test function changed sign at {parameter}={now.x[-1]:.10g} with the refinement to grid "
+                f"{tracer.grid}, but no stored point up to {MAX_RETREAT} back has its old sign there: a special "
+                "point may lie behind it, not located")
         return False
 
     def adopt_grid() -> None:
