@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT
+from contin.cancel import stop_requested
 
 #: The audit of a point stored although its two-grid check exceeded tol (the check was not
 #: lowered by refinement: a floor, a kink between nodes, or an FD grid not yet in its asymptotic
@@ -732,6 +733,9 @@ def trace(
     status, message, closed = "EP", f"maximum number of steps ({options.max_steps}) reached", False
     steps = 0
     while steps < options.max_steps:
+        if stop_requested():  # Ctrl-C inside contin.cancel.stop_on_sigint: keep what was traced
+            status, message = "MX", "interrupted (Ctrl-C): the branch ends at its last point"
+            break
         cur = tracer.points[-1]
         if sopt.predictor == "secant" and len(tracer.points) > 1:
             direction_vec = secant(system, tracer.points[-2].x, cur.x)

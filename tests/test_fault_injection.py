@@ -202,6 +202,61 @@ def test_ctrl_c_is_one_error_line_exit_130(tmp_path):
     assert "the run was interrupted; continue it with --resume" in run("info", str(out)).stdout
 
 
+def test_ctrl_c_during_continue_keeps_the_curve_computed_so_far(tmp_path):
+    """``contin continue`` writes its curve at the end, so Ctrl-C lost all of it (qa14).  The first
+    Ctrl-C now ends the curve at its last point (``contin.cancel``): the file holds it, marked MX
+    'interrupted', then one Error line and exit 130.  (A long stretched-Bratu fold curve,
+    lam = lam* / (1 + a): ~1 min at ds 5e-4; interrupted once it is under way.)"""
+    src, out = tmp_path / "sb.h5", tmp_path / "curve.h5"
+    assert run("trace", "stretched-bratu", "--grid", "32", "--no-stability", "-q", "-o", str(src)).exit_code in (0, 3)
+    proc = subprocess.Popen([sys.executable, "-m", "contin", "continue", str(src), "--from", "LP1", "--free", "a",
+                             "--bounds", "a=-0.5:3", "--ds", "0.0005", "--ds-max", "0.0005", "--max-steps", "100000",
+                             "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        wait_for(lambda: (tmp_path / ".curve.h5.lock").exists(), what="the output lock (computing starts)")
+        time.sleep(1.5)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    one_error(proc.returncode, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
+    assert f"is saved in {out}" in stderr
+    (curve,), _ = io.load(out)
+    assert curve.status == "MX" and "interrupted (Ctrl-C)" in curve.message
+    assert len(curve) > 10
+    lam, a = curve.params["lam"], curve.params["a"]
+    assert np.allclose(lam * (1 + a), 3.51383071912516, rtol=1e-8)  # every saved point on the fold curve
+
+
+def test_a_stop_request_ends_the_branch_at_its_last_point_and_is_cleared():
+    """The core side of it (non-granular): a stop asked for inside ``stop_on_sigint`` (here by the
+    residual after 200 evaluations) ends the trace MX at its last accepted point; on leaving the
+    block the request is reported and cleared, so the next trace runs to its bound."""
+    from contin.cancel import request_stop, stop_on_sigint
+    from contin.continuation import trace
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import Bratu
+
+    class Stopping(Bratu):
+        calls = 0
+
+        def residual(self, u, p):
+            Stopping.calls += 1
+            if Stopping.calls == 200:
+                request_stop()
+            return super().residual(u, p)
+
+    pb = Stopping("cheb", 16)
+    opts = ContinuationOptions(bounds={"lam": (0.1, 3.0)}, max_steps=500, step=StepOptions(ds=0.01, ds_max=0.01))
+    with stop_on_sigint() as stop:
+        b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", opts)
+    assert stop.requested and b.status == "MX" and b.message.startswith("interrupted (Ctrl-C)")
+    assert 5 < len(b) < 200 and b.parameter_values[-1] < 3.0
+    again = trace(Bratu("cheb", 16), Bratu("cheb", 16).initial(), {"lam": 0.1}, "lam", opts)
+    assert again.status == "EP" and again.parameter_values[-1] == pytest.approx(3.0)
+
+
 def test_info_does_not_call_a_failed_run_interrupted(tmp_path):
     out = tmp_path / "run.h5"
     r = run("trace", "toy", "-s", "fail=crash", "-o", str(out))

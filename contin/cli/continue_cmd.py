@@ -160,20 +160,26 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     if isinstance(size, int) and point.state is not None and size != len(point.state):
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")
+    from contin.cancel import stop_on_sigint
     from contin.twoparam import continue_point
 
-    if regrid is None:
-        curve = continue_point(problem, branch, point, second, options)
-        if own_grid is not None:  # the file's discretization is the run's start grid: every point says its own
-            import numpy as np
+    # The curve is the command's one result and is written at its end: the first Ctrl-C ends it at
+    # its last point (written below, then exit 130), the second interrupts at once (qa14: Ctrl-C
+    # lost the whole curve).
+    with stop_on_sigint() as stop:
+        if regrid is None:
+            curve = continue_point(problem, branch, point, second, options)
+            if own_grid is not None:  # the file's discretization is the run's start grid: every point says its own
+                import numpy as np
 
-            curve.grid = np.full(len(curve), own_grid, dtype=np.int64)
-            curve.special_points = [dataclasses.replace(sp, grid=own_grid) for sp in curve.special_points]
-    else:
-        from contin.options import resolution_override
+                curve.grid = np.full(len(curve), own_grid, dtype=np.int64)
+                curve.special_points = [dataclasses.replace(sp, grid=own_grid) for sp in curve.special_points]
+        else:
+            from contin.options import resolution_override
 
-        with resolution_override(tol):
-            curve = continue_point(problem, branch, point, second, options, regrid=regrid)
+            with resolution_override(tol):
+                curve = continue_point(problem, branch, point, second, options, regrid=regrid)
+    interrupted = stop.requested
     if output is not None:
         notes = [f"{point.type} curve from {point.name} of branch {branch.id} in {file}, free {first}, {second}"]
         extra: dict[str, Any] = {"source": file, "from": point.name, "branch": branch.id, "free": [first, second]}
@@ -203,6 +209,13 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     echo_err(special_points_table([curve]))
     if output is not None:
         echo_err(f"wrote {output}")
+    if interrupted:
+        from contin.cli._base import EXIT_INTERRUPTED
+
+        if output is not None:
+            echo_err(f"note: the curve computed before Ctrl-C ({len(curve)} points) is saved in {output}")
+        echo_err("Error: interrupted (Ctrl-C)")
+        raise click.exceptions.Exit(EXIT_INTERRUPTED)
     if curve.status == "MX":
         from contin.cli._base import EXIT_INCOMPLETE
 
