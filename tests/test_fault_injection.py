@@ -28,7 +28,7 @@ import pytest
 from click.testing import CliRunner
 
 from contin import io
-from contin.atomic import OutputLock, OutputRefused
+from contin.atomic import OutputLock
 from contin.cli import main
 
 HERE = Path(__file__).parent
@@ -50,6 +50,22 @@ def run(*args: str):
 def popen(*args: str, **env) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "contin", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env={**ENV, **env})
+
+
+def signalled(args: list[str], sig: int, ready, what: str, after: float = 0.0) -> tuple[int, str]:
+    """(exit code, stderr) of ``contin ARGS`` sent ``sig`` once ``ready()`` holds (and ``after``
+    seconds more).  SIGINT is reset to its default in the child: a shell without job control
+    starts background jobs with it ignored, and Python then never raises KeyboardInterrupt."""
+    proc = subprocess.Popen([sys.executable, "-m", "contin", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=ENV, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        wait_for(ready, what=what)
+        time.sleep(after)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    return proc.returncode, stderr
 
 
 def one_error(code: int, stderr: str, expect: str, exit_code: int = 1) -> str:
@@ -165,14 +181,9 @@ def test_sigkill_mid_run_then_resume_reuses_every_finished_branch(tmp_path):
 
 def test_sigterm_is_handled_like_ctrl_c(tmp_path):
     out = tmp_path / "run.h5"
-    proc = popen("trace", "toy", "-s", "delay=0.5", "-s", "n=6", "-o", str(out))
-    try:
-        wait_for(lambda: len(branch_ids(out)) >= 1, what="a published branch")
-        proc.send_signal(signal.SIGTERM)
-        _, stderr = proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    one_error(proc.returncode, stderr, "terminated by SIGTERM", exit_code=143)
+    code, stderr = signalled(["trace", "toy", "-s", "delay=0.5", "-s", "n=6", "-o", str(out)], signal.SIGTERM,
+                             lambda: len(branch_ids(out)) >= 1, "a published branch")
+    one_error(code, stderr, "terminated by SIGTERM", exit_code=143)
     assert f"saved in {out} (continue with --resume {out})" in stderr
     meta = io.load(out)[1]
     assert meta["complete"] is False and meta["stopped"] == "terminated by SIGTERM"
@@ -184,18 +195,9 @@ def test_ctrl_c_is_one_error_line_exit_130(tmp_path):
     """qa14: Ctrl-C ended with click's 'Aborted!' and exit 1 (the code of bad input).  Now one Error
     line and 130 (128 + SIGINT), after the note on the saved branches; the file reads as interrupted."""
     out = tmp_path / "run.h5"
-    # SIGINT at its default in the child: a shell without job control starts background jobs with it
-    # ignored, and Python then never raises KeyboardInterrupt
-    proc = subprocess.Popen([sys.executable, "-m", "contin", "trace", "toy", "-s", "delay=0.5", "-s", "n=6", "-o",
-                             str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        wait_for(lambda: len(branch_ids(out)) >= 1, what="a published branch")
-        proc.send_signal(signal.SIGINT)
-        _, stderr = proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    one_error(proc.returncode, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
+    code, stderr = signalled(["trace", "toy", "-s", "delay=0.5", "-s", "n=6", "-o", str(out)], signal.SIGINT,
+                             lambda: len(branch_ids(out)) >= 1, "a published branch")
+    one_error(code, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
     assert "Aborted!" not in stderr and f"saved in {out} (continue with --resume {out})" in stderr
     meta = io.load(out)[1]
     assert meta["complete"] is False and meta["stopped"] == "interrupted"
@@ -209,18 +211,11 @@ def test_ctrl_c_during_continue_keeps_the_curve_computed_so_far(tmp_path):
     lam = lam* / (1 + a): ~1 min at ds 5e-4; interrupted once it is under way.)"""
     src, out = tmp_path / "sb.h5", tmp_path / "curve.h5"
     assert run("trace", "stretched-bratu", "--grid", "32", "--no-stability", "-q", "-o", str(src)).exit_code in (0, 3)
-    proc = subprocess.Popen([sys.executable, "-m", "contin", "continue", str(src), "--from", "LP1", "--free", "a",
-                             "--bounds", "a=-0.5:3", "--ds", "0.0005", "--ds-max", "0.0005", "--max-steps", "100000",
-                             "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        wait_for(lambda: (tmp_path / ".curve.h5.lock").exists(), what="the output lock (computing starts)")
-        time.sleep(1.5)
-        proc.send_signal(signal.SIGINT)
-        _, stderr = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    one_error(proc.returncode, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
+    code, stderr = signalled(["continue", str(src), "--from", "LP1", "--free", "a", "--bounds", "a=-0.5:3", "--ds",
+                              "0.0005", "--ds-max", "0.0005", "--max-steps", "100000", "-o", str(out)], signal.SIGINT,
+                             lambda: (tmp_path / ".curve.h5.lock").exists(), "the output lock (computing starts)",
+                             after=1.5)
+    one_error(code, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
     assert f"is saved in {out}" in stderr
     (curve,), _ = io.load(out)
     assert curve.status == "MX" and "interrupted (Ctrl-C)" in curve.message
