@@ -739,6 +739,12 @@ class Adaptor:
         self.checked = e
         return e if e is not None and e > self.opts.tol else None
 
+    def candidate_error(self, system: Any, x: Array) -> float | None:
+        """The error that refuses the candidate x: its estimate above tol (:meth:`too_coarse`), else
+        its two-grid error above tol (:meth:`solve_check`; ``checked`` then holds it), else None."""
+        err = self.too_coarse(system, x)
+        return err if err is not None else self.solve_check(system, x)
+
     def _estimate_passes(self, system: Any, x: Array) -> bool:
         """Whether x's estimate alone clears it of a two-grid check: at most check_above x tol on a
         grid where the estimate sees the truncation (:func:`estimate_decides_check`)."""
@@ -883,7 +889,6 @@ class Adaptor:
         tangent (regular at folds, unlike a correction at fixed parameter), re-solve the tangent
         and the test functions there, and make the new system the tracer's.  False (nothing
         changed) if the correction fails."""
-        from contin.corrector import correct
         from contin.extended import ExtendedSystem
         from contin.testfunctions import Antisymmetric
 
@@ -894,16 +899,12 @@ class Adaptor:
         # set-up -- symmetry basis, structure decisions -- is reused)
         other = on_grid(old, int(size))
         new_sys = ExtendedSystem(other, sys.params, sys.parameter, sys.theta)
-        x = new_sys.pack(old.transfer(cur.x[:-1], other), cur.x[-1])
+        x = self.carry(old, new_sys, cur.x)
         new_sys.n = x.size - 1
-        t = new_sys.unit(new_sys.pack(old.transfer(cur.t[:-1], other), cur.t[-1]))
-        anti = None
-        if tracer.anti is not None:
-            anti = Antisymmetric.from_problem(other, new_sys.n)
-            if anti is not None:
-                x = new_sys.pack(anti.symmetrize(x[:-1]), x[-1])
-        corr = correct(new_sys, x, new_sys.row(t), newton_options, anti.symmetrize if anti is not None else None)
-        if not corr.converged or new_sys.admissible(corr.x) is not None or corr.factorization is None:
+        t = new_sys.unit(self.carry(old, new_sys, cur.t))
+        anti = Antisymmetric.from_problem(other, new_sys.n) if tracer.anti is not None else None
+        corr = _correct_across(new_sys, x, t, anti, newton_options)
+        if corr is None:
             return False
         saved = (tracer.system, tracer.anti, tracer.point_tests)
         tracer.use_system(new_sys, anti)  # also sets up the HB/UZ test functions on the new grid
@@ -1036,24 +1037,13 @@ class Adaptor:
         tangent and test functions there), or None where the correction fails: state and tangent
         transferred from the point's own grid, corrected on the hyperplane normal to the tangent
         (as :meth:`regrid`)."""
-        from contin.corrector import correct
-
         sys = tracer.system
         pt = tracer.points[j]
         grid = tracer.grids[j]
         src = sys.problem if grid is None else on_grid(sys.problem, int(grid))
-        if src is sys.problem:
-            x, t = np.array(pt.x, dtype=float), np.array(pt.t, dtype=float)
-        else:
-            x = sys.pack(src.transfer(pt.x[:-1], sys.problem), pt.x[-1])
-            t = sys.unit(sys.pack(src.transfer(pt.t[:-1], sys.problem), pt.t[-1]))
-        project = tracer.anti.symmetrize if tracer.anti is not None else None
-        if project is not None:
-            x = sys.pack(project(x[:-1]), x[-1])
-        corr = correct(sys, x, sys.row(t), newton_options, project)
-        if not corr.converged or sys.admissible(corr.x) is not None or corr.factorization is None:
-            return None
-        return tracer.finish_point(corr, t)
+        t = sys.unit(self.carry(src, sys, pt.t))
+        corr = _correct_across(sys, self.carry(src, sys, pt.x), t, tracer.anti, newton_options)
+        return None if corr is None else tracer.finish_point(corr, t)
 
     def forget_points(self) -> None:
         """The tracer dropped stored points (a retreat): the per-point memory of refinements
@@ -1066,6 +1056,22 @@ class Adaptor:
         if x.size - 1 == new_system.n:
             return x
         return new_system.pack(old.transfer(x[:-1], new_system.problem), x[-1])
+
+
+def _correct_across(system: Any, x: Array, t: Array, anti: Any, newton_options: Any) -> Any:
+    """The correction of a carried point x on the hyperplane through it normal to the carried
+    tangent t (regular at folds, unlike a correction at fixed parameter), symmetrized by ``anti``
+    where the branch is S-invariant; None where it does not converge, leaves the domain or has no
+    factorization (:meth:`Adaptor.regrid`, :meth:`Adaptor.carry_point`)."""
+    from contin.corrector import correct
+
+    project = anti.symmetrize if anti is not None else None
+    if project is not None:
+        x = system.pack(project(x[:-1]), x[-1])
+    corr = correct(system, x, system.row(t), newton_options, project)
+    if not corr.converged or system.admissible(corr.x) is not None or corr.factorization is None:
+        return None
+    return corr
 
 
 #: problem -> {grid size: the problem on that grid}; weak keys, so problems are not kept alive.

@@ -38,15 +38,10 @@ from typing import Any
 import numpy as np
 
 from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT
-from contin.cancel import stop_requested
-
-#: The audit of a point stored although its two-grid check exceeded tol (the check was not
-#: lowered by refinement: a floor, a kink between nodes, or an FD grid not yet in its asymptotic
-#: range next to a BP); the command line shows these lines as warnings (``contin.cli.trace``).
-ACCEPTED_ABOVE_TOL = "accepted by its estimate"
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
+from contin.cancel import stop_requested
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
@@ -430,6 +425,11 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
     return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
 
 
+#: The audit of a point stored although its two-grid check exceeded tol (the check was not
+#: lowered by refinement: a floor, a kink between nodes, or an FD grid not yet in its asymptotic
+#: range next to a BP); the command line shows these lines as warnings (``contin.cli.trace``).
+ACCEPTED_ABOVE_TOL = "accepted by its estimate"
+
 #: Stored points a retreat re-solves on the finer grid at most (``trace``'s retreat_behind).
 MAX_RETREAT = 20
 
@@ -683,7 +683,7 @@ def trace(
         function changed sign (or no stored point has the old sign: nothing to retreat to)."""
         assert adaptor is not None
         now = tracer.points[-1]
-        moved = [fn for kind, _, fn in tracer._test_functions() if _sign_changed(fn(old.tests), fn(now.tests))]
+        moved = [fn for _, _, fn in tracer._test_functions() if _sign_changed(fn(old.tests), fn(now.tests))]
         if not moved:
             return False
         for j in range(len(tracer.points) - 2, max(len(tracer.points) - 2 - MAX_RETREAT, -1), -1):
@@ -767,8 +767,7 @@ def trace(
             ds = reduced_step(ds, sopt)
             continue
         assert new is not None
-        if adaptor is not None and ((err := adaptor.too_coarse(system, new.x)) is not None
-                                    or (err := adaptor.solve_check(system, new.x)) is not None):
+        if adaptor is not None and (err := adaptor.candidate_error(system, new.x)) is not None:
             # Not resolved (the estimate, or the two-grid error of the solve that the estimate
             # can under-read next to a BP/LP): refine at the last accepted point and retry the
             # step from there.  (The resolution limit fits the estimate's decay: not for a check.)
@@ -846,9 +845,7 @@ def trace(
             if adaptor is not None:
                 # The landed point is a new state: the checks of the candidate beyond the bound
                 # are not its own (the fixed-grid guard above is off in adaptive runs).
-                err = adaptor.too_coarse(system, land.x)
-                if err is None:
-                    err = adaptor.solve_check(system, land.x)
+                err = adaptor.candidate_error(system, land.x)
                 if err is not None:
                     what = "two-grid error" if adaptor.checked is not None else "estimate"
                     stop = adaptor.refine(tracer, err, f"{what} above tol at the bound", options.newton)
