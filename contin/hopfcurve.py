@@ -1,4 +1,4 @@
-"""Two-parameter continuation of Hopf points, with Bogdanov-Takens (BT) detection.
+"""Two-parameter continuation of Hopf points, with Bogdanov-Takens (BT) and generalized Hopf (GH) detection.
 
 A Hopf point of M u' = F(u, p1, p2) has a real two-dimensional invariant subspace of the
 pencil (J, M) on which it acts with eigenvalues +-i omega.  With kappa = omega^2 the curve of
@@ -17,7 +17,11 @@ the kernel (the solution has w = 0 there and the augmented Jacobian is singular)
 eigenvalues +-sqrt(-kappa)), and at kappa = 0 (J v = M w, J w = 0: a Jordan block of the zero
 eigenvalue) the curve passes a Bogdanov-Takens point, where it meets a fold curve.  BT is the
 sign change of kappa, located like every test function by the tracer (``contin.locate``);
-the part of the curve with kappa < 0 is kept and marked by the column ``kappa``.
+the part of the curve with kappa < 0 is kept and marked by the column ``kappa``.  On the Hopf
+part, a sign change of the first Lyapunov coefficient l1 is a generalized Hopf (Bautin) point,
+GH, where the Hopf bifurcation turns from super- to subcritical and a fold curve of limit cycles
+begins (Kuznetsov, *Elements of Applied Bifurcation Theory*, 3rd ed., sec. 8.3;
+``contin.hopfsystem.LyapunovTest``).
 
 On fold curves (``contin.foldcurve``: J phi = 0) a BT is where the left null vector psi of J
 becomes M-orthogonal to phi (the zero eigenvalue becomes double and non-semisimple): the test
@@ -41,15 +45,15 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint
-from contin.hopfsystem import HopfCurveProblem, KappaTest, _mass, hopf_basis
+from contin.hopfsystem import HopfCurveProblem, KappaTest, LyapunovTest, _mass, hopf_basis
 from contin.options import ContinuationOptions
 from contin.pointtests import Crossing
-from contin.problem import Array
+from contin.problem import Array, has
 from contin.testfunctions import signed_value
 
 #: the public API (the augmented system's classes are ``contin.hopfsystem``'s, listed here too:
 #: the Hopf-curve API they belong to)
-__all__ = ["HopfCurveProblem", "KappaTest", "as_hopf_curve", "fold_bt_test", "hopf_basis", "hopf_curve_start",
+__all__ = ["HopfCurveProblem", "KappaTest", "LyapunovTest", "as_hopf_curve", "fold_bt_test", "hopf_basis", "hopf_curve_start",
            "trace_hopf_curve"]
 
 
@@ -101,11 +105,17 @@ def trace_hopf_curve(
     parameter: str,
     both: bool = True,
     branch_id: str = "hopf",
+    generalized_hopf: bool | None = None,
 ) -> Branch:
     """Continue the Hopf ``point`` in (parameter, second); both directions joined.
 
     BT points (type ``BT``) are located where kappa = omega^2 changes sign; past a BT the curve
-    continues as a curve of neutral saddles (observable ``kappa`` < 0).  Bounds
+    continues as a curve of neutral saddles (observable ``kappa`` < 0).  Generalized Hopf points
+    (type ``GH``) are located where the first Lyapunov coefficient l1 changes sign on the Hopf
+    part (``contin.hopfsystem.LyapunovTest``); ``generalized_hopf=None`` (default) detects them
+    when the problem has no ``eigenproblem`` of its own (l1 needs J's own nonlinearity, as at
+    HB points), True/False force it.  l1 costs about 30 Jacobians and two complex LUs per point
+    (CO oxidation's Hopf curve: see README).  Bounds
     in ``options.bounds`` on ``second`` end the run with EP on the bound (the tracer's bound
     landing, through the state's p2 entry: see :func:`_second_bound_event`).  BP and Hopf
     detection of the augmented system are off (its singularities are not the problem's).
@@ -113,6 +123,7 @@ def trace_hopf_curve(
     from contin.continuation import join, trace
 
     curve, start = hopf_curve_start(problem, point, second)
+    curve.generalized_hopf = (not has(problem, "eigenproblem")) if generalized_hopf is None else bool(generalized_hopf)
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
     lo, hi = options.bounds.get(second, (-math.inf, math.inf))

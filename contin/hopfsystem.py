@@ -46,8 +46,10 @@ def _mass(problem: Any, u: Array, q: Mapping[str, float], n: int) -> sp.csr_matr
 class HopfCurveProblem:
     """The augmented Hopf system as a contin Problem (state U = [u, v, w, kappa, p2])."""
 
-    def __init__(self, problem: Any, second: str, normalisation: Array, phase: Array, eps: float = FD_EPS) -> None:
+    def __init__(self, problem: Any, second: str, normalisation: Array, phase: Array, eps: float = FD_EPS,
+                 generalized_hopf: bool = False) -> None:
         self.problem = problem
+        self.generalized_hopf = generalized_hopf  # point_tests: GH (l1 = 0) besides BT
         self.second = second
         self.parameter_names = tuple(problem.parameter_names)
         self.c = np.asarray(normalisation, float)
@@ -165,8 +167,12 @@ class HopfCurveProblem:
         return None if reason is None else f"{reason} (at {self.second} = {q[self.second]:.6g})"
 
     def point_tests(self) -> list[Any]:
-        """BT: the sign change of kappa (module docstring)."""
-        return [KappaTest(self.n)]
+        """BT: the sign change of kappa (module docstring); GH: the sign change of l1 on the Hopf
+        part (kappa > 0), when ``generalized_hopf``."""
+        tests: list[Any] = [KappaTest(self.n)]
+        if self.generalized_hopf:
+            tests.append(LyapunovTest(self))
+        return tests
 
 
 @dataclass(frozen=True)
@@ -187,6 +193,57 @@ class KappaTest:
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         return replace(sp_, data={**sp_.data, "kappa": float(x[3 * self.n])})
+
+
+@dataclass(frozen=True)
+class LyapunovTest:
+    """Point test of a Hopf curve: the first Lyapunov coefficient l1 changes sign at a
+    generalized Hopf (Bautin) point, label GH (AUTO-07p's GH, BifurcationKit's ``:gh``).
+
+    The value at a point is (l1, True) on the Hopf part of the curve (kappa = omega^2 > 0; l1
+    by :func:`contin.hopf.first_lyapunov` at the base state with omega = sqrt(kappa): Kuznetsov,
+    *Elements of Applied Bifurcation Theory*, 3rd ed., eq. (3.20)), and (0, False) where l1 is
+    not defined (neutral saddles, kappa <= 0) or cannot be computed there (the reason is
+    logged): no GH is bracketed by such a point.  The zero is located like every point test,
+    by re-correcting onto the curve (``contin.locate``), so its accuracy is that of l1 (central
+    differences of J: relative ~1e-8 on smooth problems) over |dl1/ds|.  The second Lyapunov
+    coefficient l2 (the GH's normal-form coefficient) is not computed.
+    """
+
+    curve: Any
+    name: str = "gh"
+    kind: str = "GH"
+
+    def value(self, system: Any, x: Array) -> tuple[float, bool]:
+        from contin.hopf import first_lyapunov
+
+        u, _, _, kappa, q = self.curve.split(x[:-1], system.params_at(x[-1]))
+        if not kappa > 0:
+            return (0.0, False)
+        try:
+            l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
+        except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
+            import logging
+
+            logging.getLogger("contin").warning("GH test: l1 failed at %s=%g: %s", system.parameter, x[-1], exc)
+            return (0.0, False)
+        return (l1, True) if math.isfinite(l1) else (0.0, False)
+
+    def crossings(self, va: tuple[float, bool], vb: tuple[float, bool]) -> list[Crossing]:
+        if not (va[1] and vb[1]) or va[0] == 0 or vb[0] == 0 or (va[0] > 0) == (vb[0] > 0):
+            return []
+        return [("generalized Hopf (l1 = 0)", _l1_or_nan)]
+
+    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        l1, hopf = self.value(system, x)
+        kappa = float(x[3 * self.curve.n])
+        omega = math.sqrt(kappa) if kappa > 0 else math.nan
+        return replace(sp_, data={**sp_.data, "l1": l1 if hopf else math.nan, "omega": omega, "kappa": kappa})
+
+
+def _l1_or_nan(v: tuple[float, bool]) -> float:
+    """The GH test function: l1 where it is defined, NaN (a failed trial of the locator) elsewhere."""
+    return v[0] if v[1] else math.nan
 
 
 def hopf_basis(problem: Any, u: Array, params: Mapping[str, float], omega: float,

@@ -43,6 +43,7 @@ MARKERS: dict[str, tuple[str, str]] = {
     "XT": ("^", "tab:purple"),
     "CP": ("v", "tab:orange"),
     "BT": ("s", "tab:red"),
+    "GH": ("P", "tab:red"),
     "MX": ("X", "tab:red"),
     "EP": ("|", "grey"),
 }
@@ -98,7 +99,7 @@ def plot_branch(
     ax: Axes | None = None,
     *,
     label: str | None = None,
-    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "MX"),
+    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "GH", "MX"),
     annotate: bool = True,
     **line_kw: Any,
 ) -> list[Any]:

@@ -549,6 +549,40 @@ class Lorenz:
         return np.array([x, x, p["rho"] - 1])
 
 
+class AB:
+    """AUTO-07p's demo ``ab`` (the A -> B reaction in a CSTR; AUTO's demos/ab/ab.f90, Doedel's
+    tutorial): F1 = -u1 + D (1 - u1) e^{u2},  F2 = -u2 + D B (1 - u1) e^{u2} - beta u2
+    (PAR(1..3) = D, B, beta).  u = 0 solves it at D = 0 for every B; continued in D (beta = 3,
+    B = 14) it has two Hopf points, the lower subcritical and the upper supercritical, which its
+    Hopf curve in (D, B) joins through a generalized Hopf point (GH)."""
+
+    parameter_names = ("D", "B", "beta")
+
+    def mass_matrix(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        """An ODE: every row is dynamic (M = I)."""
+        return sp.identity(2, format="csr")
+
+    def residual(self, u: Array, p: Mapping[str, float]) -> Array:
+        u1, u2 = u
+        h = p["D"] * (1 - u1) * np.exp(u2)
+        return np.array([-u1 + h, -u2 + p["B"] * h - p["beta"] * u2])
+
+    def jacobian(self, u: Array, p: Mapping[str, float]) -> sp.csr_matrix:
+        u1, u2 = u
+        e, b = p["D"] * np.exp(u2), p["B"]
+        return sp.csr_matrix(np.array([[-1 - e, (1 - u1) * e],
+                                       [-b * e, -1 + b * (1 - u1) * e - p["beta"]]]))
+
+    def dresidual_dp(self, u: Array, p: Mapping[str, float], name: str) -> Array:
+        u1, u2 = u
+        g = (1 - u1) * np.exp(u2)  # h / D
+        return {"D": np.array([g, p["B"] * g]), "B": np.array([0.0, p["D"] * g]),
+                "beta": np.array([0.0, -u2])}[name]
+
+    def order_parameter(self, u: Array, p: Mapping[str, float]) -> float:
+        return float(u[0])  # u1, AUTO's first solution measure in the demo
+
+
 class COOxidation:
     """CO oxidation (Bykov-Yablonskii-Kim; BifurcationKit's tutorialCO), z = 1 - x - y - s:
     x' = 2 q1 z^2 - 2 q5 x^2 - q3 x y, y' = q2 z - q6 y - q3 x y, s' = q4 z - k q4 s.

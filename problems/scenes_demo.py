@@ -17,6 +17,10 @@
   regridding).
 - ``lorenz``: the Lorenz equilibrium C+ for rho in [rho_min, rho_max] (sigma = 10, beta = 8/3 by
   default): a subcritical Hopf point (HB) at rho = 470/19 with omega and l1.
+- ``ab``: AUTO-07p's demo ab (problems.demo.AB, a CSTR): u = 0 at D = 0 traced in D up to D_max
+  (B = 14, beta = 3): a subcritical and a supercritical Hopf point; ``contin continue FILE
+  --from HB1 --free B`` traces their Hopf curve through a Bogdanov-Takens (BT, B = 64/3) and a
+  generalized Hopf point (GH).
 - ``brusselator``: the 1-D Brusselator (problems.demo.Brusselator, fields u and v on x in [0, 1],
   u = a, v = b/a at the ends): the homogeneous state traced in b over [b_min, b_max]; its first
   Hopf point (HB) against the closed form b_H = 1 + a^2 + (D1 + D2) pi^2 / L^2.  Adaptive like
@@ -38,7 +42,7 @@ from contin.continuation import trace, trace_both
 from contin.options import ContinuationOptions, StepOptions
 from contin.resume import switch_reusing
 from contin.scene import DiagramStart, Scene, SceneError, SceneRequest, SceneResult, scene_numbers
-from problems.demo import BRATU_FOLD, AllenCahn, Bratu, Brusselator, Lorenz, StretchedBratu
+from problems.demo import AB, BRATU_FOLD, AllenCahn, Bratu, Brusselator, Lorenz, StretchedBratu
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, float], scene: str) -> dict[str, float]:
@@ -311,6 +315,26 @@ def run_lorenz(request: SceneRequest) -> SceneResult:
     return SceneResult(branches=done, parameters=p, notes=notes)
 
 
+AB_DEFAULTS = {"B": 14.0, "beta": 3.0, "D_max": 0.5}
+
+
+def run_ab(request: SceneRequest) -> SceneResult:
+    p = _numbers(request, AB_DEFAULTS, "ab")
+    if not p["D_max"] > 0:
+        raise SceneError("need D_max > 0 (the branch starts at u = 0, D = 0)")
+    params = {"D": 0.0, "B": p["B"], "beta": p["beta"]}
+    options = request.options_for(ContinuationOptions(
+        bounds={"D": (0.0, p["D_max"])}, max_steps=2000, step=StepOptions(ds=0.01, ds_max=0.05)))
+    done: list[Branch] = []
+    if "0" in request.completed:
+        branch = request.completed["0"]
+    else:
+        request.report("ab: tracing u in D from u = 0 at D = 0")
+        branch = trace(AB(), np.zeros(2), params, "D", options, progress=request.report)
+    _emit(request, done, branch)
+    return SceneResult(branches=done, parameters=p, notes=[])
+
+
 BRUSSELATOR_DEFAULTS = {**Brusselator.PARAMS, "b_min": 4.0, "b_max": 6.0}
 
 
@@ -417,6 +441,15 @@ SCENES = {
         adaptive=True,
         default_tol=1e-10,
         problem_factory=lambda parameters, discretization: _brusselator_problem(discretization),
+    ),
+    "ab": Scene(
+        name="ab",
+        summary="AUTO-07p demo ab (A -> B in a CSTR) in D: two Hopf points; contin continue FILE --from HB1 --free B: BT and GH",
+        defaults=AB_DEFAULTS,
+        run=run_ab,
+        x="D",
+        y="phi",
+        problem_factory=lambda parameters, discretization: AB(),
     ),
     "lorenz": Scene(
         name="lorenz",

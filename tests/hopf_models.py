@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contin.problem import complex_step_dp
+from problems.demo import AB as ABDemo
 from problems.demo import COOxidation
 
 
@@ -39,27 +40,7 @@ class Lorenz:
                 "beta": np.array([0.0, 0.0, -z])}[name]
 
 
-class AB:
-    """AUTO's demo ab: PAR(1) = D (Damkoehler number), PAR(2) = B, PAR(3) = beta."""
-
-    parameter_names = ("D", "B", "beta")
-
-    def residual(self, u, p):
-        u1, u2 = u
-        e = np.exp(u2)
-        return np.array([-u1 + p["D"] * (1 - u1) * e, -u2 + p["D"] * p["B"] * (1 - u1) * e - p["beta"] * u2])
-
-    def jacobian(self, u, p):
-        u1, u2 = u
-        e = np.exp(u2)
-        d, b = p["D"], p["B"]
-        return sp.csc_matrix(np.array([[-1 - d * e, d * (1 - u1) * e],
-                                       [-d * b * e, -1 + d * b * (1 - u1) * e - p["beta"]]]))
-
-    def dresidual_dp(self, u, p, name):
-        return complex_step_dp(self, u, p, name)
-
-
+AB = ABDemo  # the demo problem (problems/demo.py), AUTO-07p's demos/ab equations
 CO = COOxidation  # the demo problem (problems/demo.py), BifurcationKit's tutorialCO equations
 
 
