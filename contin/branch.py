@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 #: Rejected-step diagnostics (and other audit lines) kept in Branch.audit by the tracer.
 MAX_AUDIT = 200
 
-PointType = Literal["BP", "LP", "EP", "MX", "UZ", "XT", "CP", "HB", "BT", "GH"]
+PointType = Literal["BP", "LP", "EP", "MX", "UZ", "XT", "CP", "HB", "BT", "GH", "ZH", "HH"]
 Status = Literal["running", "EP", "MX"]
 
 

@@ -41,6 +41,7 @@ from contin.adapt import PARAM_SCALE_FLOOR
 from contin.branch import Branch, SpecialPoint, relabel
 from contin.continuation import trace, trace_both
 from contin.extended import l2_norm
+from contin.hopf import hopf_test
 from contin.normalform import null_vectors
 from contin.options import AdaptOptions, ContinuationOptions
 from contin.problem import Array, has
@@ -51,6 +52,9 @@ class FoldProblem:
 
     #: Locate cusps (CP) along the curve (``contin.cusp``).
     detect_cusps: bool = True
+    #: The base problem's HopfTest (``contin.hopf.hopf_test``): zero-Hopf points (ZH) along the
+    #: curve, where a pair of the base pencil crosses the imaginary axis (``contin.codim2tests``).
+    base_hopf: Any = None
 
     def __init__(self, problem: object, second: str, normalisation: Array, eps: float = 1e-6) -> None:
         self.problem = problem
@@ -122,17 +126,28 @@ class FoldProblem:
         return None
 
     def point_tests(self) -> list[object]:
-        """Cusps (CP, ``contin.cusp``; unless ``detect_cusps`` is False) and Bogdanov-Takens
-        points (BT) along the fold curve (``contin.hopfcurve.fold_bt_test``); no BT for problems
-        with their own ``eigenproblem`` (their M is not the steady one)."""
+        """Cusps (CP, ``contin.cusp``; unless ``detect_cusps`` is False), zero-Hopf points (ZH,
+        ``contin.codim2tests``; when ``base_hopf`` is set) and Bogdanov-Takens points (BT) along
+        the fold curve (``contin.hopfcurve.fold_bt_test``); no BT for problems with their own
+        ``eigenproblem`` (their M is not the steady one)."""
         from contin.cusp import CuspTest
 
         tests: list[object] = [CuspTest(self)] if self.detect_cusps else []
+        if self.base_hopf is not None:
+            from contin.codim2tests import BaseEigenTest
+
+            tests.append(BaseEigenTest(self.base_hopf, self.base, "zh", "ZH",
+                                       "zero-Hopf (a pair crosses the imaginary axis on the fold curve)"))
         if has(self.problem, "eigenproblem"):
             return tests
         from contin.hopfcurve import fold_bt_test
 
         return tests + [fold_bt_test(self.problem, self.n, self.c, self.second)]
+
+    def base(self, state: Array, p: Mapping[str, float]) -> tuple[Array, dict[str, float]]:
+        """The base state u and the base parameters (p2 in place) of an augmented state."""
+        u, _, q = self.split(state, p)
+        return u, q
 
     # --- grids (segment-wise regridding of a fold curve: :func:`trace_augmented`) ----------------
     @property
@@ -148,6 +163,7 @@ class FoldProblem:
         other = on_grid(self.problem, int(size))
         out = FoldProblem(other, self.second, self.problem.transfer(self.c, other), self.eps)  # type: ignore[attr-defined]
         out.detect_cusps = self.detect_cusps
+        out.base_hopf = None if self.base_hopf is None else replace(self.base_hopf, problem=other)
         return out
 
     def transfer(self, state: Array, other: FoldProblem) -> Array:
@@ -320,6 +336,7 @@ def trace_fold_curve(
     if parameter is None:
         raise ValueError("trace_fold_curve needs the name of the first continuation parameter")
     fold, start = fold_start(problem, point, second)
+    fold.base_hopf = hopf_test(problem, options.detection, fold.n)
     raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=both,
                           branch_id=branch_id, kind="fold-curve", regrid=regrid)
     return as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import Branch, SpecialPoint
+from contin.hopf import hopf_test
 from contin.hopfsystem import HopfCurveProblem, KappaTest, LyapunovTest, _mass, hopf_basis
 from contin.options import ContinuationOptions
 from contin.pointtests import Crossing
@@ -115,7 +116,11 @@ def trace_hopf_curve(
     part (``contin.hopfsystem.LyapunovTest``); ``generalized_hopf=None`` (default) detects them
     when the problem has no ``eigenproblem`` of its own (l1 needs J's own nonlinearity, as at
     HB points), True/False force it.  l1 costs about 30 Jacobians and two complex LUs per point
-    (CO oxidation's Hopf curve: see README).  Bounds
+    (CO oxidation's Hopf curve: see README).  Zero-Hopf points (``ZH``: a real eigenvalue through
+    zero, one LU per point) are detected for problems without their own ``eigenproblem``, and
+    double-Hopf points (``HH``: a second pair through the imaginary axis) where
+    ``options.detection`` would detect HB points on the problem (``contin.hopf.hopf_test``;
+    ``detect_hopf=False`` switches it off); ``contin.codim2tests``.  Bounds
     in ``options.bounds`` on ``second`` end the run with EP on the bound (the tracer's bound
     landing, through the state's p2 entry: see :func:`_second_bound_event`).  BP and Hopf
     detection of the augmented system are off (its singularities are not the problem's).
@@ -124,6 +129,8 @@ def trace_hopf_curve(
 
     curve, start = hopf_curve_start(problem, point, second)
     curve.generalized_hopf = (not has(problem, "eigenproblem")) if generalized_hopf is None else bool(generalized_hopf)
+    curve.zero_hopf = not has(problem, "eigenproblem")
+    curve.base_hopf = hopf_test(problem, options.detection, curve.n)
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
     lo, hi = options.bounds.get(second, (-math.inf, math.inf))

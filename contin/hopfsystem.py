@@ -50,6 +50,8 @@ class HopfCurveProblem:
                  generalized_hopf: bool = False) -> None:
         self.problem = problem
         self.generalized_hopf = generalized_hopf  # point_tests: GH (l1 = 0) besides BT
+        self.zero_hopf = False  # point_tests: ZH (det J / kappa changes sign)
+        self.base_hopf: Any = None  # the base problem's HopfTest: HH (a second pair crosses)
         self.second = second
         self.parameter_names = tuple(problem.parameter_names)
         self.c = np.asarray(normalisation, float)
@@ -166,12 +168,26 @@ class HopfCurveProblem:
         reason = self.problem.under_resolved(u, q, tol)
         return None if reason is None else f"{reason} (at {self.second} = {q[self.second]:.6g})"
 
+    def base(self, state: Array, p: Mapping[str, float]) -> tuple[Array, dict[str, float]]:
+        """The base state u and the base parameters (p2 in place) of an augmented state."""
+        u, _, _, _, q = self.split(state, p)
+        return u, q
+
     def point_tests(self) -> list[Any]:
         """BT: the sign change of kappa (module docstring); GH: the sign change of l1 on the Hopf
-        part (kappa > 0), when ``generalized_hopf``."""
+        part (kappa > 0), when ``generalized_hopf``; ZH (a real eigenvalue through 0) when
+        ``zero_hopf``; HH (a second pair through the imaginary axis) when ``base_hopf`` is set
+        (``contin.codim2tests``)."""
+        from contin.codim2tests import BaseEigenTest, ZeroHopfTest
+
         tests: list[Any] = [KappaTest(self.n)]
         if self.generalized_hopf:
             tests.append(LyapunovTest(self))
+        if self.zero_hopf:
+            tests.append(ZeroHopfTest(self.problem, self.base, 3 * self.n))
+        if self.base_hopf is not None:
+            tests.append(BaseEigenTest(self.base_hopf, self.base, "hh", "HH",
+                                       "double Hopf (a second pair crosses the imaginary axis)", own_kappa=3 * self.n))
         return tests
 
 

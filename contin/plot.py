@@ -44,6 +44,8 @@ MARKERS: dict[str, tuple[str, str]] = {
     "CP": ("v", "tab:orange"),
     "BT": ("s", "tab:red"),
     "GH": ("P", "tab:red"),
+    "ZH": ("*", "tab:purple"),
+    "HH": ("h", "tab:red"),
     "MX": ("X", "tab:red"),
     "EP": ("|", "grey"),
 }
@@ -99,7 +101,7 @@ def plot_branch(
     ax: Axes | None = None,
     *,
     label: str | None = None,
-    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "GH", "MX"),
+    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "GH", "ZH", "HH", "MX"),
     annotate: bool = True,
     **line_kw: Any,
 ) -> list[Any]:

@@ -1,0 +1,126 @@
+"""Zero-Hopf (ZH) and double-Hopf (HH) points on fold and Hopf curves (codimension two).
+
+Labels as AUTO-07p's and BifurcationKit's (``:zh``, ``:hh``; Kuznetsov, *Elements of Applied
+Bifurcation Theory*, 3rd ed., secs. 8.5 and 8.6):
+
+- on a fold curve (J has a simple zero eigenvalue), a complex pair of the pencil (J, M) at the
+  base state crossing the imaginary axis is a zero-Hopf point (fold-Hopf; ZH): the fold curve
+  meets a Hopf curve.  :class:`BaseEigenTest` with the Hopf test of the base problem
+  (``contin.hopf``: Re mu of the crossing eigenvalue, mutual-nearest pairing);
+- on a Hopf curve (a pair +-i omega, kappa = omega^2), a real eigenvalue through zero is also a
+  ZH: :class:`ZeroHopfTest`, the sign of det J / kappa (det J is kappa times the product of the
+  other eigenvalues of (J, M) and a constant: the pair's own product kappa is divided out, so a
+  Bogdanov-Takens point, where kappa changes sign, is not counted);
+- on a Hopf curve, a second pair crossing the imaginary axis is a double-Hopf point (HH):
+  :class:`BaseEigenTest` with the curve's own pair (the eigenvalue nearest i omega) removed.
+
+Each is a point test (``contin.pointtests``) of the augmented problem, evaluated at the base
+state of each point, located by re-correcting onto the curve like every point test.  The
+eigenvalue tests cost one eigen-solve of the base pencil per point (dense QZ up to the Hopf
+test's ``dense_max``, shift-invert ARPACK above) and are on where HB detection would be on for
+the base problem (``contin.hopf.hopf_test``: ``DetectionOptions.detect_hopf``); the determinant
+test costs one LU.  Normal-form coefficients of ZH and HH points are not computed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from contin.branch import SpecialPoint
+from contin.pointtests import Crossing
+from contin.problem import Array
+from contin.testfunctions import signed_value
+
+log = logging.getLogger("contin")
+
+#: (augmented state, parameters) -> (base state u, base parameters q with p2 in place)
+Split = Callable[[Array, Mapping[str, float]], tuple[Array, dict[str, float]]]
+
+
+@dataclass(frozen=True)
+class BaseEigenTest:
+    """Complex eigenvalues of the base pencil at an augmented curve's base state (ZH on fold
+    curves, HH on Hopf curves: the module docstring).
+
+    ``hopf``: the base problem's :class:`contin.hopf.HopfTest` (its dense_max and k);
+    ``split``: the base state and parameters of an augmented state; ``own_kappa``: the index of
+    kappa in the augmented state (Hopf curves), whose pair i sqrt(kappa) is left out."""
+
+    hopf: Any
+    split: Split
+    name: str
+    kind: str
+    note: str
+    own_kappa: int | None = None
+
+    def value(self, system: Any, x: Array) -> Array:
+        from contin.hopf import complex_eigenvalues, pencil
+
+        u, q = self.split(x[:-1], system.params_at(x[-1]))
+        try:
+            w = complex_eigenvalues(*pencil(self.hopf.problem, u, q), self.hopf.dense_max, self.hopf.k)
+        except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:  # RuntimeError includes ArpackError
+            log.warning("%s test: eigenvalues failed at %s=%g: %s", self.kind, system.parameter, x[-1], exc)
+            return np.zeros(0, dtype=complex)
+        if self.own_kappa is not None and w.size:
+            kappa = float(x[self.own_kappa])
+            if kappa > 0:  # the curve's own pair, on the axis by construction
+                w = np.delete(w, int(np.argmin(np.abs(w - 1j * math.sqrt(kappa)))))
+        return w
+
+    def crossings(self, va: Array, vb: Array) -> list[Crossing]:
+        return [(self.note, g) for _, g in self.hopf.crossings(va, vb)]
+
+    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        w = self.value(system, x)
+        data = dict(sp_.data)
+        if w.size:
+            mu = complex(w[int(np.argmin(np.abs(w.real)))])
+            data["omega2" if self.own_kappa is not None else "omega"] = mu.imag
+        if self.own_kappa is not None:
+            kappa = float(x[self.own_kappa])
+            data["omega"] = math.sqrt(kappa) if kappa > 0 else math.nan
+        return replace(sp_, data=data)
+
+
+@dataclass(frozen=True)
+class ZeroHopfTest:
+    """det J / kappa on a Hopf curve as (sign, log|.|): changes sign where a real eigenvalue
+    passes through zero (ZH; module docstring)."""
+
+    problem: Any
+    split: Split
+    kappa_index: int
+    name: str = "zh"
+    kind: str = "ZH"
+
+    def value(self, system: Any, x: Array) -> tuple[float, float]:
+        from contin.linalg import factorize
+
+        u, q = self.split(x[:-1], system.params_at(x[-1]))
+        kappa = float(x[self.kappa_index])
+        fact = factorize(self.problem.jacobian(u, q))
+        if fact is None or kappa == 0 or not math.isfinite(kappa):
+            return (0.0, -math.inf)
+        sign, logabs = fact.det_sign_log()
+        return (sign * math.copysign(1.0, kappa), logabs - math.log(abs(kappa)))
+
+    def crossings(self, va: tuple[float, float], vb: tuple[float, float]) -> list[Crossing]:
+        if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
+            return []
+        ref = max(va[1], vb[1])
+
+        def g(v: tuple[float, float]) -> float:
+            return signed_value(v, ref)
+
+        return [("zero-Hopf (a real eigenvalue through 0 on the Hopf curve)", g)]
+
+    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        kappa = float(x[self.kappa_index])
+        return replace(sp_, data={**sp_.data, "omega": math.sqrt(kappa) if kappa > 0 else math.nan})

@@ -1,0 +1,137 @@
+"""Zero-Hopf (ZH) and double-Hopf (HH) points on fold and Hopf curves (``contin.codim2tests``),
+against closed forms of two small systems built for the purpose:
+
+- ``FoldHopf``: x' = a + b - x^2 + b x and an oscillator (v, w) with real part r = b - 1 + x,
+  frequency 1 and cubic damping.  Folds: x = b/2, a = -b - b^2/4; Hopf points: x = 1 - b,
+  a = (1 - b)(1 - 2 b) - b.  Both curves meet at the zero-Hopf point (a, b) = (-7/9, 2/3),
+  x = 1/3.
+- ``TwoOscillators``: u = 0 with two damped oscillators of frequencies 1 and 2 and real parts
+  r1 = a + b + b^2 - 1, r2 = b - a/2.  The Hopf curve r1 = 0 (a = 1 - b - b^2) meets r2 = 0 where
+  b^2 + 3 b - 1 = 0: the double-Hopf point b = (sqrt(13) - 3)/2, a = 2 b = sqrt(13) - 3
+  (omega = 1, omega2 = 2).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from contin.continuation import trace, trace_both
+from contin.foldcurve import trace_fold_curve
+from contin.hopfcurve import trace_hopf_curve
+from contin.options import ContinuationOptions, DetectionOptions, StepOptions
+
+
+class FoldHopf:
+    parameter_names = ("a", "b")
+
+    def residual(self, u, p):
+        x, v, w = u
+        r, rho = p["b"] - 1 + x, v * v + w * w
+        return np.array([p["a"] + p["b"] - x * x + p["b"] * x, r * v - w - v * rho, v + r * w - w * rho])
+
+    def jacobian(self, u, p):
+        x, v, w = u
+        r, rho = p["b"] - 1 + x, v * v + w * w
+        return sp.csr_matrix(np.array([[-2 * x + p["b"], 0.0, 0.0],
+                                       [v, r - rho - 2 * v * v, -1 - 2 * v * w],
+                                       [w, 1 - 2 * v * w, r - rho - 2 * w * w]]))
+
+    def dresidual_dp(self, u, p, name):
+        x, v, w = u
+        return np.array([1.0, 0.0, 0.0]) if name == "a" else np.array([1 + x, v, w])
+
+
+class TwoOscillators:
+    parameter_names = ("a", "b")
+
+    def _parts(self, p):
+        return p["a"] + p["b"] + p["b"] ** 2 - 1, p["b"] - p["a"] / 2
+
+    def residual(self, u, p):
+        v1, w1, v2, w2 = u
+        r1, r2 = self._parts(p)
+        s1, s2 = v1 * v1 + w1 * w1, v2 * v2 + w2 * w2
+        return np.array([r1 * v1 - w1 - v1 * s1, v1 + r1 * w1 - w1 * s1,
+                         r2 * v2 - 2 * w2 - v2 * s2, 2 * v2 + r2 * w2 - w2 * s2])
+
+    def jacobian(self, u, p):
+        v1, w1, v2, w2 = u
+        r1, r2 = self._parts(p)
+        s1, s2 = v1 * v1 + w1 * w1, v2 * v2 + w2 * w2
+        j = np.zeros((4, 4))
+        j[:2, :2] = [[r1 - s1 - 2 * v1 * v1, -1 - 2 * v1 * w1], [1 - 2 * v1 * w1, r1 - s1 - 2 * w1 * w1]]
+        j[2:, 2:] = [[r2 - s2 - 2 * v2 * v2, -2 - 2 * v2 * w2], [2 - 2 * v2 * w2, r2 - s2 - 2 * w2 * w2]]
+        return sp.csr_matrix(j)
+
+    def dresidual_dp(self, u, p, name):
+        v1, w1, v2, w2 = u
+        d1, d2 = (1.0, -0.5) if name == "a" else (1 + 2 * p["b"], 1.0)
+        return np.array([d1 * v1, d1 * w1, d2 * v2, d2 * w2])
+
+
+STEP = StepOptions(ds=0.02, ds_max=0.05)
+
+
+def _fold_hopf_points():
+    pb = FoldHopf()
+    br = trace_both(pb, np.array([0.5, 0.0, 0.0]), {"a": 0.25, "b": 0.0}, "a",
+               ContinuationOptions(step=STEP, bounds={"a": (-0.5, 2.0)}, max_steps=400))
+    return pb, br
+
+
+def test_zero_hopf_on_the_fold_curve():
+    pb, br = _fold_hopf_points()
+    (lp,) = br.points("LP")
+    assert abs(lp.params["a"]) < 1e-10
+    curve = trace_fold_curve(pb, lp, "b", ContinuationOptions(step=STEP, bounds={"a": (-2, 1), "b": (-0.5, 1.2)},
+                                                             max_steps=400), parameter="a")
+    (zh,) = curve.points("ZH")
+    assert zh.converged and "zero-Hopf" in zh.note
+    assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+    assert zh.params["a"] == pytest.approx(-7 / 9, abs=1e-10)
+    assert zh.state[0] == pytest.approx(1 / 3, abs=1e-10) and zh.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    # the fold curve itself is a = -b - b^2/4
+    b = curve.params["b"]
+    assert np.allclose(curve.params["a"], -b - b**2 / 4, atol=1e-10)
+
+
+def test_zero_hopf_on_the_hopf_curve_and_no_spurious_bt_gh_hh():
+    pb, br = _fold_hopf_points()
+    (hb,) = br.points("HB")
+    assert hb.params["a"] == pytest.approx(1.0, abs=1e-10)  # x = 1 - b = 1 at b = 0
+    curve = trace_hopf_curve(pb, hb, "b", ContinuationOptions(step=STEP, bounds={"a": (-2, 2), "b": (-0.5, 1.0)},
+                                                              max_steps=400), parameter="a")
+    (zh,) = curve.points("ZH")
+    assert zh.converged
+    assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+    assert zh.params["a"] == pytest.approx(-7 / 9, abs=1e-10)
+    assert zh.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    b = curve.params["b"]
+    assert np.allclose(curve.params["a"], (1 - b) * (1 - 2 * b) - b, atol=1e-10)
+    assert not curve.points("BT") and not curve.points("GH") and not curve.points("HH")
+
+
+def test_double_hopf_on_the_hopf_curve():
+    pb = TwoOscillators()
+    br = trace(pb, np.zeros(4), {"a": 0.5, "b": 0.0}, "a",
+               ContinuationOptions(step=STEP, bounds={"a": (0.5, 2.0)}, max_steps=200))
+    (hb,) = br.points("HB")
+    assert hb.params["a"] == pytest.approx(1.0, abs=1e-10) and hb.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    opts = ContinuationOptions(step=STEP, bounds={"a": (0.0, 2.0), "b": (-0.2, 0.8)}, max_steps=200)
+    curve = trace_hopf_curve(pb, hb, "b", opts, parameter="a")
+    (hh,) = curve.points("HH")
+    assert hh.converged and "double Hopf" in hh.note
+    assert hh.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+    assert hh.params["a"] == pytest.approx(math.sqrt(13) - 3, abs=1e-10)
+    assert hh.data["omega"] == pytest.approx(1.0, rel=1e-10) and hh.data["omega2"] == pytest.approx(2.0, rel=1e-10)
+    assert not curve.points("ZH") and not curve.points("BT")
+    b = curve.params["b"]
+    assert np.allclose(curve.params["a"], 1 - b - b**2, atol=1e-10)
+    # HH detection follows HB detection: off with detect_hopf=False
+    off = trace_hopf_curve(pb, hb, "b", replace(opts, detection=DetectionOptions(detect_hopf=False)), parameter="a")
+    assert not off.points("HH") and off.params["b"].max() > 0.6  # past the HH at b = 0.303
