@@ -29,7 +29,7 @@ class SpecialPoint:
     Attributes
     ----------
     type : str
-        AUTO code ('BP', 'LP', 'EP', 'MX', 'UZ', 'XT', 'CP').
+        AUTO code ('BP', 'LP', 'EP', 'MX', 'UZ', 'XT', 'CP', 'HB', 'BT', 'GH', 'ZH', 'HH').
     index : int
         Index of the last regular branch point before (or at) this special point.
     params : dict

@@ -55,6 +55,7 @@ from contin.testfunctions import signed_value
 #: the public API (the augmented system's classes are ``contin.hopfsystem``'s, listed here too:
 #: the Hopf-curve API they belong to)
 __all__ = ["HopfCurveProblem", "KappaTest", "LyapunovTest", "as_hopf_curve", "fold_bt_test", "hopf_basis", "hopf_curve_start",
+           "hopf_curve_start_at_bt",
            "trace_hopf_curve"]
 
 
@@ -76,6 +77,36 @@ def hopf_curve_start(problem: Any, point: SpecialPoint, second: str) -> tuple[Ho
     c = v.copy()  # c . v = 1
     curve = HopfCurveProblem(problem, second, c, d)
     return curve, np.concatenate([u, v, w, [omega**2, params[second]]])
+
+
+def hopf_curve_start_at_bt(problem: Any, u: Array, params: Mapping[str, float], second: str) -> tuple[HopfCurveProblem, Array]:
+    """The augmented Hopf problem and its start vector at a Bogdanov-Takens point (u, p) of a fold
+    curve, where kappa = 0: w = phi spans ker J and v is the generalized eigenvector, J v = M w,
+    v orthogonal to phi (the bordered solve [[J, psi], [phi^T, 0]] [v; s] = [M phi; 0], s = 0 at
+    an exact BT, where M phi lies in J's range); rows c = v / |v|^2 (c . v = 1) and d = phi
+    (d . v = 0).  The augmented system is regular at BT (its rows act on v), so the curve is
+    traced through it: kappa > 0 (Hopf points) on one side, kappa < 0 (neutral saddles) on the
+    other (Kuznetsov, *Elements of Applied Bifurcation Theory*, 3rd ed., sec. 8.4)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from contin.normalform import null_vectors
+
+    u = np.asarray(u, float)
+    q = dict(params)
+    jac = sp.csc_matrix(problem.jacobian(u, q))
+    n = jac.shape[0]
+    nulls = null_vectors(jac)
+    phi, psi = nulls.phi, nulls.psi
+    mphi = np.asarray(_mass(problem, u, q, n) @ phi, float)
+    border = sp.bmat([[jac, psi[:, None]], [phi[None, :], None]], format="csc")
+    sol = spla.splu(border).solve(np.concatenate([mphi, [0.0]]))
+    v = sol[:n]
+    scale = float(v @ v)
+    if not (math.isfinite(scale) and scale > 0):
+        raise ValueError("no generalized eigenvector at the BT point (J v = M phi has no solution)")
+    curve = HopfCurveProblem(problem, second, v / scale, phi / float(np.linalg.norm(phi)))
+    return curve, np.concatenate([u, v, phi, [0.0, q[second]]])
 
 
 def as_hopf_curve(branch: Branch, curve: HopfCurveProblem) -> Branch:
@@ -107,6 +138,7 @@ def trace_hopf_curve(
     both: bool = True,
     branch_id: str = "hopf",
     generalized_hopf: bool | None = None,
+    start: tuple[HopfCurveProblem, Array] | None = None,
 ) -> Branch:
     """Continue the Hopf ``point`` in (parameter, second); both directions joined.
 
@@ -120,14 +152,16 @@ def trace_hopf_curve(
     zero, one LU per point) are detected for problems without their own ``eigenproblem``, and
     double-Hopf points (``HH``: a second pair through the imaginary axis) where
     ``options.detection`` would detect HB points on the problem (``contin.hopf.hopf_test``;
-    ``detect_hopf=False`` switches it off); ``contin.codim2tests``.  Bounds
+    ``detect_hopf=False`` switches it off); ``contin.codim2tests``.  ``start``: an augmented
+    problem and start vector to use instead of the HB ``point``'s (:func:`hopf_curve_start_at_bt`:
+    the Hopf curve from a BT of a fold curve; ``point`` then only gives the parameters).  Bounds
     in ``options.bounds`` on ``second`` end the run with EP on the bound (the tracer's bound
     landing, through the state's p2 entry: see :func:`_second_bound_event`).  BP and Hopf
     detection of the augmented system are off (its singularities are not the problem's).
     """
     from contin.continuation import join, trace
 
-    curve, start = hopf_curve_start(problem, point, second)
+    curve, start_vector = hopf_curve_start(problem, point, second) if start is None else start
     curve.generalized_hopf = (not has(problem, "eigenproblem")) if generalized_hopf is None else bool(generalized_hopf)
     curve.zero_hopf = not has(problem, "eigenproblem")
     curve.base_hopf = hopf_test(problem, options.detection, curve.n)
@@ -140,7 +174,7 @@ def trace_hopf_curve(
     meta = dict(branch_id=branch_id, kind="hopf-curve", parent=point.name)
     halves = []
     for direction in ((1, -1) if both else (1,)):
-        half = trace(curve, start, dict(point.params), parameter, opts, direction=direction, **meta)
+        half = trace(curve, start_vector, dict(point.params), parameter, opts, direction=direction, **meta)
         halves.append(_cut_at_bound(half, curve, second, lo, hi) if bounded else half)
     raw = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
     return as_hopf_curve(raw, curve)

@@ -15,7 +15,10 @@ free parameters, ``ICP=[p1, p2]``).
   u and antisymmetric phi (Werner & Spence, SIAM J. Numer. Anal. 21, 1984;
   :func:`contin.bpcurve.trace_bp_curve`); any other BP kept by p2 is a clear error;
 - ``HB`` -- the Hopf curve (:func:`contin.hopfcurve.trace_hopf_curve`; Bogdanov-Takens points
-  located on it).
+  located on it);
+- ``BT`` of a fold or Hopf curve -- the other curve through it, in the same two parameters
+  (a Hopf curve's BT starts the fold curve, a fold curve's BT the Hopf curve, from kappa = 0:
+  :func:`contin.hopfcurve.hopf_curve_start_at_bt`).
 
 Other point types are a clear error (:class:`NotAvailable`); :func:`register_curve` adds one.
 Bounds on the second parameter (``options.bounds[second]``) end the curve on the bound: the
@@ -43,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from contin.bpcurve import trace_bp_curve
-from contin.branch import Branch, SpecialPoint
+from contin.branch import Branch, SpecialPoint, relabel
 from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
 from contin.hopfcurve import trace_hopf_curve
@@ -162,6 +165,64 @@ def _resolved_start(problem: Any, point: SpecialPoint, second: str, options: Con
     return here, replace(point, state=state, grid=int(here.grid_size), tangent=None)
 
 
+def _from_bogdanov_takens(problem: Any, branch: Branch, point: SpecialPoint, second: str,
+                          options: ContinuationOptions, *, branch_id: str) -> Branch:
+    """The other curve through a BT of a fold or Hopf curve, in the same two parameters: a BT of a
+    Hopf curve (state [u, v, w, kappa, p2]) starts the fold curve through it (its null vector:
+    ``contin.foldcurve.fold_start``); a BT of a fold curve (state [u, phi, p2]) starts the Hopf
+    curve (:func:`contin.hopfcurve.hopf_curve_start_at_bt`, kappa = 0 there)."""
+    from contin.foldcurve import trace_fold_curve
+    from contin.hopfcurve import hopf_curve_start_at_bt, trace_hopf_curve
+
+    kinds = {"hopf-curve": 3, "fold-curve": 2}
+    if branch.kind not in kinds or len(branch.free) != 2:
+        raise NotAvailable(f"{point.name}: a BT is continued from a fold or Hopf curve, not from a {branch.kind} branch")
+    if second != branch.free[1]:
+        raise ValueError(f"{point.name} lies on a curve in ({branch.free[0]}, {branch.free[1]}): the curve through it "
+                         f"is traced in the same parameters, --free {branch.free[1]}")
+    state = np.asarray(point.state, float)
+    blocks = kinds[branch.kind]
+    n = (state.size - (blocks - 1)) // blocks  # [u, phi, p2] or [u, v, w, kappa, p2]
+    size = getattr(problem, "size", None)
+    if n * blocks + blocks - 1 != state.size or (isinstance(size, int) and size != n):
+        raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this problem")
+    params = dict(point.params)
+    params[second] = float(state[-1])
+    base = replace(point, type="LP" if branch.kind == "hopf-curve" else "HB", state=state[:n].copy(), params=params,
+                   tangent=None)
+    if branch.kind == "hopf-curve":
+        curve = trace_fold_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id)
+    else:
+        start = hopf_curve_start_at_bt(problem, state[:n], params, second)
+        curve = trace_hopf_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id,
+                                 start=start)
+    return _bt_at_start(curve, point, branch.kind)
+
+
+def _bt_at_start(curve: Branch, source: SpecialPoint, kind: str) -> Branch:
+    """The curve with its start marked as the BT it came from.
+
+    The new curve starts on the zero of its own BT test function, so the tracer brackets a sign
+    change of rounding noise in the first step on either side and "locates" a BT there: on ab's
+    fold curve from the Hopf curve's BT, 5.5e-7 off B = 64/3, marked converged.  That point is
+    replaced by the start point itself (corrected onto the new curve, where the source BT is)."""
+    first, second = curve.free
+    p1, p2 = curve.params[first], curve.params[second]
+    scale1, scale2 = max(1.0, abs(source.params[first])), max(1.0, abs(source.params[second]))
+    distance = np.abs(p1 - source.params[first]) / scale1 + np.abs(p2 - source.params[second]) / scale2
+    s = int(np.argmin(distance))
+    if not distance[s] <= 1e-8:  # the start was not kept (not expected): leave the curve as traced
+        return curve
+    kept = [sp for sp in curve.special_points if not (sp.type == "BT" and sp.index in (s - 1, s))]
+    start = SpecialPoint(type="BT", index=s, params={k: float(v[s]) for k, v in curve.params.items()},
+                         order_parameter=float(curve.order_parameter[s]), state=curve.state(s).copy(),
+                         tangent=curve.tangent(s).copy(), bracket=(float(p1[s]), float(p1[s])), converged=True,
+                         note=f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}")
+    curve.special_points = sorted(kept + [start], key=lambda sp: sp.index)
+    relabel([curve])
+    return curve
+
+
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,
                    options: ContinuationOptions, *, branch_id: str | None = None,
                    regrid: SegmentRegrid | None = None) -> Branch:
@@ -194,6 +255,11 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
         raise ValueError(f"unknown parameter {second!r}; the problem's parameters are {', '.join(names)}")
     if second not in point.params:
         raise ValueError(f"point {point.name} has no value of {second!r}")
+    if point.type == "BT":
+        if regrid is not None:
+            raise NotAvailable(NO_REGRID.format(what=f"{point.name} is a Bogdanov-Takens point"))
+        return _from_bogdanov_takens(problem, branch, point, second, options,
+                                     branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
     tracer = CURVES.get(point.type)
     if tracer is None:
         raise NotAvailable(f"{point.name}: only {', '.join(sorted(CURVES))} points can be continued in two parameters, "

@@ -197,6 +197,26 @@ def test_ab_scene_hopf_curve_gh_from_the_cli(tmp_path):
     assert [sp.type for sp in branch.special_points if sp.type in ("BT", "GH")] == ["BT", "GH"]
     assert run("diagram", curve, "-o", tmp_path / "d.png").exit_code == 0
     assert "GH" in run("info", curve).output
+    # from the BT of the Hopf curve, the fold curve through it (same parameters)
+    fold = tmp_path / "fold.h5"
+    res = run("continue", curve, "--from", "BT2", "--free", "B", "--bounds", "B=0:40", "-o", fold, "--json")
+    assert res.exit_code == 0, res.output
+    assert "fold curve from BT2" in res.stderr
+    (branch,), _ = io.load(fold)
+    assert branch.kind == "fold-curve"
+    model, n = AB(), 2
+    for i in range(0, len(branch), 10):  # every stored state is a fold of ab: F = 0, det J = 0
+        p = {"D": branch.params["D"][i], "B": branch.params["B"][i], "beta": 3.0}
+        u = branch.state(i)[:n]
+        assert np.max(np.abs(model.residual(u, p))) < 1e-10
+        assert abs(np.linalg.det(model.jacobian(u, p).toarray())) < 1e-8
+    (start,) = branch.points("BT")
+    assert start.params["B"] == pytest.approx(64 / 3, rel=1e-12) and "start: BT2" in start.note
+    # the classical cusp of this reactor: B = 4 (1 + beta), u2 = 2, D = e^-2 (Uppal, Ray & Poore 1974)
+    (cp,) = branch.points("CP")
+    assert cp.params["B"] == pytest.approx(16.0, rel=1e-9) and cp.params["D"] == pytest.approx(math.exp(-2), rel=1e-9)
+    res = run("continue", curve, "--from", "BT2", "--free", "beta")
+    assert res.exit_code != 0 and "--free B" in res.output and "Traceback" not in res.output
 
 
 def _co_l1(u, p):

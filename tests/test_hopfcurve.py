@@ -124,3 +124,65 @@ def test_co_fold_curve_bogdanov_takens_points(co_branch):
         ref = co_bt_reference(np.concatenate([bt.state[:3], [bt.params["q2"], bt.params["k"]]]))
         assert bt.params["q2"] == pytest.approx(ref[3], rel=1e-9)
         assert bt.params["k"] == pytest.approx(ref[4], rel=1e-9)
+
+
+def _co_k04_references():
+    """HB and LP parameters q2 of the CO model at k = 0.4 (k is PARAMS' own value): F = 0 with the
+    Routh-Hurwitz boundary a1 a2 = a3 (HB) or det J = 0 (LP), solved by fsolve from the
+    one-parameter branch's rough neighbourhood (q2 ~ 1.04, 1.05)."""
+    model = CO()
+
+    def solve(condition, guess):
+        def system(z):
+            u, p = z[:3], {**CO.PARAMS, "q2": z[3]}
+            return np.concatenate([model.residual(u, p), [condition(np.asarray(model.jacobian(u, p)))]])
+
+        z, _, ok, msg = fsolve(system, guess, xtol=1e-14, full_output=True)
+        assert ok in (1, 3) and np.max(np.abs(system(z))) < 1e-13, msg
+        return z[3]
+
+    def hopf(j):
+        a2 = sum(np.linalg.det(j[np.ix_(ix, ix)]) for ix in ([0, 1], [0, 2], [1, 2]))
+        return -np.trace(j) * a2 + np.linalg.det(j)
+
+    return hopf, np.linalg.det, solve
+
+
+def test_bt_switching_between_the_fold_and_the_hopf_curve(co_branch):
+    """From a BT of the fold curve the Hopf curve starts (kappa = 0), and from a BT of that Hopf
+    curve the fold curve: each passes k = 0.4 (CO.PARAMS' k) at the one-parameter branch's HB /
+    LP values there, from independent solves (UZ events at k = 0.4 on the curves)."""
+    from contin.twoparam import NotAvailable, continue_point
+
+    at_k04 = {"k=0.4": lambda state, p: state[-1] - 0.4}  # p2 = k is the state's last entry
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.02), bounds={"q2": (0.5, 2.2), "k": (0.0, 1.0)},
+                               max_steps=600, events=at_k04)
+    fold = trace_fold_curve(CO(), co_branch.points("LP")[0], "k", opts, parameter="q2")
+    bt = min(fold.points("BT"), key=lambda s: s.params["k"])  # (q2, k) = (1.16120, 0.72234)
+    hopf = continue_point(CO(), fold, bt, "k", opts)
+    assert hopf.kind == "hopf-curve" and len(hopf) > 20
+    hopf_test, det, solve = _co_k04_references()
+    states = {}
+    for sp in hopf.points("UZ"):
+        states[sp.params["q2"]] = sp
+    refs = sorted(solve(hopf_test, np.concatenate([sp.state[:3], [q2]]) * (1 + 1e-3)) for q2, sp in states.items())
+    assert len(refs) == 2 and refs[0] < refs[1] - 1e-3  # both HBs of the k = 0.4 branch
+    assert sorted(states) == pytest.approx(refs, rel=1e-9)
+    assert sorted(sp.params["q2"] for sp in co_branch.points("HB")) == pytest.approx(refs, rel=1e-9)
+    # the Hopf curve passes its start: kappa changes sign there (Hopf on one side, neutral saddles on the other)
+    kappa = hopf.observables["kappa"]
+    assert kappa.min() < 0 < kappa.max()
+    (other,) = [s for s in hopf.points("BT") if abs(s.params["k"] - bt.params["k"]) > 1e-3]  # (1.41763, 0.97140)
+    back = continue_point(CO(), hopf, other, "k", opts)
+    assert back.kind == "fold-curve"
+    lps = sorted(sp.params["q2"] for sp in back.points("UZ"))
+    refs = sorted(solve(det, np.concatenate([sp.state[:3], [sp.params["q2"]]]) * (1 + 1e-3)) for sp in back.points("UZ"))
+    assert len(lps) == 2 and lps == pytest.approx(refs, rel=1e-9)
+    assert sorted(sp.params["q2"] for sp in co_branch.points("LP")) == pytest.approx(refs, rel=1e-9)
+    # the curve's own parameters only; no regridding
+    with pytest.raises(ValueError, match="--free k"):
+        continue_point(CO(), fold, bt, "q1", opts)
+    from contin.foldcurve import SegmentRegrid
+
+    with pytest.raises(NotAvailable):
+        continue_point(CO(), fold, bt, "k", opts, regrid=SegmentRegrid(None))

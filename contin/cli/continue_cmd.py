@@ -31,6 +31,13 @@ import click
 from contin.cli._base import echo_err, echo_json, fail, fmt, main, special_points_table
 
 
+def _what(point: Any, curve: Any) -> str:
+    """'LP curve', 'HB curve', ...; from a BT the curve it starts ('fold curve', 'Hopf curve')."""
+    if point.type == "BT":
+        return {"fold-curve": "fold curve", "hopf-curve": "Hopf curve"}.get(curve.kind, "curve")
+    return f"{point.type} curve"
+
+
 def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
     """``NAME=LO:HI`` items -> {name: (lo, hi)}; LO, HI finite (or -inf/inf), LO < HI."""
     out = {}
@@ -157,7 +164,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         problem = on_grid(problem, int(point.grid))
         own_grid = int(point.grid)
     size = getattr(problem, "size", None)
-    if isinstance(size, int) and point.state is not None and size != len(point.state):
+    if isinstance(size, int) and point.state is not None and size != len(point.state) and point.type != "BT":
+        # (a BT lies on a fold or Hopf curve: its augmented state is checked by contin.twoparam)
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")
     from contin.cancel import stop_on_sigint
@@ -181,7 +189,7 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
                 curve = continue_point(problem, branch, point, second, options, regrid=regrid)
     interrupted = stop.requested
     if output is not None:
-        notes = [f"{point.type} curve from {point.name} of branch {branch.id} in {file}, free {first}, {second}"]
+        notes = [f"{_what(point, curve)} from {point.name} of branch {branch.id} in {file}, free {first}, {second}"]
         extra: dict[str, Any] = {"source": file, "from": point.name, "branch": branch.id, "free": [first, second]}
         if regrid is not None:
             notes.append(f"adaptive grids: tol {tol:g}, grids {_grids(curve)} (max {regrid.opts.max_grid})")
@@ -202,7 +210,7 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
                            notes=[], extra=doc_extra,
                            output=output, stability={})
         echo_json(doc)
-    echo_err(f"{point.type} curve from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
+    echo_err(f"{_what(point, curve)} from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
              f"{second} = {fmt(point.params[second])}): {len(curve)} points, {curve.status} {curve.message}")
     if regrid is not None:
         echo_err(f"grids along the curve (tol {tol:g}): {_grids(curve)}")
