@@ -39,6 +39,7 @@ regridding yet: asking for it raises :class:`NotAvailable`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
@@ -86,7 +87,63 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
     fold, start = fold_start(problem, point, second)
     raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=True,
                           branch_id=branch_id, kind="fold-curve", mirror_start=True, regrid=regrid)
-    return as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
+    curve = as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
+    if point.type == "BP" and fold.detect_cusps:
+        curve = _cusp_at_start(curve, fold, point)
+    return curve
+
+
+def _cusp_at_start(curve: Branch, fold: Any, source: SpecialPoint) -> Branch:
+    """Mark the start of a BP's fold curve as a cusp (CP) when it is one.
+
+    A pitchfork unfolded by p2 is the cusp of the imperfect pitchfork's fold curve, which starts
+    there and goes both ways: each half sees one sign of the cusp test psi . B(phi, phi), so the
+    tracer brackets no zero and the cusp went unlabelled (x' = mu + lam x - x^3 from its BP in
+    (lam, mu): no CP).  The cusp test at the start's two neighbours decides (opposite signs:
+    the start is the cusp; a transcritical BP's fold curve keeps one sign through it).  Points
+    on other grids than the start's (segment-wise regridding) are not compared."""
+    from contin.cusp import CuspTest
+    from contin.extended import ExtendedSystem
+
+    s = _start_index(curve, source)
+    if s is None or not 0 < s < len(curve) - 1:
+        return curve
+    if curve.grid is not None and len({int(curve.grid[i]) for i in (s - 1, s, s + 1)}) > 1:
+        return curve
+    system = ExtendedSystem(fold, {k: float(v[s]) for k, v in curve.params.items()}, curve.parameter)
+    test = CuspTest(fold)
+
+    def cusp_value(i: int) -> float:
+        return test.value(system, system.pack(curve.state(i), curve.params[curve.parameter][i]))
+
+    before, after = cusp_value(s - 1), cusp_value(s + 1)
+    if not (math.isfinite(before) and math.isfinite(after)) or before == 0 or after == 0 or (before > 0) == (after > 0):
+        return curve
+    return _mark_start(curve, s, "CP", f"cusp at the start: {source.name}, the pitchfork that {curve.free[1]} unfolds")
+
+
+def _start_index(curve: Branch, source: SpecialPoint) -> int | None:
+    """The index of the curve's point at the source point's (p1, p2) (its corrected start), or None."""
+    first, second = curve.free
+    p1, p2 = curve.params[first], curve.params[second]
+    scale1, scale2 = max(1.0, abs(source.params[first])), max(1.0, abs(source.params[second]))
+    distance = np.abs(p1 - source.params[first]) / scale1 + np.abs(p2 - source.params[second]) / scale2
+    s = int(np.argmin(distance))
+    return s if distance[s] <= 1e-8 else None
+
+
+def _mark_start(curve: Branch, s: int, kind: str, note: str) -> Branch:
+    """The curve with its point s labelled ``kind``: a point of that type the tracer located in
+    a step next to s (rounding noise about a zero at the start) is dropped."""
+    p1 = curve.params[curve.parameter]
+    kept = [sp for sp in curve.special_points if not (sp.type == kind and sp.index in (s - 1, s))]
+    start = SpecialPoint(type=kind, index=s, params={k: float(v[s]) for k, v in curve.params.items()},
+                         order_parameter=float(curve.order_parameter[s]), state=curve.state(s).copy(),
+                         tangent=curve.tangent(s).copy(), bracket=(float(p1[s]), float(p1[s])), converged=True,
+                         note=note)
+    curve.special_points = sorted(kept + [start], key=lambda sp: sp.index)
+    relabel([curve])
+    return curve
 
 
 #: psi . dF/dp2 below this fraction of |psi| |dF/dp2| means p2 does not unfold the BP
@@ -206,21 +263,10 @@ def _bt_at_start(curve: Branch, source: SpecialPoint, kind: str) -> Branch:
     change of rounding noise in the first step on either side and "locates" a BT there: on ab's
     fold curve from the Hopf curve's BT, 5.5e-7 off B = 64/3, marked converged.  That point is
     replaced by the start point itself (corrected onto the new curve, where the source BT is)."""
-    first, second = curve.free
-    p1, p2 = curve.params[first], curve.params[second]
-    scale1, scale2 = max(1.0, abs(source.params[first])), max(1.0, abs(source.params[second]))
-    distance = np.abs(p1 - source.params[first]) / scale1 + np.abs(p2 - source.params[second]) / scale2
-    s = int(np.argmin(distance))
-    if not distance[s] <= 1e-8:  # the start was not kept (not expected): leave the curve as traced
+    s = _start_index(curve, source)
+    if s is None:  # the start was not kept (not expected): leave the curve as traced
         return curve
-    kept = [sp for sp in curve.special_points if not (sp.type == "BT" and sp.index in (s - 1, s))]
-    start = SpecialPoint(type="BT", index=s, params={k: float(v[s]) for k, v in curve.params.items()},
-                         order_parameter=float(curve.order_parameter[s]), state=curve.state(s).copy(),
-                         tangent=curve.tangent(s).copy(), bracket=(float(p1[s]), float(p1[s])), converged=True,
-                         note=f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}")
-    curve.special_points = sorted(kept + [start], key=lambda sp: sp.index)
-    relabel([curve])
-    return curve
+    return _mark_start(curve, s, "BT", f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}")
 
 
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,

@@ -91,3 +91,47 @@ def test_bp_curve_refuses_a_bp_without_symmetry() -> None:
     (bp,) = br.branch_points
     with pytest.raises(ValueError, match="not a symmetry-breaking BP"):
         trace_bp_curve(pb, bp, "lam", ContinuationOptions(), parameter="lam")
+
+
+class ImperfectTranscritical:
+    """lam x - x^2 + mu: the transcritical BP at lam = mu = 0 unfolded by mu; its fold curve
+    x = lam/2, mu = -lam^2/4 passes through the BP without a cusp (psi . B(phi, phi) = -2)."""
+
+    parameter_names = ("lam", "mu")
+
+    def residual(self, u, p):
+        return np.array([p["lam"] * u[0] - u[0] ** 2 + p["mu"]])
+
+    def jacobian(self, u, p):
+        import scipy.sparse as sp
+
+        return sp.csr_matrix([[p["lam"] - 2 * u[0]]])
+
+    def dresidual_dp(self, u, p, name):
+        return np.array([u[0] if name == "lam" else 1.0])
+
+
+def test_the_cusp_at_a_pitchforks_start_is_labelled_and_a_transcritical_has_none() -> None:
+    """The fold curve of a pitchfork unfolded by p2 starts at its cusp and goes both ways; each
+    half sees one sign of the cusp test, so before it was not labelled.  x' = mu + lam x - x^3:
+    the BP at lam = mu = 0 is the cusp of lam = 3 x^2, mu = -2 x^3."""
+    from contin.twoparam import continue_point
+
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.1), bounds={"lam": (-1.0, 1.0)})
+    two = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.1), bounds={"lam": (-1.0, 2.0), "mu": (-2.0, 2.0)},
+                              max_steps=300)
+    br = trace_both(Cusp(), np.array([0.0]), {"lam": -0.5, "mu": 0.0}, "lam", opts)
+    (bp,) = br.points("BP")
+    curve = continue_point(Cusp(), br, bp, "mu", two)
+    (cp,) = curve.points("CP")
+    assert cp.params["lam"] == pytest.approx(0.0, abs=1e-10) and cp.params["mu"] == pytest.approx(0.0, abs=1e-12)
+    assert cp.converged and cp.note.startswith("cusp at the start") and abs(cp.state[0]) < 1e-10
+    x = curve.states[:, 0]
+    assert np.max(np.abs(curve.params["lam"] - 3 * x**2)) < 1e-10
+    # the transcritical BP: the fold curve x = lam/2, mu = -lam^2/4 has no cusp
+    br = trace_both(ImperfectTranscritical(), np.array([0.0]), {"lam": -0.5, "mu": 0.0}, "lam", opts)
+    (bp,) = br.points("BP")
+    curve = continue_point(ImperfectTranscritical(), br, bp, "mu", two)
+    assert not curve.points("CP") and len(curve) > 20
+    lam = curve.params["lam"]
+    assert np.max(np.abs(curve.params["mu"] + lam**2 / 4)) < 1e-10 and lam.min() < 0 < lam.max()
