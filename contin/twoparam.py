@@ -308,8 +308,8 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
                                      branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
     tracer = CURVES.get(point.type)
     if tracer is None:
-        raise NotAvailable(f"{point.name}: only {', '.join(sorted(CURVES))} points can be continued in two parameters, "
-                           f"not {point.type}")
+        raise NotAvailable(f"{point.name}: only {', '.join(sorted([*CURVES, 'BT']))} points can be continued in two "
+                           f"parameters, not {point.type}")
     if point.state is None:
         raise ValueError(f"{point.name} has no stored state")
     kw: dict[str, Any] = {}
