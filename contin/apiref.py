@@ -22,6 +22,7 @@ MODULES = (
     "contin.options",
     "contin.branch",
     "contin.io",
+    "contin.autoformat",
     "contin.restart",
     "contin.verify",
     "contin.plot",

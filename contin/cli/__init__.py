@@ -9,6 +9,6 @@ command bodies so that ``contin --help`` stays fast.
 from contin.cli._base import EXIT_INCOMPLETE, main
 
 # one module per command; importing a module registers its command on `main`
-from contin.cli import accuracy, continue_cmd, diagram, fit, info, profiles, scenes, stability, sweep, trace, verify  # noqa: E402,F401,I001
+from contin.cli import accuracy, continue_cmd, diagram, export, fit, info, profiles, scenes, stability, sweep, trace, verify  # noqa: E402,F401,I001
 
 __all__ = ["EXIT_INCOMPLETE", "main"]
