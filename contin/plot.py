@@ -147,12 +147,19 @@ def plot_branch(
         artists.append(line)
         first = False
     types = set(special or ())
+    # points at one position (a cusp is also an LP and an XT of its curve) share one annotation,
+    # "CP3, LP4, XT5", instead of three labels printed over each other
+    names: dict[tuple[float, float], list[str]] = {}
+    for sp in branch.special_points:
+        if sp.type in types:
+            names.setdefault(_position(branch, sp, x, y), []).append(sp.name)
     for sp in branch.special_points:
         if sp.type not in types:
             continue
         px, py = _point_value(branch, sp, x), _point_value(branch, sp, y)
         if not (np.isfinite(px) and np.isfinite(py)):
             continue
+        shared = names.get(_position(branch, sp, x, y), [sp.name])
         marker, face = MARKERS.get(sp.type, ("o", "grey"))
         if sp.converged:
             art = ax.plot([px], [py], marker=marker, color=face, markersize=5, linestyle="none", zorder=3)[0]
@@ -161,10 +168,16 @@ def plot_branch(
                           markersize=6, linestyle="none", zorder=3)[0]
         art.set_gid(f"sp-{sp.name}")
         artists.append(art)
-        if annotate:
-            artists.append(ax.annotate(sp.name, (px, py), xytext=(4, 4), textcoords="offset points",
+        if annotate and shared[0] == sp.name:
+            artists.append(ax.annotate(", ".join(shared), (px, py), xytext=(4, 4), textcoords="offset points",
                                        fontsize=7, color=face if sp.type != "LP" else "black"))
     return artists
+
+
+def _position(branch: Branch, sp: SpecialPoint, x: str, y: str) -> tuple[float, float]:
+    """A special point's plotted position to 6 digits (points located by different test
+    functions at one place, e.g. a cusp and the extremum it is, differ in the last digits)."""
+    return (float(f"{_point_value(branch, sp, x):.6g}"), float(f"{_point_value(branch, sp, y):.6g}"))
 
 
 def plot_diagram(

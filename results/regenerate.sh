@@ -6,6 +6,14 @@ for scene in bratu allen-cahn; do
     contin trace "$scene" -q -o "results/$scene.h5"
     contin diagram "results/$scene.h5" -o "results/$scene.png"
 done
+# codim 2 on AUTO-07p's demo ab (~20 s): its Hopf curve in (D, B) with BT and GH, the fold curve from
+# that BT (with the reactor's cusp B = 16, D = e^-2), and the run as AUTO's b.ab / s.ab
+contin trace ab -q -o results/ab.h5
+contin continue results/ab.h5 --from HB1 --free B --bounds B=0:40 --max-steps 2000 -o results/ab_hopf.h5
+contin continue results/ab_hopf.h5 --from BT2 --free B --bounds B=0:40 --max-steps 1000 -o results/ab_fold.h5
+contin diagram results/ab_hopf.h5 -x D -y B -o results/ab_hopf.png
+contin diagram results/ab_fold.h5 -x D -y B -o results/ab_fold.png
+contin export results/ab.h5 --auto ab -d results > /dev/null
 # ---- pitchfork (issue 3; ~1-2 min): nu = 0.3 default H_max; the others capped where N = 64 resolves the plug
 contin trace pitchfork -s nu=0.3 -s e=0.8 -q -o results/pitchfork.h5
 contin diagram results/pitchfork.h5 -o results/pitchfork.png
