@@ -1,0 +1,40 @@
+"""Robustness sweep, round 3 (session 15, qa15): the leftovers of qa14 (absurdly small ranges,
+--kx on scenes with no wavenumber, a user zero next to a fold, a parameter that overflows, NaN test
+functions) and areas the earlier sweeps did not touch.
+
+Each test names the command that misbehaved before its fix.
+"""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from contin.cli import main
+
+
+@pytest.fixture(autouse=True)
+def real_scenes(monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+
+
+def run(args: list[str]):
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def one_error(res) -> str:
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code != 0 and len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
+    return errors[0]
+
+
+@pytest.mark.parametrize("scene, floor", [("pitchfork", "2e-06"), ("jj-walls", "4e-06")])
+def test_an_absurdly_small_h_max_is_a_range_error(scene, floor, tmp_path):
+    """`contin trace pitchfork -s H_max=1e-6` ended with `Error: need ds_max >= |ds| >= ds_min > 0,
+    got ds_max=2e-07, ds=5e-08, ds_min=1e-07` (the step control's check, not the parameter's)."""
+    res = run(["trace", scene, "-s", "H_max=1e-6", "--no-stability", "--max-steps", "5", "-q",
+               "-o", str(tmp_path / "x.h5")])
+    err = one_error(res)
+    assert res.exit_code == 1 and err.startswith("Error: parameter H_max = 1e-06 is out of range"), err
+    assert f"needs H_max >= {floor}" in err and "ds_max >=" not in err, err
+    assert not (tmp_path / "x.h5").exists()
