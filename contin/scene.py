@@ -91,6 +91,8 @@ class SceneRequest:
     engine: str | None = None
     # Options resolved by options_for (the CLI stores them and warns if overrides were ignored).
     _resolved: list[ContinuationOptions] = field(default_factory=list, repr=False, compare=False)
+    # Branch ids whose extra --kx columns run_stability skipped: the problem has no eigenproblem.
+    _no_wavenumber: list[str] = field(default_factory=list, repr=False, compare=False)
 
     def options_for(self, default: ContinuationOptions) -> ContinuationOptions:
         """The options to use for one trace: ``self.options`` if given, else ``default``
@@ -130,6 +132,12 @@ class SceneRequest:
         """Every options object handed out by :meth:`options_for` (empty if never called)."""
         return list(self._resolved)
 
+    @property
+    def kx_unavailable(self) -> list[str]:
+        """Ids of the branches whose nonzero ``kx`` :meth:`run_stability` skipped because the
+        problem has no ``eigenproblem(u, p, kx, kz)`` (no wavenumber: only k_x = 0 exists)."""
+        return list(self._no_wavenumber)
+
     def run_stability(self, problem: Any, branch: Branch, params_fixed: Mapping[str, Any] | None = None, *,
                       n_eigs: int = 6) -> list[str]:
         """The stability the user asked for, on one branch; returns the audit messages.
@@ -140,9 +148,13 @@ class SceneRequest:
         columns of :func:`contin.stability.growth_columns` as observables
         (``growth_rate_kx<k>``, ``n_unstable_kx<k>``).  ``params_fixed``: the problem's
         parameters (non-numeric entries are ignored); the branch's own columns override them.
+        A problem without ``eigenproblem(u, p, kx, kz)`` has no wavenumber: its nonzero k_x are
+        skipped (:attr:`kx_unavailable`; the caller says so) and the k_x = 0 pass and its audit
+        are kept (with ``--kx 1`` the lorenz scene's pass ended in a "stability failed" warning).
         """
         if not self.stability:
             return []
+        from contin.problem import has
         from contin.stability import audit, growth_columns, stability_pass
 
         fixed = {k: v for k, v in dict(params_fixed or {}).items()
@@ -153,7 +165,10 @@ class SceneRequest:
         if any("complex pair" in m for m in messages):  # Hopf points the tracer did not locate
             messages = self._hopf_points(problem, branch, fixed, 0.0, branch.n_unstable) + audit(branch)
         for kx in self.kx:
-            if float(kx) != 0.0:
+            if float(kx) != 0.0 and not has(problem, "eigenproblem"):
+                if branch.id not in self._no_wavenumber:
+                    self._no_wavenumber.append(branch.id)
+            elif float(kx) != 0.0:
                 for name, column in growth_columns(problem, branch, fixed, kx=float(kx)).items():
                     branch.observables.setdefault(name, column)
                 counts = branch.observables.get(f"n_unstable_kx{float(kx):g}")

@@ -38,3 +38,26 @@ def test_an_absurdly_small_h_max_is_a_range_error(scene, floor, tmp_path):
     assert res.exit_code == 1 and err.startswith("Error: parameter H_max = 1e-06 is out of range"), err
     assert f"needs H_max >= {floor}" in err and "ds_max >=" not in err, err
     assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.parametrize("scene", ["lorenz", "brusselator"])
+def test_kx_on_a_scene_with_no_wavenumber_says_so_and_keeps_the_k0_stability(scene, tmp_path):
+    """`contin trace lorenz --kx 1` printed 'warning: stability of branch 0 failed: this problem has
+    no eigenproblem...' and then '--kx 1 ignored: scene 'lorenz' computed no stability' although
+    its k_x = 0 pass ran (the kx loop raised after it, dropping the pass's audit)."""
+    import h5py
+
+    out = tmp_path / "k.h5"
+    res = run(["trace", scene, "--kx", "1", "--max-steps", "5", "-q", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    assert "failed" not in res.stderr and "computed no stability" not in res.stderr, res.stderr
+    assert (f"warning: --kx 1 ignored: scene '{scene}' has no wavenumber: its problem has no "
+            "eigenproblem(u, p, kx, kz), so only k_x = 0 exists") in res.stderr, res.stderr
+    with h5py.File(out, "r") as f:
+        assert "n_unstable" in f["branches/0"], list(f["branches/0"])
+
+
+def test_kx_on_a_scene_without_problem_factory_names_the_reason(tmp_path):
+    res = run(["trace", "bratu", "--kx", "1", "--max-steps", "5", "-q", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 0, res.stderr
+    assert "scene 'bratu' computed no stability (it has no problem_factory" in res.stderr, res.stderr
