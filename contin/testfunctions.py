@@ -82,6 +82,28 @@ def signed_value(v: SignLog, reference: float) -> float:
     return v[0] * math.exp(min(max(v[1] - reference, -LOG_CLAMP), LOG_CLAMP))
 
 
+def sign_change(a: Any, b: Any) -> bool | None:
+    """Whether two values of one test function (floats, or (sign, log) pairs) have opposite,
+    nonzero signs; None when either cannot be read (None, a NaN or infinite float, a NaN sign or
+    log).  The one comparison of the tracer's detection (``_Tracer.detect``) and its retreat
+    (``trace``): a value that is not finite is neither a sign change (no special point is made
+    up from it) nor silently "no change" -- the caller says that the test function was not
+    finite there.  Before session 15 the detection passed a NaN on to the locator (it made the
+    comparison (nan > 0) == (vb > 0) false) while the retreat refused it."""
+    def sign(v: Any) -> float:
+        if v is None:
+            return math.nan
+        if isinstance(v, tuple):
+            return float(v[0]) if math.isfinite(v[0]) and not math.isnan(v[1]) else math.nan
+        v = float(v)
+        return v if math.isfinite(v) else math.nan
+
+    sa, sb = sign(a), sign(b)
+    if math.isnan(sa) or math.isnan(sb):
+        return None
+    return sa != 0 and sb != 0 and (sa > 0) != (sb > 0)
+
+
 def detrended(va: SignLog, vb: SignLog, s_b: float) -> Callable[[SignLog, float], float]:
     """g(v, s) = sign * exp(log|v| - l(s)), l linear in s with l(0) = log|va|, l(s_b) = log|vb|.
 

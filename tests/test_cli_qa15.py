@@ -61,3 +61,25 @@ def test_kx_on_a_scene_without_problem_factory_names_the_reason(tmp_path):
     res = run(["trace", "bratu", "--kx", "1", "--max-steps", "5", "-q", "-o", str(tmp_path / "b.h5")])
     assert res.exit_code == 0, res.stderr
     assert "scene 'bratu' computed no stability (it has no problem_factory" in res.stderr, res.stderr
+
+
+def test_a_user_zero_next_to_bratus_fold_is_reported_on_both_sides(tmp_path):
+    """`contin trace bratu --uz lam=3.5138307` (2e-8 below lam* = 3.5138307191) reported no UZ,
+    exit 0: the step that turns at the fold crosses the value twice (lam - value has one sign at
+    both ends)."""
+    res = run(["trace", "bratu", "--uz", "lam=3.5138307", "--max-steps", "40", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 0, res.stderr
+    rows = [ln.split() for ln in res.stderr.splitlines() if ln.startswith("0 ") and " UZ " in ln]
+    assert [r[3] for r in rows] == ["lam=3.5138307", "lam=3.5138307"] and all(r[5] == "yes" for r in rows), res.stderr
+    order = [ln.split()[2] for ln in res.stderr.splitlines() if ln.startswith("0 ") and ln.split()[2] in ("UZ", "LP")]
+    assert order == ["UZ", "LP", "UZ"], res.stderr
+
+
+def test_detection_gap_lines_are_warnings():
+    from types import SimpleNamespace
+
+    from contin.cli.trace import doubtful_points
+
+    b = SimpleNamespace(audit=["step to point 4: rho=12.7 detection gap: the UZ event:e test function was not finite",
+                               "step 3: rho=1 ds=0.1 rejected: no convergence"])
+    assert doubtful_points(b) == [b.audit[0]]

@@ -142,3 +142,45 @@ def test_fine_grid_traces_past_the_fold_despite_rounding_floor():
         bounds={"lam": (0.0, 4.0)}, max_steps=20, step=StepOptions(ds=0.1, ds_max=0.5)))
     assert br.status == "EP"
     assert abs(br.fold_points[0].params["lam"] - BRATU_FOLD) < 1e-8
+
+
+@pytest.mark.parametrize("below", [1e-10, 1e-4])
+def test_a_user_zero_next_to_the_fold_is_located_on_both_sides(below):
+    """A value of lam just below lam* is crossed twice in the step that turns at the fold (p - value
+    has one sign at both ends): before session 15 no UZ was reported at all, exit 0.  Now both
+    crossings are located, one on each side of the LP, and each state is the closed form's."""
+    from scipy.optimize import brentq
+
+    target = BRATU_FOLD - below
+    pb = Bratu("cheb", 32)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", dataclasses.replace(OPTS, user_zeros={"lam": [target]}))
+    relabel([br])
+    (lp,) = br.fold_points
+    uz = br.points("UZ")
+    assert len(uz) == 2 and all(sp.converged for sp in uz), [(sp.params, sp.note) for sp in uz]
+    assert [sp.params["lam"] for sp in uz] == pytest.approx([target, target], abs=1e-12)
+    assert uz[0].order_parameter < lp.order_parameter < uz[1].order_parameter
+    th = brentq(lambda t: t * np.tanh(t / 4) - 4, 1, 10)
+    lo = brentq(lambda t: exact_lambda(t) - target, 1, th)
+    hi = brentq(lambda t: exact_lambda(t) - target, th, 10)
+    for sp, theta in zip(uz, (lo, hi), strict=True):
+        assert sp.order_parameter == pytest.approx(2 * np.log(np.cosh(theta / 4)), abs=1e-8)
+    assert not any("detection gap" in line for line in br.audit)
+
+
+def test_a_user_zero_next_to_a_fold_that_is_not_located_is_a_detection_gap():
+    """Without location (DetectionOptions.locate=False) the fold's parameter is not known: the step
+    says that the user zero may have been crossed twice and skipped, instead of saying nothing."""
+    pb = Bratu("cheb", 32)
+    no_location = dataclasses.replace(OPTS, detection=dataclasses.replace(OPTS.detection, locate=False))
+    plain = trace(pb, pb.initial(), {"lam": 0.0}, "lam", no_location)
+    lam = plain.parameter_values
+    (lp,) = plain.fold_points  # not located: its index is the step (i, i + 1) that turns at the fold
+    ends = max(lam[lp.index], lam[lp.index + 1])
+    assert ends < BRATU_FOLD
+    target = float(0.5 * (ends + BRATU_FOLD))  # beyond both ends of the step that holds the fold
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", dataclasses.replace(no_location, user_zeros={"lam": [target]}))
+    np.testing.assert_array_equal(br.parameter_values, lam)
+    assert not br.points("UZ")
+    gaps = [line for line in br.audit if "detection gap" in line]
+    assert len(gaps) == 1 and f"lam={target!r}" in gaps[0] and "crossed twice and skipped" in gaps[0], br.audit

@@ -197,11 +197,12 @@ def audit_lines(branch: Any) -> list[str]:
 
 def doubtful_points(branch: Any) -> list[str]:
     """The audit lines of points stored although their two-grid check exceeded tol
-    (``contin.continuation.ACCEPTED_ABOVE_TOL``): the terminal shows them as warnings, also
-    with ``-q`` (the stored state is less accurate than asked for)."""
-    from contin.continuation import ACCEPTED_ABOVE_TOL
+    (``contin.continuation.ACCEPTED_ABOVE_TOL``) and of steps across which a special point may
+    have been missed (``DETECTION_GAP``: a test function not finite, a user zero next to a fold
+    not located): the terminal shows them as warnings, also with ``-q``."""
+    from contin.continuation import ACCEPTED_ABOVE_TOL, DETECTION_GAP
 
-    return [m for m in branch.audit if m.startswith("step ") and ACCEPTED_ABOVE_TOL in m]
+    return [m for m in branch.audit if m.startswith("step ") and (ACCEPTED_ABOVE_TOL in m or DETECTION_GAP in m)]
 
 
 def stability_messages(branch: Any) -> list[str]:
