@@ -249,6 +249,12 @@ class StretchedBratu(Bratu):
 
     parameter_names = ("lam", "a")
 
+    #: No reflection symmetry: Bratu's x -> 1 - x is one only at a = 0.  Inherited, it made every
+    #: trace from u = 0 (which is reflection-invariant) symmetrize its Newton iterates, so at any
+    #: a != 0 the first step failed at ds_min (`contin trace stretched-bratu -s a=0.5`: MX at
+    #: lam = 2.4e-5, session 15).
+    symmetry = None
+
     def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
         super().__init__(method, intervals)
         mask = sp.diags(self.interior.astype(float))

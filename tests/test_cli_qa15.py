@@ -83,3 +83,18 @@ def test_detection_gap_lines_are_warnings():
     b = SimpleNamespace(audit=["step to point 4: rho=12.7 detection gap: the UZ event:e test function was not finite",
                                "step 3: rho=1 ds=0.1 rejected: no convergence"])
     assert doubtful_points(b) == [b.audit[0]]
+
+
+@pytest.mark.parametrize("a", ["0.5", "3"])
+def test_stretched_bratu_at_a_nonzero_finds_its_fold(a, tmp_path):
+    """`contin trace stretched-bratu -s a=0.5` ended with MX at lam = 2.4e-5, exit 3 (any a != 0):
+    StretchedBratu inherited Bratu's reflection x -> 1 - x, which is a symmetry only at a = 0, so
+    the tracer symmetrized the Newton iterates of the branch from u = 0 and no step converged."""
+    from problems.demo import BRATU_FOLD
+
+    res = run(["trace", "stretched-bratu", "-s", f"a={a}", "--no-stability", "--max-steps", "80",
+               "-o", str(tmp_path / "s.h5")])
+    assert res.exit_code == 0, res.stderr
+    (note,) = [ln for ln in res.stderr.splitlines() if ln.startswith("note: LP1: lam = ")]
+    lam = float(note.split()[4])
+    assert lam == pytest.approx(BRATU_FOLD / (1 + float(a)), abs=1e-10), note
