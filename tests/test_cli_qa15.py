@@ -98,3 +98,36 @@ def test_stretched_bratu_at_a_nonzero_finds_its_fold(a, tmp_path):
     (note,) = [ln for ln in res.stderr.splitlines() if ln.startswith("note: LP1: lam = ")]
     lam = float(note.split()[4])
     assert lam == pytest.approx(BRATU_FOLD / (1 + float(a)), abs=1e-10), note
+
+
+@pytest.mark.parametrize("a", ["1e6", "351", "-1"])
+def test_stretched_bratu_a_out_of_range_is_a_range_error(a, tmp_path):
+    """`contin trace stretched-bratu -s a=1e6` printed 'Error: the residual cannot be evaluated at the
+    start point (OverflowError: math range error)...'; now the range of a and why, before any computation."""
+    res = run(["trace", "stretched-bratu", "-s", f"a={a}", "--no-stability", "-q", "-o", str(tmp_path / "s.h5")])
+    err = one_error(res)
+    assert res.exit_code == 1 and err.startswith(f"Error: parameter a = {float(a):g} is out of range: it must be > -1"), err
+    assert "<= 350" in err and "overflows double precision beyond a = 354" in err and "Overflow" not in err, err
+    assert not (tmp_path / "s.h5").exists()
+
+
+def test_stretched_bratu_a_60_refines_past_a_saturated_estimate(tmp_path):
+    """`contin trace stretched-bratu -s a=60` (after the symmetry fix) ended with MX 'under-resolved at
+    lam = 0: estimated relative error 1 > tol 1e-10 does not fall with refinement (1 on grid 12, 1 on
+    grid 12)': an estimate of 1 resolves nothing yet and is no floor (contin.adapt.SATURATED_ESTIMATE)."""
+    from problems.demo import BRATU_FOLD
+
+    res = run(["trace", "stretched-bratu", "-s", "a=60", "--no-stability", "--stop-at", "LP1", "-o", str(tmp_path / "s.h5")])
+    assert res.exit_code == 0 and "does not fall" not in res.stderr, res.stderr
+    (note,) = [ln for ln in res.stderr.splitlines() if ln.startswith("note: LP1: lam = ")]
+    assert float(note.split()[4]) == pytest.approx(BRATU_FOLD / 61, abs=1e-12), note
+
+
+def test_stretched_bratu_problem_refuses_a_out_of_range():
+    from problems.demo import StretchedBratu
+
+    from contin.continuation import trace
+
+    pb = StretchedBratu("cheb", 24)
+    with pytest.raises(ValueError, match="a = 400 is out of range"):
+        trace(pb, pb.initial(), {"lam": 0.0, "a": 400.0}, "lam")
