@@ -324,7 +324,10 @@ def _known(name: str, defaults: Mapping[str, Any], scene: str) -> None:
 
 
 def scene_number(scene: str, name: str, value: Any) -> float:
-    """``value`` as a finite float; else a one-line SceneError naming the parameter and the scene."""
+    """``value`` as a finite float; else a one-line SceneError naming the parameter and the scene.
+    A boolean is no number (a sweep file's ``lam_min = [true]`` ran bratu at lam_min = 1, 'ok')."""
+    if isinstance(value, bool | np.bool_):
+        raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got the boolean {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):

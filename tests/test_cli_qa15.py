@@ -131,3 +131,12 @@ def test_stretched_bratu_problem_refuses_a_out_of_range():
     pb = StretchedBratu("cheb", 24)
     with pytest.raises(ValueError, match="a = 400 is out of range"):
         trace(pb, pb.initial(), {"lam": 0.0, "a": 400.0}, "lam")
+
+
+def test_sweep_with_a_boolean_for_a_number_is_a_failed_task_not_ok(tmp_path):
+    """A sweep file's `lam_min = [true]` ran bratu at lam_min = 1.0 and reported the task 'ok'."""
+    toml = tmp_path / "b.toml"
+    toml.write_text('[sweep]\nscene = "bratu"\n[grid]\nlam_min = [true]\n[options]\ngrid = 16\nstability = false\n')
+    res = run(["sweep", str(toml), "-o", str(tmp_path / "out"), "-j", "1"])
+    assert res.exit_code == 3, res.stderr
+    assert "error: parameter lam_min of scene 'bratu' must be a number, got the boolean True" in res.stderr, res.stderr
