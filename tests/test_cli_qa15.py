@@ -140,3 +140,19 @@ def test_sweep_with_a_boolean_for_a_number_is_a_failed_task_not_ok(tmp_path):
     res = run(["sweep", str(toml), "-o", str(tmp_path / "out"), "-j", "1"])
     assert res.exit_code == 3, res.stderr
     assert "error: parameter lam_min of scene 'bratu' must be a number, got the boolean True" in res.stderr, res.stderr
+
+
+def test_accuracy_with_a_repeated_method_or_grid_measures_each_once():
+    """`contin accuracy bratu --methods cheb,cheb --grids 16,24` ran each grid twice and its budget
+    table said 'not reached' for every budget (cheb 16 meets 1e-8), exit 0."""
+    import json
+
+    base = ["accuracy", "bratu", "--grids", "16,24", "--no-memory", "--no-plots", "--json", "-q"]
+    once = json.loads(run([*base, "--methods", "cheb"]).stdout)
+    twice = run([*base, "--methods", "cheb,cheb", "--grids", "16,24,16"])
+    assert twice.exit_code == 0, twice.stderr
+    doc = json.loads(twice.stdout)
+    assert [(r["method"], r["grid"]) for r in doc["rows"]] == [("cheb", 16), ("cheb", 24)]
+    assert [(r["target"], r["method"], r["grid"]) for r in doc["recommendations"]] == \
+        [(r["target"], r["method"], r["grid"]) for r in once["recommendations"]]
+    assert doc["recommendations"][0]["grid"] == 16
