@@ -101,7 +101,12 @@ class SceneRequest:
         ov = dict(self.overrides)
         step = base.step
         if "ds" in ov or "ds_max" in ov:
-            ds = abs(float(ov.get("ds", abs(step.ds)))) * (1.0 if step.ds >= 0 else -1.0)
+            # --ds-max alone below the scene's first step caps that step too: `contin trace bratu
+            # --ds-max 0.01` ended "Error: need ds_max >= |ds| >= ds_min > 0, got ds_max=0.01, ds=0.05"
+            first = abs(float(ov["ds"])) if "ds" in ov else min(abs(step.ds), float(ov["ds_max"]))
+            if "ds" in ov and "ds_max" in ov and first > float(ov["ds_max"]):
+                raise SceneError(f"--ds ({first:g}) must not exceed --ds-max ({float(ov['ds_max']):g})")
+            ds = first * (1.0 if step.ds >= 0 else -1.0)
             ds_max = float(ov.get("ds_max", max(step.ds_max, abs(ds))))
             step = dataclasses.replace(step, ds=ds, ds_max=ds_max,
                                        ds_min=min(step.ds_min, abs(ds)))

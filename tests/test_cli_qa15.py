@@ -7,6 +7,7 @@ Each test names the command that misbehaved before its fix.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -156,3 +157,24 @@ def test_accuracy_with_a_repeated_method_or_grid_measures_each_once():
     assert [(r["target"], r["method"], r["grid"]) for r in doc["recommendations"]] == \
         [(r["target"], r["method"], r["grid"]) for r in once["recommendations"]]
     assert doc["recommendations"][0]["grid"] == 16
+
+
+def test_ds_max_alone_below_the_first_step_caps_it(tmp_path):
+    """`contin trace bratu --ds-max 0.01` and `contin continue F --from LP1 --free a --ds-max 0.01`
+    ended with 'Error: need ds_max >= |ds| >= ds_min > 0, got ds_max=0.01, ds=0.05, ds_min=1e-08'
+    (the scene's first step 0.05 was kept above the cap)."""
+    from contin import io
+
+    out = tmp_path / "b.h5"
+    res = run(["trace", "bratu", "--ds-max", "0.01", "--max-steps", "5", "-q", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (b,), _ = io.load(out)
+    assert len(b) == 6 and float(np.max(b.ds)) <= 0.01 * (1 + 1e-6)  # the stored chord length
+    sb = tmp_path / "sb.h5"
+    assert run(["trace", "stretched-bratu", "--grid", "24", "--stop-at", "LP1", "--no-stability", "-q",
+                "-o", str(sb)]).exit_code == 0
+    res = run(["continue", str(sb), "--from", "LP1", "--free", "a", "--ds-max", "0.01", "--max-steps", "5",
+               "-o", str(tmp_path / "c.h5")])
+    assert res.exit_code == 0, res.stderr
+    err = one_error(run(["trace", "bratu", "--ds", "1", "--ds-max", "0.5", "-q", "-o", str(tmp_path / "x.h5")]))
+    assert err == "Error: --ds (1) must not exceed --ds-max (0.5)", err

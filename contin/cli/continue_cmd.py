@@ -130,7 +130,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
 
         options = ContinuationOptions()
     step = options.step
-    new_ds = ds if ds is not None else abs(step.ds)
+    # --ds-max alone below the run's first step caps it (it ended "need ds_max >= |ds| >= ds_min > 0")
+    new_ds = ds if ds is not None else min(abs(step.ds), ds_max if ds_max is not None else math.inf)
     new_max = ds_max if ds_max is not None else max(step.ds_max, new_ds)
     step = dataclasses.replace(step, ds=new_ds, ds_max=new_max, ds_min=min(step.ds_min, new_ds))
     run_bounds = {k: v for k, v in options.bounds.items() if k == first}
