@@ -178,3 +178,13 @@ def test_ds_max_alone_below_the_first_step_caps_it(tmp_path):
     assert res.exit_code == 0, res.stderr
     err = one_error(run(["trace", "bratu", "--ds", "1", "--ds-max", "0.5", "-q", "-o", str(tmp_path / "x.h5")]))
     assert err == "Error: --ds (1) must not exceed --ds-max (0.5)", err
+
+
+def test_max_grid_below_the_smallest_adaptive_grid_is_refused_by_the_option(tmp_path):
+    """`contin trace bratu --tol 1e-6 --max-grid 4` ended with 'Error: need 1 <= min_grid <= max_grid,
+    got min_grid=8, max_grid=4' (AdaptOptions' field check, naming a setting the user never gave)."""
+    from contin.options import AdaptOptions
+
+    res = run(["trace", "bratu", "--tol", "1e-6", "--max-grid", "4", "-q", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 2 and "min_grid" not in res.stderr, res.stderr
+    assert f"'--max-grid': 4 is not in the range x>={AdaptOptions().min_grid}" in res.stderr, res.stderr

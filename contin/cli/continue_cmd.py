@@ -29,6 +29,7 @@ from typing import Any
 import click
 
 from contin.cli._base import echo_err, echo_json, fail, fmt, main, special_points_table
+from contin.limits import MIN_MAX_GRID
 
 
 def parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
@@ -76,7 +77,7 @@ def _refuse_own_input(file: str, output: str) -> None:
                    "point); where it stops the curve, the curve continues on a finer grid from its last point "
                    "(segment-wise). Starts on the point's own grid (finer if the point misses REL there). Fold curves only "
                    "(LP; BP unfolded by NAME).")
-@click.option("--max-grid", type=click.IntRange(min=4), default=None, metavar="N",
+@click.option("--max-grid", type=click.IntRange(min=MIN_MAX_GRID), default=None, metavar="N",
               help="With --tol: the largest grid [default: the run's adaptive max_grid, else 512]; past it the "
                    "curve ends with MX.")
 @click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,

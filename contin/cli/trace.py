@@ -33,6 +33,7 @@ from contin.cli._runctl import (
     check_nonempty,
     sigterm_as_interrupt,
 )
+from contin.limits import MIN_MAX_GRID
 
 #: a finished branch is published at once when the time since the last publish is at least
 #: this many times that publish's duration (contin.io, "Crash safety"): publishing then takes at
@@ -237,7 +238,7 @@ def stability_messages(branch: Any) -> list[str]:
                    "chosen and changed along each branch to meet it [default for adaptive scenes without --grid: "
                    "the scene's (gPCF 3e-5, the resolution guard's; demos 1e-10); with --grid and no --tol the "
                    "grid is fixed].")
-@click.option("--max-grid", type=click.IntRange(min=4), default=None,
+@click.option("--max-grid", type=click.IntRange(min=MIN_MAX_GRID), default=None,
               help="Largest grid adaptive resolution may use [default 512]; past it a branch ends with MX.")
 @click.option("--special-tol", "special_tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None,
               metavar="REL",
