@@ -188,3 +188,66 @@ def test_max_grid_below_the_smallest_adaptive_grid_is_refused_by_the_option(tmp_
     res = run(["trace", "bratu", "--tol", "1e-6", "--max-grid", "4", "-q", "-o", str(tmp_path / "b.h5")])
     assert res.exit_code == 2 and "min_grid" not in res.stderr, res.stderr
     assert f"'--max-grid': 4 is not in the range x>={AdaptOptions().min_grid}" in res.stderr, res.stderr
+
+
+@pytest.fixture(scope="module")
+def allen_cahn_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("ac") / "ac.h5"
+    res = CliRunner().invoke(main, ["trace", "allen-cahn", "--max-steps", "20", "-q", "-o", str(path)],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.stderr
+    return path
+
+
+def _damaged(src, tmp_path, change):
+    import shutil
+
+    import h5py
+
+    path = tmp_path / "damaged.h5"
+    shutil.copy(src, path)
+    with h5py.File(path, "r+") as f:
+        change(f)
+    return str(path)
+
+
+def _replace(f, name, fn):
+    data = fn(f[name][()])
+    del f[name]
+    f[name] = data
+
+
+@pytest.mark.parametrize("change, expect", [
+    # `contin profiles` ended with numpy's "setting an array element with a sequence. The requested
+    # array has an inhomogeneous shape after 1 dimensions..." (info, diagram, verify said nothing)
+    (lambda f: _replace(f, "branches/0/profiles/u", lambda d: d[:, :5]),
+     "dataset branches/0/profiles/u has 5 columns, grid/y (the profiles' abscissa) has 33 nodes"),
+    (lambda f: _replace(f, "grid/y", lambda d: d[:5]),
+     "dataset branches/0/profiles/u has 33 columns, grid/y (the profiles' abscissa) has 5 nodes"),
+    # `contin info` ended with "Error: foo" (a KeyError); diagram, profiles and verify exit 0
+    (lambda f: f["branches/0"].attrs.__setitem__("parameter", "foo"),
+     "branch group branches/0 names the free parameter 'foo' (attributes parameter/free) but holds no such column"),
+])
+@pytest.mark.parametrize("command", [["info"], ["diagram", "-o", "{dir}/d.png"], ["profiles", "--at", "lam=1.5", "-o", "{dir}/p.png"],
+                                     ["verify", "--branch", "0"]])
+def test_damaged_profile_widths_and_parameter_names_are_one_error_line(allen_cahn_file, tmp_path, change, expect, command):
+    path = _damaged(allen_cahn_file, tmp_path, change)
+    args = [command[0], path, *[a.format(dir=tmp_path) for a in command[1:]]]
+    err = one_error(run(args))
+    assert err.startswith(f"Error: {path!r} is damaged: {expect}"), err
+
+
+def test_diagram_of_a_column_with_no_finite_value_says_so(allen_cahn_file, tmp_path):
+    """`contin diagram F --branch 0` of a branch whose phi is NaN everywhere (the file check allows an
+    observable NaN everywhere) wrote an empty figure, exit 0."""
+    import numpy as np
+
+    def nan_phi(f):
+        f["branches/0/phi"][...] = np.nan
+
+    path = _damaged(allen_cahn_file, tmp_path, nan_phi)
+    err = one_error(run(["diagram", path, "--branch", "0", "-o", str(tmp_path / "d.png")]))
+    assert err == f"Error: nothing to draw: no branch of {path} has a point with finite lam and phi", err
+    assert not (tmp_path / "d.png").exists()
+    res = run(["diagram", path, "-o", str(tmp_path / "all.png")])
+    assert res.exit_code == 0 and "warning: branch 0 has no point with finite lam and phi; it is not drawn" in res.stderr
