@@ -7,6 +7,9 @@ Each test names the command that misbehaved before its fix.
 
 from __future__ import annotations
 
+import math
+import re
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -251,3 +254,31 @@ def test_diagram_of_a_column_with_no_finite_value_says_so(allen_cahn_file, tmp_p
     assert not (tmp_path / "d.png").exists()
     res = run(["diagram", path, "-o", str(tmp_path / "all.png")])
     assert res.exit_code == 0 and "warning: branch 0 has no point with finite lam and phi; it is not drawn" in res.stderr
+
+
+@pytest.mark.parametrize("make, expect", [
+    # trace hung: ds = inf halved an infinite step forever (the CLI checked --ds, the library did not)
+    (lambda o: o.StepOptions(ds=math.inf, ds_max=math.inf), "StepOptions.ds must be finite"),
+    # every step failed with "residual is not finite at the predicted point" and RuntimeWarnings
+    (lambda o: o.StepOptions(theta=0.0), "StepOptions.theta"),
+    (lambda o: o.StepOptions(theta=math.nan), "StepOptions.theta"),
+    # the step never grew (no LP in 60 steps, exit EP) or could not shrink
+    (lambda o: o.StepOptions(grow=0.5), "StepOptions.grow must be a finite number >= 1"),
+    (lambda o: o.StepOptions(shrink=0.0), "StepOptions.shrink must lie in (0, 1)"),
+    (lambda o: o.StepOptions(newton_target=0), "StepOptions.newton_target must be >= 1"),
+    # tol = inf accepted; step_tol NaN / -1 failed every step as "no convergence in 12 iterations"
+    (lambda o: o.NewtonOptions(tol=math.inf), "NewtonOptions.tol must be a finite number > 0"),
+    (lambda o: o.NewtonOptions(step_tol=math.nan), "NewtonOptions.step_tol must be a finite number > 0"),
+    (lambda o: o.NewtonOptions(step_tol=-1.0), "NewtonOptions.step_tol must be a finite number > 0"),
+    # locate_tol = inf located bratu's LP 1.2e-10 off, NaN / -1 were accepted; max_bisections 0 ran
+    (lambda o: o.DetectionOptions(locate_tol=math.inf), "DetectionOptions.locate_tol must be a finite number > 0"),
+    (lambda o: o.DetectionOptions(locate_tol=-1.0), "DetectionOptions.locate_tol must be a finite number > 0"),
+    (lambda o: o.DetectionOptions(max_bisections=0), "DetectionOptions.max_bisections must be >= 1"),
+    (lambda o: o.ContinuationOptions(save_every=0), "save_every must be >= 1"),
+    (lambda o: o.ContinuationOptions(resolution_tol=math.inf), "resolution_tol must be > 0 and finite"),
+])
+def test_api_options_that_cannot_work_are_refused_by_name(make, expect):
+    import contin.options as o
+
+    with pytest.raises(ValueError, match=re.escape(expect)):
+        make(o)
