@@ -282,3 +282,9 @@ def test_api_options_that_cannot_work_are_refused_by_name(make, expect):
 
     with pytest.raises(ValueError, match=re.escape(expect)):
         make(o)
+
+
+def test_profiles_at_without_a_value_names_its_own_option(allen_cahn_file, tmp_path):
+    """`contin profiles F --at lam=` said "Invalid value for '-s': expected name=value" (profiles has no -s)."""
+    res = run(["profiles", str(allen_cahn_file), "--at", "lam=", "-o", str(tmp_path / "p.png")])
+    assert res.exit_code == 2 and "Invalid value for '--at': expected name=value, got 'lam='" in res.stderr, res.stderr
