@@ -176,6 +176,27 @@ class Antisymmetric:
     def apply(self, u: Array) -> Array:
         return np.asarray(self.s @ u)
 
+    def equivariance_defect(self, jac: Any, fp: Array) -> float:
+        """How far F is from equivariant at an S-invariant state: the larger of
+        max|S J S - J| / max|J| and max|S F_p - F_p| / max|F_p| (0 for an equivariant F up to
+        rounding).  A problem's ``symmetry`` can be one only at some parameters (stretched
+        Bratu's reflection only at a = 0): there the branch must not be treated as S-invariant."""
+        s = self.s
+        if sp.issparse(jac):
+            j = sp.csr_matrix(jac)
+            diff = sp.csr_matrix(s @ j @ s) - j  # S J S (S is its own inverse)
+            worst, scale_j = float(np.max(np.abs(diff.data), initial=0.0)), float(np.max(np.abs(j.data), initial=0.0))
+        else:
+            j = np.asarray(jac, dtype=float)
+            sjs = np.asarray(s.T @ np.asarray(s @ j).T).T  # (S J) S = ((S^T) (S J)^T)^T
+            worst, scale_j = float(np.max(np.abs(sjs - j), initial=0.0)), float(np.max(np.abs(j), initial=0.0))
+        out = worst / scale_j if scale_j > 0 else 0.0
+        fp = np.asarray(fp, dtype=float)
+        scale_p = float(np.max(np.abs(fp), initial=0.0))
+        if scale_p > 0:
+            out = max(out, float(np.max(np.abs(np.asarray(s @ fp) - fp))) / scale_p)
+        return out
+
     def is_invariant(self, u: Array, tol: float = 1e-8) -> bool:
         return float(np.max(np.abs(self.apply(u) - u), initial=0.0)) <= tol * max(1.0, float(np.max(np.abs(u), initial=0.0)))
 

@@ -184,3 +184,24 @@ def test_a_user_zero_next_to_a_fold_that_is_not_located_is_a_detection_gap():
     assert not br.points("UZ")
     gaps = [line for line in br.audit if "detection gap" in line]
     assert len(gaps) == 1 and f"lam={target!r}" in gaps[0] and "crossed twice and skipped" in gaps[0], br.audit
+
+
+def test_a_symmetry_that_holds_only_at_other_parameters_is_not_used():
+    """StretchedBratu inherited Bratu's reflection, a symmetry of F only at a = 0: the branch from the
+    reflection-invariant u = 0 symmetrized every Newton iterate at a = 0.5 and no step converged
+    (MX at lam = 2.4e-5).  The tracer now checks J and F_p for equivariance at the start
+    (contin.continuation.EQUIVARIANCE_TOL) and traces without the symmetry when it fails."""
+    from problems.demo import StretchedBratu
+
+    class ReflectedStretched(StretchedBratu):  # the defect: the reflection claimed at every a
+        symmetry = Bratu.symmetry
+
+    pb = ReflectedStretched("cheb", 24)
+    br = trace(pb, pb.initial(), {"lam": 0.0, "a": 0.5}, "lam", OPTS)
+    (lp,) = br.fold_points
+    assert lp.params["lam"] == pytest.approx(BRATU_FOLD / 1.5, abs=1e-9)
+    with pytest.raises(ValueError, match="symmetry is not one of F at these parameters"):
+        trace(pb, pb.initial(), {"lam": 0.0, "a": 0.5}, "lam", OPTS, symmetric=True)
+    # at a = 0 it is one, and the branch is traced as S-invariant as before
+    br0 = trace(pb, pb.initial(), {"lam": 0.0, "a": 0.0}, "lam", OPTS, symmetric=True)
+    assert br0.fold_points[0].params["lam"] == pytest.approx(BRATU_FOLD, abs=1e-9)
