@@ -205,3 +205,23 @@ def test_a_symmetry_that_holds_only_at_other_parameters_is_not_used():
     # at a = 0 it is one, and the branch is traced as S-invariant as before
     br0 = trace(pb, pb.initial(), {"lam": 0.0, "a": 0.0}, "lam", OPTS, symmetric=True)
     assert br0.fold_points[0].params["lam"] == pytest.approx(BRATU_FOLD, abs=1e-9)
+
+
+def test_the_diagram_stores_no_mirror_image_that_is_no_solution():
+    """contin.diagram stored the image of every non-invariant branch under the problem's symmetry
+    without tracing it: with a symmetry that is one of F only at other parameters (Bratu's
+    reflection claimed on StretchedBratu at a = 0.5) the image 0' was a "branch" whose states have
+    residual 9, exit 0.  The image's states are now checked (contin.overlap.image_defect)."""
+    from contin.diagram import bifurcation_diagram
+    from contin.newton import max_norm
+    from problems.demo import StretchedBratu
+
+    class ReflectedStretched(StretchedBratu):
+        symmetry = Bratu.symmetry
+
+    pb = ReflectedStretched("cheb", 24)
+    d = bifurcation_diagram(pb, pb.initial(), {"lam": 0.0, "a": 0.5}, "lam", OPTS)
+    assert not d.mirrors and [b.id for b in d.branches] == ["0"]
+    assert any("0': not stored as the image of 0: the problem's symmetry is not one of F" in s for s in d.skipped)
+    for b in d.branches:
+        assert max(max_norm(pb.residual(b.state(i), {"a": 0.5, "lam": b.params["lam"][i]})) for i in range(len(b))) < 1e-8
