@@ -288,3 +288,12 @@ def test_profiles_at_without_a_value_names_its_own_option(allen_cahn_file, tmp_p
     """`contin profiles F --at lam=` said "Invalid value for '-s': expected name=value" (profiles has no -s)."""
     res = run(["profiles", str(allen_cahn_file), "--at", "lam=", "-o", str(tmp_path / "p.png")])
     assert res.exit_code == 2 and "Invalid value for '--at': expected name=value, got 'lam='" in res.stderr, res.stderr
+
+
+def test_io_restart_with_a_non_string_label_is_a_type_error_naming_it(allen_cahn_file):
+    """`contin.io.restart(f, 5)` ended with "AttributeError: 'int' object has no attribute 'strip'"."""
+    from contin import io
+
+    with pytest.raises(TypeError, match=r"label must be a special-point label such as 'LP1' or 'BP2', got 5 \(int\)"):
+        io.restart(allen_cahn_file, 5)
+    assert io.restart(allen_cahn_file, "bp1").point.name == "BP1"
