@@ -297,3 +297,34 @@ def test_io_restart_with_a_non_string_label_is_a_type_error_naming_it(allen_cahn
     with pytest.raises(TypeError, match=r"label must be a special-point label such as 'LP1' or 'BP2', got 5 \(int\)"):
         io.restart(allen_cahn_file, 5)
     assert io.restart(allen_cahn_file, "bp1").point.name == "BP1"
+
+
+def test_sweep_resume_recomputes_a_damaged_or_stopped_task_file(tmp_path):
+    """`contin sweep s.toml -o out` after a task file lost its branch 0 (or carries stopped =
+    'interrupted') reused both as 'ok' from their sweep_task attribute: the summary claimed an LP
+    the damaged file no longer holds (every other command refuses that file)."""
+    import glob
+    import json
+
+    import h5py
+
+    toml = tmp_path / "s.toml"
+    toml.write_text('[sweep]\nscene = "bratu"\nrecord = ["LP", "EP"]\n[grid]\nlam_min = [0.0, 1.0]\n'
+                    '[options]\ngrid = 16\nstability = false\n')
+    out = tmp_path / "out"
+    assert run(["sweep", str(toml), "-o", str(out), "-j", "1", "-q"]).exit_code == 0
+    damaged, stopped = sorted(glob.glob(str(out / "tasks" / "*.h5")))
+    with h5py.File(damaged, "r+") as f:
+        del f["branches/0"]
+    with h5py.File(stopped, "r+") as f:
+        f.attrs["stopped"] = "interrupted"
+    res = run(["sweep", str(toml), "-o", str(out), "-j", "1"])
+    assert res.exit_code == 0, res.stderr
+    assert "0 from earlier runs" in res.stderr, res.stderr  # (the reason is a logged warning per file)
+    doc = json.loads((out / "summary.json").read_text())
+    assert [t["cached"] for t in doc["tasks"]] == [False, False]
+    from contin import io
+
+    for path in (damaged, stopped):
+        branches, _ = io.load(path)
+        assert [sp.type for sp in branches[0].special_points][:1] == ["LP"]
