@@ -36,6 +36,8 @@ regridding yet: asking for it raises :class:`NotAvailable`.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
@@ -198,6 +200,12 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     if tracer is None:
         raise NotAvailable(f"{point.name}: only {', '.join(sorted(CURVES))} points can be continued in two parameters, "
                            f"not {point.type}")
+    for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
+        # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)
+        lo, hi = options.bounds.get(name, (-math.inf, math.inf))
+        value = float(point.params[name])
+        if not lo <= value <= hi:
+            raise ValueError(f"start value {name}={value:g} of {point.name} lies outside its bounds ({lo:g}, {hi:g})")
     if point.state is None:
         raise ValueError(f"{point.name} has no stored state")
     kw: dict[str, Any] = {}

@@ -328,3 +328,23 @@ def test_sweep_resume_recomputes_a_damaged_or_stopped_task_file(tmp_path):
     for path in (damaged, stopped):
         branches, _ = io.load(path)
         assert [sp.type for sp in branches[0].special_points][:1] == ["LP"]
+
+
+def test_continue_from_a_hopf_point_outside_the_bounds_of_the_second_parameter_is_refused(tmp_path):
+    """`contin continue lz.h5 --from HB2 --free sigma --bounds sigma=20:30` from sigma = 10 stored a
+    Hopf curve with sigma from 5 to 20 ("reached bound sigma=20"), exit 0: points outside the bounds
+    asked for.  Fold curves checked the start against the bounds, Hopf (and BP) curves did not;
+    contin.twoparam.continue_point now checks both parameters for every curve kind."""
+    lz = tmp_path / "lz.h5"
+    assert run(["trace", "lorenz", "-q", "-o", str(lz)]).exit_code == 0
+    out = tmp_path / "c.h5"
+    err = one_error(run(["continue", str(lz), "--from", "HB2", "--free", "sigma", "--bounds", "sigma=20:30",
+                         "-o", str(out)]))
+    assert err == "Error: start value sigma=10 of HB2 lies outside its bounds (20, 30)", err
+    assert not out.exists()
+    res = run(["continue", str(lz), "--from", "HB2", "--free", "sigma", "--bounds", "sigma=5:30", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    from contin import io
+
+    (curve,), _ = io.load(out)
+    assert 5 - 1e-9 <= curve.params["sigma"].min() and curve.params["sigma"].max() <= 30 + 1e-9
