@@ -112,10 +112,12 @@ def trace_hopf_curve(
     """
     from contin.continuation import join, trace
 
+    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
+    if second in point.params and not lo <= float(point.params[second]) <= hi:  # as trace_fold_curve
+        raise ValueError(f"start value {second}={float(point.params[second]):g} lies outside its bounds ({lo:g}, {hi:g})")
     curve, start = hopf_curve_start(problem, point, second)
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
-    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
     bounded = math.isfinite(lo) or math.isfinite(hi)
     if bounded:
         opts = replace(opts, events={**opts.events, **_second_bound_event(curve, second, lo, hi)})
