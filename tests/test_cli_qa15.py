@@ -348,3 +348,26 @@ def test_continue_from_a_hopf_point_outside_the_bounds_of_the_second_parameter_i
 
     (curve,), _ = io.load(out)
     assert 5 - 1e-9 <= curve.params["sigma"].min() and curve.params["sigma"].max() <= 30 + 1e-9
+
+
+def test_a_curve_that_starts_on_a_bound_stays_inside_it(tmp_path):
+    """A two-parameter curve whose start lies on a bound of the second parameter: the half that leaves
+    through that bound was never cut (the bound event min(p2 - lo, hi - p2) is 0 at the start, so no
+    sign change), exit 0 with points outside the bounds asked for:
+    `contin continue lz.h5 --from HB2 --free sigma --bounds sigma=10:30` stored sigma down to 5, and
+    `contin continue sb.h5 --from LP1 --free a --bounds a=0:2` (LP1 at a = 0) stored a down to -0.12."""
+    from contin import io
+
+    lz, sb = tmp_path / "lz.h5", tmp_path / "sb.h5"
+    assert run(["trace", "lorenz", "-q", "-o", str(lz)]).exit_code == 0
+    assert run(["trace", "stretched-bratu", "--grid", "24", "--stop-at", "LP1", "--no-stability", "-q",
+                "-o", str(sb)]).exit_code == 0
+    for src, label, name, lo, hi in ((lz, "HB2", "sigma", 10.0, 30.0), (sb, "LP1", "a", 0.0, 2.0)):
+        out = tmp_path / f"{label}.h5"
+        res = run(["continue", str(src), "--from", label, "--free", name, "--bounds", f"{name}={lo:g}:{hi:g}",
+                   "--max-steps", "40", "-o", str(out)])
+        assert res.exit_code == 0, res.stderr
+        (curve,), _ = io.load(out)
+        values = curve.params[name]
+        assert lo - 1e-9 <= values.min() and values.max() <= hi + 1e-9, (label, values.min(), values.max())
+        assert f"reached bound {name}={lo:g}" in curve.message, curve.message
