@@ -448,6 +448,10 @@ def _weakrefable(obj: Any) -> bool:
 #: Jacobian's own error, and the limit is the precise residual's floor.
 PRECISE_REFINEMENTS = 2
 
+#: A relative error estimate this large says the grid resolves nothing yet (a layer narrower than
+#: its nodes): refinement that does not halve it has found no floor (:meth:`Adaptor.refine`).
+SATURATED_ESTIMATE = 0.5
+
 
 def precise_residual(problem: Any, u: Array, p: Any, tol: float) -> Any:
     """``f(x) -> F(x, p)`` evaluated by the problem's optional ``precise_residual`` hook (the same
@@ -940,7 +944,11 @@ class Adaptor:
         self._state_refine = (count, err, int(sys.problem.grid_size))
         # (``measured``: a special point's measured position, whose progress special_refinable
         # judged -- MEASURED_FALL, not halving)
-        if not measured and last is not None and last[0] == count and err > 0.5 * last[1]:
+        # (an estimate of SATURATED_ESTIMATE or more resolves nothing yet: it cannot fall until a
+        # grid resolves the state, so it is no floor -- stretched-bratu a = 60 stopped at "1 on grid 12,
+        # 1 on grid 12"; refinement goes on, bounded by max_grid)
+        if (not measured and last is not None and last[0] == count and err > 0.5 * last[1]
+                and last[1] < SATURATED_ESTIMATE):
             self.stalled = True  # the tracer first retries with a shorter step (see trace)
             return (f"under-resolved at {sys.parameter} = {cur.x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                     f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import logging
 import math
+import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
@@ -56,7 +57,7 @@ from contin.predictor import secant, tangent
 from contin.problem import Array, has, require_protocol
 from contin.stepsize import angle, next_step, reduced_step
 from contin.switching import departures, first_step_options, prepend
-from contin.testfunctions import Antisymmetric, TestValues, bp_value, detrended
+from contin.testfunctions import Antisymmetric, TestValues, bp_value, detrended, sign_change
 
 __all__ = ["NewtonResult", "newton", "relabel", "switch", "trace", "trace_both"]
 
@@ -130,6 +131,9 @@ class _Tracer:
         # Adaptive runs: (kind, a, b) -> estimate if the kernel of an LP/BP bracketed by a, b is
         # under-resolved on the grid in force (contin.adapt.Adaptor.pre_locate), else None.
         self.pre_locate: Callable[[str, _Point, _Point], float | None] | None = None
+        # audit lines of detection gaps (DETECTION_GAP) of the step detect() saw last, and its end
+        self._gaps: list[str] = []
+        self._gap_point: _Point | None = None
 
     def use_system(self, system: ExtendedSystem, anti: Antisymmetric | None) -> None:
         """Continue on ``system`` (the problem on another grid, ``contin.adapt``): its symmetry
@@ -180,39 +184,45 @@ class _Tracer:
         """Special points in the step from a to b (b is not yet appended; a is point ``index``),
         and the BPs among them that their location does not confirm (point, reason, audit
         line): a sign change of a BP test function without a BP, where the step may have
-        jumped onto another branch.  Empty unless ``detection.retry_unconfirmed_bp``."""
+        jumped onto another branch.  Empty unless ``detection.retry_unconfirmed_bp``.
+
+        Signs are compared by :func:`contin.testfunctions.sign_change`: a test value that is not
+        finite at a or b gives no special point and a :data:`DETECTION_GAP` line in the audit.
+        A user zero of the continuation parameter crossed twice in one step (the step turned at
+        a fold: p - value has the same sign at both ends) is located on both sides of the
+        located LP; if the fold was not located, the audit says such zeros may have been skipped.
+        """
         found: list[tuple[float, SpecialPoint]] = []
         unconfirmed: list[Unconfirmed] = []
         sys = self.system
-        s_b = math.nan  # <a.t, b.x - a.x>, computed at the first sign change
-        tests: list[tuple[str, str, Any, PointTest | None]] = [(k, nt, f, None) for k, nt, f in self._test_functions()]
-        for pt in self.point_tests:
-            tests.extend((pt.kind, note, lambda v, g=g, name=pt.name: g(v.extra[name]), pt)
-                         for note, g in pt.crossings(a.tests.extra[pt.name], b.tests.extra[pt.name]))
-        for kind, note, fn, point_test in tests:
+        det = self.options.detection
+        s_end = [math.nan]  # <a.t, b.x - a.x>, computed at the first sign change
+
+        def s_of_b() -> float:
+            if math.isnan(s_end[0]):
+                s_end[0] = sys.dot(a.t, b.x - a.x)
+            return s_end[0]
+
+        fold_at: list[tuple[float, _Point]] = []  # (s, point) of an LP located in this step
+
+        def locate_one(kind: str, note: str, fn: Any, point_test: PointTest | None,
+                       lo: tuple[float, _Point] | None = None, hi: tuple[float, _Point] | None = None) -> None:
+            """Locate the zero of ``fn`` between lo and hi ((s, point); default a and b)."""
             va, vb = fn(a.tests), fn(b.tests)
             if isinstance(va, tuple):
-                if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
-                    continue
-                if math.isnan(s_b):
-                    s_b = sys.dot(a.t, b.x - a.x)
                 # (sign, log) with its exponential trend across the step taken out
                 # (testfunctions.detrended: an underflow is never a zero)
-                trend = detrended(va, vb, s_b)
+                trend = detrended(va, vb, s_of_b())
 
                 def g_of(v: TestValues, s: float, fn: Any = fn, trend: Any = trend) -> float:
                     return trend(fn(v), s)
             else:
-                if va == 0 or vb == 0 or (va > 0) == (vb > 0):
-                    continue
-
                 def g_of(v: TestValues, s: float, fn: Any = fn) -> float:
                     return float(fn(v))
 
-            if math.isnan(s_b):
-                s_b = sys.dot(a.t, b.x - a.x)
-            sa, sb = Sample(0.0, g_of(a.tests, 0.0), a), Sample(s_b, g_of(b.tests, s_b), b)
-            det = self.options.detection
+            lo = lo if lo is not None else (0.0, a)
+            hi = hi if hi is not None else (s_of_b(), b)
+            sa, sb = Sample(lo[0], g_of(lo[1].tests, lo[0]), lo[1]), Sample(hi[0], g_of(hi[1].tests, hi[0]), hi[1])
             tol = det.locate_tol * max(1.0, abs(b.x[-1]))
             if det.locate and point_test is None and self.pre_locate is not None:
                 # Refine before locating rather than locating on a grid that does not resolve
@@ -220,6 +230,7 @@ class _Tracer:
                 err = self.pre_locate(kind, a, b)
                 if err is not None:
                     raise _RefineFirst(kind, err)
+            res = None
             if det.locate:
 
                 def evaluate(s: float, g_of: Any = g_of) -> Sample[_Point] | None:
@@ -244,7 +255,9 @@ class _Tracer:
                                   interpolate=interpolate if point_test is None and kind == "BP" else None)
                 best, converged, s_best = res.best.point, res.converged, res.best.s
             else:
-                best, converged, s_best = b, False, s_b
+                best, converged, s_best = hi[1], False, hi[0]
+            if kind == "LP" and converged:
+                fold_at.append((s_best, best))
             full_note = note
             if not converged:
                 full_note = (note + "; " if note else "") + "location did not converge"
@@ -257,6 +270,7 @@ class _Tracer:
                     full_note = (note + "; " if note else "") + f"location did not converge ({outside})"
             why = None
             if kind == "BP" and det.locate and det.retry_unconfirmed_bp:
+                assert res is not None
                 why = "location did not converge" if not converged else self._unconfirmed(a, b, best, res.best.g)
             sp = SpecialPoint(
                 type=kind,
@@ -279,6 +293,51 @@ class _Tracer:
             if why is not None:
                 line = f"{note + ' ' if note else ''}BP test function changed sign at {sys.parameter}={best.x[-1]:.10g} but {why}"
                 unconfirmed.append((sp, why, line))
+
+        self._gaps, self._gap_point = [], b  # written to the audit if b is appended (append)
+
+        def gap(what: str) -> None:
+            line = f"step to point {index + 1}: {sys.parameter}={b.x[-1]:.10g} {DETECTION_GAP}: {what}"
+            if line not in self._gaps:
+                self._gaps.append(line)
+
+        def not_finite(what: str, va: Any, vb: Any) -> None:
+            where = " and ".join(f"point {k} ({sys.parameter}={x[-1]:.10g})"
+                                 for k, x, v in ((index, a.x, va), (index + 1, b.x, vb)) if sign_change(v, v) is None)
+            gap(f"the {what} test function was not finite at {where}; no special point of it can be "
+                f"detected across this step")
+
+        for kind, note, fn in self._test_functions():
+            va, vb = fn(a.tests), fn(b.tests)
+            changed = sign_change(va, vb)
+            if changed is None:
+                not_finite(f"{note + ' ' if note else ''}{kind}", va, vb)
+            elif changed:
+                locate_one(kind, note, fn, None)
+        for pt in self.point_tests:
+            va, vb = a.tests.extra[pt.name], b.tests.extra[pt.name]
+            if any(isinstance(v, numbers.Real) and sign_change(v, v) is None for v in (va, vb)):
+                not_finite(f"{pt.kind} {pt.name}", va, vb)
+                continue
+            for note, g in pt.crossings(va, vb):
+                locate_one(pt.kind, note, lambda v, g=g, name=pt.name: g(v.extra[name]), pt)
+            turning = getattr(pt, "turning_crossings", None)
+            if turning is None or sign_change(a.tests.fold, b.tests.fold) is not True:
+                continue
+            # the step turned at a fold: a value between the ends' and the fold's is crossed twice,
+            # p - value has the same sign at both ends (a UZ 1e-8 below bratu's lam* was missed)
+            if fold_at:
+                s_f, f_pt = fold_at[0]
+                for note, g in turning(va, vb, pt.value(sys, f_pt.x)):
+                    fn = (lambda v, g=g, name=pt.name: g(v.extra[name]))
+                    locate_one(pt.kind, note, fn, pt, hi=(s_f, f_pt))
+                    locate_one(pt.kind, note, fn, pt, lo=(s_f, f_pt))
+            else:
+                reach = 2.0 * sys.norm(b.x - a.x)
+                near = pt.beyond(va, vb, reach) if hasattr(pt, "beyond") else []
+                if near:
+                    gap(f"the step turned at a fold that was not located, so the {pt.kind} values "
+                        f"{', '.join(near)} beyond both its ends may have been crossed twice and skipped")
         return [sp for _, sp in sorted(found, key=lambda f: f[0])], unconfirmed
 
     def jumped(self, a: _Point, b: _Point, direction: Array, ds: float) -> str | None:
@@ -318,6 +377,10 @@ class _Tracer:
         return None
 
     def append(self, pt: _Point, ds: float, iterations: int) -> None:
+        if pt is self._gap_point:  # the detection gaps of the step that ends at pt (a rejected step's go)
+            self.audit.extend(line for line in self._gaps if line not in self.audit)
+            del self.audit[MAX_AUDIT:]
+        self._gaps, self._gap_point = [], None
         self.points.append(pt)
         self.ds.append(ds)
         self.iterations.append(iterations)
@@ -393,8 +456,20 @@ class _Tracer:
         ))
 
 
-def _symmetry(problem: Any, u: Array, symmetric: bool | None) -> Antisymmetric | None:
-    """The antisymmetric-subspace helper if the branch is to be treated as S-invariant."""
+#: Largest :meth:`Antisymmetric.equivariance_defect` of a problem whose symmetry is one at the
+#: start point (rounding and finite-difference Jacobians stay far below; a symmetry that holds
+#: only at other parameters is far above: stretched Bratu at a = 0.5 on cheb 24, 1e-2).
+EQUIVARIANCE_TOL = 1e-6
+
+
+def _symmetry(problem: Any, u: Array, symmetric: bool | None,
+              params: Mapping[str, float] | None = None, parameter: str | None = None) -> Antisymmetric | None:
+    """The antisymmetric-subspace helper if the branch is to be treated as S-invariant.
+
+    With ``params`` and ``parameter``: S must also be a symmetry of F there (J and F_p
+    equivariant at the invariant start state, :meth:`Antisymmetric.equivariance_defect`); a
+    problem's ``symmetry`` that holds only at other parameters symmetrized every Newton iterate
+    of the branch, and no step converged (ValueError when ``symmetric=True``, else None)."""
     if symmetric is False:
         return None
     anti = Antisymmetric.from_problem(problem, u.size)
@@ -407,6 +482,15 @@ def _symmetry(problem: Any, u: Array, symmetric: bool | None) -> Antisymmetric |
         raise ValueError("symmetric=True but the start state is not invariant under the problem's symmetry")
     if not invariant or anti.dimension == 0:
         return None
+    if params is not None and parameter is not None:
+        with np.errstate(all="ignore"):
+            defect = anti.equivariance_defect(problem.jacobian(u, params), problem.dresidual_dp(u, params, parameter))
+        if not defect <= EQUIVARIANCE_TOL:
+            if symmetric:
+                raise ValueError(f"symmetric=True but the problem's symmetry is not one of F at these parameters "
+                                 f"(relative defect {defect:.2g} of J or dF/d{parameter})")
+            log.info("symmetry not used: F is not equivariant at the start (defect %.2g)", defect)
+            return None
     return anti
 
 
@@ -430,18 +514,20 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
 #: range next to a BP); the command line shows these lines as warnings (``contin.cli.trace``).
 ACCEPTED_ABOVE_TOL = "accepted by its estimate"
 
+#: Marks an audit line of a step across which a special point may have been missed (a test
+#: function not finite at one end, a user zero crossed twice next to a fold that was not
+#: located); the command line shows these lines as warnings (``contin.cli.trace``).
+DETECTION_GAP = "detection gap"
+
 #: Stored points a retreat re-solves on the finer grid at most (``trace``'s retreat_behind).
 MAX_RETREAT = 20
 
 
 def _sign_changed(a: Any, b: Any) -> bool:
     """Whether two values of a test function (a float, or a (sign, log) pair) have opposite,
-    nonzero signs."""
-    sa = a[0] if isinstance(a, tuple) else a
-    sb = b[0] if isinstance(b, tuple) else b
-    if sa is None or sb is None or sa == 0 or sb == 0 or not (math.isfinite(sa) and math.isfinite(sb)):
-        return False
-    return (sa > 0) != (sb > 0)
+    nonzero signs (:func:`contin.testfunctions.sign_change`; a value that is not finite is no
+    change here, and ``_Tracer.detect`` says so in the audit)."""
+    return sign_change(a, b) is True
 
 
 def _guard_status(message: str) -> str:
@@ -595,7 +681,7 @@ def trace(
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
         say(msg)
         return tracer.build(parameter, "MX", msg, False, n, **meta)
-    anti = _symmetry(problem, start.u, symmetric)
+    anti = _symmetry(problem, start.u, symmetric, system.params, parameter)
     tracer.anti = anti
     x0 = system.pack(anti.symmetrize(start.u) if anti is not None else start.u, p0)
     # With adaptive resolution its estimate replaces the fixed-grid guard.

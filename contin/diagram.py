@@ -40,7 +40,8 @@ from contin.branch import Branch, SpecialPoint, relabel
 from contin.continuation import switch, trace
 from contin.jumps import restep, retrace_on_jumps, trace_both_ways
 from contin.options import ContinuationOptions
-from contin.overlap import Coordinates, StateCoordinates, is_invariant, lies_on, mirror_branch, near, params_at
+from contin.overlap import (Coordinates, StateCoordinates, image_defect, is_invariant, lies_on, mirror_branch, near,
+                            params_at)
 from contin.seeds import Seed
 
 log = logging.getLogger("contin")
@@ -186,6 +187,10 @@ def bifurcation_diagram(problem: Any, u0: Array, params: Mapping[str, float], pa
         if symmetric and len(b) > 0 and not is_invariant(problem, b):
             mid = mirror_id(b.id)
             m = hooks.completed.get(mid) or mirror_branch(problem, b, params, mid)
+            bad = None if mid in hooks.completed else image_defect(problem, b, m, params)
+            if bad is not None:  # not a branch of solutions: not stored (and traced where a BP leads to it)
+                out.skipped.append(f"{mid}: not stored as the image of {b.id}: {bad}")
+                return
             twin = next((k for k in out.branches if lies_on(m, k, coords, settings.tol, settings.fraction)), None)
             if twin is None:
                 out.branches.append(m)

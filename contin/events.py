@@ -49,6 +49,22 @@ class ParameterZeros:
                 out.append((f"{self.parameter}={_exact(target)}", lambda v, t=target: float(v) - t))
         return out
 
+    def turning_crossings(self, va: float, vb: float, v_turn: float) -> list[Crossing]:
+        """The values crossed twice in a step that turned at a fold where the parameter is
+        ``v_turn``: between the ends' side and the fold's (p - value has one sign at both ends);
+        the tracer locates each on both sides of the fold."""
+        out: list[Crossing] = []
+        for target in self.values:
+            if (va - target) * (vb - target) > 0 and (v_turn - target) * (va - target) < 0:
+                out.append((f"{self.parameter}={_exact(target)}", lambda v, t=target: float(v) - t))
+        return out
+
+    def beyond(self, va: float, vb: float, reach: float) -> list[str]:
+        """The values beyond both ends of a step (on either side) by at most ``reach``: those a
+        fold inside the step that was not located may hide."""
+        lo, hi = min(va, vb), max(va, vb)
+        return [f"{self.parameter}={_exact(t)}" for t in self.values if lo - reach <= t < lo or hi < t <= hi + reach]
+
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
         note = sp.note.split(";")[0]
         target = float(note.split("=", 1)[1]) if "=" in note else math.nan
@@ -68,10 +84,9 @@ class Event:
         return f"event:{self.label}"
 
     def value(self, system: Any, x: Array) -> float:
-        v = float(self.g(x[:-1], system.params_at(x[-1])))
-        if math.isnan(v):
-            raise ValueError(f"event {self.label!r} returned NaN at {system.parameter}={x[-1]:g}")
-        return v
+        # NaN is returned, not raised: the whole trace ended in a ValueError at the first point
+        # where g was NaN (all of it lost); the tracer's detection says where g was not finite
+        return float(self.g(x[:-1], system.params_at(x[-1])))
 
     def crossings(self, va: float, vb: float) -> list[Crossing]:
         if va == 0 or vb == 0 or (va > 0) == (vb > 0):

@@ -63,6 +63,10 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
     s = len(branch)
     what = f"branch {branch.id!r} ({s} points by its ds column)"
     free = set(branch.free) | {branch.parameter}
+    missing = sorted(free - set(branch.params))
+    if missing:  # `contin info` ended with "Error: foo" (a KeyError) for parameter = 'foo'
+        raise BadDataset(f"branch group {group} names the free parameter {missing[0]!r} (attributes parameter/free) "
+                         f"but holds no such column; its parameters are {', '.join(branch.params)}")
     _finite(f"{group}/ds", branch.ds)
     for kind, table in (("params", branch.params), ("observables", branch.observables)):
         for name, values in table.items():
@@ -116,6 +120,20 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
             if name != "index":
                 _rows(f"{group}/profiles/{name}", arr, idx.size, f"dataset {group}/profile_index")
                 _finite(f"{group}/profiles/{name}", arr)
+
+
+def check_profile_widths(where: str, profiles: Mapping[str, Any], y: Any) -> None:
+    """Raise :class:`BadDataset` if a profile (rows of values on ``grid/y``) is not len(y) wide:
+    `contin profiles` ended with numpy's "setting an array element with a sequence. The requested
+    array has an inhomogeneous shape ..." for a profiles dataset of 5 columns against 33 nodes."""
+    if y is None:
+        return
+    n = np.asarray(y).size
+    for name, arr in profiles.items():
+        a = np.asarray(arr)
+        if name != "index" and a.ndim == 2 and a.shape[1] != n:
+            raise BadDataset(f"dataset {where}/{name} has {a.shape[1]} columns, grid/y (the profiles' abscissa) "
+                             f"has {n} nodes")
 
 
 def check_profile_grid(y: Any) -> None:

@@ -578,7 +578,9 @@ def trace_augmented(augmented: object, start: Array, point: SpecialPoint, second
                            direction=direction, tangent=tangent, branch_id=branch_id, kind=kind, regrid=regrid,
                            checks=checks, start_tangent=first)
         halves.append(half)
-        if half.closed or (mirror_start and len(half) < 2):  # nothing to mirror: no second half
+        # nothing to mirror without a start tangent; a first half of the start point alone (it starts on a
+        # bound of `second` and leaves through it, cut there) still has one (qa15: it ended the curve)
+        if half.closed or (mirror_start and not first):
             break
     from contin.continuation import join
 

@@ -161,13 +161,15 @@ def trace_hopf_curve(
     """
     from contin.continuation import join, trace
 
+    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
+    if second in point.params and not lo <= float(point.params[second]) <= hi:  # as trace_fold_curve
+        raise ValueError(f"start value {second}={float(point.params[second]):g} lies outside its bounds ({lo:g}, {hi:g})")
     curve, start_vector = hopf_curve_start(problem, point, second) if start is None else start
     curve.generalized_hopf = (not has(problem, "eigenproblem")) if generalized_hopf is None else bool(generalized_hopf)
     curve.zero_hopf = not has(problem, "eigenproblem")
     curve.base_hopf = hopf_test(problem, options.detection, curve.n)
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
-    lo, hi = options.bounds.get(second, (-math.inf, math.inf))
     bounded = math.isfinite(lo) or math.isfinite(hi)
     if bounded:
         opts = replace(opts, events={**opts.events, **_second_bound_event(curve, second, lo, hi)})
@@ -196,7 +198,7 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float,
     tag = f"bound of {second}"
     hits = [s for s in branch.special_points if s.type == "UZ" and s.note.startswith(tag)]
     if not hits:
-        return branch
+        return _stop_outside(branch, second, lo, hi, 3 * curve.n + 1 if index is None else index)
     uz = min(hits, key=lambda s: s.index)
     i = uz.index
     n_keep = i + 1
@@ -239,6 +241,36 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float,
         state_index=state_index,
     )
     return cut
+
+
+def _stop_outside(branch: Branch, second: str, lo: float, hi: float, j: int) -> Branch:
+    """The branch up to its last point inside [lo, hi] in ``second`` (state entry ``j``), ending
+    there with EP, when a point beyond a bound was stored without a located crossing: a half that
+    starts on a bound and leaves through it (the bound event min(p2 - lo, hi - p2) is 0 at the
+    start, so no sign change is seen).  `contin continue F --from LP1 --free a --bounds a=0:2` from
+    a = 0 stored a down to -0.12, and the Hopf curve of lorenz's HB2 with sigma=10:30 sigma down
+    to 5, exit 0 (qa15)."""
+    from contin.overlap import slice_branch
+
+    if branch.state_index is not None or len(branch) == 0:
+        return branch
+    p2 = branch.states[:, j]
+    slack = 1e-9 * max(1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0)
+    outside = np.flatnonzero((p2 < lo - slack) | (p2 > hi + slack))
+    if outside.size == 0:
+        return branch
+    k = int(outside[0])
+    if k == 0:  # the start itself lies outside: the callers refuse that before tracing
+        raise ValueError(f"start value {second}={p2[0]:g} lies outside its bounds ({lo:g}, {hi:g})")
+    cut = slice_branch(branch, 0, k - 1)
+    last = k - 1
+    at = float(p2[last])
+    end = SpecialPoint(type="EP", index=last, params={name: float(v[last]) for name, v in cut.params.items()},
+                       order_parameter=float(cut.observables.get("phi", np.full(k, math.nan))[last]),
+                       state=cut.states[last].copy(), tangent=cut.tangents[last].copy(),
+                       note=f"reached bound {second}={at:g}")
+    return replace(cut, special_points=[sp_ for sp_ in cut.special_points if sp_.type not in ("EP", "MX")] + [end],
+                   status="EP", message=f"reached bound {second}={at:g}")
 
 
 def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:

@@ -103,7 +103,8 @@ import numpy as np
 from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
-from contin.filecheck import BadDataset, check_branch, check_profile_grid, check_special_point, first_bad_row
+from contin.filecheck import (BadDataset, check_branch, check_profile_grid, check_profile_widths, check_special_point,
+                              first_bad_row)
 from contin.jsonout import dumps as _json_dumps
 from contin.options import AdaptOptions, ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
 
@@ -872,10 +873,13 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                         prof[name.replace("%2F", "/")] = ds[()]
                     profiles[b.id] = prof
                 check_branch(g.name.lstrip("/"), b, json.loads(g.attrs["datasets"]), prof)
+                if prof:
+                    check_profile_widths(f"{g.name.lstrip('/')}/profiles", prof, meta["y"])
             meta["profiles"] = profiles
             sp_group = f["special_points"]
             if "profiles" in sp_group:
                 meta["special_point_profiles"] = {n.replace("%2F", "/"): d[()] for n, d in sp_group["profiles"].items()}
+                check_profile_widths("special_points/profiles", meta["special_point_profiles"], meta["y"])
             for row, (pos, bid, sp) in enumerate(_read_special_points(sp_group)):
                 if not 0 <= pos < len(branches) or branches[pos].id != bid:
                     raise FileFormatError(f"{str(p)!r} is damaged: special point {sp.name} names a missing branch {bid!r}")

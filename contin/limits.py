@@ -16,3 +16,6 @@ MAX_ABS_KX = 1e4
 MAX_KX = 10_000
 #: most extra wavenumbers of ``trace --kx`` / a sweep's ``kx`` (each one is a stability pass over every branch)
 MAX_TRACE_KX = 32
+#: smallest --max-grid: the smallest grid adaptive resolution may choose (AdaptOptions.min_grid;
+#: `--max-grid 4` ended "need 1 <= min_grid <= max_grid, got min_grid=8, max_grid=4")
+MIN_MAX_GRID = 8

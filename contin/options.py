@@ -68,8 +68,12 @@ class NewtonOptions:
 
     def __post_init__(self) -> None:
         _check_field_types(self)
-        if not self.tol > 0:
-            raise ValueError(f"NewtonOptions.tol must be > 0, got {self.tol}")
+        # finite: tol = inf accepted any residual, step_tol = NaN or -1 failed every step as
+        # "no convergence" (qa15)
+        for name in ("tol", "step_tol"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"NewtonOptions.{name} must be a finite number > 0, got {v}")
         if self.max_iterations < 1:
             raise ValueError(f"NewtonOptions.max_iterations must be >= 1, got {self.max_iterations}")
 
@@ -102,6 +106,20 @@ class StepOptions:
             raise ValueError(
                 f"need ds_max >= |ds| >= ds_min > 0, got ds_max={self.ds_max}, ds={self.ds}, ds_min={self.ds_min}"
             )
+        # each a clear error, not a hang (ds = inf looped forever halving an infinite step) nor a
+        # run that never grows its step or fails at the first one (qa15: the CLI checked ds, the
+        # library did not)
+        if not math.isfinite(self.ds):
+            raise ValueError(f"StepOptions.ds must be finite, got {self.ds}")
+        if not (math.isfinite(self.theta) and self.theta > 0):
+            raise ValueError(f"StepOptions.theta (the parameter's weight in the arclength norm) must be a finite "
+                             f"number > 0, got {self.theta}")
+        if not self.grow >= 1 or not math.isfinite(self.grow):
+            raise ValueError(f"StepOptions.grow must be a finite number >= 1, got {self.grow}")
+        if not 0 < self.shrink < 1:
+            raise ValueError(f"StepOptions.shrink must lie in (0, 1), got {self.shrink}")
+        if self.newton_target < 1:
+            raise ValueError(f"StepOptions.newton_target must be >= 1, got {self.newton_target}")
         if self.predictor not in ("tangent", "secant"):
             raise ValueError(f"predictor must be 'tangent' or 'secant', got {self.predictor!r}")
         if not 0 < self.max_angle < math.pi / 2:
@@ -166,6 +184,10 @@ class DetectionOptions:
 
     def __post_init__(self) -> None:
         _check_field_types(self)
+        if not (math.isfinite(self.locate_tol) and self.locate_tol > 0):  # inf located LPs 1e-10 off, silently
+            raise ValueError(f"DetectionOptions.locate_tol must be a finite number > 0, got {self.locate_tol}")
+        if self.max_bisections < 1:
+            raise ValueError(f"DetectionOptions.max_bisections must be >= 1, got {self.max_bisections}")
         if self.hopf_eigs < 2 or self.hopf_dense_max < 2:
             raise ValueError(f"hopf_eigs and hopf_dense_max must be >= 2, got {self.hopf_eigs}, {self.hopf_dense_max}")
         if self.bp_eigenvalues is not None and self.bp_eigenvalues < 0:
@@ -331,8 +353,11 @@ class ContinuationOptions:
                 raise ValueError(f"event {name!r} must be a callable g(u, p) -> float")
         if self.max_steps < 1:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
-        if self.resolution_tol is not None and not self.resolution_tol > 0:
-            raise ValueError(f"resolution_tol must be > 0 (or None to switch the guard off), got {self.resolution_tol}")
+        if self.resolution_tol is not None and not (math.isfinite(self.resolution_tol) and self.resolution_tol > 0):
+            raise ValueError(f"resolution_tol must be > 0 and finite (or None to switch the guard off), "
+                             f"got {self.resolution_tol}")
+        if self.save_every < 1:
+            raise ValueError(f"save_every must be >= 1, got {self.save_every}")
         if not isinstance(self.bounds, dict):
             raise TypeError(f"bounds must be a dict {{name: (lo, hi)}}, got {type(self.bounds).__name__}")
         pairs = {}

@@ -257,6 +257,28 @@ def mirror_branch(problem: Any, branch: Branch, params: Mapping[str, float], bra
         eigenvalues=None if branch.eigenvalues is None else branch.eigenvalues.copy())
 
 
+def image_defect(problem: Any, branch: Branch, image: Branch, params: Mapping[str, float]) -> str | None:
+    """Why the image of ``branch`` under the problem's symmetry is no branch of solutions (None if
+    its states at the first, middle and last point solve F as well as the originals do).  A
+    ``symmetry`` that is one of F only at some parameters made :func:`contin.diagram.explore`
+    store non-solutions as a branch, exit 0 (qa15); the tracer's own guard is
+    ``contin.continuation.EQUIVARIANCE_TOL``."""
+    from contin.adapt import point_problem
+    from contin.newton import max_norm
+
+    n = len(branch)
+    for i in sorted({0, n // 2, n - 1}) if n else []:
+        pb = point_problem(problem, branch, i) if branch.sizes is not None else problem
+        p = {**params, **params_at(branch, i)}
+        with np.errstate(all="ignore"):
+            r0 = max_norm(np.asarray(pb.residual(branch.state(i), p), dtype=float))
+            r1 = max_norm(np.asarray(pb.residual(image.state(i), p), dtype=float))
+        if not r1 <= max(100.0 * r0, 1e-8):
+            return (f"the problem's symmetry is not one of F on branch {branch.id} (residual {r1:.2g} of the "
+                    f"reflected state at point {i}, {r0:.2g} of the state)")
+    return None
+
+
 def _mirror_regridded(problem: Any, branch: Branch, params: Mapping[str, float], branch_id: str) -> Branch:
     """:func:`mirror_branch` for a branch whose points lie on several grids (adaptive runs): each
     point reflected by the problem on its own grid (``contin.adapt.point_problem``)."""

@@ -66,6 +66,9 @@ def find_point(branches: Sequence[Branch], label: str, branch_id: str | None = N
     Raises ValueError (one sentence naming the labels there are) if there is no such point, or
     if the label occurs on several branches and ``branch_id`` is not given.
     """
+    if not isinstance(label, str):  # io.restart(f, 5) ended "AttributeError: 'int' object has no attribute 'strip'"
+        raise TypeError(f"label must be a special-point label such as 'LP1' or 'BP2', got {label!r} "
+                        f"({type(label).__name__})")
     want = label.strip().upper()
     pool = list(branches)
     if branch_id is not None:

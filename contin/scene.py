@@ -91,6 +91,8 @@ class SceneRequest:
     engine: str | None = None
     # Options resolved by options_for (the CLI stores them and warns if overrides were ignored).
     _resolved: list[ContinuationOptions] = field(default_factory=list, repr=False, compare=False)
+    # Branch ids whose extra --kx columns run_stability skipped: the problem has no eigenproblem.
+    _no_wavenumber: list[str] = field(default_factory=list, repr=False, compare=False)
 
     def options_for(self, default: ContinuationOptions) -> ContinuationOptions:
         """The options to use for one trace: ``self.options`` if given, else ``default``
@@ -99,7 +101,12 @@ class SceneRequest:
         ov = dict(self.overrides)
         step = base.step
         if "ds" in ov or "ds_max" in ov:
-            ds = abs(float(ov.get("ds", abs(step.ds)))) * (1.0 if step.ds >= 0 else -1.0)
+            # --ds-max alone below the scene's first step caps that step too: `contin trace bratu
+            # --ds-max 0.01` ended "Error: need ds_max >= |ds| >= ds_min > 0, got ds_max=0.01, ds=0.05"
+            first = abs(float(ov["ds"])) if "ds" in ov else min(abs(step.ds), float(ov["ds_max"]))
+            if "ds" in ov and "ds_max" in ov and first > float(ov["ds_max"]):
+                raise SceneError(f"--ds ({first:g}) must not exceed --ds-max ({float(ov['ds_max']):g})")
+            ds = first * (1.0 if step.ds >= 0 else -1.0)
             ds_max = float(ov.get("ds_max", max(step.ds_max, abs(ds))))
             step = dataclasses.replace(step, ds=ds, ds_max=ds_max,
                                        ds_min=min(step.ds_min, abs(ds)))
@@ -130,6 +137,12 @@ class SceneRequest:
         """Every options object handed out by :meth:`options_for` (empty if never called)."""
         return list(self._resolved)
 
+    @property
+    def kx_unavailable(self) -> list[str]:
+        """Ids of the branches whose nonzero ``kx`` :meth:`run_stability` skipped because the
+        problem has no ``eigenproblem(u, p, kx, kz)`` (no wavenumber: only k_x = 0 exists)."""
+        return list(self._no_wavenumber)
+
     def run_stability(self, problem: Any, branch: Branch, params_fixed: Mapping[str, Any] | None = None, *,
                       n_eigs: int = 6) -> list[str]:
         """The stability the user asked for, on one branch; returns the audit messages.
@@ -140,9 +153,13 @@ class SceneRequest:
         columns of :func:`contin.stability.growth_columns` as observables
         (``growth_rate_kx<k>``, ``n_unstable_kx<k>``).  ``params_fixed``: the problem's
         parameters (non-numeric entries are ignored); the branch's own columns override them.
+        A problem without ``eigenproblem(u, p, kx, kz)`` has no wavenumber: its nonzero k_x are
+        skipped (:attr:`kx_unavailable`; the caller says so) and the k_x = 0 pass and its audit
+        are kept (with ``--kx 1`` the lorenz scene's pass ended in a "stability failed" warning).
         """
         if not self.stability:
             return []
+        from contin.problem import has
         from contin.stability import audit, growth_columns, stability_pass
 
         fixed = {k: v for k, v in dict(params_fixed or {}).items()
@@ -153,7 +170,10 @@ class SceneRequest:
         if any("complex pair" in m for m in messages):  # Hopf points the tracer did not locate
             messages = self._hopf_points(problem, branch, fixed, 0.0, branch.n_unstable) + audit(branch)
         for kx in self.kx:
-            if float(kx) != 0.0:
+            if float(kx) != 0.0 and not has(problem, "eigenproblem"):
+                if branch.id not in self._no_wavenumber:
+                    self._no_wavenumber.append(branch.id)
+            elif float(kx) != 0.0:
                 for name, column in growth_columns(problem, branch, fixed, kx=float(kx)).items():
                     branch.observables.setdefault(name, column)
                 counts = branch.observables.get(f"n_unstable_kx{float(kx):g}")
@@ -309,7 +329,10 @@ def _known(name: str, defaults: Mapping[str, Any], scene: str) -> None:
 
 
 def scene_number(scene: str, name: str, value: Any) -> float:
-    """``value`` as a finite float; else a one-line SceneError naming the parameter and the scene."""
+    """``value`` as a finite float; else a one-line SceneError naming the parameter and the scene.
+    A boolean is no number (a sweep file's ``lam_min = [true]`` ran bratu at lam_min = 1, 'ok')."""
+    if isinstance(value, bool | np.bool_):
+        raise SceneError(f"parameter {name} of scene {scene!r} must be a number, got the boolean {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):

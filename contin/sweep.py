@@ -485,13 +485,25 @@ def read_task_file(path: str | os.PathLike[str]) -> dict[str, Any] | None:
         import h5py
 
         with h5py.File(p, "r") as f:
-            if not bool(f.attrs.get("complete", False)) or "sweep_task" not in f.attrs:
+            if (not bool(f.attrs.get("complete", False)) or "sweep_task" not in f.attrs
+                    or str(f.attrs.get("stopped", ""))):  # a run that stopped is not finished
                 return None
             doc = json.loads(f.attrs["sweep_task"])
     except (OSError, ValueError, KeyError) as exc:
         _log.warning("task file %s is unreadable (%s); recomputing it", p, exc)
         return None
-    return doc if isinstance(doc, dict) and doc.get("key") == p.stem else None
+    if not (isinstance(doc, dict) and doc.get("key") == p.stem):
+        return None
+    # the whole file, as every command reads it: a task file whose branch 0 was lost was reused
+    # as 'ok' with the results of its summary attribute, which the file no longer backs (qa15)
+    from contin import io
+
+    try:
+        io.load(p)
+    except (io.FileFormatError, OSError, ValueError, KeyError) as exc:
+        _log.warning("task file %s is damaged (%s); recomputing it", p, str(exc).splitlines()[0] if str(exc) else exc)
+        return None
+    return doc
 
 
 # --------------------------------------------------------------------------- the sweep

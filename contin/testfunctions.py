@@ -82,6 +82,28 @@ def signed_value(v: SignLog, reference: float) -> float:
     return v[0] * math.exp(min(max(v[1] - reference, -LOG_CLAMP), LOG_CLAMP))
 
 
+def sign_change(a: Any, b: Any) -> bool | None:
+    """Whether two values of one test function (floats, or (sign, log) pairs) have opposite,
+    nonzero signs; None when either cannot be read (None, a NaN or infinite float, a NaN sign or
+    log).  The one comparison of the tracer's detection (``_Tracer.detect``) and its retreat
+    (``trace``): a value that is not finite is neither a sign change (no special point is made
+    up from it) nor silently "no change" -- the caller says that the test function was not
+    finite there.  Before session 15 the detection passed a NaN on to the locator (it made the
+    comparison (nan > 0) == (vb > 0) false) while the retreat refused it."""
+    def sign(v: Any) -> float:
+        if v is None:
+            return math.nan
+        if isinstance(v, tuple):
+            return float(v[0]) if math.isfinite(v[0]) and not math.isnan(v[1]) else math.nan
+        v = float(v)
+        return v if math.isfinite(v) else math.nan
+
+    sa, sb = sign(a), sign(b)
+    if math.isnan(sa) or math.isnan(sb):
+        return None
+    return sa != 0 and sb != 0 and (sa > 0) != (sb > 0)
+
+
 def detrended(va: SignLog, vb: SignLog, s_b: float) -> Callable[[SignLog, float], float]:
     """g(v, s) = sign * exp(log|v| - l(s)), l linear in s with l(0) = log|va|, l(s_b) = log|vb|.
 
@@ -153,6 +175,27 @@ class Antisymmetric:
 
     def apply(self, u: Array) -> Array:
         return np.asarray(self.s @ u)
+
+    def equivariance_defect(self, jac: Any, fp: Array) -> float:
+        """How far F is from equivariant at an S-invariant state: the larger of
+        max|S J S - J| / max|J| and max|S F_p - F_p| / max|F_p| (0 for an equivariant F up to
+        rounding).  A problem's ``symmetry`` can be one only at some parameters (stretched
+        Bratu's reflection only at a = 0): there the branch must not be treated as S-invariant."""
+        s = self.s
+        if sp.issparse(jac):
+            j = sp.csr_matrix(jac)
+            diff = sp.csr_matrix(s @ j @ s) - j  # S J S (S is its own inverse)
+            worst, scale_j = float(np.max(np.abs(diff.data), initial=0.0)), float(np.max(np.abs(j.data), initial=0.0))
+        else:
+            j = np.asarray(jac, dtype=float)
+            sjs = np.asarray(s.T @ np.asarray(s @ j).T).T  # (S J) S = ((S^T) (S J)^T)^T
+            worst, scale_j = float(np.max(np.abs(sjs - j), initial=0.0)), float(np.max(np.abs(j), initial=0.0))
+        out = worst / scale_j if scale_j > 0 else 0.0
+        fp = np.asarray(fp, dtype=float)
+        scale_p = float(np.max(np.abs(fp), initial=0.0))
+        if scale_p > 0:
+            out = max(out, float(np.max(np.abs(np.asarray(s @ fp) - fp))) / scale_p)
+        return out
 
     def is_invariant(self, u: Array, tol: float = 1e-8) -> bool:
         return float(np.max(np.abs(self.apply(u) - u), initial=0.0)) <= tol * max(1.0, float(np.max(np.abs(u), initial=0.0)))

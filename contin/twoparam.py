@@ -301,17 +301,23 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
         raise ValueError(f"unknown parameter {second!r}; the problem's parameters are {', '.join(names)}")
     if second not in point.params:
         raise ValueError(f"point {point.name} has no value of {second!r}")
+    tracer = CURVES.get(point.type)
+    if tracer is None and point.type != "BT":
+        raise NotAvailable(f"{point.name}: only {', '.join(sorted([*CURVES, 'BT']))} points can be continued in two "
+                           f"parameters, not {point.type}")
+    for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
+        # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)
+        lo, hi = options.bounds.get(name, (-math.inf, math.inf))
+        value = float(point.params[name])
+        if not lo <= value <= hi:
+            raise ValueError(f"start value {name}={value:g} of {point.name} lies outside its bounds ({lo:g}, {hi:g})")
+    if point.state is None:
+        raise ValueError(f"{point.name} has no stored state")
     if point.type == "BT":
         if regrid is not None:
             raise NotAvailable(NO_REGRID.format(what=f"{point.name} is a Bogdanov-Takens point"))
         return _from_bogdanov_takens(problem, branch, point, second, options,
                                      branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
-    tracer = CURVES.get(point.type)
-    if tracer is None:
-        raise NotAvailable(f"{point.name}: only {', '.join(sorted([*CURVES, 'BT']))} points can be continued in two "
-                           f"parameters, not {point.type}")
-    if point.state is None:
-        raise ValueError(f"{point.name} has no stored state")
     kw: dict[str, Any] = {}
     if regrid is not None:
         if point.type == "HB":  # before the hook check: the clearer message

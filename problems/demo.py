@@ -249,6 +249,12 @@ class StretchedBratu(Bratu):
 
     parameter_names = ("lam", "a")
 
+    #: No reflection symmetry: Bratu's x -> 1 - x is one only at a = 0.  Inherited, it made every
+    #: trace from u = 0 (which is reflection-invariant) symmetrize its Newton iterates, so at any
+    #: a != 0 the first step failed at ds_min (`contin trace stretched-bratu -s a=0.5`: MX at
+    #: lam = 2.4e-5, session 15).
+    symmetry = None
+
     def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
         super().__init__(method, intervals)
         mask = sp.diags(self.interior.astype(float))
@@ -296,10 +302,23 @@ class StretchedBratu(Bratu):
         v_N = 0 as two unstable modes: the stable lower branch was stored as unstable (qa14)."""
         return sp.diags(self.interior.astype(float), format="csr")
 
+    #: Largest a: the source k(a)^2 e^{2 a x} overflows double precision past a = 354 (e^{2a} at
+    #: x = 1), and the layer of width ~1/a needs ~a Chebyshev intervals (a = 300: cheb 480 at the
+    #: fold for tol 1e-10; max_grid is 512).  `-s a=1e6` printed "OverflowError: math range error".
+    A_MAX = 350.0
+
+    @classmethod
+    def check_a(cls, a: float) -> None:
+        """ValueError naming the valid range of a and why, for an a outside it."""
+        if not (np.isfinite(a) and -1.0 < a <= cls.A_MAX):
+            raise ValueError(f"a = {a:g} is out of range: it must be > -1 (the source lam (1 + a) k(a)^2 "
+                             f"e^(2 a x) e^v changes sign at a = -1: Bratu at lam (1 + a) <= 0 has no fold) and <= {cls.A_MAX:g} (the source term k(a)^2 e^(2 a x) "
+                             f"overflows double precision beyond a = 354, and its layer of width ~1/a needs ~a "
+                             f"grid intervals)")
+
     def validate(self, p: Mapping[str, float]) -> None:
         super().validate(p)
-        if not (np.isfinite(p["a"]) and p["a"] > -1.0):
-            raise ValueError(f"a must be finite and > -1, got {p['a']}")
+        self.check_a(p["a"])
 
     def under_resolved(self, u: Array, p: Mapping[str, float], tol: float) -> str | None:
         """The resolution guard: None if the state's estimate (:meth:`error_estimate`) is <= tol."""

@@ -264,8 +264,10 @@ STRETCHED_BRATU_DEFAULTS = {"a": 0.0, "lam_min": 0.0, "lam_max": 4.0}
 def run_stretched_bratu(request: SceneRequest) -> SceneResult:
     """The fold branch in lam at fixed a (from u = 0 at lam_min); its LP against lam*/(1 + a)."""
     p = _numbers(request, STRETCHED_BRATU_DEFAULTS, "stretched-bratu")
-    if not p["a"] > -1.0:
-        raise SceneError(f"a must be > -1, got {p['a']:g}")
+    try:  # the range of a, before any computation (-s a=1e6 printed an OverflowError line)
+        StretchedBratu.check_a(p["a"])
+    except ValueError as exc:
+        raise SceneError(f"parameter {exc}") from None
     if p["lam_min"] >= BRATU_FOLD / (1.0 + p["a"]):
         raise SceneError(f"lam_min must lie below the fold lam*/(1 + a) = {BRATU_FOLD / (1.0 + p['a']):.6f}")
     pb = _problem(StretchedBratu, request, default_grid=24)

@@ -142,3 +142,86 @@ def test_fine_grid_traces_past_the_fold_despite_rounding_floor():
         bounds={"lam": (0.0, 4.0)}, max_steps=20, step=StepOptions(ds=0.1, ds_max=0.5)))
     assert br.status == "EP"
     assert abs(br.fold_points[0].params["lam"] - BRATU_FOLD) < 1e-8
+
+
+@pytest.mark.parametrize("below", [1e-10, 1e-4])
+def test_a_user_zero_next_to_the_fold_is_located_on_both_sides(below):
+    """A value of lam just below lam* is crossed twice in the step that turns at the fold (p - value
+    has one sign at both ends): before session 15 no UZ was reported at all, exit 0.  Now both
+    crossings are located, one on each side of the LP, and each state is the closed form's."""
+    from scipy.optimize import brentq
+
+    target = BRATU_FOLD - below
+    pb = Bratu("cheb", 32)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", dataclasses.replace(OPTS, user_zeros={"lam": [target]}))
+    relabel([br])
+    (lp,) = br.fold_points
+    uz = br.points("UZ")
+    assert len(uz) == 2 and all(sp.converged for sp in uz), [(sp.params, sp.note) for sp in uz]
+    assert [sp.params["lam"] for sp in uz] == pytest.approx([target, target], abs=1e-12)
+    assert uz[0].order_parameter < lp.order_parameter < uz[1].order_parameter
+    th = brentq(lambda t: t * np.tanh(t / 4) - 4, 1, 10)
+    lo = brentq(lambda t: exact_lambda(t) - target, 1, th)
+    hi = brentq(lambda t: exact_lambda(t) - target, th, 10)
+    for sp, theta in zip(uz, (lo, hi), strict=True):
+        assert sp.order_parameter == pytest.approx(2 * np.log(np.cosh(theta / 4)), abs=1e-8)
+    assert not any("detection gap" in line for line in br.audit)
+
+
+def test_a_user_zero_next_to_a_fold_that_is_not_located_is_a_detection_gap():
+    """Without location (DetectionOptions.locate=False) the fold's parameter is not known: the step
+    says that the user zero may have been crossed twice and skipped, instead of saying nothing."""
+    pb = Bratu("cheb", 32)
+    no_location = dataclasses.replace(OPTS, detection=dataclasses.replace(OPTS.detection, locate=False))
+    plain = trace(pb, pb.initial(), {"lam": 0.0}, "lam", no_location)
+    lam = plain.parameter_values
+    (lp,) = plain.fold_points  # not located: its index is the step (i, i + 1) that turns at the fold
+    ends = max(lam[lp.index], lam[lp.index + 1])
+    assert ends < BRATU_FOLD
+    target = float(0.5 * (ends + BRATU_FOLD))  # beyond both ends of the step that holds the fold
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam", dataclasses.replace(no_location, user_zeros={"lam": [target]}))
+    np.testing.assert_array_equal(br.parameter_values, lam)
+    assert not br.points("UZ")
+    gaps = [line for line in br.audit if "detection gap" in line]
+    assert len(gaps) == 1 and f"lam={target!r}" in gaps[0] and "crossed twice and skipped" in gaps[0], br.audit
+
+
+def test_a_symmetry_that_holds_only_at_other_parameters_is_not_used():
+    """StretchedBratu inherited Bratu's reflection, a symmetry of F only at a = 0: the branch from the
+    reflection-invariant u = 0 symmetrized every Newton iterate at a = 0.5 and no step converged
+    (MX at lam = 2.4e-5).  The tracer now checks J and F_p for equivariance at the start
+    (contin.continuation.EQUIVARIANCE_TOL) and traces without the symmetry when it fails."""
+    from problems.demo import StretchedBratu
+
+    class ReflectedStretched(StretchedBratu):  # the defect: the reflection claimed at every a
+        symmetry = Bratu.symmetry
+
+    pb = ReflectedStretched("cheb", 24)
+    br = trace(pb, pb.initial(), {"lam": 0.0, "a": 0.5}, "lam", OPTS)
+    (lp,) = br.fold_points
+    assert lp.params["lam"] == pytest.approx(BRATU_FOLD / 1.5, abs=1e-9)
+    with pytest.raises(ValueError, match="symmetry is not one of F at these parameters"):
+        trace(pb, pb.initial(), {"lam": 0.0, "a": 0.5}, "lam", OPTS, symmetric=True)
+    # at a = 0 it is one, and the branch is traced as S-invariant as before
+    br0 = trace(pb, pb.initial(), {"lam": 0.0, "a": 0.0}, "lam", OPTS, symmetric=True)
+    assert br0.fold_points[0].params["lam"] == pytest.approx(BRATU_FOLD, abs=1e-9)
+
+
+def test_the_diagram_stores_no_mirror_image_that_is_no_solution():
+    """contin.diagram stored the image of every non-invariant branch under the problem's symmetry
+    without tracing it: with a symmetry that is one of F only at other parameters (Bratu's
+    reflection claimed on StretchedBratu at a = 0.5) the image 0' was a "branch" whose states have
+    residual 9, exit 0.  The image's states are now checked (contin.overlap.image_defect)."""
+    from contin.diagram import bifurcation_diagram
+    from contin.newton import max_norm
+    from problems.demo import StretchedBratu
+
+    class ReflectedStretched(StretchedBratu):
+        symmetry = Bratu.symmetry
+
+    pb = ReflectedStretched("cheb", 24)
+    d = bifurcation_diagram(pb, pb.initial(), {"lam": 0.0, "a": 0.5}, "lam", OPTS)
+    assert not d.mirrors and [b.id for b in d.branches] == ["0"]
+    assert any("0': not stored as the image of 0: the problem's symmetry is not one of F" in s for s in d.skipped)
+    for b in d.branches:
+        assert max(max_norm(pb.residual(b.state(i), {"a": 0.5, "lam": b.params["lam"][i]})) for i in range(len(b))) < 1e-8

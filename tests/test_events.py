@@ -87,3 +87,36 @@ def test_user_zero_value_is_exact_for_values_with_many_digits():
     br = trace(Lorenz(), start(), P0, "rho", options(user_zeros={"rho": [target]}))
     (uz,) = br.points("UZ")
     assert uz.data["value"] == target and uz.params["rho"] == pytest.approx(target, rel=1e-11)
+
+
+def test_a_test_function_that_is_nan_at_one_point_is_a_detection_gap_not_a_lost_trace():
+    """An event g that is NaN at one stored point: the trace ended in 'ValueError: event 'e' returned
+    NaN at rho=12.7623' (everything traced was lost), and the detection, had it gone on, passed a
+    NaN on to the locator (its sign comparison (nan > 0) == (g_b > 0) is False), unlike the
+    retreat's _sign_changed, which refused it.  Now both use contin.testfunctions.sign_change: no
+    special point is made up from the NaN, and the two steps next to it say that the event's test
+    function was not finite there (Branch.audit, 'detection gap'; the command line shows it as a
+    warning)."""
+    def g(u, p):  # a sign change at rho = 12.5, NaN for 12 < rho < 13 (one stored point)
+        return math.nan if 12 < p["rho"] < 13 else p["rho"] - 12.5
+
+    br = trace(Lorenz(), start(), P0, "rho", options(events={"e": g}))
+    assert br.status == "EP" and br.parameter_values[-1] == 40.0
+    nan_at = [k for k, rho in enumerate(br.parameter_values) if 12 < rho < 13]
+    assert len(nan_at) == 1
+    assert not br.points("UZ")
+    gaps = [line for line in br.audit if "detection gap" in line]
+    assert len(gaps) == 2 and all(f"was not finite at point {nan_at[0]} (rho=" in line for line in gaps), gaps
+    assert [sp.type for sp in br.special_points] == ["HB", "EP"]
+
+
+def test_sign_change_is_the_one_comparison():
+    from contin.continuation import _sign_changed
+    from contin.testfunctions import sign_change
+
+    nan, inf = math.nan, math.inf
+    assert sign_change(1.0, -2.0) is True and sign_change(-1.0, -2.0) is False and sign_change(0.0, 1.0) is False
+    assert sign_change((1.0, 3.0), (-1.0, -inf)) is True and sign_change((1.0, 3.0), (1.0, 2.0)) is False
+    for bad in (nan, inf, None, (nan, 1.0), (1.0, nan)):
+        assert sign_change(bad, 1.0) is None and sign_change(-1.0, bad) is None
+        assert _sign_changed(bad, -1.0) is False

@@ -186,3 +186,12 @@ def test_bt_switching_between_the_fold_and_the_hopf_curve(co_branch):
 
     with pytest.raises(NotAvailable):
         continue_point(CO(), fold, bt, "k", opts, regrid=SegmentRegrid(None))
+
+
+def test_hopf_curve_from_a_start_outside_the_bounds_of_the_second_parameter_is_refused():
+    """trace_hopf_curve from b2 = hb's value with bounds on b2 excluding it walked from the start to
+    the bound and stored the points outside (qa15); trace_fold_curve refused such a start."""
+    (hb,) = bt_branch(-0.5, {"b1": (-1.0, 0.2)}).points("HB")  # at b2 = -1
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b2": (-0.5, 1.0)}, max_steps=200)
+    with pytest.raises(ValueError, match="start value b2=.* lies outside its bounds"):
+        trace_hopf_curve(BTNormalForm(), hb, "b2", opts, parameter="b1")

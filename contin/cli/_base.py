@@ -257,12 +257,14 @@ def resolution_tol_option(f: Any) -> Any:
              "(ContinuationOptions.resolution_tol, default 3e-5); 'off' switches the guard off.")(f)
 
 
-def parse_settings(items: Sequence[str]) -> dict[str, Any]:
+def parse_settings(items: Sequence[str], option: str = "'-s'") -> dict[str, Any]:
+    """NAME=VALUE items -> {name: value}; a malformed item is a usage error naming ``option``
+    (`contin profiles F --at lam=` said "Invalid value for '-s'", an option it does not have)."""
     out: dict[str, Any] = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or not name.strip() or not value.strip():
-            raise click.BadParameter(f"expected name=value, got {item!r}", param_hint="'-s'")
+            raise click.BadParameter(f"expected name=value, got {item!r}", param_hint=option)
         out[name.strip()] = parse_value(value)
     return out
 

@@ -29,6 +29,7 @@ from typing import Any
 import click
 
 from contin.cli._base import echo_err, echo_json, fail, fmt, main, special_points_table
+from contin.limits import MIN_MAX_GRID
 
 
 def _what(point: Any, curve: Any) -> str:
@@ -83,7 +84,7 @@ def _refuse_own_input(file: str, output: str) -> None:
                    "point); where it stops the curve, the curve continues on a finer grid from its last point "
                    "(segment-wise). Starts on the point's own grid (finer if the point misses REL there). Fold curves only "
                    "(LP; BP unfolded by NAME).")
-@click.option("--max-grid", type=click.IntRange(min=4), default=None, metavar="N",
+@click.option("--max-grid", type=click.IntRange(min=MIN_MAX_GRID), default=None, metavar="N",
               help="With --tol: the largest grid [default: the run's adaptive max_grid, else 512]; past it the "
                    "curve ends with MX.")
 @click.option("--no-solve-check", "no_solve_check", is_flag=True, default=False,
@@ -137,7 +138,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
 
         options = ContinuationOptions()
     step = options.step
-    new_ds = ds if ds is not None else abs(step.ds)
+    # --ds-max alone below the run's first step caps it (it ended "need ds_max >= |ds| >= ds_min > 0")
+    new_ds = ds if ds is not None else min(abs(step.ds), ds_max if ds_max is not None else math.inf)
     new_max = ds_max if ds_max is not None else max(step.ds_max, new_ds)
     step = dataclasses.replace(step, ds=new_ds, ds_max=new_max, ds_min=min(step.ds_min, new_ds))
     run_bounds = {k: v for k, v in options.bounds.items() if k == first}

@@ -36,8 +36,18 @@ def diagram_command(file: str, x: str | None, y: str | None, branch_ids: tuple[s
     x = x or meta.get("diagram_x") or Counter(b.parameter for b in branches).most_common(1)[0][0]
     y = y or meta.get("diagram_y") or "phi"
 
-    from contin.plot import plot_diagram, save_figure
+    import numpy as np
 
+    from contin.plot import branch_values, plot_diagram, save_figure
+
+    # a branch with no finite (x, y) pair is an empty line: say so (an all-NaN column drew an
+    # empty figure, exit 0); nothing to draw at all is an error, and no figure is written
+    empty = [b.id for b in branches if len(b) and not np.any(np.isfinite(branch_values(b, x))
+                                                              & np.isfinite(branch_values(b, y)))]
+    if empty and len(empty) == len([b for b in branches if len(b)]):
+        fail(f"nothing to draw: no branch of {file} has a point with finite {x} and {y}")
+    for bid in empty:
+        echo_err(f"warning: branch {bid} has no point with finite {x} and {y}; it is not drawn")
     ax = plot_diagram(branches, x, y)
     if title:
         fixed = {k: v for k, v in meta.get("parameters", {}).items() if k != x}

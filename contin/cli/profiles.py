@@ -25,7 +25,7 @@ def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str
 
     from contin.cli._runctl import check_nonempty
 
-    ((name, value),) = parse_settings([at]).items()
+    ((name, value),) = parse_settings([at], "'--at'").items()
     if not isinstance(value, float) or not math.isfinite(value):  # H=inf drew other points, exit 0
         raise click.BadParameter(f"{at!r} needs a finite numeric value", param_hint="'--at'")
     names = check_nonempty(names, "--names")

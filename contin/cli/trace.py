@@ -33,6 +33,7 @@ from contin.cli._runctl import (
     check_nonempty,
     sigterm_as_interrupt,
 )
+from contin.limits import MIN_MAX_GRID
 
 #: a finished branch is published at once when the time since the last publish is at least
 #: this many times that publish's duration (contin.io, "Crash safety"): publishing then takes at
@@ -197,11 +198,12 @@ def audit_lines(branch: Any) -> list[str]:
 
 def doubtful_points(branch: Any) -> list[str]:
     """The audit lines of points stored although their two-grid check exceeded tol
-    (``contin.continuation.ACCEPTED_ABOVE_TOL``): the terminal shows them as warnings, also
-    with ``-q`` (the stored state is less accurate than asked for)."""
-    from contin.continuation import ACCEPTED_ABOVE_TOL
+    (``contin.continuation.ACCEPTED_ABOVE_TOL``) and of steps across which a special point may
+    have been missed (``DETECTION_GAP``: a test function not finite, a user zero next to a fold
+    not located): the terminal shows them as warnings, also with ``-q``."""
+    from contin.continuation import ACCEPTED_ABOVE_TOL, DETECTION_GAP
 
-    return [m for m in branch.audit if m.startswith("step ") and ACCEPTED_ABOVE_TOL in m]
+    return [m for m in branch.audit if m.startswith("step ") and (ACCEPTED_ABOVE_TOL in m or DETECTION_GAP in m)]
 
 
 def stability_messages(branch: Any) -> list[str]:
@@ -236,7 +238,7 @@ def stability_messages(branch: Any) -> list[str]:
                    "chosen and changed along each branch to meet it [default for adaptive scenes without --grid: "
                    "the scene's (gPCF 3e-5, the resolution guard's; demos 1e-10); with --grid and no --tol the "
                    "grid is fixed].")
-@click.option("--max-grid", type=click.IntRange(min=4), default=None,
+@click.option("--max-grid", type=click.IntRange(min=MIN_MAX_GRID), default=None,
               help="Largest grid adaptive resolution may use [default 512]; past it a branch ends with MX.")
 @click.option("--special-tol", "special_tol", type=click.FloatRange(min=0, min_open=True, max=1, max_open=True), default=None,
               metavar="REL",
@@ -403,8 +405,17 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
                   and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
     if missing_kx:  # never a silent no-op: the README promises a column per --kx value
-        echo_err(f"warning: --kx {','.join(missing_kx)} ignored: scene {scene!r} computed no stability "
-                 f"(no growth_rate_kx column was stored)")
+        if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
+            why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
+                   f"k_x = 0 exists (that stability was computed)")
+        elif not sc.stability:
+            why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
+        elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
+            why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
+                   f"for a stability pass)")
+        else:
+            why = f"scene {scene!r} computed no stability"
+        echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
 
     if step_overrides and not request.resolved_options:
         echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")

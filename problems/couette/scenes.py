@@ -77,6 +77,8 @@ BASE_STEPS_PER_MODE_GAP = 0.4
 LOW_DENSITY_START = 0.2
 #: Default fixed gap of that density continuation.
 LOW_DENSITY_GAP = 60.0
+#: the smallest continuation step in H of the pitchfork / jj-walls scenes
+SCENE_DS_MIN = 1e-7
 
 
 def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> tuple[dict[str, float], dict[str, Any]]:
@@ -146,9 +148,13 @@ def _problem(request: SceneRequest, walls: str, chi: str, default_grid: int = 64
 def _options(request: SceneRequest, H_lo: float, H_hi: float, *, ds: float, ds_max: float) -> ContinuationOptions:
     """Step control for few points per branch: Newton needs ~4 iterations at tol 1e-10, so a
     target of 6 with growth 2 lets ds reach ds_max within ~10 steps off a BP."""
+    if not min(abs(ds), ds_max) >= SCENE_DS_MIN:  # a range too narrow for the step control (qa15)
+        raise SceneError(f"the range H = {H_lo:.6g}..{H_hi:.6g} is too narrow to trace: its steps "
+                         f"(ds = {ds:.3g}, ds_max = {ds_max:.3g}) fall below the smallest step ds_min = "
+                         f"{SCENE_DS_MIN:g}; widen it (a larger H_max)")
     return request.options_for(ContinuationOptions(
         bounds={"H": (H_lo, H_hi)}, max_steps=200,
-        step=StepOptions(ds=ds, ds_max=ds_max, ds_min=1e-7, newton_target=6, grow=2.0),
+        step=StepOptions(ds=ds, ds_max=ds_max, ds_min=SCENE_DS_MIN, newton_target=6, grow=2.0),
         detection=DetectionOptions(locate_tol=1e-9)))
 
 
@@ -227,6 +233,14 @@ def run_pitchfork(request: SceneRequest, defaults: Mapping[str, Any] = PITCHFORK
     analytic = pf.analytic_critical_gaps(nu, e, modes, chi=st["chi"], num=p["num"], dufour=st["dufour"])
     hc1 = analytic[0]
     H_max = _h_max(st, hc1)
+    # the base branch runs over H_max/20..H_max in steps of 0.05 H_max (JJ walls: 0.025 H_max), at
+    # least ds_min: -s H_max=1e-6 ended "Error: need ds_max >= |ds| >= ds_min > 0, got ds_max=2e-07, ..."
+    h_floor = SCENE_DS_MIN / (JJ_BASE_DS_MAX if st["walls"] == "jj" else 0.05)
+    if H_max < h_floor:
+        raise SceneError(f"parameter H_max = {H_max:g} is out of range: the base branch is traced over "
+                         f"H = H_max/20..H_max in steps of at least ds_min = {SCENE_DS_MIN:g}, which needs "
+                         f"H_max >= {h_floor:g} (H is the gap in particle diameters; the kinetic theory "
+                         f"means H >> 1)")
     low_density = st["walls"] == "noslip" and not math.isfinite(hc1)
     H_fixed = st["H"] if st["H"] is not None else LOW_DENSITY_GAP
     if low_density and not H_fixed < H_max:
