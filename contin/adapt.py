@@ -484,7 +484,7 @@ class GridChange:
 
 
 def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any, *,
-               coarsen: bool = True, estimate: Any = None) -> tuple[Any, Array, list[str]]:
+               coarsen: bool = True, estimate: Any = None, parameter: str | None = None) -> tuple[Any, Array, list[str]]:
     """The grid to start a branch on: (problem on it, start state on it (converged where
     possible), audit lines).  Refines while the estimate of the solved start state exceeds tol;
     coarsens while it is below coarsen_below * tol and the coarser grid keeps it <=
@@ -499,7 +499,9 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
     candidate that fails, one solve for the grid taken (issue 14: a start state exact on every
     grid, gPCF uniform shear, was solved on cheb 4 and 8 on its way down from 64).
     ``estimate(problem, u, params)``: the estimator (default :func:`state_error`; the tracer
-    passes its :class:`Adaptor`'s, which remembers the estimates for the first point)."""
+    passes its :class:`Adaptor`'s, which remembers the estimates for the first point).  A start
+    whose estimate meets tol then gets the two-grid check of a candidate (:func:`_check_start`);
+    ``parameter`` names the continuation parameter in its audit line."""
     from contin.newton import newton
 
     check_problem(problem)
@@ -551,8 +553,57 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
                 if e_new <= margin:
                     lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
                     problem, u = other, trial.u
+                    err = e_new
                     break
+    if err <= opts.tol:
+        problem, u = _check_start(problem, u, params, err, opts, newton_options, est, lines, parameter)
     return problem, u, lines
+
+
+def _check_start(problem: Any, u: Array, params: Any, err: float, opts: AdaptOptions, newton_options: Any,
+                 est: Any, lines: list[str], parameter: str | None) -> tuple[Any, Array]:
+    """The two-grid check of the start state, as of every candidate (:meth:`Adaptor.solve_check`):
+    the start was judged by its estimate alone, which on an FD grid need not see the scheme's
+    error at all, and next to a BP does not see its amplification by ||J^-1|| (session 15:
+    ``contin trace allen-cahn --method fd2 --tol 1e-4`` stored the first point of each switched
+    branch, one step off the BP on fd2 512, 4.2e-4 .. 1.5e-2 off a cheb reference without a
+    warning; the points after it were warned).  Above tol the start is refined while its error
+    falls (halves), the refined solve kept only where it stays next to the checked state (a
+    refinement moves a BP; a start one step off it must not fall onto the other branch); where
+    refinement does not lower it the start is kept with the audit line of a point accepted by
+    its estimate (the terminal's warning)."""
+    from contin.continuation import ACCEPTED_ABOVE_TOL
+    from contin.newton import newton
+
+    if opts.check_factor is None or not opts.solve_check:
+        return problem, u
+    previous = math.inf
+    while True:
+        if estimate_decides_check(problem) and err <= opts.check_above * opts.tol:
+            return problem, u
+        e2 = two_grid_error(problem, u, params, opts.check_factor, opts)
+        if e2 is None or e2 <= opts.tol:
+            return problem, u
+        n_new = finer(problem, u, params, opts)
+        why = (f"on the maximum grid {problem.grid_size}" if n_new is None else
+               f"does not fall with refinement (grid {problem.grid_size})" if e2 > 0.5 * previous else "")
+        trial = None
+        if not why:
+            other = problem.with_grid(n_new)
+            guess = problem.transfer(u, other)
+            trial = newton(other, guess, params, newton_options)
+            # the refined solve stays within a few two-grid errors of the state (else it left it)
+            if not trial.converged or solution_error(other, guess, trial.u, params) > 4.0 * e2:
+                why = f"the solve on grid {n_new} left the start state"
+        if why:
+            p_text = f"{parameter}={float(params[parameter]):.10g}" if parameter else "the start"
+            lines.append(f"step 0: {p_text} {ACCEPTED_ABOVE_TOL}: two-grid error {e2:.2g} > tol {opts.tol:.2g} "
+                         f"at the start point, not lowered by refinement ({why})")
+            return problem, u
+        lines.append(f"start grid refined {problem.grid_size} -> {n_new} (two-grid error {e2:.2g} > tol {opts.tol:.2g})")
+        previous = e2
+        problem, u = other, trial.u
+        err = est(problem, u, params)
 
 
 class Adaptor:

@@ -576,7 +576,7 @@ def trace(
         adaptor = Adaptor(options.adapt)
         adaptor.newton_options = options.newton
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
-                                             coarsen=tangent is None, estimate=adaptor.estimate)
+                                             coarsen=tangent is None, estimate=adaptor.estimate, parameter=parameter)
         if problem is not problem0:
             system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
             if tangent is not None:
