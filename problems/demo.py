@@ -249,6 +249,13 @@ class StretchedBratu(Bratu):
 
     parameter_names = ("lam", "a")
 
+    #: No reflection symmetry: the stretching breaks x -> 1 - x for every a != 0.  Bratu's
+    #: ``symmetry`` was inherited, so a start at u = 0 (invariant) was traced as an S-invariant
+    #: branch of a problem that is not equivariant: ``contin trace stretched-bratu -s a=4`` ended
+    #: MX at lam = 1.5e-6 ("no convergence"), after storing a point 0.47 off its solution
+    #: (session 15).  ``contin.problem.has`` finds no callable hook.
+    symmetry = None
+
     def __init__(self, method: str = "cheb", intervals: int = 32) -> None:
         super().__init__(method, intervals)
         mask = sp.diags(self.interior.astype(float))
