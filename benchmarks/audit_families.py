@@ -142,11 +142,29 @@ def audit_branches(branches: list[Any], problem_of: Callable[[Any], Any], params
 
 
 def file_problem(path: str) -> tuple[list[Any], dict[str, Any], Any]:
+    """(branches, metadata, problem_of(branch)) of a run file."""
     from contin import io
     from contin.cli.verify import _problem_of
 
     branches, meta = io.load(path)
-    return branches, meta, _problem_of(meta, path)
+    if meta.get("scene") == "nonlocal-muI":  # no problem_factory: muI.U and phiI.U are two problems
+        from problems.nonlocal_flow.plane import PlaneShear
+        from problems.nonlocal_flow.scenes import CS_DEFAULTS, _grid_of, critical_state
+
+        method, n = _grid_of(meta.get("discretization", {}))
+        cs = critical_state({k: float(meta["parameters"].get(k, v)) for k, v in CS_DEFAULTS.items()})
+        pbs = {"muI": PlaneShear(method, n, cs), "phiI": PlaneShear(method, n, cs, phi_model="phiI")}
+        return branches, meta, lambda b: pbs[b.id.split(".")[0]]
+    if meta.get("scene") == "nonlocal-cylinder":  # report_eqs = 0: derived.ratio and report.ratio
+        from problems.nonlocal_flow.cylinder import CylindricalCouette
+        from problems.nonlocal_flow.scenes import CS_DEFAULTS, _grid_of, critical_state
+
+        method, n = _grid_of(meta.get("discretization", {}))
+        cs = critical_state({k: float(meta["parameters"].get(k, v)) for k, v in CS_DEFAULTS.items()})
+        ops = {op: CylindricalCouette(method, n, cs, operator=op) for op in ("derived", "report")}
+        return branches, meta, lambda b: ops[b.id.split(".")[0]]
+    problem = _problem_of(meta, path)
+    return branches, meta, lambda b: problem
 
 
 def numeric(params: Mapping[str, Any]) -> dict[str, Any]:
@@ -174,9 +192,9 @@ def main(argv: list[str] | None = None) -> int:
     if run.exit_code not in (0, 3) and not os.path.exists(run.path):
         print(run.stderr[-2000:])
         return 1
-    branches, meta, problem = file_problem(run.path)
+    branches, meta, problem_of = file_problem(run.path)
     tol = a.tol if a.tol else 3e-5
-    audit = audit_branches(branches, lambda b: problem, numeric(meta.get("parameters", {})),
+    audit = audit_branches(branches, problem_of, numeric(meta.get("parameters", {})),
                            ref_min=a.ref_min, ref_max=a.ref_max)
     for b in branches:
         pts = [p for p in audit.points if p.branch == b.id and math.isfinite(p.error)]
@@ -231,9 +249,9 @@ def audit_run(scene: str, method: str, tol: float | None, extra: list[str], *, r
     if not os.path.exists(run.path):
         out["error"] = run.stderr[-1500:]
         return out
-    branches, meta, problem = file_problem(run.path)
+    branches, meta, problem_of = file_problem(run.path)
     params = numeric(meta.get("parameters", {}))
-    audit = audit_branches(branches, lambda b: problem, params, ref_min=ref_min, ref_max=ref_max)
+    audit = audit_branches(branches, problem_of, params, ref_min=ref_min, ref_max=ref_max)
     out["audit"] = audit
     out["branches"] = [(b.id, b.status, b.message[:160], len(b)) for b in branches]
     sps = []
@@ -242,6 +260,11 @@ def audit_run(scene: str, method: str, tol: float | None, extra: list[str], *, r
             if sp.type not in ("LP", "BP", "HB"):
                 continue
             exact = closed_form(scene, sp, {**params, **{k: float(v) for k, v in sp.params.items()}})
+            hc = (meta.get("extra") or {}).get(b.id, {}) if scene == "disks-pitchfork" else {}
+            if sp.type == "BP" and isinstance(hc, dict) and hc.get("H_c"):
+                # uniform shear's BPs: H_n^c = n pi psi in closed form (problems.disks.closures.critical_gaps)
+                val0 = float(sp.params["H"])
+                exact = min((float(h) for h in hc["H_c"]), key=lambda h: abs(h - val0))
             val = float(sp.params.get(b.parameter, math.nan))
             rel = abs(val - exact) / abs(exact) if exact is not None else math.nan
             sps.append((b.id, sp.name, sp.type, val, exact, rel, getattr(sp, "grid", None), sp.note or ""))
@@ -286,13 +309,15 @@ def batch(argv: list[str] | None = None) -> None:
     ap.add_argument("--methods", default="cheb,fd2,fd4")
     ap.add_argument("--tols", default="1e-4,1e-6")
     ap.add_argument("--set", action="append", default=[])
+    ap.add_argument("--grid", default=None, help="a fixed grid (scenes without --tol)")
     a = ap.parse_args(argv)
     extra = [x for s in a.set for x in ("-s", s)]
     for scene in a.scenes:
         for method in a.methods.split(","):
             for tol in a.tols.split(","):
                 try:
-                    r = audit_run(scene, method, float(tol) if tol else None, extra)
+                    r = audit_run(scene, method, float(tol) if tol else None,
+                                  extra + (["--grid", a.grid] if a.grid else []))
                     print(report(r), flush=True)
                 except subprocess.TimeoutExpired:
                     print(f"== {scene} {method} tol {tol}: TIMEOUT", flush=True)

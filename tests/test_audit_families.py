@@ -33,3 +33,42 @@ def test_stretched_bratu_has_no_reflection_symmetry():
     audit = audit_branches([b], lambda _: pb, {"a": a}, ref_min=128, ref_max=256)
     assert len(audit.points) >= 20 and not audit.failed()
     assert max(p.error for p in audit.points) <= tol
+
+
+def _run(tmp_path, *args):
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    out = tmp_path / "run.h5"
+    r = CliRunner().invoke(main, ["trace", *args, "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
+    return r, out
+
+
+def test_nonlocal_cylinder_fixed_grid_states_meet_the_resolution_guard(tmp_path):
+    """The cylinder had no resolution guard at all (its Chebyshev tail under-reads its error up to
+    50x): ``contin trace nonlocal-cylinder --grid 16`` stored states 1.3e-3 off a cheb 128 reference
+    with exit 0 and no warning.  Its guard measures the two-grid error now: on cheb 20 the branch
+    ends MX "under-resolved ... two-grid error" at ratio 3.6, every stored state within the
+    guard's 3e-5 of the reference solve."""
+    from benchmarks.audit_families import file_problem
+
+    r, out = _run(tmp_path, "nonlocal-cylinder", "-s", "report_eqs=1", "--grid", "20")
+    assert r.exit_code == 3, r.output
+    branches, _, problem_of = file_problem(str(out))
+    (b,) = branches
+    assert b.status == "MX" and "two-grid error" in b.message and "ratio = 3.6" in b.message
+    audit = audit_branches(branches, problem_of, {}, ref_min=128, ref_max=128)
+    assert len(audit.points) == len(b) >= 15 and not audit.failed()
+    assert max(p.error for p in audit.points) <= 3e-5
+
+
+@pytest.mark.parametrize("scene", ["nonlocal-shear", "nonlocal-muI", "nonlocal-cylinder"])
+def test_nonlocal_fd_grids_are_guarded(tmp_path, scene):
+    """On FD grids the non-local problems had no resolution guard (plane shear's was Chebyshev
+    only): ``--method fd2 --grid 32`` stored states up to 0.16 (shear), 1.6e-2 (mu(I)) and 1.1e-2
+    (cylinder) off a cheb reference with exit 0.  Now the start point's two-grid error (1.5e-3,
+    2.9e-3, 1.1e-3) stops the run in one line."""
+    r, _ = _run(tmp_path, scene, "--method", "fd2", "--grid", "32")
+    assert r.exit_code != 0
+    assert "two-grid error" in r.output and "on fd2 32" in r.output and "need a finer --grid" in r.output
