@@ -277,7 +277,9 @@ def report(r: dict[str, Any]) -> str:
     tol = r["tol"] or 3e-5
     lines = [f"== {r['scene']} {r['method']} tol {r['tol']} {' '.join(r['extra'])}: exit {r['exit']}, "
              f"{len(r['warnings'])} warnings, {r['seconds']:.1f} s"]
-    lines += [f"   W {w[:220]}" for w in r["warnings"]]
+    lines += [f"   W {w[:220]}" for w in r["warnings"] if "accepted by its estimate" not in w]
+    warned = warned_points(r["warnings"])
+    n_silent = 0
     if "error" in r:
         return "\n".join(lines + [r["error"]])
     for bid, status, msg, n in r["branches"]:
@@ -290,8 +292,12 @@ def report(r: dict[str, Any]) -> str:
         lines.append(f"   {bid:14s} {status} {len(pts):3d} states, grids {min(p.grid for p in pts)}..{max(p.grid for p in pts)}, "
                      f"max {w.error:.2g} = {w.error / tol:.2g} tol at {w.at:.8g} (grid {w.grid}); {len(bad)} > tol"
                      + (f"  [{msg}]" if status != "EP" or "limit" in msg else ""))
-        for p in bad[:4]:
-            lines.append(f"       > tol: index {p.index} at {p.at:.8g} grid {p.grid}: {p.error:.2g}")
+        silent = [p for p in bad if not any(abs(p.at - v) <= 1e-8 * max(1.0, abs(v)) for v in warned.get(bid, ()))]
+        n_silent += len(silent)
+        if bad:
+            lines.append(f"       {len(bad) - len(silent)} of {len(bad)} > tol warned; silent: {len(silent)}")
+        for p in silent[:6]:
+            lines.append(f"       SILENT > tol: index {p.index} at {p.at:.10g} grid {p.grid}: {p.error:.2g}")
     for p in r["audit"].failed():
         lines.append(f"   unchecked {p.branch} {p.index}: {p.message[:150]}")
     for bid, name, kind, val, exact, rel, grid, note in r["special"]:
@@ -299,8 +305,21 @@ def report(r: dict[str, Any]) -> str:
                      + f" grid {grid} {note[:110]}")
     w = r["audit"].worst()
     lines.append(f"SUMMARY {r['scene']} {r['method']} tol {tol:g}: {len(r['audit'].points)} states, max "
-                 f"{(w.error / tol) if w else math.nan:.3g} tol, exit {r['exit']}, warnings {len(r['warnings'])}")
+                 f"{(w.error / tol) if w else math.nan:.3g} tol, exit {r['exit']}, warnings {len(r['warnings'])}, "
+                 f"SILENT above tol {n_silent}")
     return "\n".join(lines)
+
+
+def warned_points(warnings: list[str]) -> dict[str, list[float]]:
+    """{branch: [parameter values]} of the 'accepted by its estimate' warnings."""
+    import re
+
+    out: dict[str, list[float]] = {}
+    for w in warnings:
+        m = re.match(r"warning: branch (\S+): step \d+: \w+=(\S+) accepted by its estimate", w)
+        if m:
+            out.setdefault(m.group(1), []).append(float(m.group(2)))
+    return out
 
 
 def batch(argv: list[str] | None = None) -> None:

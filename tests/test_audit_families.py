@@ -72,3 +72,20 @@ def test_nonlocal_fd_grids_are_guarded(tmp_path, scene):
     r, _ = _run(tmp_path, scene, "--method", "fd2", "--grid", "32")
     assert r.exit_code != 0
     assert "two-grid error" in r.output and "on fd2 32" in r.output and "need a finer --grid" in r.output
+
+
+def test_unresolved_special_point_positions_are_warnings(tmp_path):
+    """A located BP whose measured position misses special_tol on max_grid carried the note
+    'position not resolved by refinement' in the summary table only, which -q hides:
+    ``contin trace allen-cahn --method fd2 --tol 1e-4 -q`` said nothing of BP3 stored 2.8e-5 off
+    lam = 9 (closed form k^2).  Each is a warning line now."""
+    r, out = _run(tmp_path, "allen-cahn", "--method", "fd2", "--tol", "1e-4")
+    assert r.exit_code == 0
+    from contin import io
+
+    branches, _ = io.load(out)
+    base = next(b for b in branches if b.id == "0")
+    for k, bp in enumerate(base.branch_points, start=1):
+        lam = bp.params["lam"]
+        assert abs(lam - k * k) / (k * k) > 1e-6  # fd2 512: 3.1e-6, 1.3e-5, 2.8e-5 off
+        assert f"warning: branch 0: BP{k} at lam={lam:.10g}: position not resolved by refinement" in r.output
