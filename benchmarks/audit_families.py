@@ -329,6 +329,7 @@ def batch(argv: list[str] | None = None) -> None:
     ap.add_argument("--tols", default="1e-4,1e-6")
     ap.add_argument("--set", action="append", default=[])
     ap.add_argument("--grid", default=None, help="a fixed grid (scenes without --tol)")
+    ap.add_argument("--ref-max", type=int, default=512, help="largest reference grid (cheb)")
     a = ap.parse_args(argv)
     extra = [x for s in a.set for x in ("-s", s)]
     for scene in a.scenes:
@@ -336,7 +337,7 @@ def batch(argv: list[str] | None = None) -> None:
             for tol in a.tols.split(","):
                 try:
                     r = audit_run(scene, method, float(tol) if tol else None,
-                                  extra + (["--grid", a.grid] if a.grid else []))
+                                  extra + (["--grid", a.grid] if a.grid else []), ref_max=a.ref_max)
                     print(report(r), flush=True)
                 except subprocess.TimeoutExpired:
                     print(f"== {scene} {method} tol {tol}: TIMEOUT", flush=True)

@@ -89,3 +89,22 @@ def test_unresolved_special_point_positions_are_warnings(tmp_path):
         lam = bp.params["lam"]
         assert abs(lam - k * k) / (k * k) > 1e-6  # fd2 512: 3.1e-6, 1.3e-5, 2.8e-5 off
         assert f"warning: branch 0: BP{k} at lam={lam:.10g}: position not resolved by refinement" in r.output
+
+
+@pytest.mark.parametrize("scene, method, tol", [("disks-steady", "cheb", 1e-6), ("disks-steady", "fd4", 1e-4),
+                                                ("allen-cahn", "fd4", 1e-4), ("brusselator", "fd2", 1e-6)])
+def test_adaptive_states_are_within_tol_of_a_reference(tmp_path, scene, method, tol):
+    """Session 15's audit as a regression test: every stored state of an adaptive run (one physics
+    family, two demos) solved again on a fine Chebyshev grid at its parameters is within tol
+    (measured: disks-steady cheb 1e-6 0.02 tol, fd4 1e-4 0.68 tol; allen-cahn fd4 0.007 tol;
+    brusselator fd2 1e-6 1e-6 tol), and no state needed a warning (the special points' positions on
+    fd2/fd4 512 do say that they miss the default special_tol 1e-10)."""
+    from benchmarks.audit_families import file_problem
+
+    r, out = _run(tmp_path, scene, "--method", method, "--tol", str(tol))
+    assert r.exit_code == 0 and "accepted by its estimate" not in r.output, r.output
+    branches, meta, problem_of = file_problem(str(out))
+    params = {k: v for k, v in meta["parameters"].items() if isinstance(v, int | float)}
+    audit = audit_branches(branches, problem_of, params, ref_min=96, ref_max=128)
+    assert len(audit.points) >= 12 and not audit.failed()
+    assert max(p.error for p in audit.points) <= tol
