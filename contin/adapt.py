@@ -201,6 +201,12 @@ PARAM_SCALE_FLOOR = 1e-3
 #: for refinement to go on (Adaptor.special_refinable).
 MEASURED_FALL = 0.9
 
+#: A located special point is the one measured before (located again after a refinement) when
+#: its parameter lies within SAME_POINT x (the larger measured relative error) of that one's;
+#: farther off it is another point, whose measurement is not compared with the previous one's
+#: (Adaptor.special_refinable).
+SAME_POINT = 10.0
+
 #: An LP whose bracket's tangent estimate is at most this multiple of special_tol is located on
 #: the grid in force and left to its two-grid check (Adaptor.pre_locate): an LP's position error
 #: measured 0.07x (gPCF nu = 0.16 fold, cheb 32: 1.5e-9 against 2.1e-8) and 0.12x (Bratu cheb 20:
@@ -629,6 +635,7 @@ class Adaptor:
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
         self._measured: float | None = None  # the same for a measured position (special_refinable)
+        self._measured_at: float | None = None  # ... and the parameter value of that position
         self._estimates: dict[tuple[Any, ...], tuple[Any, float]] = {}  # see estimate()
         #: (estimate, vector) of the kernel behind the last special_error (None: no kernel)
         self.kernel: tuple[float, Array] | None = None
@@ -647,7 +654,7 @@ class Adaptor:
         #: ended the refinement ("position not resolved" on 560).
         self.hold: tuple[float, float] | None = None
 
-    def special_refinable(self, err: float, measured: bool = False) -> bool:
+    def special_refinable(self, err: float, measured: bool = False, at: float | None = None) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
         when the previous such refinement left a special point with more than a tenth of its
         estimate.  A genuine BP's or LP's kernel converges with the grid (spectrally: 4e-3 -> 2e-8
@@ -655,7 +662,8 @@ class Adaptor:
         discretization artefact that moves with the grid, which refinement would chase to
         max_grid: 3e-2, 6e-3, 2e-3, 1e-3 on cheb 80..288 on gPCF's nu = 0.5 banded branch).
         The memory is cleared by a special point that meets tol (:meth:`special_resolved`).
-        ``measured``: err is the two-grid error of the point's position (comment below).
+        ``measured``: err is the two-grid error of the point's position (comment below);
+        ``at``: its parameter value (a measurement is compared only with the same point's).
         """
         last = self._special
         if measured:
@@ -664,9 +672,17 @@ class Adaptor:
             # scheme, pre-asymptotic: gPCF fd4 H_1^c 2.9e-5, 1.4e-5, 1.3e-6 on 16, 32, 64), and
             # refinement goes on while it falls (by MEASURED_FALL at least); an artefact's
             # position does not converge, and its measurement does not fall.
+            if self._measured is not None and at is not None and self._measured_at is not None and \
+                    abs(at - self._measured_at) > SAME_POINT * max(err, self._measured) * max(abs(at), PARAM_SCALE_FLOOR):
+                # Another special point, not the same one located again on a finer grid: its
+                # measurement starts its own history.  The previous point's "not falling" memory
+                # refused every later refinement: ``contin trace disks-pitchfork -s corr=cs
+                # --method fd4 --tol 1e-4`` kept H_1^c on fd4 32 (7.5e-6 off, not falling), then
+                # H_2^c on fd4 24 (2.9e-4) and H_3^c on fd4 12, 2.8e-2 off n pi psi (session 15).
+                self._measured = None
             if self._measured is not None and err > MEASURED_FALL * self._measured:
                 return False
-            self._measured = err
+            self._measured, self._measured_at = err, at
             self._special = err
             return True
         if last is not None and err > 0.1 * last:
@@ -676,7 +692,7 @@ class Adaptor:
 
     def special_resolved(self) -> None:
         self._special = None
-        self._measured = None
+        self._measured = self._measured_at = None
 
     # --- estimates -------------------------------------------------------------------------
     def error(self, system: Any, x: Array) -> float:

@@ -913,7 +913,7 @@ def trace(
                 err = checked
             if err <= special_tol:
                 adaptor.special_resolved()
-            elif adaptor.special_refinable(err, measured=measured):
+            elif adaptor.special_refinable(err, measured=measured, at=float(found[0].params[parameter])):
                 old = tracer.points[-1]
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol), measured=measured) is None:

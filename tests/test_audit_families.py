@@ -108,3 +108,21 @@ def test_adaptive_states_are_within_tol_of_a_reference(tmp_path, scene, method, 
     audit = audit_branches(branches, problem_of, params, ref_min=96, ref_max=128)
     assert len(audit.points) >= 12 and not audit.failed()
     assert max(p.error for p in audit.points) <= tol
+
+
+def test_a_measured_special_point_does_not_block_the_next_ones_refinement():
+    """The memory of a measured special point's position error ("not falling with the grid")
+    was compared with the next special point's, anywhere on the branch: disks-pitchfork
+    (G_CS) fd4 at tol 1e-4 kept H_1^c on fd4 32 (7.5e-6 off, pre-asymptotic: 2.9e-6 on 16), and
+    then refused to refine for H_2^c (kept on fd4 24, 2.9e-4 off) and H_3^c (fd4 12, 2.8e-2 off
+    n pi psi; the n = 3 branches switched there).  A point located elsewhere starts its own
+    history now (fd4 512: 3.7e-9 and 1.9e-8 off); the same point located again keeps it."""
+    from contin.adapt import Adaptor
+
+    a = Adaptor(AdaptOptions(tol=1e-4))
+    assert a.special_refinable(5.2e-6, measured=True, at=15.8712)
+    assert not a.special_refinable(7.5e-6, measured=True, at=15.8713)  # the same BP, not falling
+    assert a.special_refinable(2.9e-4, measured=True, at=31.75)  # H_2^c: another point
+    assert a.special_refinable(1e-5, measured=True, at=31.7425)  # the same, falling
+    assert not a.special_refinable(1e-5, measured=True, at=31.74245)  # the same, not falling
+    assert a.special_refinable(2.9e-2, measured=True, at=48.92)  # H_3^c
