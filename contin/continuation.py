@@ -900,6 +900,7 @@ def trace(
             # off with special_tol 1e-6, its kernel "resolved").  The measurement decides where
             # the estimate exceeds special_tol, and refines where the estimate meets it but the
             # measurement exceeds special_tol beyond the check's own rounding (POSITION_FLOOR).
+            from contin.adapt import estimate_decides_check
             from contin.specialcheck import POSITION_FLOOR, check_located
 
             checked = check_located(adaptor, system, found, tracer.anti is not None, kernels)
@@ -913,7 +914,8 @@ def trace(
                 err = checked
             if err <= special_tol:
                 adaptor.special_resolved()
-            elif adaptor.special_refinable(err, measured=measured, at=float(found[0].params[parameter])):
+            elif adaptor.special_refinable(err, measured=measured, at=float(found[0].params[parameter]),
+                                           finite_order=not estimate_decides_check(system.problem)):
                 old = tracer.points[-1]
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol), measured=measured) is None:

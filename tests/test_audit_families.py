@@ -126,3 +126,20 @@ def test_a_measured_special_point_does_not_block_the_next_ones_refinement():
     assert a.special_refinable(1e-5, measured=True, at=31.7425)  # the same, falling
     assert not a.special_refinable(1e-5, measured=True, at=31.74245)  # the same, not falling
     assert a.special_refinable(2.9e-2, measured=True, at=48.92)  # H_3^c
+
+
+def test_an_fd_special_point_may_rise_once_before_its_refinement_ends():
+    """disks-pitchfork G_CS H_1^c on fd4 is 2.9e-6 off on 16 and 7.7e-6 on 32 (pre-asymptotic),
+    then converges (3.2e-7 on 80, 6e-10 on 432): on finite-order grids one measurement that does
+    not fall is allowed per point (it was kept on fd4 32, 7.7e-6 off); a second ends it, and on
+    spectral grids the first does (a rounding floor: pitchfork nu = 0.5's symmetric BP)."""
+    from contin.adapt import Adaptor
+
+    fd = Adaptor(AdaptOptions(tol=1e-4))
+    assert fd.special_refinable(5.2e-6, measured=True, at=15.87125, finite_order=True)
+    assert fd.special_refinable(7.5e-6, measured=True, at=15.87133, finite_order=True)  # one rise
+    assert fd.special_refinable(2e-6, measured=True, at=15.87123, finite_order=True)
+    assert not fd.special_refinable(2e-6, measured=True, at=15.871231, finite_order=True)  # a second
+    cheb = Adaptor(AdaptOptions(tol=1e-4))
+    assert cheb.special_refinable(1.2e-9, measured=True, at=34.837)
+    assert not cheb.special_refinable(1.2e-9, measured=True, at=34.837)
