@@ -143,3 +143,24 @@ def test_an_fd_special_point_may_rise_once_before_its_refinement_ends():
     cheb = Adaptor(AdaptOptions(tol=1e-4))
     assert cheb.special_refinable(1.2e-9, measured=True, at=34.837)
     assert not cheb.special_refinable(1.2e-9, measured=True, at=34.837)
+
+
+def test_an_fd_refinement_is_judged_by_its_order(tmp_path):
+    """A refinement 'stalled' unless it halved the estimate; fd2 refined by 1.5 falls 2.25x in the
+    asymptotic range and 1.97x before it: ``contin trace stretched-bratu -s a=4 --method fd2
+    --tol 1e-4`` ended MX at its start (0.079 on fd2 8, 0.04 on 12).  On finite-order grids the
+    fall asked for is the square root of the expected one where that is weaker than a half; the run
+    now reaches its fold (EP, the states above tol warned)."""
+    from contin.adapt import stall_fraction
+
+    assert stall_fraction(StretchedBratu("fd2", 12), 8) == pytest.approx(2 / 3)
+    assert stall_fraction(StretchedBratu("fd4", 12), 8) == 0.5
+    assert stall_fraction(StretchedBratu("cheb", 12), 8) == 0.5
+    r, out = _run(tmp_path, "stretched-bratu", "-s", "a=4", "--method", "fd2", "--tol", "1e-4")
+    assert r.exit_code == 0, r.output
+    from contin import io
+
+    (b,), _ = io.load(out)
+    (lp,) = b.fold_points
+    assert lp.params["lam"] == pytest.approx(BRATU_FOLD / 5, rel=1e-4)
+
