@@ -164,3 +164,25 @@ def test_an_fd_refinement_is_judged_by_its_order(tmp_path):
     (lp,) = b.fold_points
     assert lp.params["lam"] == pytest.approx(BRATU_FOLD / 5, rel=1e-4)
 
+
+
+def test_an_fd_branch_that_missed_its_bps_on_a_coarse_grid_is_retraced(tmp_path):
+    """Uniform shear is exact on every grid, so ``contin trace savage-rheology --method fd2 --tol
+    1e-4`` coarsened the dense band's branch to fd2 8, whose spectrum has no crossing in H =
+    8.55 .. 42.77, and located neither H_1^c = 17.108 nor H_2^c = 34.217 (closed form), exit 0
+    with the note 'BPs located at none'.  At the end of an FD branch the LP/BP test functions of
+    its first and last points on the check grid are compared with the points located; the band
+    disagreed on fd2 16 and is retraced with min_grid 16: both BPs are found (within 1e-3 of the
+    closed form on fd2 512, each with its 'position not resolved' warning) and the banded
+    branches are traced."""
+    from contin import io
+
+    r, out = _run(tmp_path, "savage-rheology", "--method", "fd2", "--tol", "1e-4")
+    assert r.exit_code == 0, r.output
+    branches, meta = io.load(out)
+    band = next(b for b in branches if b.id == "band")
+    assert band.audit[0].startswith("retraced with min_grid 16")
+    hcs = meta["extra"]["band"]["H_c"]
+    found = [bp.params["H"] for bp in band.branch_points]
+    assert len(found) == 2 and all(abs(f - h) / h < 1e-3 for f, h in zip(found, hcs))
+    assert {"band.n1.1", "band.n1.2"} <= {b.id for b in branches}

@@ -199,9 +199,9 @@ def doubtful_points(branch: Any) -> list[str]:
     """The audit lines of points stored although their two-grid check exceeded tol
     (``contin.continuation.ACCEPTED_ABOVE_TOL``): the terminal shows them as warnings, also
     with ``-q`` (the stored state is less accurate than asked for)."""
-    from contin.continuation import ACCEPTED_ABOVE_TOL
+    from contin.continuation import ACCEPTED_ABOVE_TOL, MISSED_SPECIAL
 
-    return [m for m in branch.audit if m.startswith("step ") and ACCEPTED_ABOVE_TOL in m]
+    return [m for m in branch.audit if (m.startswith("step ") and ACCEPTED_ABOVE_TOL in m) or m.startswith(MISSED_SPECIAL)]
 
 
 #: The note of a located special point whose measured position missed special_tol after every
