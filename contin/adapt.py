@@ -201,6 +201,12 @@ PARAM_SCALE_FLOOR = 1e-3
 #: for refinement to go on (Adaptor.special_refinable).
 MEASURED_FALL = 0.9
 
+#: A located special point is the one measured before (located again after a refinement) when
+#: its parameter lies within SAME_POINT x (the larger measured relative error) of that one's;
+#: farther off it is another point, whose measurement is not compared with the previous one's
+#: (Adaptor.special_refinable).
+SAME_POINT = 10.0
+
 #: An LP whose bracket's tangent estimate is at most this multiple of special_tol is located on
 #: the grid in force and left to its two-grid check (Adaptor.pre_locate): an LP's position error
 #: measured 0.07x (gPCF nu = 0.16 fold, cheb 32: 1.5e-9 against 2.1e-8) and 0.12x (Bratu cheb 20:
@@ -309,6 +315,24 @@ def check_grid(problem: Any, factor: float, opts: AdaptOptions) -> int | None:
     if n < opts.max_grid:
         n_f = min(n_f, opts.max_grid)  # (gPCF: a check of cheb 368 on 512, 1/3 of the LU flops of 736)
     return n_f if n_f > n else None
+
+
+def stall_fraction(problem: Any, previous_grid: int) -> float:
+    """The fraction of the previous estimate that a refinement from ``previous_grid`` to the
+    problem's grid must reach not to count as stalled (:meth:`Adaptor.refine`): one half, or on a
+    grid of finite order q the square root of the expected fall (N_old / N_new)^q where that is
+    larger -- fd2 refined by 1.5 falls 2.25x in the asymptotic range, so "halves" refused
+    ``contin trace stretched-bratu -s a=4 --method fd2 --tol 1e-4`` at its start (0.079 on fd2 8,
+    0.04 on 12: MX 'does not fall with refinement', session 15)."""
+    q = getattr(problem, "convergence_order", None)
+    try:
+        q = float(q)  # type: ignore[arg-type]
+        ratio = float(previous_grid) / float(problem.grid_size)
+    except (TypeError, ValueError, AttributeError):
+        return 0.5
+    if not (0.0 < q < math.inf and 0.0 < ratio < 1.0):
+        return 0.5
+    return max(0.5, math.sqrt(ratio**q))
 
 
 def estimate_decides_check(problem: Any) -> bool:
@@ -488,7 +512,7 @@ class GridChange:
 
 
 def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_options: Any, *,
-               coarsen: bool = True, estimate: Any = None) -> tuple[Any, Array, list[str]]:
+               coarsen: bool = True, estimate: Any = None, parameter: str | None = None) -> tuple[Any, Array, list[str]]:
     """The grid to start a branch on: (problem on it, start state on it (converged where
     possible), audit lines).  Refines while the estimate of the solved start state exceeds tol;
     coarsens while it is below coarsen_below * tol and the coarser grid keeps it <=
@@ -503,7 +527,9 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
     candidate that fails, one solve for the grid taken (issue 14: a start state exact on every
     grid, gPCF uniform shear, was solved on cheb 4 and 8 on its way down from 64).
     ``estimate(problem, u, params)``: the estimator (default :func:`state_error`; the tracer
-    passes its :class:`Adaptor`'s, which remembers the estimates for the first point)."""
+    passes its :class:`Adaptor`'s, which remembers the estimates for the first point).  A start
+    whose estimate meets tol then gets the two-grid check of a candidate (:func:`_check_start`);
+    ``parameter`` names the continuation parameter in its audit line."""
     from contin.newton import newton
 
     check_problem(problem)
@@ -555,8 +581,57 @@ def start_grid(problem: Any, u0: Array, params: Any, opts: AdaptOptions, newton_
                 if e_new <= margin:
                     lines.append(f"start grid coarsened {problem.grid_size} -> {n_new} (estimate {err:.2g} -> {e_new:.2g})")
                     problem, u = other, trial.u
+                    err = e_new
                     break
+    if err <= opts.tol:
+        problem, u = _check_start(problem, u, params, err, opts, newton_options, est, lines, parameter)
     return problem, u, lines
+
+
+def _check_start(problem: Any, u: Array, params: Any, err: float, opts: AdaptOptions, newton_options: Any,
+                 est: Any, lines: list[str], parameter: str | None) -> tuple[Any, Array]:
+    """The two-grid check of the start state, as of every candidate (:meth:`Adaptor.solve_check`):
+    the start was judged by its estimate alone, which on an FD grid need not see the scheme's
+    error at all, and next to a BP does not see its amplification by ||J^-1|| (session 15:
+    ``contin trace allen-cahn --method fd2 --tol 1e-4`` stored the first point of each switched
+    branch, one step off the BP on fd2 512, 4.2e-4 .. 1.5e-2 off a cheb reference without a
+    warning; the points after it were warned).  Above tol the start is refined while its error
+    falls (halves), the refined solve kept only where it stays next to the checked state (a
+    refinement moves a BP; a start one step off it must not fall onto the other branch); where
+    refinement does not lower it the start is kept with the audit line of a point accepted by
+    its estimate (the terminal's warning)."""
+    from contin.continuation import ACCEPTED_ABOVE_TOL
+    from contin.newton import newton
+
+    if opts.check_factor is None or not opts.solve_check:
+        return problem, u
+    previous = math.inf
+    while True:
+        if estimate_decides_check(problem) and err <= opts.check_above * opts.tol:
+            return problem, u
+        e2 = two_grid_error(problem, u, params, opts.check_factor, opts)
+        if e2 is None or e2 <= opts.tol:
+            return problem, u
+        n_new = finer(problem, u, params, opts)
+        why = (f"on the maximum grid {problem.grid_size}" if n_new is None else
+               f"does not fall with refinement (grid {problem.grid_size})" if e2 > 0.5 * previous else "")
+        trial = None
+        if not why:
+            other = problem.with_grid(n_new)
+            guess = problem.transfer(u, other)
+            trial = newton(other, guess, params, newton_options)
+            # the refined solve stays within a few two-grid errors of the state (else it left it)
+            if not trial.converged or solution_error(other, guess, trial.u, params) > 4.0 * e2:
+                why = f"the solve on grid {n_new} left the start state"
+        if why:
+            p_text = f"{parameter}={float(params[parameter]):.10g}" if parameter else "the start"
+            lines.append(f"step 0: {p_text} {ACCEPTED_ABOVE_TOL}: two-grid error {e2:.2g} > tol {opts.tol:.2g} "
+                         f"at the start point, not lowered by refinement ({why})")
+            return problem, u
+        lines.append(f"start grid refined {problem.grid_size} -> {n_new} (two-grid error {e2:.2g} > tol {opts.tol:.2g})")
+        previous = e2
+        problem, u = other, trial.u
+        err = est(problem, u, params)
 
 
 class Adaptor:
@@ -582,6 +657,8 @@ class Adaptor:
         self._state_refine: tuple[int, float, int] | None = None  # (points, estimate, grid) at the last refinement
         self._special: float | None = None  # estimate that triggered the last refinement for a special point
         self._measured: float | None = None  # the same for a measured position (special_refinable)
+        self._measured_at: float | None = None  # ... and the parameter value of that position
+        self._rises = 0  # measurements of that point that did not fall (special_refinable)
         self._estimates: dict[tuple[Any, ...], tuple[Any, float]] = {}  # see estimate()
         #: (estimate, vector) of the kernel behind the last special_error (None: no kernel)
         self.kernel: tuple[float, Array] | None = None
@@ -600,7 +677,8 @@ class Adaptor:
         #: ended the refinement ("position not resolved" on 560).
         self.hold: tuple[float, float] | None = None
 
-    def special_refinable(self, err: float, measured: bool = False) -> bool:
+    def special_refinable(self, err: float, measured: bool = False, at: float | None = None,
+                          finite_order: bool = False) -> bool:
         """Whether to refine for a located special point whose estimate ``err`` exceeds tol: not
         when the previous such refinement left a special point with more than a tenth of its
         estimate.  A genuine BP's or LP's kernel converges with the grid (spectrally: 4e-3 -> 2e-8
@@ -608,7 +686,10 @@ class Adaptor:
         discretization artefact that moves with the grid, which refinement would chase to
         max_grid: 3e-2, 6e-3, 2e-3, 1e-3 on cheb 80..288 on gPCF's nu = 0.5 banded branch).
         The memory is cleared by a special point that meets tol (:meth:`special_resolved`).
-        ``measured``: err is the two-grid error of the point's position (comment below).
+        ``measured``: err is the two-grid error of the point's position (comment below);
+        ``at``: its parameter value (a measurement is compared only with the same point's);
+        ``finite_order``: the grid is of finite order (FD), where one measurement that does not
+        fall is allowed per point (pre-asymptotic range), a second ends the refinement.
         """
         last = self._special
         if measured:
@@ -617,9 +698,21 @@ class Adaptor:
             # scheme, pre-asymptotic: gPCF fd4 H_1^c 2.9e-5, 1.4e-5, 1.3e-6 on 16, 32, 64), and
             # refinement goes on while it falls (by MEASURED_FALL at least); an artefact's
             # position does not converge, and its measurement does not fall.
+            if self._measured is not None and at is not None and self._measured_at is not None and \
+                    abs(at - self._measured_at) > SAME_POINT * max(err, self._measured) * max(abs(at), PARAM_SCALE_FLOOR):
+                # Another special point, not the same one located again on a finer grid: its
+                # measurement starts its own history.  The previous point's "not falling" memory
+                # refused every later refinement: ``contin trace disks-pitchfork -s corr=cs
+                # --method fd4 --tol 1e-4`` kept H_1^c on fd4 32 (7.5e-6 off, not falling), then
+                # H_2^c on fd4 24 (2.9e-4) and H_3^c on fd4 12, 2.8e-2 off n pi psi (session 15).
+                self._measured, self._rises = None, 0
             if self._measured is not None and err > MEASURED_FALL * self._measured:
-                return False
-            self._measured = err
+                # On an FD grid the first rise may be pre-asymptotic (disks G_CS H_1^c on fd4:
+                # 2.9e-6 off on 16, 7.7e-6 on 32, then converging), so one is allowed per point.
+                self._rises += 1
+                if not (finite_order and self._rises == 1):
+                    return False
+            self._measured, self._measured_at = err, at
             self._special = err
             return True
         if last is not None and err > 0.1 * last:
@@ -629,7 +722,8 @@ class Adaptor:
 
     def special_resolved(self) -> None:
         self._special = None
-        self._measured = None
+        self._measured = self._measured_at = None
+        self._rises = 0
 
     # --- estimates -------------------------------------------------------------------------
     def error(self, system: Any, x: Array) -> float:
@@ -947,8 +1041,8 @@ class Adaptor:
         # (an estimate of SATURATED_ESTIMATE or more resolves nothing yet: it cannot fall until a
         # grid resolves the state, so it is no floor -- stretched-bratu a = 60 stopped at "1 on grid 12,
         # 1 on grid 12"; refinement goes on, bounded by max_grid)
-        if (not measured and last is not None and last[0] == count and err > 0.5 * last[1]
-                and last[1] < SATURATED_ESTIMATE):
+        if (not measured and last is not None and last[0] == count
+                and err > stall_fraction(sys.problem, last[2]) * last[1] and last[1] < SATURATED_ESTIMATE):
             self.stalled = True  # the tracer first retries with a shorter step (see trace)
             return (f"under-resolved at {sys.parameter} = {cur.x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                     f"{self.opts.tol:.2g} does not fall with refinement ({last[1]:.2g} on grid {last[2]}, {err:.2g} on "

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT
+from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT, estimate_decides_check
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
@@ -519,6 +519,10 @@ ACCEPTED_ABOVE_TOL = "accepted by its estimate"
 #: located); the command line shows these lines as warnings (``contin.cli.trace``).
 DETECTION_GAP = "detection gap"
 
+#: The audit line of an FD branch whose check grid's test functions disagree with the special
+#: points located on it (``trace``'s missed_crossings); the command line shows it as a warning.
+MISSED_SPECIAL = "a special point may be missed"
+
 #: Stored points a retreat re-solves on the finer grid at most (``trace``'s retreat_behind).
 MAX_RETREAT = 20
 
@@ -631,6 +635,7 @@ def trace(
     sopt = options.step
     system = ExtendedSystem(problem, params, parameter, sopt.theta)
     u0 = start_state(u0)
+    entry = (problem, u0)  # (a retrace on a finer smallest grid starts here: missed_crossings)
     try:
         # Only the shape is checked here; a non-finite residual (inf/nan from a division by zero at
         # extreme parameters) is the start point's Newton failure below, in one line, so numpy's
@@ -662,7 +667,7 @@ def trace(
         adaptor = Adaptor(options.adapt)
         adaptor.newton_options = options.newton
         problem, u0, grid_lines = start_grid(problem, u0, system.params, options.adapt, options.newton,
-                                             coarsen=tangent is None, estimate=adaptor.estimate)
+                                             coarsen=tangent is None, estimate=adaptor.estimate, parameter=parameter)
         if problem is not problem0:
             system = ExtendedSystem(problem, system.params, parameter, sopt.theta)
             if tangent is not None:
@@ -793,6 +798,46 @@ def trace(
                 f"{tracer.grid}, but no stored point up to {MAX_RETREAT} back has its old sign there: a special "
                 "point may lie behind it, not located")
         return False
+
+    def missed_crossings() -> tuple[str, int] | None:
+        """An FD branch's located special points against its check grid: the LP/BP test functions
+        of the first and last points re-solved on the grid ``check_factor`` times finer change
+        sign an odd or even number of times; where that parity differs from the number of points
+        of that kind the tracer located, a special point was missed (or is spurious) on the
+        grids the branch ran on.  An exact state estimated at 0 lets an FD run coarsen to its
+        smallest grid, whose spectrum can lack a bifurcation: ``contin trace savage-rheology
+        --method fd2 --tol 1e-4`` traced uniform shear on fd2 8 through H_1^c and H_2^c and
+        located none, exit 0 (session 15).  The grids and points are restored; (audit line, check
+        grid) is returned, and the tracer retraces the branch with the check grid as its smallest
+        grid (on max_grid: the audit line stays, a warning of ``contin trace``)."""
+        assert adaptor is not None
+        from contin.adapt import check_grid
+
+        size = check_grid(problem, adaptor.opts.check_factor or 2.0, adaptor.opts)
+        if size is None:
+            return None
+        keep = adaptor._snapshot(tracer)
+        if not adaptor.regrid(tracer, size, "crossing check", 0.0, options.newton):
+            return None
+        try:
+            first, last = adaptor.carry_point(tracer, 0, options.newton), tracer.points[-1]
+            functions = tracer._test_functions()
+        finally:
+            adaptor._restore(tracer, keep)
+        if first is None:
+            return None
+        odd = []
+        for name, kind, fn in functions:
+            found = sum(1 for sp in tracer.special if sp.type == name and (not kind or str(sp.note).startswith(kind)))
+            changed = _sign_changed(fn(first.tests), fn(last.tests))
+            if changed != (found % 2 == 1):
+                odd.append(f"{f'{name} {kind}'.strip()} test function changes sign {'an odd' if changed else 'an even'} "
+                           f"number of times there, {found} located")
+        if not odd:
+            return None
+        return (f"{MISSED_SPECIAL} between {parameter}={tracer.points[0].x[-1]:.10g} and "
+                f"{tracer.points[-1].x[-1]:.10g}: on the check grid {size} the {'; the '.join(odd)} on the grids "
+                "of the run (refine the start grid with --grid, or use a finer method)"), int(size)
 
     def adopt_grid() -> None:
         """Continue on the grid the tracer moved to (contin.adapt): its system, problem and size;
@@ -999,7 +1044,8 @@ def trace(
                 err = checked
             if err <= special_tol:
                 adaptor.special_resolved()
-            elif adaptor.special_refinable(err, measured=measured):
+            elif adaptor.special_refinable(err, measured=measured, at=float(found[0].params[parameter]),
+                                           finite_order=not estimate_decides_check(system.problem)):
                 old = tracer.points[-1]
                 if adaptor.refine(tracer, err, f"located {kinds} under-resolved", options.newton,
                                   vector=None if kernel is None else (kernel[1], special_tol), measured=measured) is None:
@@ -1043,6 +1089,27 @@ def trace(
             if tracer.system is not system:
                 adopt_grid()
 
+    if (adaptor is not None and tangent is None and status == "EP" and not closed and len(tracer.points) > 1
+            and not estimate_decides_check(problem)):
+        missed = missed_crossings()
+        if missed is not None:
+            line, size = missed
+            if options.adapt.min_grid < size <= options.adapt.max_grid:
+                # Retrace from the start with the check grid as the smallest grid: the run's
+                # coarse grids lacked the crossing the check grid has.
+                say(f"branch {branch_id}: {line}; retracing with min_grid {size}")
+                start_pb, start_u = entry
+                if int(start_pb.grid_size) < size:
+                    finer_pb = start_pb.with_grid(size)
+                    start_pb, start_u = finer_pb, np.asarray(entry[0].transfer(start_u, finer_pb), dtype=float)
+                again = replace(options, adapt=replace(options.adapt, min_grid=size))
+                retraced = trace(start_pb, start_u, params, parameter, again, direction=direction,
+                                 branch_id=branch_id, kind=kind, parent=parent, symmetric=symmetric, progress=progress)
+                retraced.audit.insert(0, f"retraced with min_grid {size} (AdaptOptions.min_grid was "
+                                         f"{options.adapt.min_grid}): {line}")
+                return retraced
+            if len(tracer.audit) < MAX_AUDIT:
+                tracer.audit.append(line)
     mark = "MX" if status == "MX" else "EP"
     note = message
     tracer.special.append(tracer.end_point(mark, note))

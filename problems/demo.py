@@ -249,10 +249,11 @@ class StretchedBratu(Bratu):
 
     parameter_names = ("lam", "a")
 
-    #: No reflection symmetry: Bratu's x -> 1 - x is one only at a = 0.  Inherited, it made every
-    #: trace from u = 0 (which is reflection-invariant) symmetrize its Newton iterates, so at any
-    #: a != 0 the first step failed at ds_min (`contin trace stretched-bratu -s a=0.5`: MX at
-    #: lam = 2.4e-5, session 15).
+    #: No reflection symmetry: the stretching breaks Bratu's x -> 1 - x for every a != 0.
+    #: Inherited, it made every trace from u = 0 (which is reflection-invariant) an S-invariant
+    #: branch of a problem that is not equivariant: at any a != 0 the first step failed at ds_min
+    #: (`contin trace stretched-bratu -s a=0.5`: MX at lam = 2.4e-5) or ended MX after storing a
+    #: point 0.47 off its solution (a = 4) (session 15).  ``contin.problem.has`` finds no callable hook.
     symmetry = None
 
     def __init__(self, method: str = "cheb", intervals: int = 32) -> None:

@@ -178,6 +178,38 @@ def test_fd_states_are_checked_even_where_the_estimate_is_blind(method):
         assert np.max(np.abs(b.state(i) - exact)) / np.max(np.abs(exact)) <= tol
 
 
+@pytest.mark.parametrize("method", ["fd2", "fd4"])
+def test_the_start_point_gets_the_two_grid_check(method):
+    """The start state was judged by its estimate alone (``start_grid``): with an estimate blind to
+    the FD scheme's error a start at lam = 3 was coarsened to fd2 8 and stored there 1.2e-2 off
+    the closed form (fd4 8: 2.7e-4) at tol 1e-4 -- the first point of every switched branch of
+    ``contin trace allen-cahn --method fd2 --tol 1e-4`` was likewise stored up to 1.5e-2 off a cheb
+    reference without a warning (session 15).  Now the start is two-grid checked and refined."""
+    tol = 1e-4
+    pb = BlindBratu(method, 16)
+    o = ContinuationOptions(bounds={"lam": (3.0, 3.3)}, max_steps=3, step=StepOptions(ds=0.1, ds_max=0.2),
+                            adapt=AdaptOptions(tol=tol, min_grid=8))
+    b = trace(pb, bratu_lower_exact(pb.x, 3.0), {"lam": 3.0}, "lam", o)
+    assert b.grid_at(0) > 8 and any("two-grid error" in line and "start grid refined" in line for line in b.audit)
+    grid = pb.with_grid(b.grid_at(0))
+    exact = bratu_lower_exact(grid.x, 3.0)
+    assert np.max(np.abs(b.state(0) - exact)) / np.max(np.abs(exact)) <= tol
+
+
+def test_a_start_point_left_above_tol_is_a_warning():
+    """Where refinement cannot lower the start's two-grid error (max_grid), the start is stored
+    with the audit line of a point accepted by its estimate, which ``contin trace`` prints as a
+    warning (``contin.cli.trace.doubtful_points``)."""
+    from contin.cli.trace import doubtful_points
+
+    pb = BlindBratu("fd2", 16)
+    o = ContinuationOptions(bounds={"lam": (3.0, 3.3)}, max_steps=2, step=StepOptions(ds=0.1, ds_max=0.2),
+                            adapt=AdaptOptions(tol=1e-4, min_grid=8, max_grid=16))
+    b = trace(pb, bratu_lower_exact(pb.x, 3.0), {"lam": 3.0}, "lam", o)
+    (line,) = [m for m in doubtful_points(b) if m.startswith("step 0:")]
+    assert line.startswith("step 0: lam=3 accepted by its estimate: two-grid error") and "at the start point" in line
+
+
 @pytest.mark.parametrize("tol", [1e-4, 1e-6, 1e-8, 1e-10])
 def test_couette_critical_gap_meets_tol(tol):
     """gPCF uniform shear at nu = 0.3, e = 0.8: started on cheb 64, the start grid is coarsened (the

@@ -271,3 +271,24 @@ def test_default_policy_of_the_eigenvalue_count() -> None:
             return []
 
     assert bp_eigen_count(Augmented(), auto, diag.n) == 0
+
+
+def test_equivariance_defect_takes_a_rounding_level_parameter_derivative_as_zero():
+    """Uniform shear solves F at every H, so dF/dH there is rounding (~1e-15); measured against
+    itself its 'defect' was 1, the symmetry was switched off for the H branch and the savage
+    band (disks, fd2) lost its BPs (session 15 merge).  F_p is measured against sqrt(eps) |J| too."""
+    import scipy.sparse as sp
+
+    from contin.testfunctions import Antisymmetric
+    from problems.disks.model import DiskCouetteProblem
+
+    pb = DiskCouetteProblem("fd2", 16)
+    p = pb.params({"nu": 0.5, "e": 0.8, "H": 10.0})
+    u = pb.uniform_state(p)
+    anti = Antisymmetric.from_problem(pb, u.size)
+    jac = sp.csr_matrix(pb.jacobian(u, p))
+    rounding = 1e-15 * np.random.default_rng(0).standard_normal(u.size)  # an F_p of rounding noise
+    assert anti.equivariance_defect(jac, rounding) < 1e-6
+    asymmetric = np.zeros(u.size)
+    asymmetric[1] = 1.0  # an O(1) F_p on one side only
+    assert anti.equivariance_defect(jac, asymmetric) > 0.5

@@ -9,6 +9,15 @@ measure of plane shear's resolution guard: the tail of the profiles' Chebyshev c
 phi's relative to its variation across the gap and the second profile's relative to its maximum.
 On finite-difference grids there is no such estimate (NaN: ``contin verify`` reports the measured
 error only); the scenes are not adaptive (``Scene.adaptive`` is False), so no tracer relies on it.
+
+The resolution guard (``under_resolved``, every fixed-grid trace at ``resolution_tol``) measures
+instead: the two-grid error of the state (``contin.adapt.two_grid_error``: one Newton correction
+on the grid twice as fine, Richardson-scaled on FD grids), together with the Chebyshev tail on
+Chebyshev grids.  Session 15's audit (every stored state against a cheb 128 reference solve):
+without it ``contin trace nonlocal-cylinder`` (no guard at all) stored states 1.3e-3 off on cheb
+16, 1.1e-2 on fd2 32 -- the tail read 2.2e-5 where the error was 1.1e-3 -- and plane shear's
+guard, Chebyshev only, let ``nonlocal-shear --method fd2 --grid 32`` store states 0.16 off, all
+with exit 0 and no warning.  The two-grid error matched the reference to 2-5 % in every case.
 """
 
 from __future__ import annotations
@@ -25,6 +34,9 @@ Array = np.ndarray
 
 #: Highest Chebyshev coefficients measured (as plane shear's resolution guard).
 TAIL_MODES = 4
+
+#: The resolution guard's fine grid: GUARD_FACTOR x the state's (``under_resolved``).
+GUARD_FACTOR = 2
 
 
 def chebyshev_tail(values: Array) -> float:
@@ -71,6 +83,32 @@ class NonlocalGridHooks:
         y = other.grid.y
         grid = self.grid  # type: ignore[attr-defined]
         return np.concatenate([grid.interpolate(phi, y), grid.interpolate(f, y), [P]])
+
+    def two_grid_error(self, x: Array, p: Mapping[str, Any]) -> float:
+        """The state's measured relative error: one Newton correction on the grid GUARD_FACTOR
+        times finer (``contin.adapt.two_grid_error``, Richardson-scaled on FD grids; inf where the
+        fine Jacobian is singular)."""
+        from contin.adapt import AdaptOptions, two_grid_error
+
+        n = int(self.grid.intervals)  # type: ignore[attr-defined]
+        err = two_grid_error(self, np.asarray(x, dtype=float), p, GUARD_FACTOR,
+                             AdaptOptions(max_grid=max(GUARD_FACTOR * n, 8)))
+        return math.inf if err is None else float(err)
+
+    def under_resolved(self, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
+        """contin's resolution guard: None if the state's two-grid error (:meth:`two_grid_error`)
+        and, on Chebyshev grids, its coefficient tail (:meth:`error_estimate`) are <= tol."""
+        method, n = self.grid.method, int(self.grid.intervals)  # type: ignore[attr-defined]
+        if method == "cheb":
+            tail = self.error_estimate(x, p)
+            if tail > tol:
+                return (f"Chebyshev tail {tail:.1e} of the profiles' scale (> {tol:.1e}) on cheb {n}: "
+                        "need a finer --grid")
+        err = self.two_grid_error(x, p)
+        if err > tol:
+            return (f"two-grid error {err:.1e} (> {tol:.1e}) on {method} {n}, measured against the solve on "
+                    f"{method} {GUARD_FACTOR * n}: need a finer --grid")
+        return None
 
     def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
         """Estimated relative error of x: the larger of :func:`profile_tails` on Chebyshev grids,
