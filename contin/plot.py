@@ -51,6 +51,8 @@ MARKERS: dict[str, tuple[str, str]] = {
 }
 STABLE_STYLE = "-"
 UNSTABLE_STYLE = "--"
+#: the neutral-saddle part of a Hopf curve (kappa < 0, past a BT)
+NEUTRAL_SADDLE_STYLE = ":"
 
 
 def branch_values(branch: Branch, name: str) -> np.ndarray:
@@ -121,17 +123,20 @@ def plot_branch(
     lw = line_kw.pop("linewidth", line_kw.pop("lw", 1.5))
     artists: list[Any] = []
     first = True
-    runs = stability_runs(branch.stable, len(branch))
+    # a Hopf curve past a BT continues as neutral saddles (kappa = omega^2 < 0): drawn dotted, so
+    # that it is not read as Hopf points
+    saddles = branch.kind == "hopf-curve" and branch.stable is None and "kappa" in branch.observables
+    runs = stability_runs(branch.observables["kappa"] > 0 if saddles else branch.stable, len(branch))
     join: dict[int, tuple[float, float]] = {}  # boundary index -> located point splitting it
     for _, b, _ in runs[:-1]:
         for sp in branch.special_points:
-            if sp.index == b and sp.type in ("BP", "HB", "LP"):
+            if sp.index == b and sp.type in ("BP", "HB", "LP", "BT"):
                 px, py = _point_value(branch, sp, x), _point_value(branch, sp, y)
                 if np.isfinite(px) and np.isfinite(py):
                     join[b] = (px, py)
                     break
     for k, (a, b, st) in enumerate(runs):
-        style = UNSTABLE_STYLE if st is False else STABLE_STYLE
+        style = (NEUTRAL_SADDLE_STYLE if saddles else UNSTABLE_STYLE) if st is False else STABLE_STYLE
         rx, ry = list(xs[a : b + 1]), list(ys[a : b + 1])
         if k > 0:  # start at the previous run's last point, or at the special point between
             px, py = join.get(a - 1, (xs[a - 1], ys[a - 1]))
@@ -143,7 +148,8 @@ def plot_branch(
                           linewidth=lw if st is not False else 0.8 * lw,
                           label=(label if first else None), **line_kw)
         color = color or line.get_color()  # one colour for all runs of the branch
-        line.set_gid(f"branch-{branch.id}-{'stable' if st else 'unstable' if st is False else 'unknown'}")
+        kind = ("hopf" if st else "neutral-saddle") if saddles else ("stable" if st else "unstable" if st is False else "unknown")
+        line.set_gid(f"branch-{branch.id}-{kind}")
         artists.append(line)
         first = False
     types = set(special or ())

@@ -155,3 +155,36 @@ def test_cli_diagram_line_styles(tmp_path, monkeypatch):
     assert styles == {"branch-0-stable": "-", "branch-0-unstable": "--", "branch-1-stable": "-",
                       "branch-2-unknown": "-"}
     assert (tmp_path / "d.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_hopf_curve_neutral_saddle_part_is_dotted(tmp_path):
+    """Past a BT a Hopf curve continues as neutral saddles (kappa < 0): that part is drawn dotted
+    (gid ...-neutral-saddle), the Hopf part solid, split at the BT."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from contin.continuation import trace
+    from contin.hopfcurve import trace_hopf_curve
+    from contin.options import ContinuationOptions, StepOptions
+    from contin.plot import NEUTRAL_SADDLE_STYLE, STABLE_STYLE, plot_branch
+    from tests.hopf_models import AB
+
+    first = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"D": (0.0, 0.2)}, max_steps=400)
+    (hb,) = trace(AB(), np.zeros(2), {"D": 0.0, "B": 14.0, "beta": 3.0}, "D", first).points("HB")
+    curve = trace_hopf_curve(AB(), hb, "B", ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05),
+                                                                bounds={"D": (0.0, 0.5), "B": (0.0, 30.0)},
+                                                                max_steps=150), parameter="D")
+    kappa = curve.observables["kappa"]
+    assert kappa.min() < 0 < kappa.max() and len(curve.points("BT")) == 1
+    fig, ax = plt.subplots()
+    artists = plot_branch(curve, "D", "B", ax)
+    lines = {a.get_gid(): a for a in artists if a.get_gid() and a.get_gid().startswith("branch-")}
+    assert lines[f"branch-{curve.id}-neutral-saddle"].get_linestyle() == NEUTRAL_SADDLE_STYLE
+    assert lines[f"branch-{curve.id}-hopf"].get_linestyle() == STABLE_STYLE
+    bt = curve.points("BT")[0]
+    saddle = lines[f"branch-{curve.id}-neutral-saddle"].get_xydata()
+    assert np.isclose(saddle[:, 0], bt.params["D"]).any()  # the two parts meet at the located BT
+    plt.close(fig)
