@@ -201,6 +201,12 @@ PARAM_SCALE_FLOOR = 1e-3
 #: for refinement to go on (Adaptor.special_refinable).
 MEASURED_FALL = 0.9
 
+#: The audit of a point stored although its two-grid check exceeded tol (the check was not
+#: lowered by refinement: a floor, a kink between nodes, or an FD grid not yet in its asymptotic
+#: range next to a BP); the command line shows these lines as warnings (``contin.cli.trace``);
+#: defined here, where the start point's check (``_check_start``) writes it too.
+ACCEPTED_ABOVE_TOL = "accepted by its estimate"
+
 #: A located special point is the one measured before (located again after a refinement) when
 #: its parameter lies within SAME_POINT x (the larger measured relative error) of that one's;
 #: farther off it is another point, whose measurement is not compared with the previous one's
@@ -600,7 +606,6 @@ def _check_start(problem: Any, u: Array, params: Any, err: float, opts: AdaptOpt
     refinement moves a BP; a start one step off it must not fall onto the other branch); where
     refinement does not lower it the start is kept with the audit line of a point accepted by
     its estimate (the terminal's warning)."""
-    from contin.continuation import ACCEPTED_ABOVE_TOL
     from contin.newton import newton
 
     if opts.check_factor is None or not opts.solve_check:

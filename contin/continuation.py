@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.adapt import PRECISION_LIMIT, RESOLUTION_LIMIT, estimate_decides_check
+from contin.adapt import ACCEPTED_ABOVE_TOL, PRECISION_LIMIT, RESOLUTION_LIMIT, estimate_decides_check
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
@@ -509,10 +509,6 @@ def _under_resolved(problem: Any, system: ExtendedSystem, x: Array, tol: float |
     return f"under-resolved at {system.parameter} = {x[-1]:.6g}: {reason}"
 
 
-#: The audit of a point stored although its two-grid check exceeded tol (the check was not
-#: lowered by refinement: a floor, a kink between nodes, or an FD grid not yet in its asymptotic
-#: range next to a BP); the command line shows these lines as warnings (``contin.cli.trace``).
-ACCEPTED_ABOVE_TOL = "accepted by its estimate"
 
 #: Marks an audit line of a step across which a special point may have been missed (a test
 #: function not finite at one end, a user zero crossed twice next to a fold that was not

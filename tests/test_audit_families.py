@@ -186,3 +186,15 @@ def test_an_fd_branch_that_missed_its_bps_on_a_coarse_grid_is_retraced(tmp_path)
     found = [bp.params["H"] for bp in band.branch_points]
     assert len(found) == 2 and all(abs(f - h) / h < 1e-3 for f, h in zip(found, hcs))
     assert {"band.n1.1", "band.n1.2"} <= {b.id for b in branches}
+
+
+def test_an_unconverged_location_is_a_warning():
+    """A special point whose location did not converge said so in the summary table's note only
+    (savage-rheology's symmetric BP4 on cheb 32, 3.0e-10 off a cheb 96 solve at special_tol 1e-10)."""
+    from types import SimpleNamespace
+
+    from contin.cli.trace import doubtful_special_points
+
+    bp = SimpleNamespace(name="BP4", params={"H": 34.2168388523}, note="symmetric; location did not converge")
+    (line,) = doubtful_special_points(SimpleNamespace(parameter="H", special_points=[bp]))
+    assert line.startswith("BP4 at H=34.21683885: location did not converge")
