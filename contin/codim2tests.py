@@ -35,7 +35,7 @@ import numpy as np
 from contin.branch import SpecialPoint
 from contin.pointtests import Crossing
 from contin.problem import Array
-from contin.testfunctions import signed_value
+from contin.testfunctions import sign_log_crossing
 
 log = logging.getLogger("contin")
 
@@ -112,14 +112,7 @@ class ZeroHopfTest:
         return (sign * math.copysign(1.0, kappa), logabs - math.log(abs(kappa)))
 
     def crossings(self, va: tuple[float, float], vb: tuple[float, float]) -> list[Crossing]:
-        if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
-            return []
-        ref = max(va[1], vb[1])
-
-        def g(v: tuple[float, float]) -> float:
-            return signed_value(v, ref)
-
-        return [("zero-Hopf (a real eigenvalue through 0 on the Hopf curve)", g)]
+        return sign_log_crossing(va, vb, "zero-Hopf (a real eigenvalue through 0 on the Hopf curve)")
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         kappa = float(x[self.kappa_index])

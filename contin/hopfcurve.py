@@ -50,7 +50,7 @@ from contin.hopfsystem import HopfCurveProblem, KappaTest, LyapunovTest, _mass, 
 from contin.options import ContinuationOptions
 from contin.pointtests import Crossing
 from contin.problem import Array, has
-from contin.testfunctions import signed_value
+from contin.testfunctions import sign_log_crossing
 
 #: the public API (the augmented system's classes are ``contin.hopfsystem``'s, listed here too:
 #: the Hopf-curve API they belong to)
@@ -341,15 +341,7 @@ class _FoldBT:
         return (-sign * math.copysign(1.0, ymx), logabs + math.log(abs(ymx)))
 
     def crossings(self, va: tuple[float, float], vb: tuple[float, float]) -> list[Crossing]:
-        if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
-            return []
-        ref = max(va[1], vb[1])
-
-        def g(v: tuple[float, float]) -> float:
-            # clamped both ways: an underflow to 0 would pass for a located zero (issue 14 sec. 3)
-            return signed_value(v, ref)
-
-        return [("Bogdanov-Takens (psi^T M phi = 0)", g)]
+        return sign_log_crossing(va, vb, "Bogdanov-Takens (psi^T M phi = 0)")
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         return sp_

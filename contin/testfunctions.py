@@ -104,6 +104,21 @@ def sign_change(a: Any, b: Any) -> bool | None:
     return sa != 0 and sb != 0 and (sa > 0) != (sb > 0)
 
 
+def sign_log_crossing(va: SignLog, vb: SignLog, note: str) -> list[tuple[str, Callable[[SignLog], float]]]:
+    """The crossing of a (sign, log|.|) point test between two points (``contin.pointtests``):
+    [(note, g)] with g = :func:`signed_value` against the larger log of the two when the signs
+    differ (both nonzero), else [].  Clamped both ways: an underflow to 0 would pass for a
+    located zero (issue 14 sec. 3).  The BT test of fold curves and the ZH test of Hopf curves."""
+    if va[0] == 0 or vb[0] == 0 or va[0] == vb[0]:
+        return []
+    ref = max(va[1], vb[1])
+
+    def g(v: SignLog) -> float:
+        return signed_value(v, ref)
+
+    return [(note, g)]
+
+
 def detrended(va: SignLog, vb: SignLog, s_b: float) -> Callable[[SignLog, float], float]:
     """g(v, s) = sign * exp(log|v| - l(s)), l linear in s with l(0) = log|va|, l(s_b) = log|vb|.
 
