@@ -371,3 +371,24 @@ def test_a_curve_that_starts_on_a_bound_stays_inside_it(tmp_path):
         values = curve.params[name]
         assert lo - 1e-9 <= values.min() and values.max() <= hi + 1e-9, (label, values.min(), values.max())
         assert f"reached bound {name}={lo:g}" in curve.message, curve.message
+
+
+def test_a_bp_curve_that_starts_on_one_bound_lands_on_the_other(tmp_path):
+    """`contin continue pf.h5 --from BP1 --free nu --bounds nu=0.3:0.31` (BP1 at nu = 0.3) stored a BP
+    curve with nu from 0.2165 to 0.3166, exit 0: the bound event min(nu - lo, hi - nu) is 0 at the
+    start, so the first step across nu = 0.31 showed no sign change.  One event per bound now."""
+    import shutil
+    from pathlib import Path
+
+    from contin import io
+
+    pf = tmp_path / "pf.h5"
+    shutil.copy(Path(__file__).resolve().parents[1] / "results" / "pitchfork.h5", pf)
+    out = tmp_path / "c.h5"
+    res = run(["continue", str(pf), "--from", "BP1", "--free", "nu", "--bounds", "nu=0.3:0.31", "--max-steps", "3",
+               "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (curve,), _ = io.load(out)
+    nu = curve.params["nu"]
+    assert 0.3 - 1e-12 <= nu.min() and nu.max() <= 0.31 + 1e-12, nu
+    assert "reached bound nu=0.31" in curve.message and "reached bound nu=0.3" in curve.message, curve.message
