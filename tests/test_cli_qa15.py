@@ -392,3 +392,16 @@ def test_a_bp_curve_that_starts_on_one_bound_lands_on_the_other(tmp_path):
     nu = curve.params["nu"]
     assert 0.3 - 1e-12 <= nu.min() and nu.max() <= 0.31 + 1e-12, nu
     assert "reached bound nu=0.31" in curve.message and "reached bound nu=0.3" in curve.message, curve.message
+
+
+def test_kx_with_no_stability_is_a_contradiction_not_a_silent_drop(tmp_path):
+    """`contin trace allen-cahn --kx 1 --no-stability` dropped --kx silently, exit 0 (the warning for
+    an ignored --kx skipped --no-stability runs); a sweep's kx with stability = false likewise."""
+    err = one_error(run(["trace", "allen-cahn", "--kx", "1", "--no-stability", "-q", "-o", str(tmp_path / "a.h5")]))
+    assert err == ("Error: --kx 1 asks for stability columns but --no-stability switches the stability pass off; "
+                   "drop one of them"), err
+    assert not (tmp_path / "a.h5").exists()
+    toml = tmp_path / "k.toml"
+    toml.write_text('[sweep]\nscene = "allen-cahn"\n[grid]\nlam_max = [3.0]\n[options]\nstability = false\nkx = [1.0]\n')
+    err = one_error(run(["sweep", str(toml), "-o", str(tmp_path / "out")]))
+    assert "option 'kx' in" in err and "'stability = false' switches the stability pass off" in err, err

@@ -292,6 +292,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     params = parse_settings(settings)
     kx_values = _parse_kx(kx)
+    if no_stability and any(k != 0 for k in kx_values):  # it was dropped silently, exit 0 (qa15)
+        fail(f"--kx {kx} asks for stability columns but --no-stability switches the stability pass off; "
+             f"drop one of them")
     method = check_nonempty(method, "--method")
     check_finite_positive(ds, "--ds")
     check_finite_positive(ds_max, "--ds-max")
