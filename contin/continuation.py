@@ -698,9 +698,12 @@ def trace(
     # Start tangent: bordered solve with the guess as bordering row; the guess is e_p (natural
     # direction) unless a tangent is given; a random row rescues a start exactly at a fold.
     if tangent is not None:
-        guess = direction * system.unit(np.asarray(tangent, dtype=float).ravel())
-        if guess.size != n + 1:
-            raise ValueError(f"tangent must have n + 1 = {n + 1} entries, got {guess.size}")
+        raw = np.asarray(tangent, dtype=float).ravel()
+        if raw.size != n + 1:
+            raise ValueError(f"tangent must have n + 1 = {n + 1} entries, got {raw.size}")
+        if not (np.all(np.isfinite(raw)) and np.any(raw != 0)):  # it failed every step with a RuntimeWarning (qa15)
+            raise ValueError("tangent must be finite and nonzero")
+        guess = direction * system.unit(raw)
     else:
         guess = np.zeros(n + 1)
         guess[-1] = math.copysign(1.0, sopt.ds) * direction

@@ -405,3 +405,15 @@ def test_kx_with_no_stability_is_a_contradiction_not_a_silent_drop(tmp_path):
     toml.write_text('[sweep]\nscene = "allen-cahn"\n[grid]\nlam_max = [3.0]\n[options]\nstability = false\nkx = [1.0]\n')
     err = one_error(run(["sweep", str(toml), "-o", str(tmp_path / "out")]))
     assert "option 'kx' in" in err and "'stability = false' switches the stability pass off" in err, err
+
+
+@pytest.mark.parametrize("bad", [0.0, math.nan])
+def test_trace_with_a_zero_or_nan_tangent_is_refused(bad):
+    """trace(..., tangent=zeros) or a NaN tangent failed every step ('residual is not finite at the
+    predicted point', MX) with a RuntimeWarning 'invalid value encountered in divide'."""
+    from contin.continuation import trace
+    from problems.demo import Bratu
+
+    pb = Bratu("cheb", 16)
+    with pytest.raises(ValueError, match="tangent must be finite and nonzero"):
+        trace(pb, pb.initial(), {"lam": 0.0}, "lam", tangent=np.full(pb.n + 1, bad))
