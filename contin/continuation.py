@@ -1252,6 +1252,16 @@ def switch(
                         f"got {type(point).__name__}")
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
+    # a BP without a usable state ended in numpy's "matmul: dimension mismatch ..." or "operands
+    # could not be broadcast together ..." (qa15); its size is checked on its grid by departures
+    state = None if point.state is None else np.asarray(point.state, dtype=float).ravel()
+    if state is None or state.size == 0 or not np.all(np.isfinite(state)):
+        raise ValueError(f"switching at {point.name} needs its located state, and it has "
+                         f"{'none' if state is None or state.size == 0 else 'non-finite entries'}")
+    tangent_size, extra = np.asarray(point.tangent).size, int(getattr(branch, "tangent_extra", 1))
+    if tangent_size != state.size + extra:
+        raise ValueError(f"{point.name}: its state ({state.size} entries) and tangent ({tangent_size}) do not fit "
+                         f"together (the tangent has {extra} entr{'y' if extra == 1 else 'ies'} more)")
     param = branch.parameter
     dim = kernel_dimension(point)
     nd = dim is not None and dim > 1

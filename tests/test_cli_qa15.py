@@ -417,3 +417,27 @@ def test_trace_with_a_zero_or_nan_tangent_is_refused(bad):
     pb = Bratu("cheb", 16)
     with pytest.raises(ValueError, match="tangent must be finite and nonzero"):
         trace(pb, pb.initial(), {"lam": 0.0}, "lam", tangent=np.full(pb.n + 1, bad))
+
+
+def test_switch_at_a_bp_without_a_usable_state_is_one_sentence():
+    """switch() at a BP whose state is missing, NaN, or does not fit its tangent ended in numpy's
+    'matmul: dimension mismatch with signature ...' / 'operands could not be broadcast together ...'
+    or, for NaN, tried both directions first."""
+    import dataclasses
+
+    from contin.branch import relabel
+    from contin.continuation import switch, trace
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import AllenCahn
+
+    pb = AllenCahn("cheb", 24)
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.3), bounds={"lam": (0, 10)}, max_steps=40)
+    trivial = trace(pb, pb.initial(), {"lam": 0.5}, "lam", opts, kind="trivial")
+    relabel([trivial])
+    bp = trivial.branch_points[0]
+    for state, expect in ((None, "needs its located state, and it has none"),
+                          (bp.state * np.nan, "needs its located state, and it has non-finite entries"),
+                          (bp.state[:-2], "its state (23 entries) and tangent (26) do not fit together")):
+        with pytest.raises(ValueError, match=re.escape(expect)):
+            switch(pb, trivial, dataclasses.replace(bp, state=state), opts)
+    assert len(switch(pb, trivial, bp, opts)) == 2
