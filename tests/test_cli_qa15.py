@@ -441,3 +441,22 @@ def test_switch_at_a_bp_without_a_usable_state_is_one_sentence():
         with pytest.raises(ValueError, match=re.escape(expect)):
             switch(pb, trivial, dataclasses.replace(bp, state=state), opts)
     assert len(switch(pb, trivial, bp, opts)) == 2
+
+
+@pytest.mark.parametrize("kw, expect", [
+    ({"max_branches": 0}, "max_branches must be >= 1"),
+    ({"tol": math.inf}, "tol must be a finite number > 0"),  # every branch a duplicate of the first
+    ({"fraction": 0.0}, "fraction must lie in (0, 1]"),
+    ({"fraction": 2.0}, "fraction must lie in (0, 1]"),
+    ({"excursion": -1.0}, "excursion must be > 0"),
+])
+def test_diagram_settings_that_cannot_work_are_refused(kw, expect):
+    """DiagramSettings(tol=inf) or fraction=0 made bifurcation_diagram drop every switched branch as a
+    duplicate of the first (1 branch of allen-cahn's 5, silently); max_branches 0, fraction 2 or NaN,
+    excursion -1 or NaN and depth 2.5 were accepted."""
+    from contin.diagram import DiagramSettings
+
+    with pytest.raises(ValueError, match=re.escape(expect)):
+        DiagramSettings(**kw)
+    with pytest.raises(TypeError, match="DiagramSettings.depth must be a whole number"):
+        DiagramSettings(depth=2.5)
