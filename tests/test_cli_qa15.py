@@ -460,3 +460,16 @@ def test_diagram_settings_that_cannot_work_are_refused(kw, expect):
         DiagramSettings(**kw)
     with pytest.raises(TypeError, match="DiagramSettings.depth must be a whole number"):
         DiagramSettings(depth=2.5)
+
+
+def test_adapt_options_refuse_an_infinite_growth_and_a_grid_beyond_the_limit():
+    """AdaptOptions(growth=inf) and AdaptOptions(max_grid=10**9) were accepted (the command line caps
+    grids at contin.limits.MAX_GRID: a grid of 1e9 intervals ate 330 MB/s)."""
+    from contin.limits import MAX_GRID
+    from contin.options import AdaptOptions
+
+    with pytest.raises(ValueError, match="growth must be a finite number > 1"):
+        AdaptOptions(growth=math.inf)
+    with pytest.raises(ValueError, match=f"AdaptOptions.max_grid must be at most {MAX_GRID}"):
+        AdaptOptions(max_grid=10**9)
+    assert AdaptOptions(max_grid=MAX_GRID).max_grid == MAX_GRID
