@@ -326,7 +326,7 @@ class _Tracer:
                 continue
             # the step turned at a fold: a value between the ends' and the fold's is crossed twice,
             # p - value has the same sign at both ends (a UZ 1e-8 below bratu's lam* was missed)
-            if fold_at:
+            if fold_at and fold_at[0][1].tests is not a.tests:  # (a trial that hit the fold exactly carries a's tests)
                 s_f, f_pt = fold_at[0]
                 for note, g in turning(va, vb, pt.value(sys, f_pt.x)):
                     fn = (lambda v, g=g, name=pt.name: g(v.extra[name]))
