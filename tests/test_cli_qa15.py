@@ -473,3 +473,9 @@ def test_adapt_options_refuse_an_infinite_growth_and_a_grid_beyond_the_limit():
     with pytest.raises(ValueError, match=f"AdaptOptions.max_grid must be at most {MAX_GRID}"):
         AdaptOptions(max_grid=10**9)
     assert AdaptOptions(max_grid=MAX_GRID).max_grid == MAX_GRID
+
+
+def test_stop_at_empty_is_a_usage_error(tmp_path):
+    """`contin trace bratu --stop-at ''` ran to the end without a word, exit 0."""
+    res = run(["trace", "bratu", "--stop-at", "", "-q", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 2 and "Invalid value for '--stop-at': expected labels such as LP1 or UZ2, got ''" in res.stderr

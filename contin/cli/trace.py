@@ -69,6 +69,8 @@ def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
             raise click.BadParameter(f"expected NAME=V1,V2,... with numbers, got {item!r}", param_hint="'--uz'")
         zeros.setdefault(name.strip(), []).extend(vals)
     labels = tuple(t.strip() for t in (stop_at or "").split(",") if t.strip())
+    if stop_at is not None and not labels:  # '' ran to the end without a word (qa15)
+        raise click.BadParameter(f"expected labels such as LP1 or UZ2, got {stop_at!r}", param_hint="'--stop-at'")
     try:  # the options' own validation: finite values, LP/BP/UZ/HB<k> labels
         ContinuationOptions(user_zeros=zeros, stop_at=labels)
     except ValueError as exc:
