@@ -479,3 +479,13 @@ def test_stop_at_empty_is_a_usage_error(tmp_path):
     """`contin trace bratu --stop-at ''` ran to the end without a word, exit 0."""
     res = run(["trace", "bratu", "--stop-at", "", "-q", "-o", str(tmp_path / "b.h5")])
     assert res.exit_code == 2 and "Invalid value for '--stop-at': expected labels such as LP1 or UZ2, got ''" in res.stderr
+
+
+def test_empty_kx_imperfection_and_delta_are_usage_errors(allen_cahn_file, tmp_path):
+    """`contin trace bratu --kx ''` was accepted without a word; `contin fit F --at BP1 --imperfection ''`
+    (or --delta '') fell back to the default and then asked to 'give it with --imperfection NAME'."""
+    res = run(["trace", "bratu", "--kx", "", "-q", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 2 and "Invalid value for '--kx': must not be empty" in res.stderr, res.stderr
+    for option in ("--imperfection", "--delta"):
+        res = run(["fit", str(allen_cahn_file), "--at", "BP1", option, ""])
+        assert res.exit_code == 2 and f"Invalid value for '{option}': must not be empty" in res.stderr, res.stderr

@@ -42,8 +42,10 @@ CHECKPOINT_RATIO = 4.0
 
 
 def _parse_kx(text: str | None) -> tuple[float, ...]:
-    if not text:
+    if text is None:
         return ()
+    if not text.strip():  # --kx '' was accepted without a word (qa15)
+        raise click.BadParameter("must not be empty (leave the option out for no extra wavenumbers)", param_hint="'--kx'")
     try:
         values = tuple(float(x) for x in text.split(",") if x.strip())
     except ValueError:
