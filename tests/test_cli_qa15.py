@@ -489,3 +489,17 @@ def test_empty_kx_imperfection_and_delta_are_usage_errors(allen_cahn_file, tmp_p
     for option in ("--imperfection", "--delta"):
         res = run(["fit", str(allen_cahn_file), "--at", "BP1", option, ""])
         assert res.exit_code == 2 and f"Invalid value for '{option}': must not be empty" in res.stderr, res.stderr
+
+
+def test_profiles_of_a_branch_that_reaches_the_value_twice_say_which_is_drawn(tmp_path):
+    """`contin profiles bratu.h5 --at lam=3.5` drew the lower solution only ('interpolated between
+    points 18 and 20'), without a word about the upper one the branch reaches after its fold."""
+    out = tmp_path / "b.h5"
+    assert run(["trace", "bratu", "--max-steps", "60", "-q", "-o", str(out)]).exit_code == 0
+    res = run(["profiles", str(out), "--at", "lam=3.5", "-o", str(tmp_path / "p.png")])
+    assert res.exit_code == 0, res.stderr
+    assert "(the first of 2 crossings of lam=3.5 along the branch; the others are not drawn)" in res.stderr, res.stderr
+    short = tmp_path / "short.h5"  # below the fold only: one crossing, no note
+    assert run(["trace", "bratu", "--max-steps", "8", "-q", "-o", str(short)]).exit_code == 0
+    res = run(["profiles", str(short), "--at", "lam=0.5", "-o", str(tmp_path / "q.png")])
+    assert res.exit_code == 0 and "crossings" not in res.stderr, res.stderr
