@@ -128,6 +128,10 @@ def detrended(va: SignLog, vb: SignLog, s_b: float) -> Callable[[SignLog, float]
 _ANTI_CACHE: weakref.WeakKeyDictionary[Any, tuple[tuple[int, int], Antisymmetric | None]] = weakref.WeakKeyDictionary()
 
 
+#: sqrt(machine epsilon): the floor of the F_p scale in :meth:`Antisymmetric.equivariance_defect`
+_SQRT_EPS = float(np.sqrt(np.finfo(float).eps))
+
+
 class Antisymmetric:
     """Orthonormal basis Q (sparse n x m) of the -1 eigenspace of a linear involution S."""
 
@@ -192,7 +196,10 @@ class Antisymmetric:
             worst, scale_j = float(np.max(np.abs(sjs - j), initial=0.0)), float(np.max(np.abs(j), initial=0.0))
         out = worst / scale_j if scale_j > 0 else 0.0
         fp = np.asarray(fp, dtype=float)
-        scale_p = float(np.max(np.abs(fp), initial=0.0))
+        # F_p at rounding level is F_p = 0 (uniform shear solves F at every H: dF/dH ~ 1e-15,
+        # whose "defect" relative to itself was 1 and switched the symmetry off for the savage
+        # band's H branch, whose BPs were then missed): F_p is measured against sqrt(eps) |J| too
+        scale_p = max(float(np.max(np.abs(fp), initial=0.0)), _SQRT_EPS * scale_j)
         if scale_p > 0:
             out = max(out, float(np.max(np.abs(np.asarray(s @ fp) - fp))) / scale_p)
         return out
