@@ -503,3 +503,16 @@ def test_profiles_of_a_branch_that_reaches_the_value_twice_say_which_is_drawn(tm
     assert run(["trace", "bratu", "--max-steps", "8", "-q", "-o", str(short)]).exit_code == 0
     res = run(["profiles", str(short), "--at", "lam=0.5", "-o", str(tmp_path / "q.png")])
     assert res.exit_code == 0 and "crossings" not in res.stderr, res.stderr
+
+
+def test_continue_from_an_end_point_of_an_adaptive_curve_names_the_point_type(tmp_path):
+    """`contin continue c1.h5 --from EP1 --free a` (EP1 of a regridded fold curve) said 'EP1 was
+    computed on grid 56 (an adaptive run ...): continue it with --tol REL', which then fails for the
+    point type; the type is checked first."""
+    sb, c1 = tmp_path / "sb.h5", tmp_path / "c1.h5"
+    assert run(["trace", "stretched-bratu", "--grid", "24", "--resolution-tol", "1e-8", "--stop-at", "LP1",
+                "--no-stability", "-q", "-o", str(sb)]).exit_code == 0
+    assert run(["continue", str(sb), "--from", "LP1", "--free", "a", "--bounds", "a=-0.5:6", "--bounds", "lam=0:8",
+                "--ds", "0.1", "--ds-max", "0.5", "--tol", "1e-8", "-o", str(c1)]).exit_code == 0
+    err = one_error(run(["continue", str(c1), "--from", "EP1", "--free", "a", "-o", str(tmp_path / "x.h5")]))
+    assert err == "Error: EP1: only BP, HB, LP points can be continued in two parameters, not EP", err
