@@ -516,3 +516,19 @@ def test_continue_from_an_end_point_of_an_adaptive_curve_names_the_point_type(tm
                 "--ds", "0.1", "--ds-max", "0.5", "--tol", "1e-8", "-o", str(c1)]).exit_code == 0
     err = one_error(run(["continue", str(c1), "--from", "EP1", "--free", "a", "-o", str(tmp_path / "x.h5")]))
     assert err == "Error: EP1: only BP, HB, LP points can be continued in two parameters, not EP", err
+
+
+def test_resume_with_other_step_settings_is_refused(tmp_path):
+    """`contin trace bratu --resume F --uz lam=2` of a finished run without that user zero reused its
+    branch as it was, wrote F again with no UZ and the new command line, exit 0; --stop-at,
+    --max-steps, --ds, --ds-max, --bp-eigs likewise.  The same settings given again are fine."""
+    out = tmp_path / "b.h5"
+    assert run(["trace", "bratu", "--max-steps", "30", "-q", "-o", str(out)]).exit_code == 0
+    err = one_error(run(["trace", "bratu", "--resume", str(out), "--uz", "lam=2", "-q"]))
+    assert err == (f"Error: {str(out)!r} was computed with --uz none, not lam=2; its finished branches are reused "
+                   f"as they are, so resume with the same settings (or start a new run)"), err
+    err = one_error(run(["trace", "bratu", "--resume", str(out), "--max-steps", "31", "-q"]))
+    assert "was computed with --max-steps 30, not 31" in err, err
+    err = one_error(run(["trace", "bratu", "--resume", str(out), "--bp-eigs", "0", "-q"]))
+    assert "was computed with --bp-eigs its default, not 0" in err, err
+    assert run(["trace", "bratu", "--resume", str(out), "--max-steps", "30", "-q"]).exit_code == 0
