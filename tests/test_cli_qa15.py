@@ -532,3 +532,14 @@ def test_resume_with_other_step_settings_is_refused(tmp_path):
     err = one_error(run(["trace", "bratu", "--resume", str(out), "--bp-eigs", "0", "-q"]))
     assert "was computed with --bp-eigs its default, not 0" in err, err
     assert run(["trace", "bratu", "--resume", str(out), "--max-steps", "30", "-q"]).exit_code == 0
+
+
+def test_stability_of_a_file_without_branches_says_so(tmp_path):
+    """`contin stability F --point 0` of a file written with no branches said 'F holds 0 branches;
+    choose one with --branch (none)'."""
+    from contin import io
+
+    empty = tmp_path / "empty.h5"
+    io.write(empty, [])
+    err = one_error(run(["stability", str(empty), "--point", "0"]))
+    assert err == f"Error: {empty} holds no branches", err
