@@ -326,7 +326,7 @@ class _Tracer:
                 continue
             # the step turned at a fold: a value between the ends' and the fold's is crossed twice,
             # p - value has the same sign at both ends (a UZ 1e-8 below bratu's lam* was missed)
-            if fold_at:
+            if fold_at and fold_at[0][1].tests is not a.tests:  # (a trial that hit the fold exactly carries a's tests)
                 s_f, f_pt = fold_at[0]
                 for note, g in turning(va, vb, pt.value(sys, f_pt.x)):
                     fn = (lambda v, g=g, name=pt.name: g(v.extra[name]))
@@ -699,9 +699,12 @@ def trace(
     # Start tangent: bordered solve with the guess as bordering row; the guess is e_p (natural
     # direction) unless a tangent is given; a random row rescues a start exactly at a fold.
     if tangent is not None:
-        guess = direction * system.unit(np.asarray(tangent, dtype=float).ravel())
-        if guess.size != n + 1:
-            raise ValueError(f"tangent must have n + 1 = {n + 1} entries, got {guess.size}")
+        raw = np.asarray(tangent, dtype=float).ravel()
+        if raw.size != n + 1:
+            raise ValueError(f"tangent must have n + 1 = {n + 1} entries, got {raw.size}")
+        if not (np.all(np.isfinite(raw)) and np.any(raw != 0)):  # it failed every step with a RuntimeWarning (qa15)
+            raise ValueError("tangent must be finite and nonzero")
+        guess = direction * system.unit(raw)
     else:
         guess = np.zeros(n + 1)
         guess[-1] = math.copysign(1.0, sopt.ds) * direction
@@ -1312,6 +1315,16 @@ def switch(
                         f"got {type(point).__name__}")
     if point.type != "BP" or point.tangent is None:
         raise ValueError(f"switching needs a BP with its tangent, got {point.type} ({point.name})")
+    # a BP without a usable state ended in numpy's "matmul: dimension mismatch ..." or "operands
+    # could not be broadcast together ..." (qa15); its size is checked on its grid by departures
+    state = None if point.state is None else np.asarray(point.state, dtype=float).ravel()
+    if state is None or state.size == 0 or not np.all(np.isfinite(state)):
+        raise ValueError(f"switching at {point.name} needs its located state, and it has "
+                         f"{'none' if state is None or state.size == 0 else 'non-finite entries'}")
+    tangent_size, extra = np.asarray(point.tangent).size, int(getattr(branch, "tangent_extra", 1))
+    if tangent_size != state.size + extra:
+        raise ValueError(f"{point.name}: its state ({state.size} entries) and tangent ({tangent_size}) do not fit "
+                         f"together (the tangent has {extra} entr{'y' if extra == 1 else 'ies'} more)")
     param = branch.parameter
     dim = kernel_dimension(point)
     nd = dim is not None and dim > 1

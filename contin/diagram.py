@@ -28,6 +28,8 @@ branch (direction +1 / -1), f"{id}'" the mirror image of branch ``id``.
 
 from __future__ import annotations
 
+import math
+
 import logging
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
@@ -84,6 +86,20 @@ class DiagramSettings:
     retraces: int = 0
 
     def __post_init__(self) -> None:
+        from contin.options import _check_field_types
+
+        _check_field_types(self)  # depth = 2.5 ran as a depth (qa15)
+        # each a clear error (qa15): max_branches 0 gave the start branch alone, tol = inf or
+        # fraction 0 made every branch a duplicate of the first (one branch, silently), fraction 2
+        # or NaN and excursion -1 or NaN were accepted
+        if self.max_branches < 1:
+            raise ValueError(f"max_branches must be >= 1, got {self.max_branches}")
+        if not (math.isfinite(self.tol) and self.tol > 0):
+            raise ValueError(f"tol must be a finite number > 0, got {self.tol}")
+        if not 0 < self.fraction <= 1:
+            raise ValueError(f"fraction must lie in (0, 1], got {self.fraction}")
+        if not self.excursion > 0:
+            raise ValueError(f"excursion must be > 0 (inf switches the jump repair off), got {self.excursion}")
         if self.depth < 1:
             raise ValueError(f"depth must be >= 1 (the start branch), got {self.depth}")
         if self.probe_steps < 0:
@@ -92,8 +108,6 @@ class DiagramSettings:
             raise ValueError(f"start_direction must be -1, 0 or +1, got {self.start_direction}")
         if self.retraces < 0:
             raise ValueError(f"retraces must be >= 0, got {self.retraces}")
-        if not self.tol > 0:
-            raise ValueError(f"tol must be > 0, got {self.tol}")
 
 
 @dataclass(frozen=True)

@@ -93,6 +93,16 @@ class Event:
             return []
         return [(self.label, float)]
 
+    def turning_crossings(self, va: float, vb: float, v_turn: float) -> list[Crossing]:
+        """In a step that turned at a fold where g is ``v_turn``: g has one sign at both ends and
+        the other at the fold, so it vanishes on both sides of it (as a parameter value does,
+        :meth:`ParameterZeros.turning_crossings`)."""
+        if not all(math.isfinite(v) for v in (va, vb, v_turn)) or va == 0 or vb == 0 or v_turn == 0:
+            return []
+        if (va > 0) == (vb > 0) and (v_turn > 0) != (va > 0):
+            return [(self.label, float)]
+        return []
+
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
         return replace(sp, data={**sp.data, "value": 0.0})
 

@@ -86,13 +86,25 @@ class FunctionProblem:
                  inner_product_weights: Any = None) -> None:
         if method not in ("fd", "cs"):
             raise ValueError(f"method must be 'fd' (central differences) or 'cs' (complex step), got {method!r}")
+        from contin.options import real_number
+
         self.F = F
         self.u0 = np.asarray(u0, float).ravel()
-        self.params0 = {k: float(v) for k, v in params.items()}
+        if self.u0.size == 0:  # it ended in scipy's "need at least one array to concatenate"
+            raise ValueError("u0 has no entries: F must map R^n to R^n with n >= 1")
+        if not isinstance(params, Mapping) or not params:
+            raise ValueError(f"params must be a dict with a value for every parameter, got {params!r}")
+        # the parameter named ({'lam': 'x'} said "could not convert string to float: 'x'")
+        self.params0 = {str(k): real_number(v, f"params[{k!r}]") for k, v in params.items()}
         self.parameter_names = tuple(self.params0)
         self.method = method
         self.size = self.u0.size
-        f0 = np.asarray(F(self.u0, self.params0), float)
+        raw = np.asarray(F(self.u0, self.params0))
+        if np.iscomplexobj(raw) and method == "fd":
+            # cast with a ComplexWarning per call, the imaginary part dropped (qa15)
+            raise ValueError(f"F(u0, params) returned complex values ({raw.dtype}); F must be real for real u "
+                             f"(method='cs' evaluates it at complex u itself)")
+        f0 = np.asarray(raw, float)
         if f0.shape != self.u0.shape:
             raise ValueError(f"F(u0, params) has shape {f0.shape}, but u0 has {self.u0.size} entries: F must map R^n to R^n")
         self._exact = jacobian

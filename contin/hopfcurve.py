@@ -281,16 +281,19 @@ def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:
 
 
 def _second_bound_event(curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> dict[str, Any]:
-    """An event that vanishes on the bounds of the second parameter (p2 is part of the state,
+    """Events that vanish on the (finite) bounds of the second parameter (p2 is part of the state,
     so the tracer's bound landing does not see it): the run stops at the located crossing.
-    ``index``: p2's place in the state (default: the Hopf-curve state's)."""
+    ``index``: p2's place in the state (default: the Hopf-curve state's).  One event per bound:
+    the former min(p2 - lo, hi - p2) is 0 at a start on one bound, so a first step across the
+    other bound showed no sign change (`contin continue pf.h5 --from BP1 --free nu --bounds
+    nu=0.3:0.31` from nu = 0.3 stored nu up to 0.317, qa15)."""
     index = 3 * curve.n + 1 if index is None else index
-
-    def g(state: Array, p: Mapping[str, float]) -> float:
-        p2 = float(state[index])
-        return min(p2 - lo, hi - p2)
-
-    return {f"bound of {second}": g}
+    out: dict[str, Any] = {}
+    if math.isfinite(lo):
+        out[f"bound of {second} (lower)"] = lambda state, p: float(state[index]) - lo
+    if math.isfinite(hi):
+        out[f"bound of {second} (upper)"] = lambda state, p: hi - float(state[index])
+    return out
 
 
 def fold_bt_test(problem: Any, n: int, c: Array, second: str) -> Any:

@@ -916,15 +916,21 @@ def profiles_at(
                 found = (b, f"at {sp.name}", {k: v[row] for k, v in sp_prof.items()})
             row += 1
         prof = meta.get("profiles", {}).get(b.id)
-        if found is None and prof is not None and name in b.params:
+        count = 0  # crossings of the value along the branch
+        if prof is not None and name in b.params:
             idx = np.asarray(prof["index"])
             crossing = first_crossing(np.asarray(b.params[name], dtype=float)[idx], value)
             if crossing is not None:
-                i, j, w, _ = crossing
-                how = f"at stored point {idx[i]}" if w == 0.0 else f"interpolated between points {idx[i]} and {idx[j]}"
-                found = (b, how,
-                         {k: (1 - w) * v[i] + w * v[j] for k, v in prof.items() if k != "index"})
+                i, j, w, count = crossing
+                if found is None:
+                    how = f"at stored point {idx[i]}" if w == 0.0 else f"interpolated between points {idx[i]} and {idx[j]}"
+                    found = (b, how,
+                             {k: (1 - w) * v[i] + w * v[j] for k, v in prof.items() if k != "index"})
         if found is not None:
+            at_fold = found[1].startswith("at LP")  # both crossings next to a fold are that one point
+            if count > 1 and not at_fold:  # a branch through a fold reaches the value again: say that only one is drawn
+                found = (found[0], f"{found[1]} (the first of {count} crossings of {name}={value:g} along the branch; "
+                                   f"the others are not drawn)", found[2])
             out.append(found)
     return out
 

@@ -275,8 +275,12 @@ class AdaptOptions:
             raise ValueError(f"need 1 <= min_grid <= max_grid, got min_grid={self.min_grid}, max_grid={self.max_grid}")
         if self.coarsen_below is not None and not 0 < self.coarsen_below < 1:
             raise ValueError(f"coarsen_below must lie in (0, 1) or be None, got {self.coarsen_below}")
-        if not self.growth > 1:
-            raise ValueError(f"growth must be > 1, got {self.growth}")
+        if not (self.growth > 1 and math.isfinite(self.growth)):  # inf was accepted (qa15)
+            raise ValueError(f"growth must be a finite number > 1, got {self.growth}")
+        from contin.limits import MAX_GRID
+
+        if self.max_grid > MAX_GRID:  # the command line's limit; 1e9 was accepted (a memory bomb, qa15)
+            raise ValueError(f"AdaptOptions.max_grid must be at most {MAX_GRID}, got {self.max_grid}")
         if self.multiple < 1 or self.cooldown < 0:
             raise ValueError(f"need multiple >= 1 and cooldown >= 0, got {self.multiple}, {self.cooldown}")
 

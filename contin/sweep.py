@@ -291,6 +291,9 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
     kx = options.get("kx", [])
     if len(kx) > MAX_TRACE_KX or not all(math.isfinite(k) and abs(k) <= MAX_ABS_KX for k in kx):
         raise SweepError(f"option 'kx'{where} must hold at most {MAX_TRACE_KX} finite numbers with |kx| <= {MAX_ABS_KX:g}")
+    if any(k != 0 for k in kx) and options.get("stability") is False:  # dropped silently (qa15)
+        raise SweepError(f"option 'kx'{where} asks for stability columns but 'stability = false' switches the "
+                         f"stability pass off; drop one of them")
     description = head.get("description", "")
     if not isinstance(description, str):
         raise SweepError(f"description{where} must be a string")

@@ -371,3 +371,175 @@ def test_a_curve_that_starts_on_a_bound_stays_inside_it(tmp_path):
         values = curve.params[name]
         assert lo - 1e-9 <= values.min() and values.max() <= hi + 1e-9, (label, values.min(), values.max())
         assert f"reached bound {name}={lo:g}" in curve.message, curve.message
+
+
+def test_a_bp_curve_that_starts_on_one_bound_lands_on_the_other(tmp_path):
+    """`contin continue pf.h5 --from BP1 --free nu --bounds nu=0.3:0.31` (BP1 at nu = 0.3) stored a BP
+    curve with nu from 0.2165 to 0.3166, exit 0: the bound event min(nu - lo, hi - nu) is 0 at the
+    start, so the first step across nu = 0.31 showed no sign change.  One event per bound now."""
+    import shutil
+    from pathlib import Path
+
+    from contin import io
+
+    pf = tmp_path / "pf.h5"
+    shutil.copy(Path(__file__).resolve().parents[1] / "results" / "pitchfork.h5", pf)
+    out = tmp_path / "c.h5"
+    res = run(["continue", str(pf), "--from", "BP1", "--free", "nu", "--bounds", "nu=0.3:0.31", "--max-steps", "3",
+               "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (curve,), _ = io.load(out)
+    nu = curve.params["nu"]
+    assert 0.3 - 1e-12 <= nu.min() and nu.max() <= 0.31 + 1e-12, nu
+    assert "reached bound nu=0.31" in curve.message and "reached bound nu=0.3" in curve.message, curve.message
+
+
+def test_kx_with_no_stability_is_a_contradiction_not_a_silent_drop(tmp_path):
+    """`contin trace allen-cahn --kx 1 --no-stability` dropped --kx silently, exit 0 (the warning for
+    an ignored --kx skipped --no-stability runs); a sweep's kx with stability = false likewise."""
+    err = one_error(run(["trace", "allen-cahn", "--kx", "1", "--no-stability", "-q", "-o", str(tmp_path / "a.h5")]))
+    assert err == ("Error: --kx 1 asks for stability columns but --no-stability switches the stability pass off; "
+                   "drop one of them"), err
+    assert not (tmp_path / "a.h5").exists()
+    toml = tmp_path / "k.toml"
+    toml.write_text('[sweep]\nscene = "allen-cahn"\n[grid]\nlam_max = [3.0]\n[options]\nstability = false\nkx = [1.0]\n')
+    err = one_error(run(["sweep", str(toml), "-o", str(tmp_path / "out")]))
+    assert "option 'kx' in" in err and "'stability = false' switches the stability pass off" in err, err
+
+
+@pytest.mark.parametrize("bad", [0.0, math.nan])
+def test_trace_with_a_zero_or_nan_tangent_is_refused(bad):
+    """trace(..., tangent=zeros) or a NaN tangent failed every step ('residual is not finite at the
+    predicted point', MX) with a RuntimeWarning 'invalid value encountered in divide'."""
+    from contin.continuation import trace
+    from problems.demo import Bratu
+
+    pb = Bratu("cheb", 16)
+    with pytest.raises(ValueError, match="tangent must be finite and nonzero"):
+        trace(pb, pb.initial(), {"lam": 0.0}, "lam", tangent=np.full(pb.n + 1, bad))
+
+
+def test_switch_at_a_bp_without_a_usable_state_is_one_sentence():
+    """switch() at a BP whose state is missing, NaN, or does not fit its tangent ended in numpy's
+    'matmul: dimension mismatch with signature ...' / 'operands could not be broadcast together ...'
+    or, for NaN, tried both directions first."""
+    import dataclasses
+
+    from contin.branch import relabel
+    from contin.continuation import switch, trace
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import AllenCahn
+
+    pb = AllenCahn("cheb", 24)
+    opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.3), bounds={"lam": (0, 10)}, max_steps=40)
+    trivial = trace(pb, pb.initial(), {"lam": 0.5}, "lam", opts, kind="trivial")
+    relabel([trivial])
+    bp = trivial.branch_points[0]
+    for state, expect in ((None, "needs its located state, and it has none"),
+                          (bp.state * np.nan, "needs its located state, and it has non-finite entries"),
+                          (bp.state[:-2], "its state (23 entries) and tangent (26) do not fit together")):
+        with pytest.raises(ValueError, match=re.escape(expect)):
+            switch(pb, trivial, dataclasses.replace(bp, state=state), opts)
+    assert len(switch(pb, trivial, bp, opts)) == 2
+
+
+@pytest.mark.parametrize("kw, expect", [
+    ({"max_branches": 0}, "max_branches must be >= 1"),
+    ({"tol": math.inf}, "tol must be a finite number > 0"),  # every branch a duplicate of the first
+    ({"fraction": 0.0}, "fraction must lie in (0, 1]"),
+    ({"fraction": 2.0}, "fraction must lie in (0, 1]"),
+    ({"excursion": -1.0}, "excursion must be > 0"),
+])
+def test_diagram_settings_that_cannot_work_are_refused(kw, expect):
+    """DiagramSettings(tol=inf) or fraction=0 made bifurcation_diagram drop every switched branch as a
+    duplicate of the first (1 branch of allen-cahn's 5, silently); max_branches 0, fraction 2 or NaN,
+    excursion -1 or NaN and depth 2.5 were accepted."""
+    from contin.diagram import DiagramSettings
+
+    with pytest.raises(ValueError, match=re.escape(expect)):
+        DiagramSettings(**kw)
+    with pytest.raises(TypeError, match="DiagramSettings.depth must be a whole number"):
+        DiagramSettings(depth=2.5)
+
+
+def test_adapt_options_refuse_an_infinite_growth_and_a_grid_beyond_the_limit():
+    """AdaptOptions(growth=inf) and AdaptOptions(max_grid=10**9) were accepted (the command line caps
+    grids at contin.limits.MAX_GRID: a grid of 1e9 intervals ate 330 MB/s)."""
+    from contin.limits import MAX_GRID
+    from contin.options import AdaptOptions
+
+    with pytest.raises(ValueError, match="growth must be a finite number > 1"):
+        AdaptOptions(growth=math.inf)
+    with pytest.raises(ValueError, match=f"AdaptOptions.max_grid must be at most {MAX_GRID}"):
+        AdaptOptions(max_grid=10**9)
+    assert AdaptOptions(max_grid=MAX_GRID).max_grid == MAX_GRID
+
+
+def test_stop_at_empty_is_a_usage_error(tmp_path):
+    """`contin trace bratu --stop-at ''` ran to the end without a word, exit 0."""
+    res = run(["trace", "bratu", "--stop-at", "", "-q", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 2 and "Invalid value for '--stop-at': expected labels such as LP1 or UZ2, got ''" in res.stderr
+
+
+def test_empty_kx_imperfection_and_delta_are_usage_errors(allen_cahn_file, tmp_path):
+    """`contin trace bratu --kx ''` was accepted without a word; `contin fit F --at BP1 --imperfection ''`
+    (or --delta '') fell back to the default and then asked to 'give it with --imperfection NAME'."""
+    res = run(["trace", "bratu", "--kx", "", "-q", "-o", str(tmp_path / "b.h5")])
+    assert res.exit_code == 2 and "Invalid value for '--kx': must not be empty" in res.stderr, res.stderr
+    for option in ("--imperfection", "--delta"):
+        res = run(["fit", str(allen_cahn_file), "--at", "BP1", option, ""])
+        assert res.exit_code == 2 and f"Invalid value for '{option}': must not be empty" in res.stderr, res.stderr
+
+
+def test_profiles_of_a_branch_that_reaches_the_value_twice_say_which_is_drawn(tmp_path):
+    """`contin profiles bratu.h5 --at lam=3.5` drew the lower solution only ('interpolated between
+    points 18 and 20'), without a word about the upper one the branch reaches after its fold."""
+    out = tmp_path / "b.h5"
+    assert run(["trace", "bratu", "--max-steps", "60", "-q", "-o", str(out)]).exit_code == 0
+    res = run(["profiles", str(out), "--at", "lam=3.5", "-o", str(tmp_path / "p.png")])
+    assert res.exit_code == 0, res.stderr
+    assert "(the first of 2 crossings of lam=3.5 along the branch; the others are not drawn)" in res.stderr, res.stderr
+    short = tmp_path / "short.h5"  # below the fold only: one crossing, no note
+    assert run(["trace", "bratu", "--max-steps", "8", "-q", "-o", str(short)]).exit_code == 0
+    res = run(["profiles", str(short), "--at", "lam=0.5", "-o", str(tmp_path / "q.png")])
+    assert res.exit_code == 0 and "crossings" not in res.stderr, res.stderr
+
+
+def test_continue_from_an_end_point_of_an_adaptive_curve_names_the_point_type(tmp_path):
+    """`contin continue c1.h5 --from EP1 --free a` (EP1 of a regridded fold curve) said 'EP1 was
+    computed on grid 56 (an adaptive run ...): continue it with --tol REL', which then fails for the
+    point type; the type is checked first."""
+    sb, c1 = tmp_path / "sb.h5", tmp_path / "c1.h5"
+    assert run(["trace", "stretched-bratu", "--grid", "24", "--resolution-tol", "1e-8", "--stop-at", "LP1",
+                "--no-stability", "-q", "-o", str(sb)]).exit_code == 0
+    assert run(["continue", str(sb), "--from", "LP1", "--free", "a", "--bounds", "a=-0.5:6", "--bounds", "lam=0:8",
+                "--ds", "0.1", "--ds-max", "0.5", "--tol", "1e-8", "-o", str(c1)]).exit_code == 0
+    err = one_error(run(["continue", str(c1), "--from", "EP1", "--free", "a", "-o", str(tmp_path / "x.h5")]))
+    assert err == "Error: EP1: only BP, HB, LP points can be continued in two parameters, not EP", err
+
+
+def test_resume_with_other_step_settings_is_refused(tmp_path):
+    """`contin trace bratu --resume F --uz lam=2` of a finished run without that user zero reused its
+    branch as it was, wrote F again with no UZ and the new command line, exit 0; --stop-at,
+    --max-steps, --ds, --ds-max, --bp-eigs likewise.  The same settings given again are fine."""
+    out = tmp_path / "b.h5"
+    assert run(["trace", "bratu", "--max-steps", "30", "-q", "-o", str(out)]).exit_code == 0
+    err = one_error(run(["trace", "bratu", "--resume", str(out), "--uz", "lam=2", "-q"]))
+    assert err == (f"Error: {str(out)!r} was computed with --uz none, not lam=2; its finished branches are reused "
+                   f"as they are, so resume with the same settings (or start a new run)"), err
+    err = one_error(run(["trace", "bratu", "--resume", str(out), "--max-steps", "31", "-q"]))
+    assert "was computed with --max-steps 30, not 31" in err, err
+    err = one_error(run(["trace", "bratu", "--resume", str(out), "--bp-eigs", "0", "-q"]))
+    assert "was computed with --bp-eigs its default, not 0" in err, err
+    assert run(["trace", "bratu", "--resume", str(out), "--max-steps", "30", "-q"]).exit_code == 0
+
+
+def test_stability_of_a_file_without_branches_says_so(tmp_path):
+    """`contin stability F --point 0` of a file written with no branches said 'F holds 0 branches;
+    choose one with --branch (none)'."""
+    from contin import io
+
+    empty = tmp_path / "empty.h5"
+    io.write(empty, [])
+    err = one_error(run(["stability", str(empty), "--point", "0"]))
+    assert err == f"Error: {empty} holds no branches", err

@@ -225,3 +225,18 @@ def test_the_diagram_stores_no_mirror_image_that_is_no_solution():
     assert any("0': not stored as the image of 0: the problem's symmetry is not one of F" in s for s in d.skipped)
     for b in d.branches:
         assert max(max_norm(pb.residual(b.state(i), {"a": 0.5, "lam": b.params["lam"][i]})) for i in range(len(b))) < 1e-8
+
+
+def test_an_event_that_vanishes_twice_next_to_the_fold_is_located_on_both_sides():
+    """An event g(u, p) = lam - (lam* - 1e-10) has one sign at both ends of the step that turns at the
+    fold: it was missed like a parameter zero; it is located on both sides of the LP too."""
+    target = BRATU_FOLD - 1e-10
+    pb = Bratu("cheb", 32)
+    br = trace(pb, pb.initial(), {"lam": 0.0}, "lam",
+               dataclasses.replace(OPTS, events={"near the fold": lambda u, p: p["lam"] - target}))
+    relabel([br])
+    (lp,) = br.fold_points
+    uz = br.points("UZ")
+    assert len(uz) == 2 and all(sp.converged and sp.note == "near the fold" for sp in uz), [sp.note for sp in uz]
+    assert [sp.params["lam"] for sp in uz] == pytest.approx([target, target], abs=1e-12)
+    assert uz[0].order_parameter < lp.order_parameter < uz[1].order_parameter

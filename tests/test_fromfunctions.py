@@ -215,3 +215,25 @@ def test_file_parameters_restart_and_stability_message(tmp_path):
         io.restart(path, "LP7")
     res = CliRunner().invoke(main, ["stability", str(path), "--point", "BP2"])
     assert res.exit_code == 1 and "names no scene" in res.output and "Traceback" not in res.output
+
+
+def test_bad_inputs_are_one_sentence_naming_them():
+    """from_functions with u0 of no entries ended in "need at least one array to concatenate";
+    {'lam': 'x'} in "could not convert string to float: 'x'"; an F returning complex values ran
+    with a ComplexWarning per call and the imaginary part dropped (qa15)."""
+    import contin
+
+    n, h = 20, 1 / 21
+
+    def F(u, p):
+        up = np.concatenate([[0.0], u, [0.0]])
+        return (up[2:] - 2 * up[1:-1] + up[:-2]) / h**2 + p["lam"] * np.exp(u)
+
+    with pytest.raises(ValueError, match="u0 has no entries"):
+        contin.from_functions(F, np.zeros(0), {"lam": 0.0})
+    with pytest.raises(TypeError, match=r"params\['lam'\] must be a real number, got 'x'"):
+        contin.from_functions(F, np.zeros(n), {"lam": "x"})
+    with pytest.raises(ValueError, match="params must be a dict with a value for every parameter"):
+        contin.from_functions(F, np.zeros(n), {})
+    with pytest.raises(ValueError, match=r"returned complex values \(complex128\); F must be real"):
+        contin.from_functions(lambda u, p: F(u, p) + 1j * u, np.zeros(n), {"lam": 0.0})

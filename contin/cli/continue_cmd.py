@@ -127,6 +127,11 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         click.get_current_context().call_on_close(OutputLock(output).acquire().release)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
+    from contin.twoparam import CURVES
+
+    if point.type not in CURVES:  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
+        fail(f"{point.name}: only {', '.join(sorted(CURVES))} points can be continued in two parameters, "
+             f"not {point.type}")
     first = branch.parameter
     unknown = [n for n in box if n not in (first, second)]
     if unknown:

@@ -41,8 +41,11 @@ def fit_command(file: str, label: str, branch_id: str | None, imperfection: str 
     """Fit delta^3 - B delta + alpha(mu) + beta(mu) delta^2 = 0 around the BP LABEL of FILE."""
     from contin import io
     from contin.bpfit import fit_at_bp, guess_imperfection
+    from contin.cli._runctl import check_nonempty
     from contin.restart import find_point, rebuild_problem
 
+    # '' fell back to the default and the error then asked for the option that was given (qa15)
+    imperfection, delta = check_nonempty(imperfection, "--imperfection"), check_nonempty(delta, "--delta")
     for name, v in (("--window", window), ("--delta-max", delta_max), ("--delta-min", delta_min)):
         _positive(name, v)
     if delta_min >= delta_max:

@@ -247,6 +247,8 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
     branches, meta = io.load(file)
     _refuse_without_stability(meta, file)
     ids = [b.id for b in branches]
+    if not branches:  # it said "holds 0 branches; choose one with --branch (none)" (qa15)
+        fail(f"{file} holds no branches")
     if branch_id is None:
         if len(branches) != 1:
             fail(f"{file} holds {len(branches)} branches; choose one with --branch ({', '.join(ids) or 'none'})")

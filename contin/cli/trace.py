@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from typing import Any
 
 import click
@@ -42,8 +44,10 @@ CHECKPOINT_RATIO = 4.0
 
 
 def _parse_kx(text: str | None) -> tuple[float, ...]:
-    if not text:
+    if text is None:
         return ()
+    if not text.strip():  # --kx '' was accepted without a word (qa15)
+        raise click.BadParameter("must not be empty (leave the option out for no extra wavenumbers)", param_hint="'--kx'")
     try:
         values = tuple(float(x) for x in text.split(",") if x.strip())
     except ValueError:
@@ -69,6 +73,8 @@ def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
             raise click.BadParameter(f"expected NAME=V1,V2,... with numbers, got {item!r}", param_hint="'--uz'")
         zeros.setdefault(name.strip(), []).extend(vals)
     labels = tuple(t.strip() for t in (stop_at or "").split(",") if t.strip())
+    if stop_at is not None and not labels:  # '' ran to the end without a word (qa15)
+        raise click.BadParameter(f"expected labels such as LP1 or UZ2, got {stop_at!r}", param_hint="'--stop-at'")
     try:  # the options' own validation: finite values, LP/BP/UZ/HB<k> labels
         ContinuationOptions(user_zeros=zeros, stop_at=labels)
     except ValueError as exc:
@@ -114,6 +120,45 @@ def _resume_accuracy(resume: str, stored: Any, overrides: dict[str, Any], *, tol
         overrides["solve_check"] = False
     elif no_solve_check:
         fail(f"{resume!r} was computed with the solve check; resume it without --no-solve-check (or start a new run)")
+
+
+def _resume_settings(resume: str, stored: Any, given: dict[str, Any]) -> None:
+    """``--resume``: step settings given again must be the stored run's.  The finished branches are
+    reused as they are, so `contin trace bratu --resume F --uz lam=2` of a run without that user zero
+    wrote F again with no UZ and the new command line, exit 0 (qa15); --stop-at, --max-steps,
+    --ds, --ds-max and --bp-eigs likewise.  Settings left out are the file's."""
+    if not given or not isinstance(stored, dict):
+        return
+    if isinstance(stored.get("overrides"), dict):  # a scene that chose its options inside: the run's overrides
+        before: dict[str, Any] = dict(stored["overrides"])
+    else:
+        step, det = stored.get("step") or {}, stored.get("detection") or {}
+        before = {"max_steps": stored.get("max_steps"), "ds": abs(step["ds"]) if "ds" in step else None,
+                  "ds_max": step.get("ds_max"), "user_zeros": stored.get("user_zeros") or {},
+                  "stop_at": list(stored.get("stop_at") or []), "bp_eigenvalues": det.get("bp_eigenvalues")}
+    flags = {"max_steps": "--max-steps", "ds": "--ds", "ds_max": "--ds-max", "user_zeros": "--uz",
+             "stop_at": "--stop-at", "bp_eigenvalues": "--bp-eigs"}
+    for key, value in given.items():
+        if key not in flags:
+            continue
+        old = before.get(key)
+        if key == "user_zeros":
+            stored_uz = {str(k): {float(x) for x in v} for k, v in (old or {}).items()}
+            same = all({float(x) for x in vals} <= stored_uz.get(name, set()) for name, vals in value.items())
+            shown_old = ", ".join(f"{k}={','.join(fmt(x) for x in sorted(v))}" for k, v in stored_uz.items()) or "none"
+            shown_new = ", ".join(f"{k}={','.join(fmt(float(x)) for x in v)}" for k, v in value.items())
+        elif key == "stop_at":
+            same = list(old or []) == list(value)
+            shown_old, shown_new = ",".join(old or []) or "none", ",".join(value)
+        elif key in ("ds", "ds_max"):
+            same = old is not None and math.isclose(float(old), abs(float(value)), rel_tol=1e-12)
+            shown_old, shown_new = fmt(old), fmt(value)
+        else:
+            same = old == value
+            shown_old, shown_new = ("its default" if old is None else fmt(old)), fmt(value)
+        if not same:
+            fail(f"{resume!r} was computed with {flags[key]} {shown_old}, not {shown_new}; its finished branches are "
+                 f"reused as they are, so resume with the same settings (or start a new run)")
 
 
 def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress, quiet: bool) -> None:
@@ -322,6 +367,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     params = parse_settings(settings)
     kx_values = _parse_kx(kx)
+    if no_stability and any(k != 0 for k in kx_values):  # it was dropped silently, exit 0 (qa15)
+        fail(f"--kx {kx} asks for stability columns but --no-stability switches the stability pass off; "
+             f"drop one of them")
     method = check_nonempty(method, "--method")
     check_finite_positive(ds, "--ds")
     check_finite_positive(ds_max, "--ds-max")
@@ -390,6 +438,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
         _resume_accuracy(resume, meta.get("options"), overrides, tol=tol, special_tol=special_tol,
                          max_grid=max_grid, no_solve_check=no_solve_check)
+        _resume_settings(resume, meta.get("options"), step_overrides)
         before_rtol = (meta.get("options") or {}).get("resolution_tol", "unknown") \
             if isinstance(meta.get("options"), dict) else "unknown"
         if resolution_tol is not None and before_rtol != "unknown" and before_rtol != rtol:
