@@ -187,6 +187,12 @@ def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationO
 CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitchfork, "HB": _hopf}
 
 
+def continuable_types() -> list[str]:
+    """The point types :func:`continue_point` continues: those of :data:`CURVES`, and BT (the other
+    curve through a Bogdanov-Takens point)."""
+    return sorted([*CURVES, "BT"])
+
+
 def register_curve(point_type: str, tracer: CurveTracer) -> None:
     """Make :func:`continue_point` trace ``point_type`` points (e.g. 'HB') with ``tracer``."""
     CURVES[point_type] = tracer
@@ -303,7 +309,7 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
         raise ValueError(f"point {point.name} has no value of {second!r}")
     tracer = CURVES.get(point.type)
     if tracer is None and point.type != "BT":
-        raise NotAvailable(f"{point.name}: only {', '.join(sorted([*CURVES, 'BT']))} points can be continued in two "
+        raise NotAvailable(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two "
                            f"parameters, not {point.type}")
     for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
         # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)

@@ -127,10 +127,10 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         click.get_current_context().call_on_close(OutputLock(output).acquire().release)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
-    from contin.twoparam import CURVES
+    from contin.twoparam import continuable_types
 
-    if point.type not in CURVES:  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
-        fail(f"{point.name}: only {', '.join(sorted(CURVES))} points can be continued in two parameters, "
+    if point.type not in continuable_types():  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
+        fail(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two parameters, "
              f"not {point.type}")
     first = branch.parameter
     unknown = [n for n in box if n not in (first, second)]
