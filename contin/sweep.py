@@ -82,6 +82,7 @@ __all__ = [
     "run_sweep",
     "run_task",
     "task_key",
+    "other_sweep",
     "write_summary",
 ]
 
@@ -709,6 +710,23 @@ def run_sweep(
         return _run_sweep_locked(spec, out, taskdir, executor, jobs, progress, retry_failed)
     finally:
         lock.release()
+
+
+def other_sweep(outdir: str | os.PathLike[str], spec: SweepSpec) -> str | None:
+    """A sentence when ``outdir`` holds the summary of another sweep than ``spec`` (another scene,
+    grid, fixed values or options), else None.  Its task files stay (tasks are keyed by their
+    inputs, so the shared ones are reused), but the summary is replaced by this sweep's: said,
+    not silent (qa15: it was replaced without a word)."""
+    path = Path(outdir) / "summary.json"
+    try:
+        previous = json.loads(path.read_text()).get("sweep")
+    except (OSError, ValueError, AttributeError):
+        return None
+    if not isinstance(previous, dict) or previous == to_jsonable(spec.to_dict()):
+        return None
+    scene = previous.get("sweep", {}).get("scene", "?") if isinstance(previous.get("sweep"), dict) else "?"
+    return (f"{path} is the summary of another sweep (scene {scene!r}); it is replaced by this one's (its task "
+            f"files are kept: rerun that sweep with the same -o to rebuild its summary)")
 
 
 def _die_with_parent(parent: int) -> None:

@@ -543,3 +543,21 @@ def test_stability_of_a_file_without_branches_says_so(tmp_path):
     io.write(empty, [])
     err = one_error(run(["stability", str(empty), "--point", "0"]))
     assert err == f"Error: {empty} holds no branches", err
+
+
+def test_a_sweep_into_another_sweeps_directory_says_it_replaces_that_summary(tmp_path):
+    """qa15 leftover: `contin sweep b.toml -o out` where out holds a.toml's summary replaced it
+    without a word.  Now one warning line (also with -q); a rerun of the same sweep says nothing."""
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text('[sweep]\nscene = "bratu"\n[grid]\nlam_max = [1.0]\n[options]\ngrid = 16\nstability = false\n')
+    b.write_text('[sweep]\nscene = "bratu"\n[grid]\nlam_max = [1.5]\n[options]\ngrid = 16\nstability = false\n')
+    out = tmp_path / "out"
+    first = run(["sweep", str(a), "-o", str(out), "-j", "1", "-q"])
+    assert first.exit_code == 0 and "warning" not in first.stderr
+    again = run(["sweep", str(a), "-o", str(out), "-j", "1", "-q"])
+    assert again.exit_code == 0 and "warning" not in again.stderr
+    other = run(["sweep", str(b), "-o", str(out), "-j", "1", "-q"])
+    assert other.exit_code == 0
+    lines = [ln for ln in other.stderr.splitlines() if ln.startswith("warning:")]
+    assert len(lines) == 1 and "summary of another sweep (scene 'bratu')" in lines[0] and "task files are kept" in lines[0]
+    assert len(list((out / "tasks").glob("*.h5"))) == 2  # both sweeps' task files

@@ -47,6 +47,11 @@ def sweep_command(sweep_file: str, outdir: str, jobs: int | None, scheduler: str
         echo_err(line)
         beat.note(line)
 
+    from contin.sweep import other_sweep
+
+    replaced = other_sweep(outdir, spec)
+    if replaced is not None:  # also with -q: a summary is lost
+        echo_err(f"warning: {replaced}")
     try:
         with sigterm_as_interrupt(), open_executor(scheduler, jobs) as executor:
             summary = run_sweep(spec, outdir, executor=executor, jobs=jobs, progress=None if quiet else progress,
