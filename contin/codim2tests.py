@@ -13,6 +13,8 @@ Bifurcation Theory*, 3rd ed., secs. 8.5 and 8.6):
   Bogdanov-Takens point, where kappa changes sign, is not counted);
 - on a Hopf curve, a second pair crossing the imaginary axis is a double-Hopf point (HH):
   :class:`BaseEigenTest` with the curve's own pair (the eigenvalue nearest i omega) removed.
+Both Hopf-curve tests are off on its neutral-saddle part (kappa <= 0, past a BT): there is no
+Hopf pair, and a crossing there is neither a ZH nor an HH.
 
 Each is a point test (``contin.pointtests``) of the augmented problem, evaluated at the base
 state of each point, located by re-correcting onto the curve like every point test.  The
@@ -70,8 +72,10 @@ class BaseEigenTest:
             return np.zeros(0, dtype=complex)
         if self.own_kappa is not None and w.size:
             kappa = float(x[self.own_kappa])
-            if kappa > 0:  # the curve's own pair, on the axis by construction
-                w = np.delete(w, int(np.argmin(np.abs(w - 1j * math.sqrt(kappa)))))
+            if not kappa > 0:  # a neutral saddle (past a BT): a pair crossing there is no double Hopf
+                return np.zeros(0, dtype=complex)
+            # the curve's own pair, on the axis by construction
+            w = np.delete(w, int(np.argmin(np.abs(w - 1j * math.sqrt(kappa)))))
         return w
 
     def crossings(self, va: Array, vb: Array) -> list[Crossing]:
@@ -105,8 +109,10 @@ class ZeroHopfTest:
 
         u, q = self.split(x[:-1], system.params_at(x[-1]))
         kappa = float(x[self.kappa_index])
+        if not kappa > 0:  # a neutral saddle (past a BT): a real eigenvalue through 0 there is no zero-Hopf
+            return (0.0, -math.inf)
         fact = factorize(self.problem.jacobian(u, q))
-        if fact is None or kappa == 0 or not math.isfinite(kappa):
+        if fact is None:
             return (0.0, -math.inf)
         sign, logabs = fact.det_sign_log()
         return (sign * math.copysign(1.0, kappa), logabs - math.log(abs(kappa)))

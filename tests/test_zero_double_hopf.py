@@ -135,3 +135,49 @@ def test_double_hopf_on_the_hopf_curve():
     # HH detection follows HB detection: off with detect_hopf=False
     off = trace_hopf_curve(pb, hb, "b", replace(opts, detection=DetectionOptions(detect_hopf=False)), parameter="a")
     assert not off.points("HH") and off.params["b"].max() > 0.6  # past the HH at b = 0.303
+
+
+class SlavedBT:
+    """The BT normal form (tests/hopf_models.BTNormalForm) with z' = (b2 + c) z: its Hopf curve is
+    b1 = 0, omega^2 = -b2 for b2 < 0, neutral saddles for b2 > 0; the real eigenvalue b2 + c
+    crosses 0 at b2 = -c."""
+
+    parameter_names = ("b1", "b2")
+
+    def __init__(self, c: float) -> None:
+        self.c = c
+
+    def residual(self, u, p):
+        x, y, z = u
+        return np.array([y, p["b1"] + p["b2"] * x + x * x - x * y, (p["b2"] + self.c) * z])
+
+    def jacobian(self, u, p):
+        x, y, z = u
+        return sp.csr_matrix(np.array([[0.0, 1.0, 0.0], [p["b2"] + 2 * x - y, -x, 0.0], [0.0, 0.0, p["b2"] + self.c]]))
+
+    def dresidual_dp(self, u, p, name):
+        return np.array([0.0, 1.0, 0.0]) if name == "b1" else np.array([0.0, u[0], u[2]])
+
+
+@pytest.mark.parametrize("c", [0.5, -0.5])
+def test_zero_hopf_only_on_the_hopf_part_of_the_curve(c):
+    """c = 0.5: the real eigenvalue crosses 0 at b2 = -0.5 on the Hopf part: ZH there (omega^2 =
+    0.5).  c = -0.5: it crosses at b2 = 0.5, on the neutral-saddle part past the BT: no ZH (there
+    is no Hopf pair; before, det J / kappa's sign change was labelled ZH there)."""
+    pb = SlavedBT(c)
+    start = {"b1": -0.5, "b2": -1.0}
+    x0 = 0.5 * (1 - math.sqrt(1 - 4 * start["b1"]))  # x^2 - x + b1 = 0 through x = 0 at b1 = 0
+    br = trace(pb, np.array([x0, 0.0, 0.0]), start, "b1",
+               ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b1": (-1.0, 0.2)}, max_steps=200))
+    (hb,) = [s for s in br.points("HB") if abs(s.params["b1"]) < 1e-8]
+    curve = trace_hopf_curve(pb, hb, "b2", ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1),
+                                                               bounds={"b2": (-2.0, 1.0)}, max_steps=200),
+                             parameter="b1")
+    assert len(curve.points("BT")) == 1 and curve.params["b2"].max() > 0.9
+    zh = curve.points("ZH")
+    if c > 0:
+        (point,) = zh
+        assert point.params["b2"] == pytest.approx(-0.5, abs=1e-10) and point.data["omega"] == pytest.approx(
+            math.sqrt(0.5), rel=1e-10)
+    else:
+        assert not zh and not curve.points("HH")
