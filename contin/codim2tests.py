@@ -123,3 +123,56 @@ class ZeroHopfTest:
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         kappa = float(x[self.kappa_index])
         return replace(sp_, data={**sp_.data, "omega": math.sqrt(kappa) if kappa > 0 else math.nan})
+
+
+def bogdanov_takens_coefficients(problem: Any, u: Array, params: Mapping[str, float]) -> dict[str, float]:
+    """Normal-form coefficients (a, b) of a Bogdanov-Takens point (u, p) of M u' = F(u, p):
+    w0' = w1, w1' = a w0^2 + b w0 w1 + ... (Kuznetsov, *Elements of Applied Bifurcation Theory*,
+    3rd ed., sec. 8.7, the projection method generalized to M: with f = M^-1 F it reads)
+
+        J q0 = 0, J q1 = M q0, J^T p1 = 0, J^T p0 = M^T p1,
+        p0^T M q0 = p1^T M q1 = 1, p1^T M q0 = p0^T M q1 = 0,
+        a = p1^T B(q0, q0) / 2,   b = p0^T B(q0, q0) + p1^T B(q0, q1),
+
+    B the second derivative of F (central differences of J, as for l1).  q0 -> c q0 scales a and
+    b by c; q0 is normalized to 1 in the problem's ``inner_product_weights`` norm (Euclidean
+    without the hook) and its sign chosen so that a >= 0, so sign(b) = sign(ab), the invariant
+    that separates the two BT unfoldings (ab < 0: a stable cycle born at the Hopf curve ends in a
+    homoclinic orbit; Kuznetsov Fig. 8.8).  NaN for both when the vectors cannot be computed."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from contin.hopf import _Forms, _mass
+    from contin.normalform import null_vectors
+    from contin.problem import inner_product_weights
+
+    u = np.asarray(u, float)
+    q = dict(params)
+    nan = {"a": math.nan, "b": math.nan}
+    try:
+        jac = sp.csc_matrix(problem.jacobian(u, q), dtype=float)
+        n = jac.shape[0]
+        m = _mass(problem, u, q, n)
+        nulls = null_vectors(jac)
+        q0, p1 = nulls.phi, nulls.psi
+        weights = inner_product_weights(problem, u, q)
+        norm = math.sqrt(float(q0 @ (q0 if weights is None else weights * q0)))
+        q0 = q0 / norm
+        border = sp.bmat([[jac, p1[:, None]], [q0[None, :], None]], format="csc")
+        q1 = spla.splu(border).solve(np.concatenate([m @ q0, [0.0]]))[:n]
+        left = sp.bmat([[jac.T, q0[:, None]], [p1[None, :], None]], format="csc")
+        p1 = p1 / float(p1 @ (m @ q1))  # p1^T M q1 = 1 (then p0^T M q0 = (M^T p1)^T q1 = 1 too)
+        p0 = spla.splu(left).solve(np.concatenate([m.T @ p1, [0.0]]))[:n]
+        p0 = p0 - float(p0 @ (m @ q1)) * p1  # p0^T M q1 = 0 (p1^T M q1 = 1)
+        forms = _Forms(problem, u, q)
+        b00 = np.real(forms.B(q0.astype(complex), q0.astype(complex)))
+        b01 = np.real(forms.B(q0.astype(complex), q1.astype(complex)))
+    except (np.linalg.LinAlgError, RuntimeError, ValueError, ZeroDivisionError):
+        return nan
+    a = 0.5 * float(p1 @ b00)
+    b = float(p0 @ b00) + float(p1 @ b01)
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return nan
+    if a < 0:  # q0 -> -q0 flips both
+        a, b = -a, -b
+    return {"a": a, "b": b}

@@ -347,4 +347,9 @@ class _FoldBT:
         return sign_log_crossing(va, vb, "Bogdanov-Takens (psi^T M phi = 0)")
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
-        return sp_
+        """The BT normal-form coefficients a, b at the base state (``contin.codim2tests``)."""
+        from contin.codim2tests import bogdanov_takens_coefficients
+
+        q = system.params_at(x[-1])
+        q[self.second] = float(x[2 * self.n])
+        return replace(sp_, data={**sp_.data, **bogdanov_takens_coefficients(self.problem, x[:self.n], q)})

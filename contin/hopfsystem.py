@@ -208,7 +208,15 @@ class KappaTest:
         return [("Bogdanov-Takens (kappa = omega^2 = 0)", float)]
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
-        return replace(sp_, data={**sp_.data, "kappa": float(x[3 * self.n])})
+        """kappa (~0) and the BT normal-form coefficients a, b (``contin.codim2tests``)."""
+        from contin.codim2tests import bogdanov_takens_coefficients
+
+        data = {**sp_.data, "kappa": float(x[3 * self.n])}
+        curve = system.problem
+        if isinstance(curve, HopfCurveProblem) and not has(curve.problem, "eigenproblem"):
+            u, _, _, _, q = curve.split(x[:-1], system.params_at(x[-1]))
+            data.update(bogdanov_takens_coefficients(curve.problem, u, q))
+        return replace(sp_, data=data)
 
 
 @dataclass(frozen=True)

@@ -132,7 +132,7 @@ def _start_index(curve: Branch, source: SpecialPoint) -> int | None:
     return s if distance[s] <= 1e-8 else None
 
 
-def _mark_start(curve: Branch, s: int, kind: str, note: str) -> Branch:
+def _mark_start(curve: Branch, s: int, kind: str, note: str, data: dict[str, float] | None = None) -> Branch:
     """The curve with its point s labelled ``kind``: a point of that type the tracer located in
     a step next to s (rounding noise about a zero at the start) is dropped."""
     p1 = curve.params[curve.parameter]
@@ -140,7 +140,7 @@ def _mark_start(curve: Branch, s: int, kind: str, note: str) -> Branch:
     start = SpecialPoint(type=kind, index=s, params={k: float(v[s]) for k, v in curve.params.items()},
                          order_parameter=float(curve.order_parameter[s]), state=curve.state(s).copy(),
                          tangent=curve.tangent(s).copy(), bracket=(float(p1[s]), float(p1[s])), converged=True,
-                         note=note)
+                         note=note, data=dict(data or {}))
     curve.special_points = sorted(kept + [start], key=lambda sp: sp.index)
     relabel([curve])
     return curve
@@ -272,7 +272,9 @@ def _bt_at_start(curve: Branch, source: SpecialPoint, kind: str) -> Branch:
     s = _start_index(curve, source)
     if s is None:  # the start was not kept (not expected): leave the curve as traced
         return curve
-    return _mark_start(curve, s, "BT", f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}")
+    ab = {k: v for k, v in source.data.items() if k in ("a", "b")}  # the BT's normal form, where it was located
+    return _mark_start(curve, s, "BT", f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}",
+                       data=ab)
 
 
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,

@@ -181,3 +181,38 @@ def test_zero_hopf_only_on_the_hopf_part_of_the_curve(c):
             math.sqrt(0.5), rel=1e-10)
     else:
         assert not zh and not curve.points("HH")
+
+
+def test_bogdanov_takens_normal_form_coefficients():
+    """Kuznetsov's BT normal form x' = y, y' = b1 + b2 x + x^2 - x y has a = 1, b = s = -1 at the
+    origin (q0 = (1, 0), q1 = (0, 1), p1 = (0, 1), p0 = (1, 0)); a rotation of the coordinates
+    keeps |q0| and so a and b.  The BT points located on its Hopf and fold curves carry them."""
+    from contin.codim2tests import bogdanov_takens_coefficients
+    from tests.hopf_models import BTNormalForm
+    from tests.test_hopfcurve import bt_branch, bt_hopf_curve
+
+    origin = {"b1": 0.0, "b2": 0.0}
+    assert bogdanov_takens_coefficients(BTNormalForm(), np.zeros(2), origin) == pytest.approx({"a": 1.0, "b": -1.0}, abs=1e-12)
+
+    class Rotated:
+        parameter_names = ("b1", "b2")
+        t = np.array([[math.cos(0.7), -math.sin(0.7)], [math.sin(0.7), math.cos(0.7)]])
+
+        def residual(self, v, p):
+            return self.t.T @ BTNormalForm().residual(self.t @ v, p)
+
+        def jacobian(self, v, p):
+            return self.t.T @ BTNormalForm().jacobian(self.t @ v, p) @ self.t
+
+        def dresidual_dp(self, v, p, name):
+            return self.t.T @ BTNormalForm().dresidual_dp(self.t @ v, p, name)
+
+    assert bogdanov_takens_coefficients(Rotated(), np.zeros(2), origin) == pytest.approx({"a": 1.0, "b": -1.0}, abs=1e-9)
+    (on_hopf,) = bt_hopf_curve().points("BT")
+    assert on_hopf.data["a"] == pytest.approx(1.0, abs=1e-8) and on_hopf.data["b"] == pytest.approx(-1.0, abs=1e-8)
+    lp = bt_branch(0.2, {"b1": (-1.0, 0.3)}).points("LP")[0]
+    fold = trace_fold_curve(BTNormalForm(), lp, "b2", ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1),
+                                                                           bounds={"b2": (-2.0, 2.0)}, max_steps=200),
+                            parameter="b1")
+    (on_fold,) = fold.points("BT")
+    assert on_fold.data["a"] == pytest.approx(1.0, abs=1e-8) and on_fold.data["b"] == pytest.approx(-1.0, abs=1e-8)
