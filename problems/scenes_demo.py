@@ -324,6 +324,11 @@ def run_ab(request: SceneRequest) -> SceneResult:
     p = _numbers(request, AB_DEFAULTS, "ab")
     if not p["D_max"] > 0:
         raise SceneError("need D_max > 0 (the branch starts at u = 0, D = 0)")
+    if not (math.isfinite(p["B"]) and p["beta"] > -1 and abs(p["B"]) / (1 + p["beta"]) <= 700):
+        # the temperature u2 = B u1 / (1 + beta) (u1 <= 1) enters exp: beyond 709 it overflows
+        # (-s B=1e300 ended MX with a raw overflow warning and a hint to check the Jacobian)
+        raise SceneError(f"need beta > -1 and |B| / (1 + beta) <= 700 (the steady temperature u2 = B u1 / (1 + beta) "
+                         f"enters exp), got B = {p['B']:g}, beta = {p['beta']:g}")
     params = {"D": 0.0, "B": p["B"], "beta": p["beta"]}
     options = request.options_for(ContinuationOptions(
         bounds={"D": (0.0, p["D_max"])}, max_steps=2000, step=StepOptions(ds=0.01, ds_max=0.05)))

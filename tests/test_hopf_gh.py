@@ -280,3 +280,16 @@ def test_co_oxidation_hopf_curve_two_gh_against_the_defining_system():
         assert gh.params["k"] == pytest.approx(z[4], rel=1e-8)
         # l1 at the zero: the differences' rounding (~2e-8) relative to l1's size on the curve
         assert abs(gh.data["l1"]) < 1e-8 * abs(branch.points("HB")[0].data["l1"])
+
+
+def test_ab_scene_range_of_b_and_beta():
+    """`contin trace ab -s B=1e300` ended MX with a raw overflow warning: now one Error line."""
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    for setting, expect in (("B=1e300", "|B| / (1 + beta) <= 700"), ("beta=-1", "beta > -1"), ("B=inf", "must be finite")):
+        res = CliRunner().invoke(main, ["trace", "ab", "-s", setting], catch_exceptions=False)
+        assert res.exit_code != 0 and expect in res.output, res.output
+        assert [ln for ln in res.output.splitlines() if ln.strip()] == [res.output.strip()]  # one line
+        assert "Traceback" not in res.output and "RuntimeWarning" not in res.output
