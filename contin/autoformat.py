@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.branch import Branch, SpecialPoint
+from contin.branch import Branch, SpecialPoint, base_state_size
 
 __all__ = ["TYPE_CODES", "base_size", "e19", "write_auto"]
 
@@ -126,11 +126,8 @@ def _base(state: Any, n_base: int | None) -> np.ndarray | None:
 
 def base_size(branch: Branch) -> int | None:
     """The base problem's n for a fold curve ([u, phi, p2]) or Hopf curve ([u, v, w, kappa, p2])."""
-    if branch.kind not in ("fold-curve", "hopf-curve"):
-        return None
-    blocks = 2 if branch.kind == "fold-curve" else 3
     size = branch.states.shape[1] if branch.sizes is None else int(np.max(branch.sizes))
-    return (size - (blocks - 1)) // blocks
+    return base_state_size(branch.kind, size)
 
 
 def _par_index(names: Sequence[str], par: Mapping[str, int] | None) -> dict[str, int]:

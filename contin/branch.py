@@ -304,6 +304,20 @@ def first_crossing(values: np.ndarray, value: float) -> tuple[int, int, float, i
     return i, j, w, int(hits.size)
 
 
+#: Blocks of the augmented states of two-parameter curves: fold curves [u, phi, p2], Hopf curves
+#: [u, v, w, kappa, p2] (``contin.foldcurve``, ``contin.hopfsystem``).
+CURVE_BLOCKS = {"fold-curve": 2, "hopf-curve": 3}
+
+
+def base_state_size(kind: str, size: int) -> int | None:
+    """The base problem's n in an augmented state of ``size`` entries of a ``kind`` curve (None
+    for other kinds, or a size that is no such state)."""
+    blocks = CURVE_BLOCKS.get(kind)
+    if blocks is None or size < 2 * blocks - 1 or (size - (blocks - 1)) % blocks:
+        return None
+    return (size - (blocks - 1)) // blocks
+
+
 def relabel(branches: list[Branch]) -> None:
     """Number the special points of a run 1, 2, 3, ... in branch order (AUTO-style labels).
 

@@ -26,7 +26,6 @@ test costs one LU.  Normal-form coefficients of ZH and HH points are not compute
 
 from __future__ import annotations
 
-import logging
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -38,8 +37,6 @@ from contin.branch import SpecialPoint
 from contin.pointtests import Crossing
 from contin.problem import Array
 from contin.testfunctions import sign_log_crossing
-
-log = logging.getLogger("contin")
 
 #: (augmented state, parameters) -> (base state u, base parameters q with p2 in place)
 Split = Callable[[Array, Mapping[str, float]], tuple[Array, dict[str, float]]]
@@ -62,14 +59,8 @@ class BaseEigenTest:
     own_kappa: int | None = None
 
     def value(self, system: Any, x: Array) -> Array:
-        from contin.hopf import complex_eigenvalues, pencil
-
         u, q = self.split(x[:-1], system.params_at(x[-1]))
-        try:
-            w = complex_eigenvalues(*pencil(self.hopf.problem, u, q), self.hopf.dense_max, self.hopf.k)
-        except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:  # RuntimeError includes ArpackError
-            log.warning("%s test: eigenvalues failed at %s=%g: %s", self.kind, system.parameter, x[-1], exc)
-            return np.zeros(0, dtype=complex)
+        w = self.hopf.eigenvalues(u, q, f"{system.parameter}={x[-1]:g}", self.kind)
         if self.own_kappa is not None and w.size:
             kappa = float(x[self.own_kappa])
             if not kappa > 0:  # a neutral saddle (past a BT): a pair crossing there is no double Hopf
@@ -125,6 +116,18 @@ class ZeroHopfTest:
         return replace(sp_, data={**sp_.data, "omega": math.sqrt(kappa) if kappa > 0 else math.nan})
 
 
+def generalized_null_vector(jac: Any, mass: Any, q0: Array, p1: Array) -> Array:
+    """q1 with J q1 = M q0 and q0 . q1 = 0 at a Bogdanov-Takens point (J q0 = 0, p1^T J = 0, M q0
+    in J's range): the bordered solve [[J, p1], [q0^T, 0]] [q1; s] = [M q0; 0], regular at a BT
+    (p1 is not in J's range, q0 not orthogonal to its kernel); s = 0 there.  The start of a Hopf
+    curve at a BT (``contin.hopfcurve.hopf_curve_start_at_bt``) and the BT normal form below."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    border = sp.bmat([[jac, p1[:, None]], [q0[None, :], None]], format="csc")
+    return spla.splu(border).solve(np.concatenate([np.asarray(mass @ q0, float), [0.0]]))[:jac.shape[0]]
+
+
 def bogdanov_takens_coefficients(problem: Any, u: Array, params: Mapping[str, float]) -> dict[str, float]:
     """Normal-form coefficients (a, b) of a Bogdanov-Takens point (u, p) of M u' = F(u, p):
     w0' = w1, w1' = a w0^2 + b w0 w1 + ... (Kuznetsov, *Elements of Applied Bifurcation Theory*,
@@ -158,8 +161,7 @@ def bogdanov_takens_coefficients(problem: Any, u: Array, params: Mapping[str, fl
         weights = inner_product_weights(problem, u, q)
         norm = math.sqrt(float(q0 @ (q0 if weights is None else weights * q0)))
         q0 = q0 / norm
-        border = sp.bmat([[jac, p1[:, None]], [q0[None, :], None]], format="csc")
-        q1 = spla.splu(border).solve(np.concatenate([m @ q0, [0.0]]))[:n]
+        q1 = generalized_null_vector(jac, m, q0, p1)
         left = sp.bmat([[jac.T, q0[:, None]], [p1[None, :], None]], format="csc")
         p1 = p1 / float(p1 @ (m @ q1))  # p1^T M q1 = 1 (then p0^T M q0 = (M^T p1)^T q1 = 1 too)
         p0 = spla.splu(left).solve(np.concatenate([m.T @ p1, [0.0]]))[:n]

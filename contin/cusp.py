@@ -26,6 +26,7 @@ import numpy as np
 from contin.branch import SpecialPoint
 from contin.pointtests import Crossing
 from contin.problem import Array
+from contin.testfunctions import sign_change
 
 
 @dataclass
@@ -59,9 +60,7 @@ class CuspTest:
         return float(sign * (yl @ bxx) / scale)
 
     def crossings(self, va: float, vb: float) -> list[Crossing]:
-        if not (math.isfinite(va) and math.isfinite(vb)) or va == 0 or vb == 0 or (va > 0) == (vb > 0):
-            return []
-        return [("cusp (psi . B(phi, phi) = 0)", float)]
+        return [("cusp (psi . B(phi, phi) = 0)", float)] if sign_change(va, vb) else []
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         return sp_

@@ -25,6 +25,7 @@ import numpy as np
 from contin.branch import SpecialPoint
 from contin.pointtests import Crossing
 from contin.problem import Array
+from contin.testfunctions import sign_change
 
 
 @dataclass(frozen=True)
@@ -89,9 +90,7 @@ class Event:
         return float(self.g(x[:-1], system.params_at(x[-1])))
 
     def crossings(self, va: float, vb: float) -> list[Crossing]:
-        if va == 0 or vb == 0 or (va > 0) == (vb > 0):
-            return []
-        return [(self.label, float)]
+        return [(self.label, float)] if sign_change(va, vb) else []
 
     def turning_crossings(self, va: float, vb: float, v_turn: float) -> list[Crossing]:
         """In a step that turned at a fold where g is ``v_turn``: g has one sign at both ends and

@@ -144,12 +144,17 @@ class HopfTest:
     kind: str = "HB"
 
     def value(self, system: Any, x: Array) -> CArray:
-        a, b = pencil(self.problem, x[:-1], system.params_at(x[-1]))
+        return self.eigenvalues(x[:-1], system.params_at(x[-1]), f"{system.parameter}={x[-1]:g}")
+
+    def eigenvalues(self, u: Array, params: dict[str, float], where: str, test: str = "Hopf") -> CArray:
+        """The pencil's eigenvalues with Im > 0 at (u, params); none (logged, not hidden) where the
+        eigen-solve fails: no crossing can then be bracketed by this point.  Also the ZH/HH tests'
+        (``contin.codim2tests``) at the base states of fold and Hopf curves."""
+        a, b = pencil(self.problem, u, params)
         try:
             return complex_eigenvalues(a, b, self.dense_max, self.k)
         except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:  # RuntimeError includes ArpackError
-            # no eigenvalues here: no Hopf point can be bracketed by this point (logged, not hidden)
-            log.warning("Hopf test: eigenvalues failed at %s=%g: %s", system.parameter, x[-1], exc)
+            log.warning("%s test: eigenvalues failed at %s: %s", test, where, exc)
             return np.zeros(0, dtype=complex)
 
     def crossings(self, va: CArray, vb: CArray) -> list[Crossing]:

@@ -88,20 +88,16 @@ def hopf_curve_start_at_bt(problem: Any, u: Array, params: Mapping[str, float], 
     traced through it: kappa > 0 (Hopf points) on one side, kappa < 0 (neutral saddles) on the
     other (Kuznetsov, *Elements of Applied Bifurcation Theory*, 3rd ed., sec. 8.4)."""
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
+    from contin.codim2tests import generalized_null_vector
     from contin.normalform import null_vectors
 
     u = np.asarray(u, float)
     q = dict(params)
     jac = sp.csc_matrix(problem.jacobian(u, q))
-    n = jac.shape[0]
     nulls = null_vectors(jac)
     phi, psi = nulls.phi, nulls.psi
-    mphi = np.asarray(_mass(problem, u, q, n) @ phi, float)
-    border = sp.bmat([[jac, psi[:, None]], [phi[None, :], None]], format="csc")
-    sol = spla.splu(border).solve(np.concatenate([mphi, [0.0]]))
-    v = sol[:n]
+    v = generalized_null_vector(jac, _mass(problem, u, q, jac.shape[0]), phi, psi)
     scale = float(v @ v)
     if not (math.isfinite(scale) and scale > 0):
         raise ValueError("no generalized eigenvector at the BT point (J v = M phi has no solution)")

@@ -30,6 +30,7 @@ import scipy.sparse as sp
 from contin.branch import SpecialPoint
 from contin.pointtests import Crossing
 from contin.problem import Array, has
+from contin.testfunctions import sign_change
 
 #: Relative step of the central differences of J and F_p along v, w.
 FD_EPS = 1e-6
@@ -203,9 +204,7 @@ class KappaTest:
         return float(x[3 * self.n])
 
     def crossings(self, va: float, vb: float) -> list[Crossing]:
-        if va == 0 or vb == 0 or (va > 0) == (vb > 0):
-            return []
-        return [("Bogdanov-Takens (kappa = omega^2 = 0)", float)]
+        return [("Bogdanov-Takens (kappa = omega^2 = 0)", float)] if sign_change(va, vb) else []
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         """kappa (~0) and the BT normal-form coefficients a, b (``contin.codim2tests``)."""
@@ -254,7 +253,7 @@ class LyapunovTest:
         return (l1, True) if math.isfinite(l1) else (0.0, False)
 
     def crossings(self, va: tuple[float, bool], vb: tuple[float, bool]) -> list[Crossing]:
-        if not (va[1] and vb[1]) or va[0] == 0 or vb[0] == 0 or (va[0] > 0) == (vb[0] > 0):
+        if not (va[1] and vb[1] and sign_change(va[0], vb[0])):
             return []
         return [("generalized Hopf (l1 = 0)", _l1_or_nan)]
 

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from contin.bpcurve import trace_bp_curve
-from contin.branch import Branch, SpecialPoint, relabel
+from contin.branch import CURVE_BLOCKS, Branch, SpecialPoint, base_state_size, relabel
 from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
 from contin.hopfcurve import trace_hopf_curve
@@ -237,17 +237,15 @@ def _from_bogdanov_takens(problem: Any, branch: Branch, point: SpecialPoint, sec
     from contin.foldcurve import trace_fold_curve
     from contin.hopfcurve import hopf_curve_start_at_bt, trace_hopf_curve
 
-    kinds = {"hopf-curve": 3, "fold-curve": 2}
-    if branch.kind not in kinds or len(branch.free) != 2:
+    if branch.kind not in CURVE_BLOCKS or len(branch.free) != 2:
         raise NotAvailable(f"{point.name}: a BT is continued from a fold or Hopf curve, not from a {branch.kind} branch")
     if second != branch.free[1]:
         raise ValueError(f"{point.name} lies on a curve in ({branch.free[0]}, {branch.free[1]}): the curve through it "
                          f"is traced in the same parameters, --free {branch.free[1]}")
     state = np.asarray(point.state, float)
-    blocks = kinds[branch.kind]
-    n = (state.size - (blocks - 1)) // blocks  # [u, phi, p2] or [u, v, w, kappa, p2]
+    n = base_state_size(branch.kind, state.size)  # [u, phi, p2] or [u, v, w, kappa, p2]
     size = getattr(problem, "size", None)
-    if n * blocks + blocks - 1 != state.size or (isinstance(size, int) and size != n):
+    if n is None or (isinstance(size, int) and size != n):
         raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this problem")
     params = dict(point.params)
     params[second] = float(state[-1])

@@ -43,7 +43,7 @@ def auto_points(fort8: Path) -> list[tuple[str, float, float]]:
         ty, nrowpr, npar = head[2], head[8], head[11]
         body = lines[i + 1:i + 1 + nrowpr]
         par = [_float(x) for ln in body[-((npar + 6) // 7):] for x in ln.split()]
-        kind = CODES.get(ty, CODES.get(-((-ty) % 10)) if ty < 0 else None)
+        kind = CODES.get(ty) or (CODES.get(-((-ty) % 10)) if ty < 0 else None)
         if kind is not None:
             out.append((kind, par[0], par[1]))
         i += 1 + nrowpr
