@@ -42,7 +42,7 @@ from contin.adapt import ACCEPTED_ABOVE_TOL, PRECISION_LIMIT, RESOLUTION_LIMIT, 
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
-from contin.cancel import stop_requested
+from contin.cancel import ENDS_AT_LAST_POINT, stop_reason, stop_requested
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
@@ -863,8 +863,8 @@ def trace(
     status, message, closed = "EP", f"maximum number of steps ({options.max_steps}) reached", False
     steps = 0
     while steps < options.max_steps:
-        if stop_requested():  # Ctrl-C inside contin.cancel.stop_on_sigint: keep what was traced
-            status, message = "MX", "interrupted (Ctrl-C): the branch ends at its last point"
+        if stop_requested():  # Ctrl-C/SIGTERM inside contin.cancel.stop_on_sigint: keep what was traced
+            status, message = "MX", stop_reason() + ENDS_AT_LAST_POINT
             break
         cur = tracer.points[-1]
         if sopt.predictor == "secant" and len(tracer.points) > 1:

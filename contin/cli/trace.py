@@ -207,22 +207,29 @@ def _stopped(writer: Any, exc: BaseException) -> None:
     input found late (ValueError, LookupError) would fail the same way again, so no --resume is
     suggested for it.  ``contin info`` says "failed: ...", not "interrupted", for any error.
     """
+    from contin.cancel import is_stopped_branch
+
     interrupted = isinstance(exc, KeyboardInterrupt)
     resumable = not isinstance(exc, ValueError | LookupError)  # bad input would fail the same way again
     why = ("terminated by SIGTERM" if isinstance(exc, Terminated) else "interrupted" if interrupted
            else f"failed: {error_line(exc)}")
     try:
-        if writer.publishes:
+        if writer.publishes or any(len(b) > 0 for b in writer.branches):
             writer.update(stopped=why)
             writer.publish()
     except Exception:  # noqa: BLE001 -- the earlier published file stays as it was
         pass
     finally:
         writer.release()
-    done = [b for b in writer.branches if len(b) > 0]
-    if writer.publishes and done:
+    done = [b for b in writer.branches if len(b) > 0 and not is_stopped_branch(b)]
+    partial = [b for b in writer.branches if len(b) > 0 and is_stopped_branch(b)]
+    if writer.publishes and (done or partial):
         hint = f" (continue with --resume {writer.path})" if resumable else ""
-        echo_err(f"note: {len(done)} finished branch(es) are saved in {writer.path}{hint}")
+        what = f"{len(done)} finished branch(es)"
+        for b in partial:  # the branch in progress, ended at its last point by the first Ctrl-C/SIGTERM
+            what += (f" and branch {b.id} up to its last point ({len(b)} points, {b.message.split(':')[0]}; "
+                     f"--resume traces it again)")
+        echo_err(f"note: {what} are saved in {writer.path}{hint}")
 
 
 def stability_summary(branch: Any) -> dict[str, Any] | None:
@@ -363,6 +370,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     """
     import contin.scene as scene_mod
     from contin import io
+    from contin.cancel import SIGTERM, is_stopped_branch, stop_on_sigint, stop_reason, stop_requested
     from contin.jsonout import run_document
 
     params = parse_settings(settings)
@@ -444,7 +452,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         if resolution_tol is not None and before_rtol != "unknown" and before_rtol != rtol:
             fail(f"{resume!r} was computed with --resolution-tol {'off' if before_rtol is None else fmt(before_rtol)}, "
                  f"not {resolution_tol}; resume with the same accuracy (or start a new run)")
-        completed = {b.id: b for b in old}
+        # a branch a Ctrl-C or SIGTERM ended at its last point is partial: traced again, not reused
+        completed = {b.id: b for b in old if not is_stopped_branch(b)}
         if output is None:
             output = resume
         check_hdf5_output(output)
@@ -462,13 +471,24 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             writer.add_branch(branch)
         progress.line(f"branch {branch.id} ({branch.kind}{', from ' + branch.parent if branch.parent else ''}): "
                       f"{len(branch)} points, {branch.status} {branch.message}".rstrip())
+        if stop_requested():  # the first Ctrl-C/SIGTERM ended this branch (or came after it): stop the run here
+            stop_now()
+
+    def stop_now() -> None:
+        raise Terminated() if stop_reason() == SIGTERM else KeyboardInterrupt()
 
     request = scene_mod.SceneRequest(
         params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
         completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
     try:
-        with guard, sigterm_as_interrupt():
+        # The first Ctrl-C or SIGTERM ends the branch in progress at its last point (contin.cancel);
+        # on_branch stores it and stops the run; the second interrupts at once.
+        with guard, sigterm_as_interrupt(), stop_on_sigint(sigterm=Terminated):
             result = sc.run(request)
+            if stop_requested():  # a scene that passed no branch to on_branch after the stop
+                if writer is not None:
+                    writer.set_branches(result.branches)
+                stop_now()
     except BaseException as exc:
         progress.close()
         if writer is not None:

@@ -1,0 +1,97 @@
+"""Robustness sweep, round 4 (session 16, qa16): the leftovers of qa15 (Ctrl-C during ``trace``
+lost the branch in progress; a user zero at the start value) and the features of session 15
+(``contin export --auto``, ``contin continue --from BT``, the ``ab`` scene, two-parameter files).
+
+Each test names the command that misbehaved before its fix.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from contin import io
+from contin.cli import main
+
+HERE = Path(__file__).resolve().parent
+FIXTURE_ENV = {**os.environ, "CONTIN_SCENES": "cli_fixture_scenes:SCENES",
+               "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]),
+               "CONTIN_PROGRESS_SECONDS": "0"}
+
+
+@pytest.fixture(autouse=True)
+def real_scenes(monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+
+
+def run(args: list[str]):
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def one_error(res) -> str:
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code != 0 and len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
+    return errors[0]
+
+
+def _branches(path: Path) -> list:
+    try:
+        return io.load(path)[0]
+    except (FileNotFoundError, io.FileFormatError):
+        return []
+
+
+def _signalled(args: list[str], sig: int, ready, after: float) -> tuple[int, str]:
+    """(exit code, stderr) of ``contin ARGS`` (fixture scenes) sent ``sig`` once ``ready()`` holds
+    and ``after`` seconds more (SIGINT reset to its default in the child, as in test_fault_injection)."""
+    proc = subprocess.Popen([sys.executable, "-m", "contin", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=FIXTURE_ENV, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        t0 = time.monotonic()
+        while not ready():
+            assert time.monotonic() - t0 < 60 and proc.poll() is None, "the run ended before it was ready"
+            time.sleep(0.05)
+        time.sleep(after)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    return proc.returncode, stderr
+
+
+@pytest.mark.parametrize("sig, code, reason, stopped", [(signal.SIGINT, 130, "interrupted (Ctrl-C)", "interrupted"),
+                                                        (signal.SIGTERM, 143, "terminated by SIGTERM",
+                                                         "terminated by SIGTERM")])
+def test_ctrl_c_during_trace_keeps_the_branch_in_progress_and_resume_retraces_it(tmp_path, sig, code, reason,
+                                                                                  stopped):
+    """`contin trace SCENE -o F` + Ctrl-C (or SIGTERM) saved the finished branches only: the points
+    of the branch being traced were lost.  Now the first signal ends that branch at its last point
+    (MX "interrupted (Ctrl-C): ..."), it is saved and named in the note, exit 130 / 143; and
+    `trace --resume F` traces it again (it reuses the finished branch 0 only)."""
+    out = tmp_path / "run.h5"
+    rc, stderr = _signalled(["trace", "slow-bratu", "-s", "delay=0.01", "-s", "steps=400", "-o", str(out)], sig,
+                            lambda: [b.id for b in _branches(out)] == ["0"], after=1.5)
+    assert rc == code, stderr
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("Error: ")]
+    assert len(errors) == 1 and reason.split(" (")[0] in errors[0] and "Traceback" not in stderr, stderr
+    branches, meta = io.load(out)
+    assert [b.id for b in branches] == ["0", "1"] and meta["complete"] is False and meta["stopped"] == stopped
+    assert branches[0].status == "EP"
+    partial = branches[1]
+    assert partial.status == "MX" and partial.message.startswith(reason), partial.message
+    assert 3 < len(partial) < 400
+    assert (f"note: 1 finished branch(es) and branch 1 up to its last point ({len(partial)} points, {reason}; "
+            f"--resume traces it again) are saved in {out} (continue with --resume {out})") in stderr, stderr
+    again = subprocess.run([sys.executable, "-m", "contin", "trace", "slow-bratu", "-s", "steps=400", "--resume",
+                            str(out), "-q"], capture_output=True, text=True, env=FIXTURE_ENV, timeout=120)
+    assert again.returncode == 0, again.stderr
+    branches, meta = io.load(out)
+    assert meta["complete"] and meta["extra"]["reused"] == ["0"]
+    assert branches[1].status == "EP" and len(branches[1]) > len(partial)
