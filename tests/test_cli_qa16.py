@@ -95,3 +95,21 @@ def test_ctrl_c_during_trace_keeps_the_branch_in_progress_and_resume_retraces_it
     branches, meta = io.load(out)
     assert meta["complete"] and meta["extra"]["reused"] == ["0"]
     assert branches[1].status == "EP" and len(branches[1]) > len(partial)
+
+
+def test_a_user_zero_at_the_start_value_labels_the_start_point(tmp_path):
+    """`contin trace bratu --uz lam=0` (bratu starts at lam = 0) reported no UZ: p - value is 0 at
+    the start, so no step crosses it.  Now the start point is labelled UZ (note 'at the start
+    point'), once; it does not count for --stop-at (UZ1 still stops at the first UZ after it)."""
+    out = tmp_path / "b.h5"
+    res = run(["trace", "bratu", "--uz", "lam=0,2", "--no-stability", "--max-steps", "30", "-q", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (b,), _ = io.load(out)
+    uz = [sp for sp in b.special_points if sp.type == "UZ"]
+    assert [(sp.index, sp.data["value"]) for sp in uz][:2] == [(0, 0.0), (uz[1].index, 2.0)] and uz[1].index > 0
+    assert "at the start point" in uz[0].note and sum(sp.data["value"] == 0.0 for sp in uz) == 1
+    res = run(["trace", "bratu", "--uz", "lam=0,2", "--stop-at", "UZ1", "--no-stability", "-q", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (b,), _ = io.load(out)
+    values = [sp.data["value"] for sp in b.special_points if sp.type == "UZ"]
+    assert b.message == "stopped after UZ1 (stop_at)" and values == [0.0, 2.0] and 2.0 < b.params["lam"][-1] < 2.5
