@@ -136,6 +136,10 @@ def _par_index(names: Sequence[str], par: Mapping[str, int] | None) -> dict[str,
     missing = [k for k in names if k not in par]
     if missing:
         raise ValueError(f"no PAR index for parameter(s) {', '.join(missing)}")
+    unknown = [k for k in par if k not in names]
+    if unknown:  # a misspelt name was ignored silently (qa16)
+        raise ValueError(f"--par names {', '.join(map(repr, unknown))}, which the run does not have; its parameters "
+                         f"are {', '.join(names)}")
     index = {k: int(par[k]) for k in names}
     if len(set(index.values())) != len(index) or min(index.values()) < 1:
         raise ValueError("PAR indices must be distinct integers >= 1")
@@ -193,7 +197,9 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
             values = [row.params[free[0]]]
             if with_state:
                 assert row.state is not None
-                values.append(float(np.linalg.norm(row.state)))
+                # math.hypot scales: np.linalg.norm overflowed to 'INF' (and a RuntimeWarning) for
+                # entries near 1e300 (qa16)
+                values.append(math.hypot(*(float(v) for v in row.state)))
                 values += [float(v) for v in row.state[:u_columns]]
             values += [row.params[k] for k in free[1:]]
             values += [row.phi] if with_phi else []

@@ -113,3 +113,39 @@ def test_a_user_zero_at_the_start_value_labels_the_start_point(tmp_path):
     (b,), _ = io.load(out)
     values = [sp.data["value"] for sp in b.special_points if sp.type == "UZ"]
     assert b.message == "stopped after UZ1 (stop_at)" and values == [0.0, 2.0] and 2.0 < b.params["lam"][-1] < 2.5
+
+
+# ----------------------------------------------------------------------------- contin export --auto
+AB_HOPF = Path(__file__).resolve().parents[1] / "results" / "ab_hopf.h5"
+
+
+@pytest.mark.parametrize("par, expect", [
+    ("D=1,B=2,beta=3,Q=4", "--par names 'Q', which the run does not have; its parameters are D, B, beta"),
+    ("D=1,B=2,beta=3,D=4", "--par gives 'D' twice (D=1, D=4)"),
+    ("D=1,B=2,beta=3000000", "AUTO's PAR indices are small (at most 1000 here)")])
+def test_export_par_refuses_unknown_repeated_and_huge_indices(tmp_path, par, expect):
+    """`contin export ab_hopf.h5 --auto x --par D=1,B=2,beta=3,Q=4` ignored the unknown Q (a typo
+    went unnoticed), `D=1,...,D=4` kept D=4 silently, and `beta=3000000` wrote a 296 MB s.x
+    (every block holds NPAR values): each is one Error line now, before anything is written."""
+    res = run(["export", str(AB_HOPF), "--auto", "x", "-d", str(tmp_path), "--par", par])
+    assert expect in one_error(res)
+    assert not list(tmp_path.iterdir())
+
+
+def test_export_l2_norm_of_huge_states_is_finite_and_fixed_width(tmp_path):
+    """A state with entries near 1e300 (the file format allows any finite value) was exported with
+    L2-NORM 'INF' (np.linalg.norm overflowed, a RuntimeWarning on stderr), not a 19-character
+    number; now the norm is scaled (math.hypot)."""
+    import warnings
+
+    from contin.autoformat import write_auto
+
+    (branch,), _ = io.load(AB_HOPF)
+    branch.states[1, :2] = [1e300, -1e300]  # (point 0 is the EP: its row shows the EP's own state)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        write_auto([branch], "big", tmp_path)
+    rows = [ln for ln in (tmp_path / "b.big").read_text().splitlines() if not ln.startswith("   0")]
+    first = rows[1]
+    assert "INF" not in first.upper() and len(first) == 19 + 19 * 6
+    assert float(first[19 + 19:19 + 38]) == pytest.approx(2**0.5 * 1e300, rel=1e-10)
