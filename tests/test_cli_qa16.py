@@ -149,3 +149,12 @@ def test_export_l2_norm_of_huge_states_is_finite_and_fixed_width(tmp_path):
     first = rows[1]
     assert "INF" not in first.upper() and len(first) == 19 + 19 * 6
     assert float(first[19 + 19:19 + 38]) == pytest.approx(2**0.5 * 1e300, rel=1e-10)
+
+
+def test_export_checks_both_outputs_before_writing_either(tmp_path):
+    """`contin export ab_hopf.h5 --auto w -d D` with D/s.w a symbolic link wrote a new D/b.w, then
+    refused s.w: a half export (a new b.w beside no or an old s.w).  Both targets are checked first."""
+    (tmp_path / "s.w").symlink_to("/dev/null")
+    res = run(["export", str(AB_HOPF), "--auto", "w", "-d", str(tmp_path)])
+    assert "is a symbolic link" in one_error(res)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.w"]
