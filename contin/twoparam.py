@@ -187,6 +187,21 @@ def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationO
 CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitchfork, "HB": _hopf}
 
 
+def on_curve_message(branch: Branch, point: SpecialPoint) -> str | None:
+    """Why ``point`` of a two-parameter curve cannot start a curve (None: it can, or ``branch`` is a
+    one-parameter branch).  Of a curve's points only a BT starts one (the other curve through it);
+    an LP there is an extremum of the first parameter, not a fold of a branch, and its augmented
+    state is no state of the problem: ``contin continue ab_hopf.h5 --from LP4 --free B`` ended
+    "Error: too many values to unpack (expected 2)" (qa16)."""
+    if len(branch.free) < 2 or point.type == "BT":
+        return None
+    what = point.note.split(";")[0].strip() if point.note else ""
+    kind = branch.kind.replace("-", " ") if branch.kind and "curve" in branch.kind else "two-parameter curve"
+    return (f"{point.name} lies on the {kind} {branch.id} in "
+            f"({', '.join(branch.free)}){' (' + what + ')' if what else ''}: of a curve's points only a BT starts "
+            f"another curve; continue the LP, HB or BP points of one-parameter branches")
+
+
 def continuable_types() -> list[str]:
     """The point types :func:`continue_point` continues: those of :data:`CURVES`, and BT (the other
     curve through a Bogdanov-Takens point)."""
@@ -311,6 +326,9 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     if tracer is None and point.type != "BT":
         raise NotAvailable(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two "
                            f"parameters, not {point.type}")
+    on_curve = on_curve_message(branch, point)
+    if on_curve is not None:
+        raise NotAvailable(on_curve)
     for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
         # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)
         lo, hi = options.bounds.get(name, (-math.inf, math.inf))

@@ -158,3 +158,18 @@ def test_export_checks_both_outputs_before_writing_either(tmp_path):
     res = run(["export", str(AB_HOPF), "--auto", "w", "-d", str(tmp_path)])
     assert "is a symbolic link" in one_error(res)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.w"]
+
+
+# ----------------------------------------------------------------------------- contin continue --from
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+
+
+@pytest.mark.parametrize("file, kind", [("ab_hopf.h5", "hopf curve HB1.B"), ("ab_fold.h5", "fold curve BT2.B")])
+def test_continue_from_an_lp_of_a_curve_says_what_it_is(tmp_path, file, kind):
+    """`contin continue results/ab_hopf.h5 --from LP4 --free B` (LP4: the extremum of D on the Hopf
+    curve) ended `Error: too many values to unpack (expected 2)`: the curve's augmented state went
+    to the problem's Jacobian.  Now one line says what the point is and what can be continued."""
+    res = run(["continue", str(RESULTS / file), "--from", "LP4", "--free", "B", "-o", str(tmp_path / "c.h5")])
+    err = one_error(res)
+    assert f"LP4 lies on the {kind} in (D, B) (extremum of D): of a curve's points only a BT starts" in err, err
+    assert not (tmp_path / "c.h5").exists()

@@ -132,6 +132,11 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     if point.type not in continuable_types():  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
         fail(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two parameters, "
              f"not {point.type}")
+    from contin.twoparam import on_curve_message
+
+    on_curve = on_curve_message(branch, point)
+    if on_curve is not None:  # before the grid checks, as above
+        fail(on_curve)
     first = branch.parameter
     unknown = [n for n in box if n not in (first, second)]
     if unknown:
