@@ -959,7 +959,9 @@ def trace(
         p_cur, p_new = cur.x[-1], new.x[-1]
         bound = lo if p_new < lo else hi if p_new > hi else None
         if bound is not None:
-            if abs(bound - p_cur) <= 1e-12 * max(1.0, abs(bound)):
+            # (relative, not absolute: with bounds (0, 1e-12) the start D = 0 counted as on the bound,
+            # a one-point branch "reached bound D=1e-12", exit 0; `contin trace ab -s D_max=1e-12`, qa16)
+            if abs(bound - p_cur) <= 1e-12 * max(abs(bound), abs(p_cur)):
                 message = f"reached bound {parameter}={bound:g}"
                 break
             frac = (bound - p_cur) / (p_new - p_cur)

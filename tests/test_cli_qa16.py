@@ -173,3 +173,24 @@ def test_continue_from_an_lp_of_a_curve_says_what_it_is(tmp_path, file, kind):
     err = one_error(res)
     assert f"LP4 lies on the {kind} in (D, B) (extremum of D): of a curve's points only a BT starts" in err, err
     assert not (tmp_path / "c.h5").exists()
+
+
+# ----------------------------------------------------------------------------- tiny parameter ranges
+def test_a_bound_close_to_the_start_is_reached_not_assumed(tmp_path):
+    """`contin trace ab -s D_max=1e-12` stored one point, D = 0, with EP 'reached bound D=1e-12',
+    exit 0: the tracer took any bound within 1e-12 (absolute) of the last point as reached.  The
+    test is relative now: the branch lands on D = 1e-12.  The core side on Bratu (non-granular)."""
+    from contin.continuation import trace
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import Bratu
+
+    out = tmp_path / "ab.h5"
+    res = run(["trace", "ab", "-s", "D_max=1e-12", "--no-stability", "-q", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (b,), _ = io.load(out)
+    assert list(b.params["D"]) == [0.0, 1e-12] and b.message == "reached bound D=1e-12"
+    pb = Bratu("cheb", 8)
+    for hi in (1e-12, 1e-300):
+        opts = ContinuationOptions(bounds={"lam": (0.0, hi)}, max_steps=20, step=StepOptions(ds=0.05, ds_max=0.05))
+        b = trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
+        assert list(b.params["lam"]) == [0.0, hi] and b.message == f"reached bound lam={hi:g}"
