@@ -264,6 +264,14 @@ def _from_bogdanov_takens(problem: Any, branch: Branch, point: SpecialPoint, sec
         raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this problem")
     params = dict(point.params)
     params[second] = float(state[-1])
+    try:  # a problem without a declared size (the demos): its residual says whether u fits (a file edited
+        # to another curve kind sent n = 1 to ab's Jacobian: "not enough values to unpack", qa16)
+        fits = np.shape(problem.residual(state[:n], params)) == (n,)
+    except (ValueError, IndexError, TypeError):
+        fits = False
+    if not fits:
+        raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this "
+                         f"problem (its base state of {n} entries does not fit the problem's residual)")
     base = replace(point, type="LP" if branch.kind == "hopf-curve" else "HB", state=state[:n].copy(), params=params,
                    tangent=None)
     if branch.kind == "hopf-curve":

@@ -194,3 +194,40 @@ def test_a_bound_close_to_the_start_is_reached_not_assumed(tmp_path):
         opts = ContinuationOptions(bounds={"lam": (0.0, hi)}, max_steps=20, step=StepOptions(ds=0.05, ds_max=0.05))
         b = trace(pb, pb.initial(), {"lam": 0.0}, "lam", opts)
         assert list(b.params["lam"]) == [0.0, hi] and b.message == f"reached bound lam={hi:g}"
+
+
+# ----------------------------------------------------------------------------- damaged two-parameter files
+def _damaged(tmp_path: Path, src: str, edit) -> Path:
+    import shutil
+
+    import h5py
+
+    out = tmp_path / f"damaged_{src}"
+    shutil.copy(RESULTS / src, out)
+    with h5py.File(out, "r+") as f:
+        edit(f, f"branches/{'HB1.B' if 'hopf' in src else 'BT2.B'}")
+    return out
+
+
+@pytest.mark.parametrize("src", ["ab_hopf.h5", "ab_fold.h5"])
+def test_a_curve_with_one_free_parameter_is_a_damaged_file(tmp_path, src):
+    """A copy of ab_hopf.h5 / ab_fold.h5 whose curve names one free parameter (attribute free = D)
+    read as a curve: `contin stability F --at D=0.1` ended `Error: too many values to unpack
+    (expected 2)`.  The reader refuses it, naming the attribute."""
+    import numpy as np
+
+    f = _damaged(tmp_path, src, lambda h, b: h[b].attrs.__setitem__("free", np.array(["D"], dtype=object)))
+    for args in (["info", str(f)], ["stability", str(f), "--at", "D=0.1"]):
+        err = one_error(run(args))
+        assert "is damaged: branch group branches/" in err and "free parameters (attribute free) are D" in err, err
+
+
+def test_a_bt_whose_curve_kind_was_edited_is_one_clear_error(tmp_path):
+    """ab_fold.h5 with the curve's kind edited to hopf-curve (its 5-entry states read as a Hopf
+    curve of n = 1): `contin continue F --from BT2 --free B` ended `Error: not enough values to
+    unpack (expected 2, got 1)` in ab's Jacobian.  The BT's base state is checked against the
+    problem's residual first."""
+    f = _damaged(tmp_path, "ab_fold.h5", lambda h, b: h[b].attrs.__setitem__("kind", "hopf-curve"))
+    res = run(["continue", str(f), "--from", "BT2", "--free", "B", "--max-steps", "5", "-o", str(tmp_path / "c.h5")])
+    err = one_error(res)
+    assert "the state of BT2 (5 entries) is not a hopf-curve state of this problem" in err, err
