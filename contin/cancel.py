@@ -45,12 +45,19 @@ def request_stop(reason: str = CTRL_C) -> None:
         _reason = reason
 
 
-def is_stopped_branch(branch: Any) -> bool:
-    """Whether ``branch`` was ended by a stop request (MX, message ``"<reason>: the branch ends at
-    its last point"``): a partial branch, not a finished one."""
+def stopped_by(branch: Any) -> str | None:
+    """The reason (:data:`CTRL_C`, :data:`SIGTERM`) if a stop request ended ``branch`` or a part of
+    it (MX, its message holds ``"<reason>: the branch ends at its last point"``, also inside a
+    joined ``"backward: ...; forward: ..."``), else None."""
     message = str(getattr(branch, "message", "") or "")
-    return getattr(branch, "status", None) == "MX" and any(
-        message.startswith(reason + ENDS_AT_LAST_POINT) for reason in (CTRL_C, SIGTERM))
+    if getattr(branch, "status", None) != "MX":
+        return None
+    return next((reason for reason in (CTRL_C, SIGTERM) if reason + ENDS_AT_LAST_POINT in message), None)
+
+
+def is_stopped_branch(branch: Any) -> bool:
+    """Whether a stop request ended ``branch`` (:func:`stopped_by`): a partial branch, not a finished one."""
+    return stopped_by(branch) is not None
 
 
 class StopRequest:

@@ -231,3 +231,18 @@ def test_a_bt_whose_curve_kind_was_edited_is_one_clear_error(tmp_path):
     res = run(["continue", str(f), "--from", "BT2", "--free", "B", "--max-steps", "5", "-o", str(tmp_path / "c.h5")])
     err = one_error(res)
     assert "the state of BT2 (5 entries) is not a hopf-curve state of this problem" in err, err
+
+
+def test_a_joined_branch_with_an_interrupted_half_is_partial():
+    """A branch traced both ways from its start (contin.continuation.join: message "backward: ...;
+    forward: ...") whose second half a Ctrl-C stopped was not recognised as partial (the check read
+    the start of the message), so `trace --resume` would have reused it as finished."""
+    from types import SimpleNamespace
+
+    from contin.cancel import CTRL_C, ENDS_AT_LAST_POINT, SIGTERM, is_stopped_branch, stopped_by
+
+    joined = SimpleNamespace(status="MX", message=f"backward: reached bound rho=1.5; forward: {SIGTERM}{ENDS_AT_LAST_POINT}")
+    assert is_stopped_branch(joined) and stopped_by(joined) == SIGTERM
+    assert stopped_by(SimpleNamespace(status="MX", message=CTRL_C + ENDS_AT_LAST_POINT)) == CTRL_C
+    assert not is_stopped_branch(SimpleNamespace(status="EP", message="reached bound rho=40"))
+    assert not is_stopped_branch(SimpleNamespace(status="MX", message="step failed at lam=1 (interrupted (Ctrl-C))"))

@@ -207,7 +207,7 @@ def _stopped(writer: Any, exc: BaseException) -> None:
     input found late (ValueError, LookupError) would fail the same way again, so no --resume is
     suggested for it.  ``contin info`` says "failed: ...", not "interrupted", for any error.
     """
-    from contin.cancel import is_stopped_branch
+    from contin.cancel import is_stopped_branch, stopped_by
 
     interrupted = isinstance(exc, KeyboardInterrupt)
     resumable = not isinstance(exc, ValueError | LookupError)  # bad input would fail the same way again
@@ -227,7 +227,7 @@ def _stopped(writer: Any, exc: BaseException) -> None:
         hint = f" (continue with --resume {writer.path})" if resumable else ""
         what = f"{len(done)} finished branch(es)"
         for b in partial:  # the branch in progress, ended at its last point by the first Ctrl-C/SIGTERM
-            what += (f" and branch {b.id} up to its last point ({len(b)} points, {b.message.split(':')[0]}; "
+            what += (f" and branch {b.id} up to its last point ({len(b)} points, {stopped_by(b)}; "
                      f"--resume traces it again)")
         echo_err(f"note: {what} are saved in {writer.path}{hint}")
 
