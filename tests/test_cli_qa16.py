@@ -246,3 +246,20 @@ def test_a_joined_branch_with_an_interrupted_half_is_partial():
     assert stopped_by(SimpleNamespace(status="MX", message=CTRL_C + ENDS_AT_LAST_POINT)) == CTRL_C
     assert not is_stopped_branch(SimpleNamespace(status="EP", message="reached bound rho=40"))
     assert not is_stopped_branch(SimpleNamespace(status="MX", message="step failed at lam=1 (interrupted (Ctrl-C))"))
+
+
+def test_sigterm_during_continue_keeps_the_curve_computed_so_far(tmp_path):
+    """`contin continue` kept its curve on Ctrl-C (qa14) but SIGTERM still lost all of it (the
+    command group's handler raised at once).  Now the first SIGTERM ends the curve at its last point
+    too: saved (MX 'terminated by SIGTERM: ...'), `Error: terminated by SIGTERM`, exit 143."""
+    src, out = tmp_path / "sb.h5", tmp_path / "curve.h5"
+    assert run(["trace", "stretched-bratu", "--grid", "32", "--no-stability", "-q", "-o", str(src)]).exit_code in (0, 3)
+    rc, stderr = _signalled(["continue", str(src), "--from", "LP1", "--free", "a", "--bounds", "a=-0.5:3", "--ds",
+                             "0.0005", "--ds-max", "0.0005", "--max-steps", "100000", "-o", str(out)], signal.SIGTERM,
+                            lambda: (tmp_path / ".curve.h5.lock").exists(), after=1.5)
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("Error: ")]
+    assert rc == 143 and errors == ["Error: terminated by SIGTERM"], stderr
+    assert f"note: the curve computed before SIGTERM (" in stderr and f"is saved in {out}" in stderr
+    (curve,), _ = io.load(out)
+    assert curve.status == "MX" and "terminated by SIGTERM: the branch ends at its last point" in curve.message
+    assert len(curve) > 10
