@@ -124,5 +124,20 @@ def run_slow(req: SceneRequest) -> SceneResult:
                        extra={"reused": sorted(req.completed)})
 
 
+def _slow_stability_factory(parameters, discretization):
+    """'slow-bratu-stab': the CLI's stability pass after the run, ``sdelay`` seconds per Jacobian."""
+    from problems.demo import Bratu
+
+    class SlowJacobian(Bratu):
+        def jacobian(self, u, q):
+            time.sleep(float(parameters.get("sdelay", 0.0)))
+            return super().jacobian(u, q)
+
+    return SlowJacobian("cheb", 8)
+
+
+SCENES["slow-bratu-stab"] = Scene(name="slow-bratu-stab", summary="slow-bratu with a slow stability pass after it",
+                                  defaults={**SLOW_DEFAULTS, "sdelay": 0.0}, run=run_slow, x="lam", y="phi",
+                                  problem_factory=_slow_stability_factory)
 SCENES["slow-bratu"] = Scene(name="slow-bratu", summary="two Bratu branches, the second slow", defaults=SLOW_DEFAULTS,
                              run=run_slow, x="lam", y="phi", stability=False)

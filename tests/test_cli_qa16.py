@@ -263,3 +263,18 @@ def test_sigterm_during_continue_keeps_the_curve_computed_so_far(tmp_path):
     (curve,), _ = io.load(out)
     assert curve.status == "MX" and "terminated by SIGTERM: the branch ends at its last point" in curve.message
     assert len(curve) > 10
+
+
+def test_ctrl_c_in_the_stability_pass_after_the_run_keeps_every_traced_branch(tmp_path):
+    """`contin trace SCENE -o F` + Ctrl-C during the stability pass that follows the run (outside the
+    run's handler): F held only the branches of the last checkpoint (branch 1 lost) and was not
+    marked stopped.  Now every traced branch is saved, the note says so, the file reads as
+    interrupted (exit 130)."""
+    out = tmp_path / "run.h5"
+    rc, stderr = _signalled(["trace", "slow-bratu-stab", "-s", "sdelay=0.2", "-o", str(out)], signal.SIGINT,
+                            lambda: [b.id for b in _branches(out)] == ["0"], after=1.5)
+    assert rc == 130, stderr
+    assert f"note: 2 finished branch(es) are saved in {out} (continue with --resume {out})" in stderr, stderr
+    branches, meta = io.load(out)
+    assert [(b.id, len(b)) for b in branches] == [("0", 12), ("1", 41)]
+    assert meta["complete"] is False and meta["stopped"] == "interrupted"

@@ -477,6 +477,16 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     def stop_now() -> None:
         raise Terminated() if stop_reason() == SIGTERM else KeyboardInterrupt()
 
+    def abort(exc: BaseException) -> None:
+        """Save what was computed, say where, and end: Terminated as exit 143, others re-raised."""
+        progress.close()
+        if writer is not None:
+            _stopped(writer, exc)
+        if isinstance(exc, Terminated):
+            echo_err("Error: terminated by SIGTERM")
+            raise click.exceptions.Exit(EXIT_TERMINATED) from None
+        raise exc
+
     request = scene_mod.SceneRequest(
         params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
         completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
@@ -490,44 +500,47 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                     writer.set_branches(result.branches)
                 stop_now()
     except BaseException as exc:
+        abort(exc)
+    # The stability pass and the final write: a Ctrl-C, SIGTERM or error there kept only the branches
+    # the last checkpoint had published (`trace slow-bratu-stab` + Ctrl-C in the pass: branch 1 lost,
+    # the file not marked stopped; qa16); now every traced branch is saved, as during the run.
+    try:
+        progress.done()
+        if not no_stability:
+            _stability_after_run(sc, request, result, progress, quiet)
         progress.close()
+        missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
+                      and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
+        if missing_kx:  # never a silent no-op: the README promises a column per --kx value
+            if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
+                why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
+                       f"k_x = 0 exists (that stability was computed)")
+            elif not sc.stability:
+                why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
+            elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
+                why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
+                       f"for a stability pass)")
+            else:
+                why = f"scene {scene!r} computed no stability"
+            echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
+
+        if step_overrides and not request.resolved_options:
+            echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
+        options: Any = request.resolved_options[0] if request.resolved_options else (
+            {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
+        from contin.hopfscan import number_new_points
+
+        number_new_points(result.branches)  # HB points the stability pass located after the run
         if writer is not None:
-            _stopped(writer, exc)
-        if isinstance(exc, Terminated):
-            echo_err("Error: terminated by SIGTERM")
-            raise click.exceptions.Exit(EXIT_TERMINATED) from None
-        raise
-    progress.done()
-    if not no_stability:
-        _stability_after_run(sc, request, result, progress, quiet)
-    progress.close()
-    missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
-                  and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
-    if missing_kx:  # never a silent no-op: the README promises a column per --kx value
-        if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
-            why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
-                   f"k_x = 0 exists (that stability was computed)")
-        elif not sc.stability:
-            why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
-        elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
-            why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
-                   f"for a stability pass)")
-        else:
-            why = f"scene {scene!r} computed no stability"
-        echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
-
-    if step_overrides and not request.resolved_options:
-        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
-    options: Any = request.resolved_options[0] if request.resolved_options else (
-        {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
-    from contin.hopfscan import number_new_points
-
-    number_new_points(result.branches)  # HB points the stability pass located after the run
-    if writer is not None:
-        writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
-                      notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)
-        writer.set_branches(result.branches)
-        writer.close()
+            writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
+                          notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)
+            writer.set_branches(result.branches)
+            writer.close()
+    except BaseException as exc:
+        if writer is not None:
+            writer.complete = False  # (set by a close() whose publish failed)
+            writer.set_branches(result.branches)
+        abort(exc)
 
     if as_json:
         echo_json(run_document(scene=scene, parameters=result.parameters, discretization=result.discretization,
