@@ -278,3 +278,49 @@ def test_ctrl_c_in_the_stability_pass_after_the_run_keeps_every_traced_branch(tm
     branches, meta = io.load(out)
     assert [(b.id, len(b)) for b in branches] == [("0", 12), ("1", 41)]
     assert meta["complete"] is False and meta["stopped"] == "interrupted"
+
+
+# ----------------------------------------------------------------------------- --resume of an unfinished file
+def _in_progress_copy(tmp_path: Path, name: str, options: dict) -> Path:
+    """A finished bratu file turned into what an interrupted run leaves: complete False, stopped
+    'interrupted', and the options attribute as the writer holds it during the run (the command
+    line's overrides, contin.cli.trace: H5Writer(options=overrides))."""
+    import json
+    import shutil
+
+    import h5py
+
+    src = tmp_path / "bratu_done.h5"
+    if not src.exists():
+        res = run(["trace", "bratu", "--tol", "1e-6", "--ds-max", "0.05", "--no-stability", "-q", "-o", str(src)])
+        assert res.exit_code == 0, res.stderr
+    out = tmp_path / name
+    shutil.copy(src, out)
+    with h5py.File(out, "r+") as f:
+        f.attrs["options"] = json.dumps(options)
+        f.attrs["complete"] = False
+        f.attrs["stopped"] = "interrupted"
+    return out
+
+
+def test_resume_of_an_interrupted_run_checks_and_keeps_its_command_line_settings(tmp_path):
+    """The file of an interrupted run holds the command line's overrides ({"ds_max": 0.05, "tol":
+    1e-06}), which --resume read as a finished run's options: `trace bratu --resume F --ds-max 0.05`
+    (the run's own value) was refused 'computed with --ds-max None', `--resume F --tol 1e-8` was
+    accepted (the file then claimed tol 1e-8 for branches computed at 1e-6), and `--resume F` alone
+    traced the rest with the scene's ds_max.  Now the overrides are compared and reused."""
+    raw = {"ds_max": 0.05, "tol": 1e-06}
+    f = _in_progress_copy(tmp_path, "a.h5", raw)
+    res = run(["trace", "bratu", "--resume", str(f), "--ds-max", "0.05", "--no-stability", "-q"])
+    assert res.exit_code == 0, res.stderr
+    f = _in_progress_copy(tmp_path, "b.h5", raw)
+    err = one_error(run(["trace", "bratu", "--resume", str(f), "--tol", "1e-8", "--no-stability", "-q"]))
+    assert "was computed with --tol 1e-06, not 1e-08" in err, err
+    f = _in_progress_copy(tmp_path, "c.h5", raw)
+    err = one_error(run(["trace", "bratu", "--resume", str(f), "--ds-max", "0.1", "--no-stability", "-q"]))
+    assert "was computed with --ds-max 0.05, not 0.1" in err, err
+    f = _in_progress_copy(tmp_path, "d.h5", raw)
+    res = run(["trace", "bratu", "--resume", str(f), "--no-stability", "-q"])
+    assert res.exit_code == 0, res.stderr
+    options = io.load(f)[1]["options"]
+    assert options["adapt"]["tol"] == 1e-06 and options["step"]["ds_max"] == 0.05

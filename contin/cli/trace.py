@@ -86,6 +86,30 @@ def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
     return out
 
 
+def _in_progress_options(stored: Any) -> Any:
+    """The stored options in the form :func:`_resume_accuracy` and :func:`_resume_settings` read.
+
+    A file the run had not finished (interrupted, killed, failed: the checkpoints) holds the
+    command line's overrides as they were (``{"ds_max": 0.05, "tol": 1e-06}``), not the resolved
+    options: both checks read it as a finished run's, so `trace bratu --resume F --ds-max 0.05` of
+    a `--ds-max 0.05` run was refused ("computed with --ds-max None") and `--resume F --tol 1e-8` of
+    a tol-1e-6 run was accepted, the file then claiming tol 1e-8 (qa16).  Such a dict becomes
+    ``{"overrides": ..., "adapt": ...}`` (adapt None for a fixed grid; AdaptOptions' defaults
+    for what the command line left out)."""
+    if not isinstance(stored, dict) or not stored or any(k in stored for k in ("step", "adapt", "overrides", "note")):
+        return stored
+    from contin.options import AdaptOptions
+
+    adapt = None
+    if stored.get("tol") is not None:
+        base = AdaptOptions()
+        adapt = {"tol": stored["tol"],
+                 "special_tol": stored.get("special_tol") if stored.get("special_tol") is not None else base.special_tol,
+                 "max_grid": stored.get("max_grid") if stored.get("max_grid") is not None else base.max_grid,
+                 "solve_check": stored.get("solve_check", True) is not False}
+    return {"overrides": dict(stored), "adapt": adapt}
+
+
 def _resume_accuracy(resume: str, stored: Any, overrides: dict[str, Any], *, tol: float | None,
                      special_tol: float | None, max_grid: int | None, no_solve_check: bool) -> None:
     """``--resume``: the new branches are computed to the accuracy of the stored ones.
@@ -152,7 +176,7 @@ def _resume_settings(resume: str, stored: Any, given: dict[str, Any]) -> None:
             shown_old, shown_new = ",".join(old or []) or "none", ",".join(value)
         elif key in ("ds", "ds_max"):
             same = old is not None and math.isclose(float(old), abs(float(value)), rel_tol=1e-12)
-            shown_old, shown_new = fmt(old), fmt(value)
+            shown_old, shown_new = ("its default" if old is None else fmt(old)), fmt(value)
         else:
             same = old == value
             shown_old, shown_new = ("its default" if old is None else fmt(old)), fmt(value)
@@ -444,9 +468,16 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                      f"discretization (or start a new run)")
         method = method if method is not None or "method" not in stored else str(stored["method"])
         grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
-        _resume_accuracy(resume, meta.get("options"), overrides, tol=tol, special_tol=special_tol,
+        stored_options = _in_progress_options(meta.get("options"))
+        _resume_accuracy(resume, stored_options, overrides, tol=tol, special_tol=special_tol,
                          max_grid=max_grid, no_solve_check=no_solve_check)
-        _resume_settings(resume, meta.get("options"), step_overrides)
+        _resume_settings(resume, stored_options, step_overrides)
+        if isinstance(stored_options, dict) and isinstance(stored_options.get("overrides"), dict):
+            # the run's own command-line step settings where this command leaves them out: the
+            # branches still to trace get them too (an interrupted --ds-max 0.05 run went on with 0.25)
+            for key in ("ds", "ds_max", "max_steps", "user_zeros", "stop_at", "bp_eigenvalues"):
+                if key not in step_overrides and stored_options["overrides"].get(key) is not None:
+                    step_overrides[key] = overrides[key] = stored_options["overrides"][key]
         before_rtol = (meta.get("options") or {}).get("resolution_tol", "unknown") \
             if isinstance(meta.get("options"), dict) else "unknown"
         if resolution_tol is not None and before_rtol != "unknown" and before_rtol != rtol:
