@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from contin.bpcurve import trace_bp_curve
-from contin.branch import CURVE_BLOCKS, Branch, SpecialPoint, base_state_size, relabel
+from contin.branch import Branch, SpecialPoint, base_state_size, relabel
 from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
 from contin.hopfcurve import trace_hopf_curve
@@ -252,7 +252,7 @@ def _from_bogdanov_takens(problem: Any, branch: Branch, point: SpecialPoint, sec
     from contin.foldcurve import trace_fold_curve
     from contin.hopfcurve import hopf_curve_start_at_bt, trace_hopf_curve
 
-    if branch.kind not in CURVE_BLOCKS or len(branch.free) != 2:
+    if branch.kind not in ("fold-curve", "hopf-curve") or len(branch.free) != 2:
         raise NotAvailable(f"{point.name}: a BT is continued from a fold or Hopf curve, not from a {branch.kind} branch")
     if second != branch.free[1]:
         raise ValueError(f"{point.name} lies on a curve in ({branch.free[0]}, {branch.free[1]}): the curve through it "

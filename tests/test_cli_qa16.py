@@ -324,3 +324,22 @@ def test_resume_of_an_interrupted_run_checks_and_keeps_its_command_line_settings
     assert res.exit_code == 0, res.stderr
     options = io.load(f)[1]["options"]
     assert options["adapt"]["tol"] == 1e-06 and options["step"]["ds_max"] == 0.05
+
+
+def test_export_writes_a_bp_curve_with_its_base_state(tmp_path):
+    """`contin export` of a `contin trace bp-curve` file wrote the BP curve's whole augmented state
+    [u, phi, p2] as its solution (NDIM 201 for a problem of 100 unknowns, the L2-NORM of all of
+    it): fold and Hopf curves were cut to u, BP curves (the same [u, phi, p2] layout) were not."""
+    src = tmp_path / "bpc.h5"
+    res = run(["trace", "bp-curve", "--no-stability", "-q", "-o", str(src)])
+    assert res.exit_code == 0, res.stderr
+    branches, _ = io.load(src)
+    curve = next(b for b in branches if b.kind == "bp-curve")
+    n = branches[0].states.shape[1]
+    assert curve.states.shape[1] == 2 * n + 1
+    res = run(["export", str(src), "--auto", "bpc", "-d", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    text = (tmp_path / "b.bpc").read_text()
+    assert text.count(f"NDIM={n:4d}") == 2 and f"NDIM={2 * n + 1:4d}" not in text
+    s_heads = [ln.split() for ln in (tmp_path / "s.bpc").read_text().splitlines() if len(ln.split()) == 16]
+    assert s_heads and all(int(h[13]) == n for h in s_heads)  # NDIM of every labelled solution
