@@ -343,3 +343,27 @@ def test_export_writes_a_bp_curve_with_its_base_state(tmp_path):
     assert text.count(f"NDIM={n:4d}") == 2 and f"NDIM={2 * n + 1:4d}" not in text
     s_heads = [ln.split() for ln in (tmp_path / "s.bpc").read_text().splitlines() if len(ln.split()) == 16]
     assert s_heads and all(int(h[13]) == n for h in s_heads)  # NDIM of every labelled solution
+
+
+# ----------------------------------------------------------------------------- ODE scenes (no discretization)
+@pytest.mark.parametrize("args, expect", [
+    (["trace", "ab", "--grid", "10"], "scene 'ab' is a system of ODEs without a discretization: --method and --grid"),
+    (["trace", "lorenz", "--method", "cheb"], "scene 'lorenz' is a system of ODEs without a discretization"),
+    (["accuracy", "ab", "--grids", "16,24", "--no-memory", "--no-plots"],
+     "scene 'ab' is a system of ODEs without a discretization; accuracy compares discretizations")])
+def test_discretization_options_on_an_ode_scene_are_refused(tmp_path, args, expect):
+    """`contin trace ab --grid 10` (and lorenz --method cheb) ran, ignored the option and exited 0
+    (the file's discretization attribute empty); `contin accuracy ab` printed a discretization
+    study of an ODE, every 'grid' giving the same value.  One Error line each now
+    (Scene.discretized = False), before computing."""
+    out = tmp_path / "x.h5"
+    res = run([*args, *(["-o", str(out)] if args[0] == "trace" else [])])
+    assert expect in one_error(res)
+    assert not out.exists()
+
+
+def test_a_sweep_with_a_grid_on_an_ode_scene_is_refused(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text('[sweep]\nscene = "ab"\n[grid]\nB = [14.0, 15.0]\n[options]\ngrid = 16\n')
+    res = run(["sweep", str(spec), "-o", str(tmp_path / "out")])
+    assert "scene 'ab' is a system of ODEs without a discretization" in one_error(res)

@@ -408,6 +408,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     check_hdf5_output(output)
     guard, rtol = resolution_guard(resolution_tol)  # every trace of the run, also those a scene sets up itself
     sc = scene_mod.get_scene(scene)
+    if not sc.discretized and (method is not None or grid is not None):  # ignored, exit 0 (qa16)
+        fail(f"scene {scene!r} is a system of ODEs without a discretization: --method and --grid do not apply")
     if sc.defaults:
         unknown = [n for n in params if n not in sc.defaults]
         if unknown:
