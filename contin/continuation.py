@@ -1222,8 +1222,11 @@ def join(backward: Branch, forward: Branch) -> Branch:
     if len(forward) == 0:
         return r
     off = m - 1
-    # the start point is both halves' first point: its UZ (_start_zeros) is kept once
-    at_start = {sp.note for sp in r.special_points if sp.type == "UZ" and sp.index == off}
+    # the start point is both halves' first point: its UZ (_start_zeros) is kept once (the
+    # reversed half's copy: Branch.reversed moved it to index off - 1, between its last two points)
+    from contin.events import AT_START
+
+    at_start = {sp.note for sp in r.special_points if sp.type == "UZ" and sp.note.endswith(AT_START)}
     sps = list(r.special_points) + [replace(sp, index=sp.index + off) for sp in forward.special_points
                                     if not (sp.index == 0 and sp.type == "UZ" and sp.note in at_start)]
 

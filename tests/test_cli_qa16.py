@@ -115,6 +115,20 @@ def test_a_user_zero_at_the_start_value_labels_the_start_point(tmp_path):
     assert b.message == "stopped after UZ1 (stop_at)" and values == [0.0, 2.0] and 2.0 < b.params["lam"][-1] < 2.5
 
 
+def test_a_user_zero_at_the_start_of_a_branch_traced_both_ways_is_labelled_once():
+    """trace_both (lorenz and other scenes trace both ways from the start): each half labels its start
+    point UZ; the join kept both copies (the reversed half's at index off - 1)."""
+    from contin.continuation import trace_both
+    from contin.options import ContinuationOptions, StepOptions
+    from problems.demo import Bratu
+
+    pb = Bratu("cheb", 8)
+    opts = ContinuationOptions(bounds={"lam": (0.5, 2.0)}, max_steps=100, step=StepOptions(ds=0.05, ds_max=0.05),
+                               user_zeros={"lam": [1.0, 1.5]})
+    b = trace_both(pb, pb.initial(), {"lam": 1.0}, "lam", opts)
+    assert [sp.data["value"] for sp in b.special_points if sp.type == "UZ"] == [1.0, 1.5]
+
+
 # ----------------------------------------------------------------------------- contin export --auto
 AB_HOPF = Path(__file__).resolve().parents[1] / "results" / "ab_hopf.h5"
 
