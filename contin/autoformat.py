@@ -172,14 +172,15 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
             raise ValueError(f"branch {branch.id} has other parameters than branch {branches[0].id}")
         n_base = base_size(branch)
         rows = _rows(branch, n_base)
-        _check_finite(branch, rows)
+        # an observable NaN everywhere is "not computed" (the reader allows it): no column, not an error
+        with_phi = "phi" in branch.observables and not bool(np.all(np.isnan(branch.observables["phi"])))
+        _check_finite(branch, rows, with_phi)
         free = [k for k in branch.free]
         icp = [index[k] for k in free]
         sizes = {r.state.size for r in rows if r.state is not None}
         with_state = all(r.state is not None for r in rows)
         n_u = min(sizes) if sizes else 0
         u_columns = n_u if with_state and len(sizes) == 1 and n_u <= MAX_U_COLUMNS else 0
-        with_phi = "phi" in branch.observables
         columns = [f"PAR({icp[0]})"] + (["L2-NORM"] if with_state else []) + [f"U({j + 1})" for j in range(u_columns)]
         columns += [f"PAR({i})" for i in icp[1:]] + (["phi"] if with_phi else [])
         ndim = max(sizes) if sizes else 0
@@ -216,11 +217,10 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     return b_path, s_path, notes
 
 
-def _check_finite(branch: Branch, rows: list[_Row]) -> None:
+def _check_finite(branch: Branch, rows: list[_Row], with_phi: bool) -> None:
     for k, r in enumerate(rows):
         bad = [name for name, v in r.params.items() if not math.isfinite(v)]
-        if bad or (r.state is not None and not np.all(np.isfinite(r.state))) or ("phi" in branch.observables
-                                                                                and not math.isfinite(r.phi)):
+        if bad or (r.state is not None and not np.all(np.isfinite(r.state))) or (with_phi and not math.isfinite(r.phi)):
             what = f"parameter {bad[0]}" if bad else "state" if r.state is not None and not np.all(np.isfinite(r.state)) else "order parameter"
             raise ValueError(f"branch {branch.id}: the {what} of point {k + 1} is not finite; AUTO's files cannot hold it")
 

@@ -381,3 +381,21 @@ def test_a_sweep_with_a_grid_on_an_ode_scene_is_refused(tmp_path):
     spec.write_text('[sweep]\nscene = "ab"\n[grid]\nB = [14.0, 15.0]\n[options]\ngrid = 16\n')
     res = run(["sweep", str(spec), "-o", str(tmp_path / "out")])
     assert "scene 'ab' is a system of ODEs without a discretization" in one_error(res)
+
+
+def test_export_leaves_out_an_order_parameter_that_is_nan_everywhere(tmp_path):
+    """A file whose phi column is NaN everywhere (the reader's "not computed") could not be exported
+    at all: `Error: branch BT2.B: the order parameter of point 1 is not finite`.  The column is left
+    out now, as for a branch without phi."""
+    import numpy as np
+
+    def nan_phi(h, b):
+        data = h[f"{b}/phi"][...] * np.nan
+        del h[f"{b}/phi"]
+        h[f"{b}/phi"] = data
+
+    f = _damaged(tmp_path, "ab_fold.h5", nan_phi)
+    res = run(["export", str(f), "--auto", "nophi", "-d", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    header = next(ln for ln in (tmp_path / "b.nophi").read_text().splitlines() if "PT  TY  LAB" in ln)
+    assert "phi" not in header and "PAR(2)" in header
