@@ -249,11 +249,11 @@ def _stopped(writer: Any, exc: BaseException) -> None:
     partial = [b for b in writer.branches if len(b) > 0 and is_stopped_branch(b)]
     if writer.publishes and (done or partial):
         hint = f" (continue with --resume {writer.path})" if resumable else ""
-        what = f"{len(done)} finished branch(es)"
-        for b in partial:  # the branch in progress, ended at its last point by the first Ctrl-C/SIGTERM
-            what += (f" and branch {b.id} up to its last point ({len(b)} points, {stopped_by(b)}; "
-                     f"--resume traces it again)")
-        echo_err(f"note: {what} are saved in {writer.path}{hint}")
+        parts = [f"{len(done)} finished branch(es)"] if done else []
+        parts += [f"branch {b.id} up to its last point ({len(b)} points, {stopped_by(b)}; --resume traces it again)"
+                  for b in partial]  # the branch in progress, ended at its last point by the first Ctrl-C/SIGTERM
+        verb = "is" if len(parts) == 1 and not done else "are"
+        echo_err(f"note: {' and '.join(parts)} {verb} saved in {writer.path}{hint}")
 
 
 def stability_summary(branch: Any) -> dict[str, Any] | None:
