@@ -399,3 +399,18 @@ def test_export_leaves_out_an_order_parameter_that_is_nan_everywhere(tmp_path):
     assert res.exit_code == 0, res.stderr
     header = next(ln for ln in (tmp_path / "b.nophi").read_text().splitlines() if "PT  TY  LAB" in ln)
     assert "phi" not in header and "PAR(2)" in header
+
+
+def test_ctrl_c_while_the_command_line_loads_is_one_error_line():
+    """Ctrl-C in the first ~0.2 s of `contin trace ...` (while contin.cli imports its commands) printed
+    a KeyboardInterrupt traceback, exit -2; now `Error: interrupted (Ctrl-C)`, exit 130.  (The
+    interrupt is raised by an import hook when contin.cli.verify is loaded.)"""
+    code = ("import sys\n"
+            "class Hook:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name == 'contin.cli.verify':\n"
+            "            raise KeyboardInterrupt\n"
+            "sys.meta_path.insert(0, Hook())\n"
+            "from contin.cli import main\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130 and proc.stderr == "Error: interrupted (Ctrl-C)\n", proc.stderr
