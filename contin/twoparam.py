@@ -365,6 +365,9 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
         kw["regrid"] = regrid
     curve = tracer(problem, point, second, options, parameter=first,
                    branch_id=branch_id if branch_id is not None else f"{point.name}.{second}", **kw)
-    if len(curve) <= 1:
+    from contin.cancel import is_stopped_branch
+
+    if len(curve) <= 1 and not is_stopped_branch(curve):  # (a Ctrl-C before its first step: exit 130, not
+        # "did not start: interrupted (Ctrl-C)" with exit 1, qa16; the caller saves the start point)
         raise ValueError(f"the {point.type} curve from {point.name} did not start: {curve.message}")
     return curve

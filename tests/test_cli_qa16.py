@@ -414,3 +414,21 @@ def test_ctrl_c_while_the_command_line_loads_is_one_error_line():
             "from contin.cli import main\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 130 and proc.stderr == "Error: interrupted (Ctrl-C)\n", proc.stderr
+
+
+def test_a_stop_before_the_first_step_of_a_curve_is_an_interrupt_not_a_failure():
+    """Ctrl-C while `contin continue` set up its curve (before the first step) ended with `Error: the
+    HB curve from HB1 did not start: ... interrupted (Ctrl-C) ...`, exit 1 (bad input's code):
+    continue_point took the one-point curve for a failed start.  Now the stopped curve is returned
+    (the command saves it and exits 130), as a stop later on does."""
+    from contin.cancel import request_stop, stop_on_sigint
+    from contin.options import ContinuationOptions
+    from contin.twoparam import continue_point
+    from problems.demo import AB
+
+    (branch,), _ = io.load(RESULTS / "ab.h5")
+    hb = next(sp for sp in branch.special_points if sp.name == "HB1")
+    with stop_on_sigint() as stop:
+        request_stop()
+        curve = continue_point(AB(), branch, hb, "B", ContinuationOptions(bounds={"B": (0, 40)}))
+    assert stop.requested and len(curve) == 1 and curve.status == "MX" and "interrupted (Ctrl-C)" in curve.message
