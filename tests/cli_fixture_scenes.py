@@ -94,8 +94,9 @@ SCENES = {"toy": Scene(name="toy", summary="hand-built pitchfork branches", defa
 
 # 'slow-bratu': two Bratu branches traced by contin.continuation.trace (lam 0.1 -> 0.3, then
 # lam 0.1 -> 3 with ``delay`` seconds of sleep in each residual of the second), for the Ctrl-C /
-# SIGTERM tests of a branch in progress; ``steps`` is the second branch's max_steps.
-SLOW_DEFAULTS = {"delay": 0.0, "steps": 40}
+# SIGTERM tests of a branch in progress; ``steps`` is the second branch's max_steps; ``strict`` = 1:
+# the scene raises a SceneError on a branch that ended MX (before handing it on).
+SLOW_DEFAULTS = {"delay": 0.0, "steps": 40, "strict": 0}
 
 
 def run_slow(req: SceneRequest) -> SceneResult:
@@ -118,6 +119,8 @@ def run_slow(req: SceneRequest) -> SceneResult:
                                                        step=StepOptions(ds=0.02, ds_max=0.02)))
             b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", opts)
             b.id, b.kind = bid, "primary"
+            if float(p["strict"]) and b.status == "MX":  # a scene that cannot use a branch ended early
+                raise SceneError(f"branch {bid} ended early ({b.message}); the scene needs all of it")
         branches.append(b)
         req.finished(b)
     return SceneResult(branches=branches, parameters=p, discretization={"method": "cheb", "intervals": 8},

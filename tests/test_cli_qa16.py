@@ -432,3 +432,18 @@ def test_a_stop_before_the_first_step_of_a_curve_is_an_interrupt_not_a_failure()
         request_stop()
         curve = continue_point(AB(), branch, hb, "B", ContinuationOptions(bounds={"B": (0, 40)}))
     assert stop.requested and len(curve) == 1 and curve.status == "MX" and "interrupted (Ctrl-C)" in curve.message
+
+
+def test_a_scene_error_after_ctrl_c_is_still_an_interrupt(tmp_path):
+    """A scene that cannot use a branch the first Ctrl-C shortened (here: it raises a SceneError on
+    an MX branch before handing it on) ended the run `Error: ... ended early`, exit 1, the file
+    marked 'failed' without a --resume hint.  After a stop the run is interrupted: the finished
+    branches are saved, one note names the scene's error, exit 130."""
+    out = tmp_path / "run.h5"
+    rc, stderr = _signalled(["trace", "slow-bratu", "-s", "delay=0.01", "-s", "steps=400", "-s", "strict=1", "-o",
+                             str(out)], signal.SIGINT, lambda: [b.id for b in _branches(out)] == ["0"], after=1.0)
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("Error: ")]
+    assert rc == 130 and errors == ["Error: interrupted (Ctrl-C)"], stderr
+    assert "note: after the Ctrl-C the scene ended with: branch 1 ended early" in stderr
+    assert f"saved in {out} (continue with --resume {out})" in stderr
+    assert io.load(out)[1]["stopped"] == "interrupted"

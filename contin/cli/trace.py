@@ -523,16 +523,23 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     request = scene_mod.SceneRequest(
         params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
         completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
+    stop = None
     try:
         # The first Ctrl-C or SIGTERM ends the branch in progress at its last point (contin.cancel);
         # on_branch stores it and stops the run; the second interrupts at once.
-        with guard, sigterm_as_interrupt(), stop_on_sigint(sigterm=Terminated):
+        with guard, sigterm_as_interrupt(), stop_on_sigint(sigterm=Terminated) as stop:
             result = sc.run(request)
             if stop_requested():  # a scene that passed no branch to on_branch after the stop
                 if writer is not None:
                     writer.set_branches(result.branches)
                 stop_now()
     except BaseException as exc:
+        if stop is not None and stop.requested and not isinstance(exc, KeyboardInterrupt):
+            # an error that followed the stop (a scene that cannot use the shortened branch): the
+            # run was interrupted, not failed (exit 1 with "failed: ..." before; qa16)
+            echo_err(f"note: after the {'SIGTERM' if stop.reason == SIGTERM else 'Ctrl-C'} the scene ended with: "
+                     f"{error_line(exc)}")
+            exc = Terminated() if stop.reason == SIGTERM else KeyboardInterrupt()
         abort(exc)
     # The stability pass and the final write: a Ctrl-C, SIGTERM or error there kept only the branches
     # the last checkpoint had published (`trace slow-bratu-stab` + Ctrl-C in the pass: branch 1 lost,
