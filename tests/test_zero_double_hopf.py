@@ -216,3 +216,82 @@ def test_bogdanov_takens_normal_form_coefficients():
                             parameter="b1")
     (on_fold,) = fold.points("BT")
     assert on_fold.data["a"] == pytest.approx(1.0, abs=1e-8) and on_fold.data["b"] == pytest.approx(-1.0, abs=1e-8)
+
+
+def _one(points):
+    (point,) = points
+    return point
+
+
+def test_switching_at_zero_hopf_between_the_fold_and_the_hopf_curve():
+    """From the ZH of the fold curve the Hopf curve starts (the pair +-i of the base pencil), and
+    from the ZH of the Hopf curve the fold curve (the real zero eigenvalue's null vector): every
+    point of each switched curve lies on the other curve's closed form (Hopf: x = 1 - b,
+    a = (1 - b)(1 - 2 b) - b, omega = 1; fold: x = b/2, a = -b - b^2/4), both sides of the ZH are
+    traced, and the start is the one ZH of the new curve, at (a, b) = (-7/9, 2/3)."""
+    from contin.foldcurve import SegmentRegrid
+    from contin.twoparam import NotAvailable, continue_point, continuable_types
+
+    assert {"ZH", "HH"} <= set(continuable_types())
+    pb, br = _fold_hopf_points()
+    opts = ContinuationOptions(step=STEP, bounds={"a": (-2, 2), "b": (-0.5, 1.0)}, max_steps=400)
+    fold = trace_fold_curve(pb, _one(br.points("LP")), "b", opts, parameter="a")
+    hopf = continue_point(pb, fold, _one(fold.points("ZH")), "b", opts)
+    assert hopf.kind == "hopf-curve" and hopf.free == ("a", "b")
+    b, n = hopf.params["b"], 3
+    assert b.min() < 0 and b.max() > 0.99  # both sides of b = 2/3
+    assert np.max(np.abs(hopf.params["a"] - ((1 - b) * (1 - 2 * b) - b))) < 1e-10
+    assert np.max(np.abs(hopf.states[:, 0] - (1 - b))) < 1e-10
+    assert np.max(np.abs(hopf.observables["kappa"] - 1.0)) < 1e-10  # omega = 1 all along
+    for i in range(len(hopf)):  # the base state is an equilibrium: F = 0 (fold-curve states are not: phi != 0)
+        p = {"a": hopf.params["a"][i], "b": b[i]}
+        assert np.max(np.abs(pb.residual(hopf.state(i)[:n], p))) < 1e-10
+    start = _one(hopf.points("ZH"))
+    assert start.params["a"] == pytest.approx(-7 / 9, abs=1e-10) and start.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+    assert "start: ZH" in start.note and start.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    assert not hopf.points("BT") and not hopf.points("HH") and not hopf.points("GH")
+
+    back = continue_point(pb, hopf, start, "b", opts)
+    assert back.kind == "fold-curve"
+    b = back.params["b"]
+    assert b.min() < 0 and b.max() > 0.99
+    assert np.max(np.abs(back.params["a"] - (-b - b**2 / 4))) < 1e-10
+    assert np.max(np.abs(back.states[:, 0] - b / 2)) < 1e-10
+    start = _one(back.points("ZH"))
+    assert start.params["a"] == pytest.approx(-7 / 9, abs=1e-10) and start.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+    assert "start: ZH" in start.note and start.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    # no regridding; no HH on a fold curve
+    with pytest.raises(NotAvailable, match="zero-Hopf"):
+        continue_point(pb, fold, _one(fold.points("ZH")), "b", opts, regrid=SegmentRegrid(None))
+    with pytest.raises(NotAvailable, match="from a Hopf curve, not from a fold-curve"):
+        continue_point(pb, fold, replace(_one(fold.points("ZH")), type="HH"), "b", opts)
+
+
+def test_switching_at_double_hopf_to_the_other_pair():
+    """From the HH of the first oscillator's Hopf curve (a = 1 - b - b^2, omega = 1) the Hopf
+    curve of the second oscillator starts: r2 = b - a/2 = 0, i.e. a = 2 b, with omega = 2 all
+    along; its start is its one HH (omega 2, omega2 1) at b = (sqrt(13) - 3)/2."""
+    from contin.twoparam import continue_point
+
+    pb = TwoOscillators()
+    br = trace(pb, np.zeros(4), {"a": 0.5, "b": 0.0}, "a",
+               ContinuationOptions(step=STEP, bounds={"a": (0.5, 2.0)}, max_steps=200))
+    opts = ContinuationOptions(step=STEP, bounds={"a": (-1.0, 2.0), "b": (-0.2, 0.8)}, max_steps=200)
+    first = trace_hopf_curve(pb, _one(br.points("HB")), "b", opts, parameter="a")
+    other = continue_point(pb, first, _one(first.points("HH")), "b", opts)
+    assert other.kind == "hopf-curve"
+    b = other.params["b"]
+    assert b.min() == pytest.approx(-0.2, abs=1e-12) and b.max() == pytest.approx(0.8, abs=1e-12)  # bound to bound
+    assert np.max(np.abs(other.params["a"] - 2 * b)) < 1e-10
+    assert np.max(np.abs(other.observables["kappa"] - 4.0)) < 1e-10
+    assert np.max(np.abs(other.states[:, :4])) < 1e-10  # the equilibrium u = 0
+    start = _one(other.points("HH"))
+    assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+    assert start.params["a"] == pytest.approx(math.sqrt(13) - 3, abs=1e-10)
+    assert start.data == pytest.approx({"omega": 2.0, "omega2": 1.0}, rel=1e-10) and "start: HH" in start.note
+    assert not other.points("ZH") and not other.points("BT")
+    # and back: from the new curve's HH, the first oscillator's curve a = 1 - b - b^2
+    again = continue_point(pb, other, start, "b", opts)
+    b = again.params["b"]
+    assert np.max(np.abs(again.params["a"] - (1 - b - b**2))) < 1e-10
+    assert np.max(np.abs(again.observables["kappa"] - 1.0)) < 1e-10
