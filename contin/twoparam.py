@@ -53,6 +53,7 @@ from contin.bpcurve import trace_bp_curve
 from contin.branch import CURVE_BLOCKS, Branch, SpecialPoint, base_state_size, relabel
 from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
+from contin.hopf import hopf_test
 from contin.hopfcurve import trace_hopf_curve
 from contin.options import ContinuationOptions
 
@@ -88,6 +89,8 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
                                                      "keeps: its curve is a BP curve"))
         return trace_bp_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
     fold, start = fold_start(problem, point, second)
+    # ZH detection as in trace_fold_curve (it was off here: `contin continue --from LP` found no ZH)
+    fold.base_hopf = hopf_test(problem, options.detection, fold.n)
     raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=True,
                           branch_id=branch_id, kind="fold-curve", mirror_start=True, regrid=regrid)
     curve = as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
