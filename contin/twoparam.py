@@ -194,8 +194,10 @@ CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitch
 
 
 def continuable_types() -> list[str]:
-    """The point types :func:`continue_point` continues: those of :data:`CURVES`, and BT, ZH and HH
-    (the other curve through a Bogdanov-Takens, zero-Hopf or double-Hopf point: :data:`SWITCH_TYPES`)."""
+    """The point types :func:`continue_point` continues: :data:`CURVES`' and BT, ZH, HH.
+
+    BT, ZH, HH (:data:`SWITCH_TYPES`): the other curve through a Bogdanov-Takens, zero-Hopf or
+    double-Hopf point."""
     return sorted([*CURVES, *SWITCH_TYPES])
 
 
@@ -316,8 +318,10 @@ def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, fl
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,
                    options: ContinuationOptions, *, branch_id: str | None = None,
                    regrid: SegmentRegrid | None = None) -> Branch:
-    """The curve of ``point`` (a located LP, BP or HB of ``branch``) in (branch.parameter, ``second``);
-    from a BT, ZH or HH of a fold or Hopf curve the other curve through it (:func:`_from_codim2`).
+    """The curve of ``point`` (LP, BP, HB; BT, ZH, HH: the other curve) in (branch.parameter, ``second``).
+
+    From a located LP, BP or HB of ``branch`` its own curve; from a BT, ZH or HH of a fold or Hopf
+    curve the other curve through it (:func:`_from_codim2`).
 
     Bounds: ``options.bounds`` of either parameter; the curve ends exactly on them.
 
