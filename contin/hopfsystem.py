@@ -244,7 +244,8 @@ class LyapunovTest:
         if not kappa > 0:
             return (0.0, False)
         try:
-            l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # a singular J (a ZH): l1 NaN, no bracket
+                l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
         except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
             import logging
 

@@ -307,10 +307,14 @@ def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, fl
     either side and "locates" such a point there: on ab's fold curve from the Hopf curve's BT,
     5.5e-7 off B = 64/3, marked converged.  That point is replaced by the start point itself
     (corrected onto the new curve, where the source point is), with ``data`` (BT: its normal
-    form a, b; ZH: omega; HH: omega and omega2 of the new curve)."""
+    form a, b; ZH: omega; HH: omega and omega2 of the new curve).  A Hopf curve from a ZH also
+    loses a GH next to its start: l1 has a pole there (J singular), no zero
+    (:func:`contin.hopfcurve._no_gh_at_zero_hopf`)."""
     s = _start_index(curve, source)
     if s is None:  # the start was not kept (not expected): leave the curve as traced
         return curve
+    if source.type == "ZH" and curve.kind == "hopf-curve":  # l1's pole at the start (J singular) is no GH
+        curve.special_points = [sp for sp in curve.special_points if not (sp.type == "GH" and sp.index in (s - 1, s))]
     return _mark_start(curve, s, source.type,
                        f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}", data=data)
 

@@ -73,6 +73,31 @@ class TwoOscillators:
         return np.array([d1 * v1, d1 * w1, d2 * v2, d2 * w2])
 
 
+class CoupledFoldHopf(FoldHopf):
+    """FoldHopf with the oscillator feeding back: x' = a + b - x^2 + b x + c (v^2 + w^2).  The
+    fold and Hopf curves and their ZH are FoldHopf's (the coupling is quadratic in (v, w), which
+    vanish on both curves), but l1 now has a pole at the ZH (B(q, qb) has a component along the
+    zero eigenvector).  On the Hopf curve (x = 1 - b, rho = v^2 + w^2) the slaved
+    xi = x - (1 - b) obeys xi' = lam xi - xi^2 + c rho, lam = 3 b - 2, so xi = -c rho / lam +
+    c^2 rho^2 / lam^3 + ..., and z = v + i w obeys z' = i z + (xi - rho) z: l1 = 2 (-1 - c / lam)
+    (|q| = 1: z = sqrt(2) w) vanishes at lam = -c, a GH at b = (2 - c)/3, where
+    z' = i z - rho^2 z / c + ..., so l2 = -4 / c."""
+
+    def __init__(self, c: float = 0.5) -> None:
+        self.c = c
+
+    def residual(self, u, p):
+        r = super().residual(u, p)
+        r[0] += self.c * (u[1] ** 2 + u[2] ** 2)
+        return r
+
+    def jacobian(self, u, p):
+        j = super().jacobian(u, p).toarray()
+        j[0, 1] += 2 * self.c * u[1]
+        j[0, 2] += 2 * self.c * u[2]
+        return sp.csr_matrix(j)
+
+
 STEP = StepOptions(ds=0.02, ds_max=0.05)
 
 

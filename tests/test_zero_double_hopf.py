@@ -25,7 +25,7 @@ from contin.continuation import trace, trace_both
 from contin.foldcurve import trace_fold_curve
 from contin.hopfcurve import trace_hopf_curve
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
-from tests.codim2_fixture_scenes import FoldHopf, TwoOscillators
+from tests.codim2_fixture_scenes import CoupledFoldHopf, FoldHopf, TwoOscillators
 
 STEP = StepOptions(ds=0.02, ds_max=0.05)
 
@@ -218,6 +218,29 @@ def test_switching_at_zero_hopf_between_the_fold_and_the_hopf_curve():
         continue_point(pb, fold, _one(fold.points("ZH")), "b", opts, regrid=SegmentRegrid(None))
     with pytest.raises(NotAvailable, match="from a Hopf curve, not from a fold-curve"):
         continue_point(pb, fold, replace(_one(fold.points("ZH")), type="HH"), "b", opts)
+
+
+def test_no_generalized_hopf_at_the_pole_of_l1_and_l2_of_the_true_one():
+    """CoupledFoldHopf (c = 0.5): l1 has a pole at the ZH (-7/9, 2/3); the Hopf curve through it
+    reported a converged GH there (l1 = -7.5e10).  Now its only GH is the true one, at
+    b = (2 - c)/3 = 1/2, a = (1 - b)(1 - 2 b) - b = -1/2, with l2 = -4/c = -8 (closed form: the
+    class docstring); the Hopf curve switched from the fold curve's ZH has the same GH and none
+    at its start."""
+    from contin.twoparam import continue_point
+
+    pb = CoupledFoldHopf(0.5)
+    br = trace_both(pb, np.array([0.5, 0.0, 0.0]), {"a": 0.25, "b": 0.0}, "a",
+                    ContinuationOptions(step=STEP, bounds={"a": (-0.5, 2.0)}, max_steps=400))
+    opts = ContinuationOptions(step=STEP, bounds={"a": (-2, 2), "b": (-0.5, 1.0)}, max_steps=400)
+    hopf = trace_hopf_curve(pb, _one(br.points("HB")), "b", opts, parameter="a")
+    fold = trace_fold_curve(pb, _one(br.points("LP")), "b", opts, parameter="a")
+    switched = continue_point(pb, fold, _one(fold.points("ZH")), "b", opts)
+    for curve in (hopf, switched):
+        zh, gh = _one(curve.points("ZH")), _one(curve.points("GH"))
+        assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+        assert gh.params["b"] == pytest.approx(0.5, abs=1e-8) and gh.params["a"] == pytest.approx(-0.5, abs=1e-8)
+        assert gh.converged and abs(gh.data["l1"]) < 1e-8
+        assert gh.data["l2"] == pytest.approx(-8.0, abs=1e-6)
 
 
 def test_switching_at_double_hopf_to_the_other_pair():
