@@ -985,6 +985,19 @@ class Adaptor:
                 f"{self.opts.tol:.2g} on the maximum grid {system.problem.grid_size} (AdaptOptions.max_grid = "
                 f"{self.opts.max_grid})")
 
+    def at_start(self, system: Any, x: Array, err: float) -> str:
+        """Why the start point x, whose estimate err exceeds tol, stays unresolved: on max_grid
+        (:meth:`at_max`), or below it because :func:`start_grid`'s solve on the next finer grid
+        failed (``contin trace nonlocal-shear -s K=1e300`` said "on the maximum grid 48
+        (AdaptOptions.max_grid = 512)")."""
+        n = int(system.problem.grid_size)
+        if n >= self.opts.max_grid:
+            return self.at_max(system, x, err).removeprefix("under-resolved at ")
+        n_new = finer(system.problem, x[:-1], system.params_at(x[-1]), self.opts)
+        return (f"{system.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol {self.opts.tol:.2g} "
+                f"on grid {n}, and its solve on the finer grid {n_new} did not converge (AdaptOptions.max_grid = "
+                f"{self.opts.max_grid})")
+
     # --- grid changes ----------------------------------------------------------------------
     def regrid(self, tracer: Any, size: int, why: str, err: float, newton_options: Any) -> bool:
         """Carry the tracer's last point onto the grid of ``size``: transfer state and tangent,
