@@ -169,3 +169,22 @@ def test_profiles_of_an_adaptive_run_are_on_the_start_grid(tmp_path):
     with h5py.File(out, "r") as f:
         stored = np.asarray(f["branches/report.ratio/profiles/phi"])[i]
     assert np.max(np.abs(stored - phi)) <= 1e-14
+
+
+def test_thin_wall_layers_refine_where_cheb_48_stopped(tmp_path):
+    """``contin trace nonlocal-shear -s ell_min=0.3``: on cheb 48 the ell branches end MX at
+    ell = 0.305 ("need a finer --grid than 48", docs/nonlocal.md); at the default tol 1e-8 every
+    branch reaches ell = 0.3 (pair 2 refined up to cheb 164), the uniform branch within tol of the
+    closed form (measured 6.5e-13) and the ell branches' states within tol of cheb re-solves."""
+    r, out = _trace(tmp_path, "nonlocal-shear", "-s", "ell_min=0.3", "--json")
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.output[r.output.index("{"):])
+    assert doc["extra"]["analytic"]["max_abs_error_u"] <= 1e-8
+    branches, meta, problem_of = file_problem(str(out))
+    ell = [b for b in branches if b.id.endswith(".ell")]
+    assert len(ell) == 3 and all(b.status == "EP" and float(np.min(b.params["ell"])) == pytest.approx(0.3) for b in ell)
+    assert max(int(np.max(b.grid)) for b in ell) > 128
+    params = {k: v for k, v in meta["parameters"].items() if k in DEFAULTS}
+    audit = audit_branches(ell, problem_of, {**DEFAULTS, **params}, ref_min=128, ref_max=256)
+    assert len(audit.points) >= 80 and not audit.failed()
+    assert max(p.error for p in audit.points) <= 1e-8
