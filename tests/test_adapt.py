@@ -135,6 +135,30 @@ def test_a_start_whose_finer_solve_fails_is_not_said_to_be_on_the_maximum_grid()
     assert "maximum grid" not in b.message
 
 
+def test_a_two_grid_measurement_is_made_once_per_state(monkeypatch):
+    """two_grid_error remembers its last results per problem: a problem whose estimate is itself
+    the two-grid error (the non-local problems) had each candidate measured twice, as its estimate
+    and by the tracer's check.  The same state is not measured again (one fine factorization);
+    another state, parameter or fine grid is."""
+    import contin.adapt as adapt
+    from contin.newton import newton
+
+    pb = Bratu("cheb", 12)
+    u = newton(pb, pb.initial(), {"lam": 2.0}).u
+    calls = []
+    real = adapt.state_factorization
+    monkeypatch.setattr(adapt, "state_factorization", lambda *a: calls.append(1) or real(*a))
+    opts = AdaptOptions(tol=1e-8)
+    first = adapt.two_grid_error(pb, u, {"lam": 2.0}, 2.0, opts)
+    assert adapt.two_grid_error(pb, u.copy(), {"lam": 2.0}, 2.0, opts) == first and len(calls) == 1
+    adapt.two_grid_error(pb, u, {"lam": 2.1}, 2.0, opts)
+    adapt.two_grid_error(pb, u * (1 + 1e-9), {"lam": 2.0}, 2.0, opts)
+    adapt.two_grid_error(pb, u, {"lam": 2.0}, 3.0, opts)
+    assert len(calls) == 4
+    fresh = adapt._two_grid_error(pb, u, {"lam": 2.0}, 24, opts)  # the memo holds the computed value
+    assert fresh == first and first > 0
+
+
 def test_options_and_hooks_are_checked():
     with pytest.raises(ValueError, match="tol"):
         AdaptOptions(tol=0.0)
