@@ -136,6 +136,10 @@ def _par_index(names: Sequence[str], par: Mapping[str, int] | None) -> dict[str,
     missing = [k for k in names if k not in par]
     if missing:
         raise ValueError(f"no PAR index for parameter(s) {', '.join(missing)}")
+    unknown = [k for k in par if k not in names]
+    if unknown:  # a misspelt name was ignored silently (qa16)
+        raise ValueError(f"--par names {', '.join(map(repr, unknown))}, which the run does not have; its parameters "
+                         f"are {', '.join(names)}")
     index = {k: int(par[k]) for k in names}
     if len(set(index.values())) != len(index) or min(index.values()) < 1:
         raise ValueError("PAR indices must be distinct integers >= 1")
@@ -151,7 +155,7 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     s.NAME).  Returns the two paths and notes (types written as UZ).  ValueError for a branch
     with non-finite parameters or states (AUTO's files cannot hold them) or a bad name.
     """
-    from contin.atomic import publish, write_bytes
+    from contin.atomic import check_target, publish, write_bytes
 
     if not name or any(c in name for c in "/\\\0") or any(c.isspace() for c in name):
         raise ValueError(f"bad AUTO run name {name!r} (one word, used as b.NAME and s.NAME)")
@@ -168,14 +172,15 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
             raise ValueError(f"branch {branch.id} has other parameters than branch {branches[0].id}")
         n_base = base_size(branch)
         rows = _rows(branch, n_base)
-        _check_finite(branch, rows)
+        # an observable NaN everywhere is "not computed" (the reader allows it): no column, not an error
+        with_phi = "phi" in branch.observables and not bool(np.all(np.isnan(branch.observables["phi"])))
+        _check_finite(branch, rows, with_phi)
         free = [k for k in branch.free]
         icp = [index[k] for k in free]
         sizes = {r.state.size for r in rows if r.state is not None}
         with_state = all(r.state is not None for r in rows)
         n_u = min(sizes) if sizes else 0
         u_columns = n_u if with_state and len(sizes) == 1 and n_u <= MAX_U_COLUMNS else 0
-        with_phi = "phi" in branch.observables
         columns = [f"PAR({icp[0]})"] + (["L2-NORM"] if with_state else []) + [f"U({j + 1})" for j in range(u_columns)]
         columns += [f"PAR({i})" for i in icp[1:]] + (["phi"] if with_phi else [])
         ndim = max(sizes) if sizes else 0
@@ -193,7 +198,9 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
             values = [row.params[free[0]]]
             if with_state:
                 assert row.state is not None
-                values.append(float(np.linalg.norm(row.state)))
+                # math.hypot scales: np.linalg.norm overflowed to 'INF' (and a RuntimeWarning) for
+                # entries near 1e300 (qa16)
+                values.append(math.hypot(*(float(v) for v in row.state)))
                 values += [float(v) for v in row.state[:u_columns]]
             values += [row.params[k] for k in free[1:]]
             values += [row.phi] if with_phi else []
@@ -203,16 +210,17 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     b_text = "\n".join(b_lines) + "\n"
     s_text = "\n".join(s_lines) + "\n" if s_lines else ""
     directory = Path(directory)
+    for target in (directory / f"b.{name}", directory / f"s.{name}"):  # both, before either is written: a
+        check_target(target)  # symlinked s.NAME was refused after b.NAME was replaced (qa16)
     b_path = publish(directory / f"b.{name}", lambda tmp: write_bytes(tmp, b_text.encode("ascii")))
     s_path = publish(directory / f"s.{name}", lambda tmp: write_bytes(tmp, s_text.encode("ascii")))
     return b_path, s_path, notes
 
 
-def _check_finite(branch: Branch, rows: list[_Row]) -> None:
+def _check_finite(branch: Branch, rows: list[_Row], with_phi: bool) -> None:
     for k, r in enumerate(rows):
         bad = [name for name, v in r.params.items() if not math.isfinite(v)]
-        if bad or (r.state is not None and not np.all(np.isfinite(r.state))) or ("phi" in branch.observables
-                                                                                and not math.isfinite(r.phi)):
+        if bad or (r.state is not None and not np.all(np.isfinite(r.state))) or (with_phi and not math.isfinite(r.phi)):
             what = f"parameter {bad[0]}" if bad else "state" if r.state is not None and not np.all(np.isfinite(r.state)) else "order parameter"
             raise ValueError(f"branch {branch.id}: the {what} of point {k + 1} is not finite; AUTO's files cannot hold it")
 

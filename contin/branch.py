@@ -304,9 +304,11 @@ def first_crossing(values: np.ndarray, value: float) -> tuple[int, int, float, i
     return i, j, w, int(hits.size)
 
 
-#: Blocks of the augmented states of two-parameter curves: fold curves [u, phi, p2], Hopf curves
-#: [u, v, w, kappa, p2] (``contin.foldcurve``, ``contin.hopfsystem``).
-CURVE_BLOCKS = {"fold-curve": 2, "hopf-curve": 3}
+#: Blocks of the augmented states of two-parameter curves: fold curves and BP curves [u, phi, p2],
+#: Hopf curves [u, v, w, kappa, p2] (``contin.foldcurve``, ``contin.bpcurve``, ``contin.hopfsystem``).
+#: (Without 'bp-curve' here `contin export --auto` wrote a BP curve's whole [u, phi, p2] as its
+#: solution: NDIM 2n + 1, an L2-NORM of u, phi and p2 together; qa16.)
+CURVE_BLOCKS = {"fold-curve": 2, "hopf-curve": 3, "bp-curve": 2}
 
 
 def base_state_size(kind: str, size: int) -> int | None:

@@ -1,11 +1,14 @@
-"""Cooperative stop on Ctrl-C: the first SIGINT asks the tracer to end the branch in progress at
-its last accepted point, so that a command whose one result is that branch (``contin continue``:
-a two-parameter curve, written only at its end) keeps what it computed; a second SIGINT
-interrupts at once (KeyboardInterrupt, as without this module).
+"""Cooperative stop on Ctrl-C (and, where asked, SIGTERM): the first signal asks the tracer to end
+the branch in progress at its last accepted point, so that a command keeps what it computed
+(``contin continue``: a two-parameter curve, written only at its end; ``contin trace``: the branch
+in progress besides the finished ones); a second signal interrupts at once (KeyboardInterrupt, as
+without this module).
 
 Only a command that can save a partial branch installs it (:func:`stop_on_sigint`); the tracer
 asks :func:`stop_requested` once per step (``contin.continuation.trace``), which costs a module
-global read.
+global read, and marks the branch MX with :func:`stop_reason` (``"interrupted (Ctrl-C)"`` or
+``"terminated by SIGTERM"``).  :func:`is_stopped_branch` tells such a partial branch from a
+finished one (``contin trace --resume`` retraces it).
 """
 
 from __future__ import annotations
@@ -16,49 +19,89 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-_requested = False
+#: the reason of a stop asked for by Ctrl-C (SIGINT) and by SIGTERM
+CTRL_C = "interrupted (Ctrl-C)"
+SIGTERM = "terminated by SIGTERM"
+#: the tail of the message of a branch a stop ended (after the reason)
+ENDS_AT_LAST_POINT = ": the branch ends at its last point"
+
+_reason: str | None = None
 
 
 def stop_requested() -> bool:
-    """Whether a stop was asked for (by the first Ctrl-C inside :func:`stop_on_sigint`)."""
-    return _requested
+    """Whether a stop was asked for (by the first Ctrl-C or SIGTERM inside :func:`stop_on_sigint`)."""
+    return _reason is not None
 
 
-def request_stop() -> None:
+def stop_reason() -> str:
+    """Why the stop was asked for (:data:`CTRL_C` or :data:`SIGTERM`); :data:`CTRL_C` when none was."""
+    return _reason or CTRL_C
+
+
+def request_stop(reason: str = CTRL_C) -> None:
     """Ask the running tracer to end its branch at the last accepted point."""
-    global _requested
-    _requested = True
+    global _reason
+    if _reason is None:
+        _reason = reason
+
+
+def stopped_by(branch: Any) -> str | None:
+    """The reason (:data:`CTRL_C`, :data:`SIGTERM`) if a stop request ended ``branch`` or a part of
+    it (MX, its message holds ``"<reason>: the branch ends at its last point"``, also inside a
+    joined ``"backward: ...; forward: ..."``), else None."""
+    message = str(getattr(branch, "message", "") or "")
+    if getattr(branch, "status", None) != "MX":
+        return None
+    return next((reason for reason in (CTRL_C, SIGTERM) if reason + ENDS_AT_LAST_POINT in message), None)
+
+
+def is_stopped_branch(branch: Any) -> bool:
+    """Whether a stop request ended ``branch`` (:func:`stopped_by`): a partial branch, not a finished one."""
+    return stopped_by(branch) is not None
 
 
 class StopRequest:
-    """What :func:`stop_on_sigint` yields: ``requested`` tells after the block whether Ctrl-C asked
-    for a stop (the result is then partial)."""
+    """What :func:`stop_on_sigint` yields: ``requested`` tells after the block whether a signal
+    asked for a stop (the result is then partial), ``reason`` which (:data:`CTRL_C`, :data:`SIGTERM`)."""
 
     requested = False
+    reason: str | None = None
 
 
 @contextmanager
-def stop_on_sigint() -> Iterator[StopRequest]:
+def stop_on_sigint(*, sigterm: type[BaseException] | None = None) -> Iterator[StopRequest]:
     """Within the block, the first SIGINT sets :func:`stop_requested` instead of raising; the
-    next one raises KeyboardInterrupt.  On exit the request is moved into the yielded
+    next one raises KeyboardInterrupt.  With ``sigterm`` (an exception class, e.g. the CLI's
+    ``Terminated``) the first SIGTERM asks for a stop too (reason :data:`SIGTERM`) and the next
+    SIGTERM raises ``sigterm``.  On exit the request is moved into the yielded
     :class:`StopRequest` and cleared, so later traces in the same process run normally.
     Outside the main thread (where signal handlers cannot be set) the block runs unchanged."""
-    global _requested
-    _requested = False
+    global _reason
+    _reason = None
     outcome = StopRequest()
     if threading.current_thread() is not threading.main_thread():
         yield outcome
         return
 
     def handler(signum: int, frame: Any) -> None:
-        if _requested:
+        if _reason is not None:
             raise KeyboardInterrupt
-        request_stop()
+        request_stop(CTRL_C)
+
+    def term_handler(signum: int, frame: Any) -> None:
+        if _reason is not None:
+            assert sigterm is not None
+            raise sigterm()
+        request_stop(SIGTERM)
 
     previous = signal.signal(signal.SIGINT, handler)
+    previous_term = signal.signal(signal.SIGTERM, term_handler) if sigterm is not None else None
     try:
         yield outcome
     finally:
         signal.signal(signal.SIGINT, previous)
-        outcome.requested = _requested
-        _requested = False
+        if sigterm is not None:
+            signal.signal(signal.SIGTERM, previous_term)
+        outcome.requested = _reason is not None
+        outcome.reason = _reason
+        _reason = None

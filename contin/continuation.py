@@ -42,7 +42,7 @@ from contin.adapt import ACCEPTED_ABOVE_TOL, PRECISION_LIMIT, RESOLUTION_LIMIT, 
 from contin.blas import limited
 from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
-from contin.cancel import stop_requested
+from contin.cancel import ENDS_AT_LAST_POINT, stop_reason, stop_requested
 from contin.closure import closing_distance, landed
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
@@ -126,6 +126,7 @@ class _Tracer:
         k = bp_eigen_count(system.problem, options.detection, system.n) if options.detection.detect_branch_points else 0
         self.eigen = EigenCounter(k) if k else None
         self.point_tests: list[PointTest] = []  # HB, UZ (contin.pointtests)
+        self.start_zeros: set[str] = set()  # notes of the UZs labelled at the start point (_start_zeros)
         self.grids: list[int | None] = []  # per point: the grid in force (adaptive runs only)
         self.adaptive = False
         # Adaptive runs: (kind, a, b) -> estimate if the kernel of an LP/BP bracketed by a, b is
@@ -320,6 +321,8 @@ class _Tracer:
                 not_finite(f"{pt.kind} {pt.name}", va, vb)
                 continue
             for note, g in pt.crossings(va, vb):
+                if index == 0 and note in self.start_zeros:  # labelled at the start point (_start_zeros)
+                    continue
                 locate_one(pt.kind, note, lambda v, g=g, name=pt.name: g(v.extra[name]), pt)
             turning = getattr(pt, "turning_crossings", None)
             if turning is None or sign_change(a.tests.fold, b.tests.fold) is not True:
@@ -723,6 +726,7 @@ def trace(
         return tracer.build(parameter, "MX", msg, False, n, **meta)
     first = tracer.finish_point(Correction(x0, True, 0, fact, row), guess)
     tracer.append(first, 0.0, start.iterations)
+    _start_zeros(tracer, first)
 
     # The start point and tangent on the grid in force (for the closure test), carried onto a
     # new grid only when the test first needs them there: two transfers per grid change saved on
@@ -863,8 +867,8 @@ def trace(
     status, message, closed = "EP", f"maximum number of steps ({options.max_steps}) reached", False
     steps = 0
     while steps < options.max_steps:
-        if stop_requested():  # Ctrl-C inside contin.cancel.stop_on_sigint: keep what was traced
-            status, message = "MX", "interrupted (Ctrl-C): the branch ends at its last point"
+        if stop_requested():  # Ctrl-C/SIGTERM inside contin.cancel.stop_on_sigint: keep what was traced
+            status, message = "MX", stop_reason() + ENDS_AT_LAST_POINT
             break
         cur = tracer.points[-1]
         if sopt.predictor == "secant" and len(tracer.points) > 1:
@@ -955,7 +959,9 @@ def trace(
         p_cur, p_new = cur.x[-1], new.x[-1]
         bound = lo if p_new < lo else hi if p_new > hi else None
         if bound is not None:
-            if abs(bound - p_cur) <= 1e-12 * max(1.0, abs(bound)):
+            # (relative, not absolute: with bounds (0, 1e-12) the start D = 0 counted as on the bound,
+            # a one-point branch "reached bound D=1e-12", exit 0; `contin trace ab -s D_max=1e-12`, qa16)
+            if abs(bound - p_cur) <= 1e-12 * max(abs(bound), abs(p_cur)):
                 message = f"reached bound {parameter}={bound:g}"
                 break
             frac = (bound - p_cur) / (p_new - p_cur)
@@ -1174,10 +1180,35 @@ def _labelled(branch: Branch) -> Branch:
     return branch
 
 
+def _start_zeros(tracer: _Tracer, first: _Point) -> None:
+    """Label the start point UZ for each user zero of the continuation parameter it sits on
+    (within rounding, :meth:`contin.events.ParameterZeros.at_start`): p - value is 0 there, so
+    no step crosses it and ``--uz lam=<start value>`` was reported nowhere (AUTO reports no UZ
+    at a start point either; a user who asks for it is told).  The first step does not locate
+    it again; it does not count for ``stop_at`` (AUTO's UZSTOP counts the UZs after the start)."""
+    from contin.events import AT_START
+
+    for pt in tracer.point_tests:
+        at_start = getattr(pt, "at_start", None)
+        if at_start is None:
+            continue
+        for note in at_start(float(first.x[-1])):
+            sp = tracer.end_point("UZ", f"{note}; {AT_START}")
+            tracer.special.append(pt.finish(tracer.system, sp, first.x))
+            tracer.start_zeros.add(note)
+
+
+def _counts_for_stop(sp: SpecialPoint) -> bool:
+    from contin.events import AT_START
+
+    return not (sp.type == "UZ" and sp.note.endswith(AT_START))
+
+
 def _stop_label(special: list[SpecialPoint], stop_at: tuple[str, ...]) -> str | None:
-    """The first label of ``stop_at`` (e.g. 'LP1') whose count of that type is reached, else None."""
+    """The first label of ``stop_at`` (e.g. 'LP1') whose count of that type is reached, else None
+    (a UZ at the start point does not count, :func:`_start_zeros`)."""
     for label in stop_at:
-        if sum(sp.type == label[:2] for sp in special) >= int(label[2:]):
+        if sum(sp.type == label[:2] and _counts_for_stop(sp) for sp in special) >= int(label[2:]):
             return label
     return None
 
@@ -1191,7 +1222,13 @@ def join(backward: Branch, forward: Branch) -> Branch:
     if len(forward) == 0:
         return r
     off = m - 1
-    sps = list(r.special_points) + [replace(sp, index=sp.index + off) for sp in forward.special_points]
+    # the start point is both halves' first point: its UZ (_start_zeros) is kept once (the
+    # reversed half's copy: Branch.reversed moved it to index off - 1, between its last two points)
+    from contin.events import AT_START
+
+    at_start = {sp.note for sp in r.special_points if sp.type == "UZ" and sp.note.endswith(AT_START)}
+    sps = list(r.special_points) + [replace(sp, index=sp.index + off) for sp in forward.special_points
+                                    if not (sp.index == 0 and sp.type == "UZ" and sp.note in at_start)]
 
     def cat(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.concatenate([a[:-1], b])

@@ -28,6 +28,12 @@ from contin.problem import Array
 from contin.testfunctions import sign_change
 
 
+#: a parameter value within this relative distance of a user zero is at it (a few roundings)
+START_ROUNDING = 4 * float(np.finfo(float).eps)
+#: the note of a UZ at the start point of a branch (after its "NAME=VALUE")
+AT_START = "at the start point (not counted by stop_at)"
+
+
 @dataclass(frozen=True)
 class ParameterZeros:
     """UZ where the continuation parameter equals one of ``values``."""
@@ -49,6 +55,13 @@ class ParameterZeros:
             if (va - target) * (vb - target) < 0:
                 out.append((f"{self.parameter}={_exact(target)}", lambda v, t=target: float(v) - t))
         return out
+
+    def at_start(self, v: float) -> list[str]:
+        """The values the start point's parameter ``v`` equals within rounding (p - value is 0
+        there, so no step crosses them: ``contin trace bratu --uz lam=0.1``, the start value,
+        was reported nowhere); the tracer labels the start point UZ for each."""
+        return [f"{self.parameter}={_exact(t)}" for t in self.values
+                if abs(v - t) <= START_ROUNDING * max(abs(t), abs(v))]
 
     def turning_crossings(self, va: float, vb: float, v_turn: float) -> list[Crossing]:
         """The values crossed twice in a step that turned at a fold where the parameter is

@@ -14,7 +14,8 @@ entries lie in [0, S) and each profile has one row per entry.  Finite as the wri
 states, tangents, ds, free parameters, observables that are not NaN everywhere, profiles;
 fixed parameters may be inf, not NaN.  Special points: index in [0, S) of their branch, free
 parameters and located states (up to ``state_size``) finite.  The per-point ``grid`` column of an
-adaptive run lies in 1..MAX_GRID, and ``grid/y`` (the profiles' abscissa) is finite.
+adaptive run lies in 1..MAX_GRID, and ``grid/y`` (the profiles' abscissa) is finite.  A fold or
+Hopf curve has two free parameters and states of its augmented size.
 """
 
 from __future__ import annotations
@@ -44,6 +45,26 @@ def first_bad_row(values: Any, allow_inf: bool = False) -> int | None:
     return int(hits[0]) if hits.size else None
 
 
+def _check_curve(group: str, branch: Any) -> None:
+    """A fold or Hopf curve (``kind`` in ``contin.branch.CURVE_BLOCKS``) has two free parameters,
+    the first its ``parameter``, and states of its augmented size (an edited ``free`` or ``kind``
+    ended `contin stability` and `contin continue` with "too many values to unpack", qa16)."""
+    from contin.branch import CURVE_BLOCKS, base_state_size
+
+    if branch.kind not in CURVE_BLOCKS:
+        return
+    free = tuple(branch.free)
+    if len(free) != 2 or free[0] != branch.parameter:
+        raise BadDataset(f"branch group {group} is a {branch.kind} but its free parameters (attribute free) are "
+                         f"{', '.join(free) or 'none'}, not {branch.parameter!r} and a second one")
+    sizes = getattr(branch, "sizes", None)
+    widths = {int(v) for v in sizes} if sizes is not None else ({int(branch.states.shape[1])} if len(branch) else set())
+    bad = sorted(w for w in widths if base_state_size(branch.kind, w) is None)
+    if bad:
+        raise BadDataset(f"dataset {group}/states has rows of {bad[0]} entries, which is no {branch.kind} state "
+                         f"(the branch's kind attribute and its states disagree)")
+
+
 def _rows(where: str, values: Any, n: int, what: str) -> None:
     got = int(np.shape(values)[0]) if np.ndim(values) else -1
     if got != n:
@@ -68,6 +89,7 @@ def check_branch(group: str, branch: Any, datasets: Mapping[str, Mapping[str, st
         raise BadDataset(f"branch group {group} names the free parameter {missing[0]!r} (attributes parameter/free) "
                          f"but holds no such column; its parameters are {', '.join(branch.params)}")
     _finite(f"{group}/ds", branch.ds)
+    _check_curve(group, branch)
     for kind, table in (("params", branch.params), ("observables", branch.observables)):
         for name, values in table.items():
             where = f"{group}/{datasets[kind][name]}"

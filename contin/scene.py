@@ -293,6 +293,10 @@ class Scene:
     stability`` refuses its files with one ``Error:`` line, while ``problem_factory`` still
     serves ``contin verify`` and ``contin continue``.
 
+    ``discretized`` (default True): the problem has a discretization (``--method``, ``--grid``);
+    False for systems of ODEs (ab, lorenz), whose ``contin trace --grid 10`` ran, ignored it and
+    exited 0 (qa16): the CLI refuses the options with one ``Error:`` line.
+
     ``start(request) -> DiagramStart`` (optional): the start point of the scene's automatic
     bifurcation diagram; ``contin trace SCENE --depth D`` then runs
     :func:`contin.diagram.explore` instead of ``run``.
@@ -310,6 +314,7 @@ class Scene:
     special_key_points: bool = False
     stability: bool = True
     start: Callable[[SceneRequest], DiagramStart] | None = None
+    discretized: bool = True
 
 
 def scene_params(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:

@@ -321,6 +321,9 @@ def check_spec(spec: SweepSpec) -> Scene:
     """The sweep's scene; SceneError for an unknown scene, SweepError for a parameter the scene
     does not document (its ``defaults``)."""
     scene = get_scene(spec.scene)
+    if not scene.discretized and (spec.options.get("method") is not None or spec.options.get("grid") is not None):
+        raise SweepError(f"scene {spec.scene!r} is a system of ODEs without a discretization{_where(spec.source)}: "
+                         f"options method and grid do not apply")
     if scene.defaults:
         for name in [*spec.fixed, *spec.grid]:
             if name not in scene.defaults:

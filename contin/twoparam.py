@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from contin.bpcurve import trace_bp_curve
-from contin.branch import CURVE_BLOCKS, Branch, SpecialPoint, base_state_size, relabel
+from contin.branch import Branch, SpecialPoint, base_state_size, relabel
 from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
 from contin.hopf import hopf_test
@@ -193,6 +193,21 @@ def _hopf(problem: Any, point: SpecialPoint, second: str, options: ContinuationO
 CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitchfork, "HB": _hopf}
 
 
+def on_curve_message(branch: Branch, point: SpecialPoint) -> str | None:
+    """Why ``point`` of a two-parameter curve cannot start a curve (None: it can, or ``branch`` is a
+    one-parameter branch).  Of a curve's points only a BT, ZH or HH starts one (the other curve through it);
+    an LP there is an extremum of the first parameter, not a fold of a branch, and its augmented
+    state is no state of the problem: ``contin continue ab_hopf.h5 --from LP4 --free B`` ended
+    "Error: too many values to unpack (expected 2)" (qa16)."""
+    if len(branch.free) < 2 or point.type in SWITCH_TYPES:
+        return None
+    what = point.note.split(";")[0].strip() if point.note else ""
+    kind = branch.kind.replace("-", " ") if branch.kind and "curve" in branch.kind else "two-parameter curve"
+    return (f"{point.name} lies on the {kind} {branch.id} in "
+            f"({', '.join(branch.free)}){' (' + what + ')' if what else ''}: of a curve's points only a BT, ZH or HH "
+            f"starts another curve; continue the LP, HB or BP points of one-parameter branches")
+
+
 def continuable_types() -> list[str]:
     """The point types :func:`continue_point` continues: :data:`CURVES`' and BT, ZH, HH.
 
@@ -273,6 +288,14 @@ def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
         raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this problem")
     params = dict(point.params)
     params[second] = float(state[-1])
+    try:  # a problem without a declared size (the demos): its residual says whether u fits (a file edited
+        # to another curve kind sent n = 1 to ab's Jacobian: "not enough values to unpack", qa16)
+        fits = np.shape(problem.residual(state[:n], params)) == (n,)
+    except (ValueError, IndexError, TypeError):
+        fits = False
+    if not fits:
+        raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this "
+                         f"problem (its base state of {n} entries does not fit the problem's residual)")
     to_fold = branch.kind == "hopf-curve" and point.type in ("BT", "ZH")
     data: dict[str, float] = {}
     if point.type == "ZH" or point.type == "HH":
@@ -358,6 +381,9 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     if tracer is None and point.type not in SWITCH_TYPES:
         raise NotAvailable(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two "
                            f"parameters, not {point.type}")
+    on_curve = on_curve_message(branch, point)
+    if on_curve is not None:
+        raise NotAvailable(on_curve)
     for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
         # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)
         lo, hi = options.bounds.get(name, (-math.inf, math.inf))

@@ -457,6 +457,7 @@ SCENES = {
         x="D",
         y="phi",
         problem_factory=lambda parameters, discretization: AB(),
+        discretized=False,
     ),
     "lorenz": Scene(
         name="lorenz",
@@ -466,5 +467,6 @@ SCENES = {
         x="rho",
         y="phi",
         problem_factory=lambda parameters, discretization: Lorenz(),
+        discretized=False,
     ),
 }

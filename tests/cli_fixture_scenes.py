@@ -90,3 +90,54 @@ def run(req: SceneRequest) -> SceneResult:
 
 SCENES = {"toy": Scene(name="toy", summary="hand-built pitchfork branches", defaults=DEFAULTS, run=run,
                        x="lam", y="phi")}
+
+
+# 'slow-bratu': two Bratu branches traced by contin.continuation.trace (lam 0.1 -> 0.3, then
+# lam 0.1 -> 3 with ``delay`` seconds of sleep in each residual of the second), for the Ctrl-C /
+# SIGTERM tests of a branch in progress; ``steps`` is the second branch's max_steps.
+SLOW_DEFAULTS = {"delay": 0.0, "steps": 40}
+
+
+def run_slow(req: SceneRequest) -> SceneResult:
+    from contin.continuation import trace
+    from problems.demo import Bratu
+
+    p = {**SLOW_DEFAULTS, **dict(req.params)}
+
+    class SlowBratu(Bratu):
+        def residual(self, u, q):
+            time.sleep(float(p["delay"]))
+            return super().residual(u, q)
+
+    branches = []
+    for bid, pb, top, steps in (("0", Bratu("cheb", 8), 0.3, 100), ("1", SlowBratu("cheb", 8), 3.0, int(p["steps"]))):
+        if bid in req.completed:
+            b = req.completed[bid]
+        else:
+            opts = req.options_for(ContinuationOptions(bounds={"lam": (0.1, top)}, max_steps=steps,
+                                                       step=StepOptions(ds=0.02, ds_max=0.02)))
+            b = trace(pb, pb.initial(), {"lam": 0.1}, "lam", opts)
+            b.id, b.kind = bid, "primary"
+        branches.append(b)
+        req.finished(b)
+    return SceneResult(branches=branches, parameters=p, discretization={"method": "cheb", "intervals": 8},
+                       extra={"reused": sorted(req.completed)})
+
+
+def _slow_stability_factory(parameters, discretization):
+    """'slow-bratu-stab': the CLI's stability pass after the run, ``sdelay`` seconds per Jacobian."""
+    from problems.demo import Bratu
+
+    class SlowJacobian(Bratu):
+        def jacobian(self, u, q):
+            time.sleep(float(parameters.get("sdelay", 0.0)))
+            return super().jacobian(u, q)
+
+    return SlowJacobian("cheb", 8)
+
+
+SCENES["slow-bratu-stab"] = Scene(name="slow-bratu-stab", summary="slow-bratu with a slow stability pass after it",
+                                  defaults={**SLOW_DEFAULTS, "sdelay": 0.0}, run=run_slow, x="lam", y="phi",
+                                  problem_factory=_slow_stability_factory)
+SCENES["slow-bratu"] = Scene(name="slow-bratu", summary="two Bratu branches, the second slow", defaults=SLOW_DEFAULTS,
+                             run=run_slow, x="lam", y="phi", stability=False)

@@ -6,9 +6,15 @@ import line below.  Heavy libraries (numpy, scipy, h5py, matplotlib) are importe
 command bodies so that ``contin --help`` stays fast.
 """
 
-from contin.cli._base import EXIT_INCOMPLETE, main
+try:  # Ctrl-C while the command line loads (its first ~0.2 s) printed a KeyboardInterrupt traceback (qa16)
+    from contin.cli._base import EXIT_INCOMPLETE, main
 
-# one module per command; importing a module registers its command on `main`
-from contin.cli import accuracy, continue_cmd, diagram, export, fit, info, profiles, scenes, stability, sweep, trace, verify  # noqa: E402,F401,I001
+    # one module per command; importing a module registers its command on `main`
+    from contin.cli import accuracy, continue_cmd, diagram, export, fit, info, profiles, scenes, stability, sweep, trace, verify  # noqa: E402,F401,I001
+except KeyboardInterrupt:
+    import sys as _sys
+
+    _sys.stderr.write("Error: interrupted (Ctrl-C)\n")
+    raise SystemExit(130) from None
 
 __all__ = ["EXIT_INCOMPLETE", "main"]

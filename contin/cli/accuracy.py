@@ -91,6 +91,9 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
     sc = scene_mod.get_scene(scene)
     if tol_list and not sc.adaptive:
         raise ValueError(f"scene {scene!r} has no adaptive resolution; --tols needs an adaptive scene")
+    if not sc.discretized:  # `contin accuracy ab` printed a table of one ODE value per "grid", exit 0 (qa16)
+        raise ValueError(f"scene {scene!r} is a system of ODEs without a discretization; accuracy compares "
+                         f"discretizations (--methods x --grids)")
     if sc.defaults:
         bad = [n for n in params if n not in sc.defaults]
         if bad:

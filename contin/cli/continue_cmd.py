@@ -132,6 +132,11 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     if point.type not in continuable_types():  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
         fail(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two parameters, "
              f"not {point.type}")
+    from contin.twoparam import on_curve_message
+
+    on_curve = on_curve_message(branch, point)
+    if on_curve is not None:  # before the grid checks, as above
+        fail(on_curve)
     first = branch.parameter
     unknown = [n for n in box if n not in (first, second)]
     if unknown:
@@ -182,7 +187,9 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     # The curve is the command's one result and is written at its end: the first Ctrl-C ends it at
     # its last point (written below, then exit 130), the second interrupts at once (qa14: Ctrl-C
     # lost the whole curve).
-    with stop_on_sigint() as stop:
+    from contin.cli._runctl import Terminated
+
+    with stop_on_sigint(sigterm=Terminated) as stop:  # SIGTERM too (it lost the curve, qa16)
         if regrid is None:
             curve = continue_point(problem, branch, point, second, options)
             if own_grid is not None:  # the file's discretization is the run's start grid: every point says its own
@@ -226,12 +233,16 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
     if output is not None:
         echo_err(f"wrote {output}")
     if interrupted:
+        from contin.cancel import SIGTERM
         from contin.cli._base import EXIT_INTERRUPTED
+        from contin.cli._runctl import EXIT_TERMINATED
 
+        term = stop.reason == SIGTERM
         if output is not None:
-            echo_err(f"note: the curve computed before Ctrl-C ({len(curve)} points) is saved in {output}")
-        echo_err("Error: interrupted (Ctrl-C)")
-        raise click.exceptions.Exit(EXIT_INTERRUPTED)
+            echo_err(f"note: the curve computed before {'SIGTERM' if term else 'Ctrl-C'} ({len(curve)} points) "
+                     f"is saved in {output}")
+        echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
+        raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
     if curve.status == "MX":
         from contin.cli._base import EXIT_INCOMPLETE
 

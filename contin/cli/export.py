@@ -7,6 +7,9 @@ import click
 
 from contin.cli._base import echo_err, fail, main
 
+#: largest AUTO PAR index --par accepts (every s-block holds NPAR = the largest index values)
+MAX_PAR = 1000
+
 
 def parse_par(text: str | None) -> dict[str, int] | None:
     """``D=1,B=2,beta=3`` -> {'D': 1, 'B': 2, 'beta': 3}; None when not given."""
@@ -21,6 +24,10 @@ def parse_par(text: str | None) -> dict[str, int] | None:
             index = 0
         if not sep or not name.strip() or index < 1:
             fail(f"--par expects NAME=INDEX items with INDEX >= 1 (e.g. D=1,B=2), got {item!r}")
+        if index > MAX_PAR:  # PAR(3000000) wrote a 296 MB s-file (NPAR PAR values per block)
+            fail(f"--par {item.strip()}: AUTO's PAR indices are small (at most {MAX_PAR} here)")
+        if name.strip() in out:  # D=1,...,D=4 kept the last silently
+            fail(f"--par gives {name.strip()!r} twice ({name.strip()}={out[name.strip()]}, {item.strip()})")
         out[name.strip()] = index
     return out
 

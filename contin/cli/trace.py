@@ -86,6 +86,30 @@ def _parse_uz(uz: tuple[str, ...], stop_at: str | None) -> dict[str, Any]:
     return out
 
 
+def _in_progress_options(stored: Any) -> Any:
+    """The stored options in the form :func:`_resume_accuracy` and :func:`_resume_settings` read.
+
+    A file the run had not finished (interrupted, killed, failed: the checkpoints) holds the
+    command line's overrides as they were (``{"ds_max": 0.05, "tol": 1e-06}``), not the resolved
+    options: both checks read it as a finished run's, so `trace bratu --resume F --ds-max 0.05` of
+    a `--ds-max 0.05` run was refused ("computed with --ds-max None") and `--resume F --tol 1e-8` of
+    a tol-1e-6 run was accepted, the file then claiming tol 1e-8 (qa16).  Such a dict becomes
+    ``{"overrides": ..., "adapt": ...}`` (adapt None for a fixed grid; AdaptOptions' defaults
+    for what the command line left out)."""
+    if not isinstance(stored, dict) or not stored or any(k in stored for k in ("step", "adapt", "overrides", "note")):
+        return stored
+    from contin.options import AdaptOptions
+
+    adapt = None
+    if stored.get("tol") is not None:
+        base = AdaptOptions()
+        adapt = {"tol": stored["tol"],
+                 "special_tol": stored.get("special_tol") if stored.get("special_tol") is not None else base.special_tol,
+                 "max_grid": stored.get("max_grid") if stored.get("max_grid") is not None else base.max_grid,
+                 "solve_check": stored.get("solve_check", True) is not False}
+    return {"overrides": dict(stored), "adapt": adapt}
+
+
 def _resume_accuracy(resume: str, stored: Any, overrides: dict[str, Any], *, tol: float | None,
                      special_tol: float | None, max_grid: int | None, no_solve_check: bool) -> None:
     """``--resume``: the new branches are computed to the accuracy of the stored ones.
@@ -152,7 +176,7 @@ def _resume_settings(resume: str, stored: Any, given: dict[str, Any]) -> None:
             shown_old, shown_new = ",".join(old or []) or "none", ",".join(value)
         elif key in ("ds", "ds_max"):
             same = old is not None and math.isclose(float(old), abs(float(value)), rel_tol=1e-12)
-            shown_old, shown_new = fmt(old), fmt(value)
+            shown_old, shown_new = ("its default" if old is None else fmt(old)), fmt(value)
         else:
             same = old == value
             shown_old, shown_new = ("its default" if old is None else fmt(old)), fmt(value)
@@ -207,22 +231,29 @@ def _stopped(writer: Any, exc: BaseException) -> None:
     input found late (ValueError, LookupError) would fail the same way again, so no --resume is
     suggested for it.  ``contin info`` says "failed: ...", not "interrupted", for any error.
     """
+    from contin.cancel import is_stopped_branch, stopped_by
+
     interrupted = isinstance(exc, KeyboardInterrupt)
     resumable = not isinstance(exc, ValueError | LookupError)  # bad input would fail the same way again
     why = ("terminated by SIGTERM" if isinstance(exc, Terminated) else "interrupted" if interrupted
            else f"failed: {error_line(exc)}")
     try:
-        if writer.publishes:
+        if writer.publishes or any(len(b) > 0 for b in writer.branches):
             writer.update(stopped=why)
             writer.publish()
     except Exception:  # noqa: BLE001 -- the earlier published file stays as it was
         pass
     finally:
         writer.release()
-    done = [b for b in writer.branches if len(b) > 0]
-    if writer.publishes and done:
+    done = [b for b in writer.branches if len(b) > 0 and not is_stopped_branch(b)]
+    partial = [b for b in writer.branches if len(b) > 0 and is_stopped_branch(b)]
+    if writer.publishes and (done or partial):
         hint = f" (continue with --resume {writer.path})" if resumable else ""
-        echo_err(f"note: {len(done)} finished branch(es) are saved in {writer.path}{hint}")
+        parts = [f"{len(done)} finished branch(es)"] if done else []
+        parts += [f"branch {b.id} up to its last point ({len(b)} points, {stopped_by(b)}; --resume traces it again)"
+                  for b in partial]  # the branch in progress, ended at its last point by the first Ctrl-C/SIGTERM
+        verb = "is" if len(parts) == 1 and not done else "are"
+        echo_err(f"note: {' and '.join(parts)} {verb} saved in {writer.path}{hint}")
 
 
 def stability_summary(branch: Any) -> dict[str, Any] | None:
@@ -363,6 +394,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     """
     import contin.scene as scene_mod
     from contin import io
+    from contin.cancel import SIGTERM, is_stopped_branch, stop_on_sigint, stop_reason, stop_requested
     from contin.jsonout import run_document
 
     params = parse_settings(settings)
@@ -376,6 +408,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     check_hdf5_output(output)
     guard, rtol = resolution_guard(resolution_tol)  # every trace of the run, also those a scene sets up itself
     sc = scene_mod.get_scene(scene)
+    if not sc.discretized and (method is not None or grid is not None):  # ignored, exit 0 (qa16)
+        fail(f"scene {scene!r} is a system of ODEs without a discretization: --method and --grid do not apply")
     if sc.defaults:
         unknown = [n for n in params if n not in sc.defaults]
         if unknown:
@@ -436,15 +470,23 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                      f"discretization (or start a new run)")
         method = method if method is not None or "method" not in stored else str(stored["method"])
         grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
-        _resume_accuracy(resume, meta.get("options"), overrides, tol=tol, special_tol=special_tol,
+        stored_options = _in_progress_options(meta.get("options"))
+        _resume_accuracy(resume, stored_options, overrides, tol=tol, special_tol=special_tol,
                          max_grid=max_grid, no_solve_check=no_solve_check)
-        _resume_settings(resume, meta.get("options"), step_overrides)
+        _resume_settings(resume, stored_options, step_overrides)
+        if isinstance(stored_options, dict) and isinstance(stored_options.get("overrides"), dict):
+            # the run's own command-line step settings where this command leaves them out: the
+            # branches still to trace get them too (an interrupted --ds-max 0.05 run went on with 0.25)
+            for key in ("ds", "ds_max", "max_steps", "user_zeros", "stop_at", "bp_eigenvalues"):
+                if key not in step_overrides and stored_options["overrides"].get(key) is not None:
+                    step_overrides[key] = overrides[key] = stored_options["overrides"][key]
         before_rtol = (meta.get("options") or {}).get("resolution_tol", "unknown") \
             if isinstance(meta.get("options"), dict) else "unknown"
         if resolution_tol is not None and before_rtol != "unknown" and before_rtol != rtol:
             fail(f"{resume!r} was computed with --resolution-tol {'off' if before_rtol is None else fmt(before_rtol)}, "
                  f"not {resolution_tol}; resume with the same accuracy (or start a new run)")
-        completed = {b.id: b for b in old}
+        # a branch a Ctrl-C or SIGTERM ended at its last point is partial: traced again, not reused
+        completed = {b.id: b for b in old if not is_stopped_branch(b)}
         if output is None:
             output = resume
         check_hdf5_output(output)
@@ -462,52 +504,76 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             writer.add_branch(branch)
         progress.line(f"branch {branch.id} ({branch.kind}{', from ' + branch.parent if branch.parent else ''}): "
                       f"{len(branch)} points, {branch.status} {branch.message}".rstrip())
+        if stop_requested():  # the first Ctrl-C/SIGTERM ended this branch (or came after it): stop the run here
+            stop_now()
 
-    request = scene_mod.SceneRequest(
-        params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
-        completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
-    try:
-        with guard, sigterm_as_interrupt():
-            result = sc.run(request)
-    except BaseException as exc:
+    def stop_now() -> None:
+        raise Terminated() if stop_reason() == SIGTERM else KeyboardInterrupt()
+
+    def abort(exc: BaseException) -> None:
+        """Save what was computed, say where, and end: Terminated as exit 143, others re-raised."""
         progress.close()
         if writer is not None:
             _stopped(writer, exc)
         if isinstance(exc, Terminated):
             echo_err("Error: terminated by SIGTERM")
             raise click.exceptions.Exit(EXIT_TERMINATED) from None
-        raise
-    progress.done()
-    if not no_stability:
-        _stability_after_run(sc, request, result, progress, quiet)
-    progress.close()
-    missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
-                  and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
-    if missing_kx:  # never a silent no-op: the README promises a column per --kx value
-        if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
-            why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
-                   f"k_x = 0 exists (that stability was computed)")
-        elif not sc.stability:
-            why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
-        elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
-            why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
-                   f"for a stability pass)")
-        else:
-            why = f"scene {scene!r} computed no stability"
-        echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
+        raise exc
 
-    if step_overrides and not request.resolved_options:
-        echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
-    options: Any = request.resolved_options[0] if request.resolved_options else (
-        {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
-    from contin.hopfscan import number_new_points
+    request = scene_mod.SceneRequest(
+        params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
+        completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
+    try:
+        # The first Ctrl-C or SIGTERM ends the branch in progress at its last point (contin.cancel);
+        # on_branch stores it and stops the run; the second interrupts at once.
+        with guard, sigterm_as_interrupt(), stop_on_sigint(sigterm=Terminated):
+            result = sc.run(request)
+            if stop_requested():  # a scene that passed no branch to on_branch after the stop
+                if writer is not None:
+                    writer.set_branches(result.branches)
+                stop_now()
+    except BaseException as exc:
+        abort(exc)
+    # The stability pass and the final write: a Ctrl-C, SIGTERM or error there kept only the branches
+    # the last checkpoint had published (`trace slow-bratu-stab` + Ctrl-C in the pass: branch 1 lost,
+    # the file not marked stopped; qa16); now every traced branch is saved, as during the run.
+    try:
+        progress.done()
+        if not no_stability:
+            _stability_after_run(sc, request, result, progress, quiet)
+        progress.close()
+        missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
+                      and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
+        if missing_kx:  # never a silent no-op: the README promises a column per --kx value
+            if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
+                why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
+                       f"k_x = 0 exists (that stability was computed)")
+            elif not sc.stability:
+                why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
+            elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
+                why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
+                       f"for a stability pass)")
+            else:
+                why = f"scene {scene!r} computed no stability"
+            echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
 
-    number_new_points(result.branches)  # HB points the stability pass located after the run
-    if writer is not None:
-        writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
-                      notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)
-        writer.set_branches(result.branches)
-        writer.close()
+        if step_overrides and not request.resolved_options:
+            echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
+        options: Any = request.resolved_options[0] if request.resolved_options else (
+            {"overrides": overrides, "note": "options chosen inside the scene"} if overrides else {})
+        from contin.hopfscan import number_new_points
+
+        number_new_points(result.branches)  # HB points the stability pass located after the run
+        if writer is not None:
+            writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
+                          notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)
+            writer.set_branches(result.branches)
+            writer.close()
+    except BaseException as exc:
+        if writer is not None:
+            writer.complete = False  # (set by a close() whose publish failed)
+            writer.set_branches(result.branches)
+        abort(exc)
 
     if as_json:
         echo_json(run_document(scene=scene, parameters=result.parameters, discretization=result.discretization,
