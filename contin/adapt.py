@@ -395,10 +395,54 @@ def two_grid_error(problem: Any, u: Array, p: Any, factor: float, opts: AdaptOpt
     carry entries ~N^4, whose rounding in double set a floor of ~1e-4 at nu = 0.5, H = 38.96).
     Elsewhere nothing changes (the same operations as without the hook).
     None when factor N rounds to N; inf when the fine J is exactly singular or the
-    result is not finite."""
+    result is not finite.
+
+    The last TWO_GRID_MEMO results per problem are remembered (keyed by the fine grid, the exact
+    bytes of u and the parameters; and tol where the problem has ``precise_residual``): a problem
+    whose ``error_estimate`` is itself this measurement (the non-local problems) had each candidate
+    measured twice, as its estimate and by the tracer's check (:meth:`Adaptor.solve_check`)."""
     n_f = check_grid(problem, factor, opts)
     if n_f is None:
         return None
+    key = _two_grid_key(problem, u, p, n_f, opts)
+    memo = _two_grid_memo(problem) if key is not None else None
+    if memo is not None and key in memo:
+        return memo[key]
+    err = _two_grid_error(problem, u, p, n_f, opts)
+    if memo is not None:
+        if len(memo) >= TWO_GRID_MEMO:
+            memo.pop(next(iter(memo)))
+        memo[key] = err
+    return err
+
+
+#: two_grid_error results remembered per problem (the last few states).
+TWO_GRID_MEMO = 4
+
+#: problem -> {key: two-grid error} (:func:`two_grid_error`).
+_TWO_GRID: weakref.WeakKeyDictionary[Any, dict[Any, float]] = weakref.WeakKeyDictionary()
+
+
+def _two_grid_key(problem: Any, u: Array, p: Any, n_f: int, opts: AdaptOptions) -> Any:
+    """The memo key of a two-grid measurement (None: parameters that cannot be a key)."""
+    try:
+        tol = float(opts.tol) if has(problem, "precise_residual") else None
+        key = (int(n_f), np.asarray(u, dtype=float).tobytes(), tuple(sorted(p.items())), tol)
+        hash(key)
+    except (TypeError, AttributeError):
+        return None
+    return key
+
+
+def _two_grid_memo(problem: Any) -> dict[Any, float] | None:
+    try:
+        return _TWO_GRID.setdefault(problem, {})
+    except TypeError:  # not weak-referenceable: no memory
+        return None
+
+
+def _two_grid_error(problem: Any, u: Array, p: Any, n_f: int, opts: AdaptOptions) -> float:
+    """:func:`two_grid_error` on the fine grid n_f, computed."""
     fine = on_grid(problem, n_f)
     with np.errstate(all="ignore"):
         v = np.asarray(problem.transfer(np.asarray(u, dtype=float), fine), dtype=float)
@@ -983,6 +1027,19 @@ class Adaptor:
     def at_max(self, system: Any, x: Array, err: float) -> str:
         return (f"under-resolved at {system.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol "
                 f"{self.opts.tol:.2g} on the maximum grid {system.problem.grid_size} (AdaptOptions.max_grid = "
+                f"{self.opts.max_grid})")
+
+    def at_start(self, system: Any, x: Array, err: float) -> str:
+        """Why the start point x, whose estimate err exceeds tol, stays unresolved: on max_grid
+        (:meth:`at_max`), or below it because :func:`start_grid`'s solve on the next finer grid
+        failed (``contin trace nonlocal-shear -s K=1e300`` said "on the maximum grid 48
+        (AdaptOptions.max_grid = 512)")."""
+        n = int(system.problem.grid_size)
+        if n >= self.opts.max_grid:
+            return self.at_max(system, x, err).removeprefix("under-resolved at ")
+        n_new = finer(system.problem, x[:-1], system.params_at(x[-1]), self.opts)
+        return (f"{system.parameter} = {x[-1]:.6g}: estimated relative error {err:.2g} > tol {self.opts.tol:.2g} "
+                f"on grid {n}, and its solve on the finer grid {n_new} did not converge (AdaptOptions.max_grid = "
                 f"{self.opts.max_grid})")
 
     # --- grid changes ----------------------------------------------------------------------

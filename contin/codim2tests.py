@@ -21,7 +21,9 @@ state of each point, located by re-correcting onto the curve like every point te
 eigenvalue tests cost one eigen-solve of the base pencil per point (dense QZ up to the Hopf
 test's ``dense_max``, shift-invert ARPACK above) and are on where HB detection would be on for
 the base problem (``contin.hopf.hopf_test``: ``DetectionOptions.detect_hopf``); the determinant
-test costs one LU.  Normal-form coefficients of ZH and HH points are not computed.
+test costs one LU.  Normal-form coefficients of ZH and HH points are not computed; those of BT
+points are (:func:`bogdanov_takens_coefficients`), and the second Lyapunov coefficient of GH
+points of Hopf curves (:func:`second_lyapunov`, stored by ``contin.hopfsystem.LyapunovTest``).
 """
 
 from __future__ import annotations
@@ -178,3 +180,136 @@ def bogdanov_takens_coefficients(problem: Any, u: Array, params: Mapping[str, fl
     if a < 0:  # q0 -> -q0 flips both
         a, b = -a, -b
     return {"a": a, "b": b}
+
+
+#: Relative steps of the central differences of J for the fourth and fifth derivatives of F
+#: (third and fourth mixed differences of J): error ~ h^2 (truncation) + eps / h^3 (resp. h^4)
+#: (rounding), balanced near eps^(1/5) and eps^(1/6).
+FD_STEP_D = 1e-3
+FD_STEP_E = 3e-3
+
+
+def _mixed_difference(problem: Any, u: Array, params: Mapping[str, float], dirs: list[Array], y: Any,
+                      step: float) -> Any:
+    """d^k/dt_1..dt_k J(u + sum t_i a_i) y at t = 0 for real directions a_i (k = len(dirs)): the
+    central mixed difference sum over sign vectors s of (prod s_i) J(u + sum s_i h_i a_i) y /
+    (2^k prod h_i), h_i = step * max(1, |u|_inf) / |a_i|_inf; exact for J polynomial of degree
+    k + 1, else O(h^2)."""
+    import itertools
+
+    sizes = [float(np.max(np.abs(a), initial=0.0)) for a in dirs]
+    if any(s == 0 for s in sizes):
+        return np.zeros_like(y)
+    scale = max(1.0, float(np.max(np.abs(u), initial=0.0)))
+    hs = [step * scale / s for s in sizes]
+    out = np.zeros_like(y)
+    for signs in itertools.product((1.0, -1.0), repeat=len(dirs)):
+        du = sum(s * h * a for s, h, a in zip(signs, hs, dirs))
+        out = out + float(np.prod(signs)) * np.asarray(problem.jacobian(u + du, dict(params)) @ y)
+    return out / (2 ** len(dirs) * float(np.prod(hs)))
+
+
+def _complex_form(problem: Any, u: Array, params: Mapping[str, float], args: tuple[Any, ...], y: Any,
+                  step: float) -> Any:
+    """The symmetric multilinear form of order len(args) + 1 of F (the len(args)-th derivative of
+    J along args, applied to y), for complex args: multilinear in each, so the sum over the real
+    and imaginary parts (2^k real mixed differences, each 2^k Jacobians); Richardson-extrapolated
+    from the steps h and 2 h ((4 f(h) - f(2 h)) / 3: the h^2 truncation cancels)."""
+    fine = _complex_form_at(problem, u, params, args, y, step)
+    coarse = _complex_form_at(problem, u, params, args, y, 2 * step)
+    return (4 * fine - coarse) / 3
+
+
+def _complex_form_at(problem: Any, u: Array, params: Mapping[str, float], args: tuple[Any, ...], y: Any,
+                     step: float) -> Any:
+    """:func:`_complex_form` at one step."""
+    import itertools
+
+    parts = [((np.real(a).astype(float), 1.0), (np.imag(a).astype(float), 1j)) for a in args]
+    out = np.zeros(np.shape(y), dtype=complex)
+    for choice in itertools.product(*parts):
+        if any(not np.any(d) for d, _ in choice):
+            continue
+        factor = complex(np.prod([f for _, f in choice]))
+        out = out + factor * _mixed_difference(problem, u, params, [d for d, _ in choice], np.asarray(y, complex), step)
+    return out
+
+
+def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: float) -> float:
+    """Second Lyapunov coefficient l2 at a generalized Hopf (Bautin) point (u, p) of M u' = F(u, p)
+    with frequency omega (where l1 = 0): the multilinear formula of Kuznetsov, SIAM J. Numer.
+    Anal. 36, 1104-1124, 1999, sec. 7 (the normal form of *Elements of Applied Bifurcation
+    Theory*, 3rd ed., sec. 8.3), generalized to M as :func:`contin.hopf.first_lyapunov` (f = M^-1 F):
+
+        J q = i omega M q, p^H J = i omega p^H M, p^H M q = 1, q^H W q = 1 (W the problem's
+        ``inner_product_weights`` or I: the normalization of l1),
+        H20 = (2 i omega M - J)^-1 B(q, q),   H11 = -J^-1 B(q, qb),
+        H30 = (3 i omega M - J)^-1 [C(q, q, q) + 3 B(q, H20)],
+        h21 = C(q, q, qb) + B(qb, H20) + 2 B(q, H11),   G21 = p^H h21 (l1 = Re G21 / (2 omega)),
+        (i omega M - J) H21 = h21 - G21 M q,   p^H M H21 = 0 (bordered solve),
+        H31 = (2 i omega M - J)^-1 [D(q, q, q, qb) + 3 C(q, q, H11) + 3 C(q, qb, H20) + 3 B(H20, H11)
+                                    + B(qb, H30) + 3 B(q, H21) - 3 G21 M H20],
+        H22 = -J^-1 [D(q, q, qb, qb) + 4 C(q, qb, H11) + C(qb, qb, H20) + C(q, q, H20b)
+                     + 2 B(H11, H11) + 2 B(q, H21b) + 2 B(qb, H21) + B(H20b, H20) - 4 Re(G21) M H11],
+        G32 = p^H [E(q, q, q, qb, qb) + D(q, q, q, H20b) + 3 D(q, qb, qb, H20) + 6 D(q, q, qb, H11)
+                   + C(qb, qb, H30) + 3 C(q, q, H21b) + 6 C(q, qb, H21) + 3 C(q, H20b, H20)
+                   + 6 C(q, H11, H11) + 6 C(qb, H20, H11) + 2 B(qb, H31) + 3 B(q, H22)
+                   + B(H20b, H30) + 3 B(H21b, H20) + 6 B(H11, H21)],
+        l2 = Re G32 / (12 omega),
+
+    the normal form w' = i omega w + (G21 / 2) w|w|^2 + (G32 / 12) w|w|^4 on the center manifold
+    u = u0 + 2 Re(w q) + ...; l2 = Re c2 / omega as l1 = Re c1 / omega (MatCont and
+    BifurcationKit report omega l2).  B, C: central differences of J as for l1; D, E: third and
+    fourth mixed differences of J (steps FD_STEP_D, FD_STEP_E; relative accuracy ~1e-6).  For the
+    Bautin normal form z' = (b1 + i) z + b2 z|z|^2 + s z|z|^4 in x = Re z, y = Im z (q = (1, -i) /
+    sqrt(2), z = sqrt(2) w): l1 = 2 b2 and, at b2 = 0, l2 = 4 s."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from contin.hopf import _Forms, _mass, hopf_vectors
+    from contin.problem import inner_product_weights
+
+    u = np.asarray(u, float)
+    q_ = dict(params)
+    jac = sp.csc_matrix(problem.jacobian(u, q_), dtype=float)
+    n = jac.shape[0]
+    mass = _mass(problem, u, q_, n)
+    q, p = hopf_vectors(jac, mass, omega, weights=inner_product_weights(problem, u, q_))
+    qb = np.conj(q)
+    forms = _Forms(problem, u, q_)
+    B, C = forms.B, forms.C
+
+    def D(a, b, c, y):
+        return _complex_form(problem, u, q_, (a, b, c), y, FD_STEP_D)
+
+    def E(a, b, c, d, y):
+        return _complex_form(problem, u, q_, (a, b, c, d), y, FD_STEP_E)
+
+    jc = sp.csc_matrix(jac, dtype=complex)
+    mc = sp.csc_matrix(mass, dtype=complex)
+    zero = spla.splu(jc)
+    two = spla.splu(sp.csc_matrix(2j * omega * mc - jc))
+    three = spla.splu(sp.csc_matrix(3j * omega * mc - jc))
+    mq = np.asarray(mc @ q)
+    row = np.conj(np.asarray(mc.T @ p))  # p^H M (M real)
+    border = sp.bmat([[sp.csc_matrix(1j * omega * mc - jc), sp.csc_matrix(mq[:, None])],
+                      [sp.csc_matrix(row[None, :]), None]], format="csc")
+    one = spla.splu(border)
+
+    h20 = two.solve(B(q, q))
+    h11 = -zero.solve(B(q, qb))
+    h30 = three.solve(C(q, q, q) + 3 * B(q, h20))
+    r21 = C(q, q, qb) + B(qb, h20) + 2 * B(q, h11)
+    g21 = complex(np.vdot(p, r21))
+    h21 = one.solve(np.concatenate([r21 - g21 * mq, [0.0]]))[:n]
+    h20b, h21b = np.conj(h20), np.conj(h21)
+    r31 = (D(q, q, q, qb) + 3 * C(q, q, h11) + 3 * C(q, qb, h20) + 3 * B(h20, h11) + B(qb, h30) + 3 * B(q, h21)
+           - 3 * g21 * np.asarray(mc @ h20))
+    h31 = two.solve(r31)
+    r22 = (D(q, q, qb, qb) + 4 * C(q, qb, h11) + C(qb, qb, h20) + C(q, q, h20b) + 2 * B(h11, h11) + 2 * B(q, h21b)
+           + 2 * B(qb, h21) + B(h20b, h20) - 4 * g21.real * np.asarray(mc @ h11))
+    h22 = -zero.solve(r22)
+    r32 = (E(q, q, q, qb, qb) + D(q, q, q, h20b) + 3 * D(q, qb, qb, h20) + 6 * D(q, q, qb, h11)
+           + C(qb, qb, h30) + 3 * C(q, q, h21b) + 6 * C(q, qb, h21) + 3 * C(q, h20b, h20) + 6 * C(q, h11, h11)
+           + 6 * C(qb, h20, h11) + 2 * B(qb, h31) + 3 * B(q, h22) + B(h20b, h30) + 3 * B(h21b, h20) + 6 * B(h11, h21))
+    return float(complex(np.vdot(p, r32)).real / (12 * omega))

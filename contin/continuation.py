@@ -692,7 +692,7 @@ def trace(
     resolution_tol = effective_resolution_tol(options) if adaptor is None else None
     coarse = _under_resolved(problem, system, x0, resolution_tol)
     if adaptor is not None and (err0 := adaptor.too_coarse(system, x0)) is not None:
-        coarse = adaptor.at_max(system, x0, err0).removeprefix("under-resolved at ")
+        coarse = adaptor.at_start(system, x0, err0)
     if coarse is not None:
         msg = f"start point {coarse}"
         tracer.special.append(tracer.end_point("MX", msg, x=x0))

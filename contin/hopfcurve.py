@@ -175,7 +175,25 @@ def trace_hopf_curve(
         half = trace(curve, start_vector, dict(point.params), parameter, opts, direction=direction, **meta)
         halves.append(_cut_at_bound(half, curve, second, lo, hi) if bounded else half)
     raw = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
-    return as_hopf_curve(raw, curve)
+    return _no_gh_at_zero_hopf(as_hopf_curve(raw, curve))
+
+
+def _no_gh_at_zero_hopf(curve: Branch) -> Branch:
+    """The curve without the GH points located in the same step as a ZH: l1 has a pole where a
+    real eigenvalue passes 0 (its term p . B(q, J^-1 B(q, qb)); Kuznetsov's l1 tends to infinity
+    along a Hopf curve towards a zero-Hopf point), so its sign changes there and the locator
+    converged onto the pole: x' = a + b - x^2 + b x + (v^2 + w^2) / 2 with the oscillator of
+    ``tests/test_zero_double_hopf.py`` reported a "converged" GH with l1 = -7.5e10 at its ZH
+    (session 16).  A GH at a ZH is of codimension three."""
+    from contin.branch import relabel
+
+    steps = {sp.index for sp in curve.special_points if sp.type == "ZH"}
+    kept = [sp for sp in curve.special_points if not (sp.type == "GH" and sp.index in steps)]
+    if len(kept) == len(curve.special_points):
+        return curve
+    curve.special_points = kept
+    relabel([curve])
+    return curve
 
 
 def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> Branch:

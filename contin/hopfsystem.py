@@ -229,8 +229,8 @@ class LyapunovTest:
     not defined (neutral saddles, kappa <= 0) or cannot be computed there (the reason is
     logged): no GH is bracketed by such a point.  The zero is located like every point test,
     by re-correcting onto the curve (``contin.locate``), so its accuracy is that of l1 (central
-    differences of J: relative ~1e-8 on smooth problems) over |dl1/ds|.  The second Lyapunov
-    coefficient l2 (the GH's normal-form coefficient) is not computed.
+    differences of J: relative ~1e-8 on smooth problems) over |dl1/ds|.  A located GH carries
+    the second Lyapunov coefficient l2, its normal-form coefficient (``data['l2']``).
     """
 
     curve: Any
@@ -244,7 +244,8 @@ class LyapunovTest:
         if not kappa > 0:
             return (0.0, False)
         try:
-            l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # a singular J (a ZH): l1 NaN, no bracket
+                l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
         except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
             import logging
 
@@ -258,10 +259,27 @@ class LyapunovTest:
         return [("generalized Hopf (l1 = 0)", _l1_or_nan)]
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        """l1 (~0), omega, kappa and the second Lyapunov coefficient l2 of the GH
+        (:func:`contin.codim2tests.second_lyapunov`; NaN where it cannot be computed, the reason
+        logged): its sign tells the GH's two unfoldings apart (l2 < 0: the fold curve of cycles
+        that starts at the GH bounds a region with a stable and an unstable cycle; Kuznetsov
+        sec. 8.3)."""
+        from contin.codim2tests import second_lyapunov
+
         l1, hopf = self.value(system, x)
         kappa = float(x[3 * self.curve.n])
         omega = math.sqrt(kappa) if kappa > 0 else math.nan
-        return replace(sp_, data={**sp_.data, "l1": l1 if hopf else math.nan, "omega": omega, "kappa": kappa})
+        l2 = math.nan
+        if hopf:
+            u, _, _, _, q = self.curve.split(x[:-1], system.params_at(x[-1]))
+            try:
+                l2 = second_lyapunov(self.curve.problem, np.asarray(u, float), q, omega)
+            except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
+                import logging
+
+                logging.getLogger("contin").warning("GH: l2 failed at %s=%g: %s", system.parameter, x[-1], exc)
+        return replace(sp_, data={**sp_.data, "l1": l1 if hopf else math.nan, "l2": l2 if math.isfinite(l2) else math.nan,
+                                  "omega": omega, "kappa": kappa})
 
 
 def _l1_or_nan(v: tuple[float, bool]) -> float:

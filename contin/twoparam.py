@@ -18,7 +18,10 @@ free parameters, ``ICP=[p1, p2]``).
   located on it);
 - ``BT`` of a fold or Hopf curve -- the other curve through it, in the same two parameters
   (a Hopf curve's BT starts the fold curve, a fold curve's BT the Hopf curve, from kappa = 0:
-  :func:`contin.hopfcurve.hopf_curve_start_at_bt`).
+  :func:`contin.hopfcurve.hopf_curve_start_at_bt`);
+- ``ZH`` of a fold or Hopf curve -- likewise the other curve (a Hopf curve's ZH starts the fold
+  curve of its real zero eigenvalue, a fold curve's ZH the Hopf curve of its pair +-i omega);
+- ``HH`` of a Hopf curve -- the Hopf curve of its other pair (+-i omega2).
 
 Other point types are a clear error (:class:`NotAvailable`); :func:`register_curve` adds one.
 Bounds on the second parameter (``options.bounds[second]``) end the curve on the bound: the
@@ -50,6 +53,7 @@ from contin.bpcurve import trace_bp_curve
 from contin.branch import Branch, SpecialPoint, base_state_size, relabel
 from contin.foldcurve import SegmentRegrid, as_fold_curve, fold_start, trace_augmented
 from contin.normalform import null_vectors
+from contin.hopf import hopf_test
 from contin.hopfcurve import trace_hopf_curve
 from contin.options import ContinuationOptions
 
@@ -85,6 +89,8 @@ def _fold_or_pitchfork(problem: Any, point: SpecialPoint, second: str, options: 
                                                      "keeps: its curve is a BP curve"))
         return trace_bp_curve(problem, point, second, options, parameter=parameter, branch_id=branch_id)
     fold, start = fold_start(problem, point, second)
+    # ZH detection as in trace_fold_curve (it was off here: `contin continue --from LP` found no ZH)
+    fold.base_hopf = hopf_test(problem, options.detection, fold.n)
     raw = trace_augmented(fold, start, point, second, 2 * fold.n, options, parameter=parameter, both=True,
                           branch_id=branch_id, kind="fold-curve", mirror_start=True, regrid=regrid)
     curve = as_fold_curve(raw, fold, replace(options, detection=replace(options.detection, detect_branch_points=False)))
@@ -189,23 +195,25 @@ CURVES: dict[str, CurveTracer] = {"LP": _fold_or_pitchfork, "BP": _fold_or_pitch
 
 def on_curve_message(branch: Branch, point: SpecialPoint) -> str | None:
     """Why ``point`` of a two-parameter curve cannot start a curve (None: it can, or ``branch`` is a
-    one-parameter branch).  Of a curve's points only a BT starts one (the other curve through it);
+    one-parameter branch).  Of a curve's points only a BT, ZH or HH starts one (the other curve through it);
     an LP there is an extremum of the first parameter, not a fold of a branch, and its augmented
     state is no state of the problem: ``contin continue ab_hopf.h5 --from LP4 --free B`` ended
     "Error: too many values to unpack (expected 2)" (qa16)."""
-    if len(branch.free) < 2 or point.type == "BT":
+    if len(branch.free) < 2 or point.type in SWITCH_TYPES:
         return None
     what = point.note.split(";")[0].strip() if point.note else ""
     kind = branch.kind.replace("-", " ") if branch.kind and "curve" in branch.kind else "two-parameter curve"
     return (f"{point.name} lies on the {kind} {branch.id} in "
-            f"({', '.join(branch.free)}){' (' + what + ')' if what else ''}: of a curve's points only a BT starts "
-            f"another curve; continue the LP, HB or BP points of one-parameter branches")
+            f"({', '.join(branch.free)}){' (' + what + ')' if what else ''}: of a curve's points only a BT, ZH or HH "
+            f"starts another curve; continue the LP, HB or BP points of one-parameter branches")
 
 
 def continuable_types() -> list[str]:
-    """The point types :func:`continue_point` continues: those of :data:`CURVES`, and BT (the other
-    curve through a Bogdanov-Takens point)."""
-    return sorted([*CURVES, "BT"])
+    """The point types :func:`continue_point` continues: :data:`CURVES`' and BT, ZH, HH.
+
+    BT, ZH, HH (:data:`SWITCH_TYPES`): the other curve through a Bogdanov-Takens, zero-Hopf or
+    double-Hopf point."""
+    return sorted([*CURVES, *SWITCH_TYPES])
 
 
 def register_curve(point_type: str, tracer: CurveTracer) -> None:
@@ -243,17 +251,33 @@ def _resolved_start(problem: Any, point: SpecialPoint, second: str, options: Con
     return here, replace(point, state=state, grid=int(here.grid_size), tangent=None)
 
 
-def _from_bogdanov_takens(problem: Any, branch: Branch, point: SpecialPoint, second: str,
-                          options: ContinuationOptions, *, branch_id: str) -> Branch:
-    """The other curve through a BT of a fold or Hopf curve, in the same two parameters: a BT of a
-    Hopf curve (state [u, v, w, kappa, p2]) starts the fold curve through it (its null vector:
-    ``contin.foldcurve.fold_start``); a BT of a fold curve (state [u, phi, p2]) starts the Hopf
-    curve (:func:`contin.hopfcurve.hopf_curve_start_at_bt`, kappa = 0 there)."""
+#: codim-2 points of fold and Hopf curves that start another curve through them
+#: (:func:`_from_codim2`): the point type -> the curve kinds it is continued from
+SWITCH_TYPES: dict[str, tuple[str, ...]] = {"BT": ("fold-curve", "hopf-curve"), "ZH": ("fold-curve", "hopf-curve"),
+                                            "HH": ("hopf-curve",)}
+
+
+def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
+                 options: ContinuationOptions, *, branch_id: str) -> Branch:
+    """The other curve through a BT, ZH or HH of a fold or Hopf curve, in the same two parameters.
+
+    - BT of a Hopf curve (state [u, v, w, kappa, p2]): the fold curve through it (its null
+      vector: ``contin.foldcurve.fold_start``); BT of a fold curve (state [u, phi, p2]): the Hopf
+      curve (:func:`contin.hopfcurve.hopf_curve_start_at_bt`, kappa = 0 there);
+    - ZH of a Hopf curve: the fold curve through it (the null vector of the real zero
+      eigenvalue); ZH of a fold curve: the Hopf curve of the pair +-i omega that crosses the
+      imaginary axis there (``omega`` of the ZH's data and its eigenvector:
+      :func:`contin.hopfcurve.hopf_curve_start`);
+    - HH of a Hopf curve: the Hopf curve of the other pair (``omega2`` of the HH's data).
+
+    The start of the new curve is labelled as the source point (:func:`_start_as`)."""
     from contin.foldcurve import trace_fold_curve
     from contin.hopfcurve import hopf_curve_start_at_bt, trace_hopf_curve
 
-    if branch.kind not in ("fold-curve", "hopf-curve") or len(branch.free) != 2:
-        raise NotAvailable(f"{point.name}: a BT is continued from a fold or Hopf curve, not from a {branch.kind} branch")
+    kinds = SWITCH_TYPES[point.type]
+    if branch.kind not in kinds or len(branch.free) != 2:
+        curves = " or ".join(k.replace("-", " ").replace("hopf", "Hopf") for k in kinds)
+        raise NotAvailable(f"{point.name}: a {point.type} is continued from a {curves}, not from a {branch.kind} branch")
     if second != branch.free[1]:
         raise ValueError(f"{point.name} lies on a curve in ({branch.free[0]}, {branch.free[1]}): the curve through it "
                          f"is traced in the same parameters, --free {branch.free[1]}")
@@ -272,36 +296,59 @@ def _from_bogdanov_takens(problem: Any, branch: Branch, point: SpecialPoint, sec
     if not fits:
         raise ValueError(f"the state of {point.name} ({state.size} entries) is not a {branch.kind} state of this "
                          f"problem (its base state of {n} entries does not fit the problem's residual)")
-    base = replace(point, type="LP" if branch.kind == "hopf-curve" else "HB", state=state[:n].copy(), params=params,
-                   tangent=None)
-    if branch.kind == "hopf-curve":
+    to_fold = branch.kind == "hopf-curve" and point.type in ("BT", "ZH")
+    data: dict[str, float] = {}
+    if point.type == "ZH" or point.type == "HH":
+        key = "omega2" if point.type == "HH" else "omega"
+        omega = float(point.data.get(key, math.nan))
+        if not to_fold and not (math.isfinite(omega) and omega > 0):
+            raise ValueError(f"{point.name} has no positive {key}: the Hopf pair of the new curve is unknown")
+        data = {"omega": omega}
+        if point.type == "HH":
+            data["omega2"] = float(point.data.get("omega", math.nan))
+    base = replace(point, type="LP" if to_fold else "HB", state=state[:n].copy(), params=params, tangent=None,
+                   data=data)
+    if to_fold:
         curve = trace_fold_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id)
-    else:
+    elif point.type == "BT":
         start = hopf_curve_start_at_bt(problem, state[:n], params, second)
         curve = trace_hopf_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id,
                                  start=start)
-    return _bt_at_start(curve, point, branch.kind)
+    else:  # the Hopf curve of the pair omega (ZH of a fold curve, the other pair of an HH)
+        curve = trace_hopf_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id)
+    if point.type == "BT":
+        data = {k: v for k, v in point.data.items() if k in ("a", "b")}  # the BT's normal form, where it was located
+    return _start_as(curve, point, branch.kind, data)
 
 
-def _bt_at_start(curve: Branch, source: SpecialPoint, kind: str) -> Branch:
-    """The curve with its start marked as the BT it came from.
+def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, float]) -> Branch:
+    """The curve with its start marked as the BT, ZH or HH it came from.
 
-    The new curve starts on the zero of its own BT test function, so the tracer brackets a sign
-    change of rounding noise in the first step on either side and "locates" a BT there: on ab's
-    fold curve from the Hopf curve's BT, 5.5e-7 off B = 64/3, marked converged.  That point is
-    replaced by the start point itself (corrected onto the new curve, where the source BT is)."""
+    The new curve starts on the zero of its own test function of that type (BT: kappa or
+    psi^T M phi; ZH: det J / kappa or the real part of the crossing pair; HH: the real part of
+    the other pair), so the tracer brackets a sign change of rounding noise in the first step on
+    either side and "locates" such a point there: on ab's fold curve from the Hopf curve's BT,
+    5.5e-7 off B = 64/3, marked converged.  That point is replaced by the start point itself
+    (corrected onto the new curve, where the source point is), with ``data`` (BT: its normal
+    form a, b; ZH: omega; HH: omega and omega2 of the new curve).  A Hopf curve from a ZH also
+    loses a GH next to its start: l1 has a pole there (J singular), no zero
+    (:func:`contin.hopfcurve._no_gh_at_zero_hopf`)."""
     s = _start_index(curve, source)
     if s is None:  # the start was not kept (not expected): leave the curve as traced
         return curve
-    ab = {k: v for k, v in source.data.items() if k in ("a", "b")}  # the BT's normal form, where it was located
-    return _mark_start(curve, s, "BT", f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}",
-                       data=ab)
+    if source.type == "ZH" and curve.kind == "hopf-curve":  # l1's pole at the start (J singular) is no GH
+        curve.special_points = [sp for sp in curve.special_points if not (sp.type == "GH" and sp.index in (s - 1, s))]
+    return _mark_start(curve, s, source.type,
+                       f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}", data=data)
 
 
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,
                    options: ContinuationOptions, *, branch_id: str | None = None,
                    regrid: SegmentRegrid | None = None) -> Branch:
-    """The curve of ``point`` (a located LP, BP or HB of ``branch``) in (branch.parameter, ``second``).
+    """The curve of ``point`` (LP, BP, HB; BT, ZH, HH: the other curve) in (branch.parameter, ``second``).
+
+    From a located LP, BP or HB of ``branch`` its own curve; from a BT, ZH or HH of a fold or Hopf
+    curve the other curve through it (:func:`_from_codim2`).
 
     Bounds: ``options.bounds`` of either parameter; the curve ends exactly on them.
 
@@ -331,7 +378,7 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     if second not in point.params:
         raise ValueError(f"point {point.name} has no value of {second!r}")
     tracer = CURVES.get(point.type)
-    if tracer is None and point.type != "BT":
+    if tracer is None and point.type not in SWITCH_TYPES:
         raise NotAvailable(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two "
                            f"parameters, not {point.type}")
     on_curve = on_curve_message(branch, point)
@@ -345,10 +392,11 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
             raise ValueError(f"start value {name}={value:g} of {point.name} lies outside its bounds ({lo:g}, {hi:g})")
     if point.state is None:
         raise ValueError(f"{point.name} has no stored state")
-    if point.type == "BT":
+    if point.type in SWITCH_TYPES:
         if regrid is not None:
-            raise NotAvailable(NO_REGRID.format(what=f"{point.name} is a Bogdanov-Takens point"))
-        return _from_bogdanov_takens(problem, branch, point, second, options,
+            what = {"BT": "a Bogdanov-Takens", "ZH": "a zero-Hopf", "HH": "a double-Hopf"}[point.type]
+            raise NotAvailable(NO_REGRID.format(what=f"{point.name} is {what} point"))
+        return _from_codim2(problem, branch, point, second, options,
                                      branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
     kw: dict[str, Any] = {}
     if regrid is not None:

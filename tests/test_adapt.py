@@ -116,6 +116,49 @@ def test_max_grid_ends_with_the_reason():
     assert b.points("MX")[0].note == b.message
 
 
+def test_a_start_whose_finer_solve_fails_is_not_said_to_be_on_the_maximum_grid():
+    """A start point above tol whose solve on the next finer grid does not converge ended
+    "... on the maximum grid 8 (AdaptOptions.max_grid = 512)"; it names its grid, the finer grid
+    whose solve failed and max_grid."""
+
+    class Unsolvable(Bratu):
+        def residual(self, u, p):
+            return np.full(np.asarray(u).size, np.nan)
+
+    pb = Bratu("cheb", 8)
+    pb.with_grid = lambda n: Unsolvable("cheb", n)  # type: ignore[method-assign]
+    o = ContinuationOptions(bounds={"lam": (0.5, 4.0)}, step=StepOptions(ds=0.1), adapt=AdaptOptions(tol=1e-12))
+    b = trace(pb, pb.initial(), {"lam": 3.0}, "lam", o)
+    assert b.status == "MX" and len(b) == 0
+    assert b.message.startswith("start point lam = 3: estimated relative error")
+    assert "on grid 8, and its solve on the finer grid 12 did not converge (AdaptOptions.max_grid = 512)" in b.message
+    assert "maximum grid" not in b.message
+
+
+def test_a_two_grid_measurement_is_made_once_per_state(monkeypatch):
+    """two_grid_error remembers its last results per problem: a problem whose estimate is itself
+    the two-grid error (the non-local problems) had each candidate measured twice, as its estimate
+    and by the tracer's check.  The same state is not measured again (one fine factorization);
+    another state, parameter or fine grid is."""
+    import contin.adapt as adapt
+    from contin.newton import newton
+
+    pb = Bratu("cheb", 12)
+    u = newton(pb, pb.initial(), {"lam": 2.0}).u
+    calls = []
+    real = adapt.state_factorization
+    monkeypatch.setattr(adapt, "state_factorization", lambda *a: calls.append(1) or real(*a))
+    opts = AdaptOptions(tol=1e-8)
+    first = adapt.two_grid_error(pb, u, {"lam": 2.0}, 2.0, opts)
+    assert adapt.two_grid_error(pb, u.copy(), {"lam": 2.0}, 2.0, opts) == first and len(calls) == 1
+    adapt.two_grid_error(pb, u, {"lam": 2.1}, 2.0, opts)
+    adapt.two_grid_error(pb, u * (1 + 1e-9), {"lam": 2.0}, 2.0, opts)
+    adapt.two_grid_error(pb, u, {"lam": 2.0}, 3.0, opts)
+    assert len(calls) == 4
+    fresh = adapt._two_grid_error(pb, u, {"lam": 2.0}, 24, opts)  # the memo holds the computed value
+    assert fresh == first and first > 0
+
+
 def test_options_and_hooks_are_checked():
     with pytest.raises(ValueError, match="tol"):
         AdaptOptions(tol=0.0)

@@ -92,7 +92,7 @@ def test_continue_bad_input(run_file, tmp_path):
         assert r.exit_code == 1 and "Error:" in r.output and expect in r.output, r.output
         assert "Traceback" not in r.output
 
-    err("--from", "EP1", "--free", "mu", expect="only BP, BT, HB, LP points")
+    err("--from", "EP1", "--free", "mu", expect="only BP, BT, HB, HH, LP, ZH points")
     err("--from", "LP99", "--free", "mu", expect="no point 'LP99'")
     err("--from", "BP2", "--free", "lam", expect="must differ")
     err("--from", "BP2", "--free", "nope", expect="unknown parameter 'nope'")
@@ -136,7 +136,7 @@ def test_unknown_point_types_are_a_clear_error():
     br = Branch(parameter="lam", free=("lam",), params={"lam": np.zeros(1), "mu": np.zeros(1)}, observables={},
                 states=np.zeros((1, 1)), tangents=np.zeros((1, 2)), ds=np.zeros(1),
                 newton_iterations=np.zeros(1, dtype=np.int64), special_points=[uz])
-    with pytest.raises(NotAvailable, match="UZ3: only BP, BT, HB, LP points can be continued in two parameters"):
+    with pytest.raises(NotAvailable, match="UZ3: only BP, BT, HB, HH, LP, ZH points can be continued in two parameters"):
         continue_point(object(), br, uz, "mu", None)
 
 

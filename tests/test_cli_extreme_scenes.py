@@ -43,7 +43,7 @@ def one_error(args: list[str], tmp_path) -> str:
 
 
 @pytest.mark.parametrize("args, expect", [
-    (["nonlocal-shear", "-s", "K=1e300"], "nonlocal-shear: branch uniform.ell could not start: start point under-resolved"),
+    (["nonlocal-shear", "-s", "K=1e300"], "nonlocal-shear: branch uniform.ell could not start: start point ell = 3: estimated relative error"),
     (["nonlocal-muI", "-s", "W=1e300"], "nonlocal-muI: branch muI.U could not start"),
     (["nonlocal-muI", "-s", "A_phi=1e-300"], "nonlocal-muI: branch phiI.U could not start: "),
     (["nonlocal-cylinder", "-s", "W=1e-300"], "nonlocal-cylinder: branch derived.ratio could not start: Newton failed"),

@@ -515,7 +515,7 @@ def test_continue_from_an_end_point_of_an_adaptive_curve_names_the_point_type(tm
     assert run(["continue", str(sb), "--from", "LP1", "--free", "a", "--bounds", "a=-0.5:6", "--bounds", "lam=0:8",
                 "--ds", "0.1", "--ds-max", "0.5", "--tol", "1e-8", "-o", str(c1)]).exit_code == 0
     err = one_error(run(["continue", str(c1), "--from", "EP1", "--free", "a", "-o", str(tmp_path / "x.h5")]))
-    assert err == "Error: EP1: only BP, BT, HB, LP points can be continued in two parameters, not EP", err
+    assert err == "Error: EP1: only BP, BT, HB, HH, LP, ZH points can be continued in two parameters, not EP", err
 
 
 def test_resume_with_other_step_settings_is_refused(tmp_path):

@@ -8,7 +8,10 @@ References computed independently in the tests:
 - AUTO-07p's demo ab (a CSTR, tests/hopf_models.AB): the GH of its Hopf curve in (D, B) at
   beta = 3 solves F = 0, tr J = 0, a = 0 with a the Guckenheimer-Holmes coefficient (eq. 3.4.11 of
   *Nonlinear Oscillations, Dynamical Systems, and Bifurcations of Vector Fields*) from the
-  model's analytic second and third derivatives, solved by scipy.optimize.fsolve.
+  model's analytic second and third derivatives, solved by scipy.optimize.fsolve; its second
+  Lyapunov coefficient l2 from the Poincare map of the ODE (scipy's DOP853; ``ab_l2_poincare``);
+- the Bautin normal form at GH with s = +-1 under linear and nonlinear changes of coordinates,
+  time scaling and a mass matrix (``WarpedBautin``): l2 = 4 s.
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ def test_bautin_gh_at_the_origin_and_l1_is_2_b2():
     assert abs(gh.params["b2"]) < 1e-7 and abs(gh.params["b1"]) < 1e-12
     # l1 at the located zero: within the rounding of the differences (eps / FD_STEP_C^2 ~ 2e-8)
     assert abs(gh.data["l1"]) < 1e-8 and gh.data["omega"] == pytest.approx(1.0, rel=1e-12)
+    assert gh.data["l2"] == pytest.approx(-4.0, abs=1e-6)  # s = -1: l2 = 4 s (WarpedBautin below)
     assert not curve.points("BT")
     # l1 along the curve, recomputed by the test function at stored points, against 2 b2
     from contin.extended import ExtendedSystem
@@ -82,6 +86,71 @@ def test_bautin_gh_at_the_origin_and_l1_is_2_b2():
         x = np.concatenate([curve.states[i], [b2]])
         l1, hopf = test.value(system, x)
         assert hopf and l1 == pytest.approx(2 * b2, abs=2e-7)  # the truncation above
+
+
+class WarpedBautin:
+    """The Bautin normal form at its GH (b1 = b2 = 0), z' = i z + s z|z|^4 in x1 = Re z, x2 = Im z,
+    with x3' = -x3 + x1^2, written in coordinates y with x = T (y + N(y)): M y' = M k (I + N'(y))^-1
+    T^T f(T (y + N(y))).  N (quadratic and cubic) gives the system quadratic, cubic and quartic
+    terms (B, C, D and all the H's of l2 nonzero); T orthogonal keeps |q| = 1; k scales time
+    (omega = k); M is a mass matrix.  l2 is invariant under all of them: 4 s (the class
+    docstring of ``Bautin`` above: z = sqrt(2) w, w' = i w + 4 s w|w|^4).  Its Jacobian is the
+    complex-step derivative of the residual (exact to rounding)."""
+
+    parameter_names = ("b1", "b2")
+
+    def __init__(self, s, t=np.eye(3), m=None, k=1.0, warp=0.3):
+        self.s, self.t, self.m, self.k, self.warp = s, t, m, k, warp
+
+    def _f(self, x, p):
+        r2 = x[0] ** 2 + x[1] ** 2
+        g = p["b1"] + p["b2"] * r2 + self.s * r2 * r2
+        return np.array([g * x[0] - x[1], x[0] + g * x[1], -x[2] + x[0] ** 2])
+
+    def _n(self, y):
+        return self.warp * np.array([y[0] * y[2] + 0.7 * y[1] ** 2 - 0.4 * y[0] ** 3,
+                                     y[0] ** 2 - 0.5 * y[0] * y[1] + 0.6 * y[1] ** 2 * y[2],
+                                     y[0] * y[1] + y[1] ** 2 + 0.8 * y[0] ** 2 * y[1]])
+
+    def _dn(self, y):
+        return self.warp * np.array([[y[2] - 1.2 * y[0] ** 2, 1.4 * y[1], y[0]],
+                                     [2 * y[0] - 0.5 * y[1], -0.5 * y[0] + 1.2 * y[1] * y[2], 0.6 * y[1] ** 2],
+                                     [y[1] + 1.6 * y[0] * y[1], y[0] + 2 * y[1] + 0.8 * y[0] ** 2, 0 * y[0]]])
+
+    def residual(self, y, p):
+        g = self.k * np.linalg.solve(np.eye(3) + self._dn(y), self.t.T @ self._f(self.t @ (y + self._n(y)), p))
+        return g if self.m is None else self.m @ g
+
+    def jacobian(self, y, p):
+        h = 1e-30
+        return np.array([np.imag(self.residual(y + 1j * h * e, p)) / h for e in np.eye(3)]).T
+
+    def mass_matrix(self, y, p):
+        return np.eye(3) if self.m is None else self.m
+
+
+def _rotation(a, b):
+    c1, s1, c2, s2 = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
+    return np.array([[c1, -s1, 0], [s1, c1, 0], [0, 0, 1]]) @ np.array([[1, 0, 0], [0, c2, -s2], [0, s2, c2]])
+
+
+@pytest.mark.parametrize("s", [1.0, -1.0])
+def test_second_lyapunov_coefficient_of_the_bautin_normal_form(s):
+    """l2 = 4 s (Kuznetsov's normalization q^H q = 1, l2 = Re c2 / omega), the same after a
+    rotation, a near-identity nonlinear change of coordinates, a time scaling (omega = 2) and a
+    mass matrix.  Tolerance 1e-6: D and E are third and fourth differences of J
+    (Richardson-extrapolated, ~1e-7 here)."""
+    from contin.codim2tests import second_lyapunov
+    from contin.hopf import first_lyapunov
+
+    origin, u = {"b1": 0.0, "b2": 0.0}, np.zeros(3)
+    mass = np.array([[2.0, 0.3, 0.0], [0.1, 1.5, 0.2], [0.0, 0.4, 3.0]])
+    cases = [({"warp": 0.0}, 1.0), ({}, 1.0), ({"t": _rotation(0.7, 0.4)}, 1.0),
+             ({"t": _rotation(0.7, 0.4), "k": 2.0}, 2.0), ({"t": _rotation(0.7, 0.4), "k": 2.0, "m": mass}, 2.0)]
+    for kw, omega in cases:
+        pb = WarpedBautin(s, **kw)
+        assert abs(first_lyapunov(pb, u, origin, omega)) < 1e-6  # a GH: l1 = 0
+        assert second_lyapunov(pb, u, origin, omega) == pytest.approx(4 * s, abs=1e-6), kw
 
 
 def test_gh_detection_off_and_forced():
@@ -141,6 +210,39 @@ def ab_gh_reference() -> np.ndarray:
     return z
 
 
+def ab_l2_poincare(z: np.ndarray) -> float:
+    """Kuznetsov's l2 of ab at the GH z = (u1, u2, D, B) (beta = 3) from its Poincare map,
+    without normal forms: on the ray x0 + rho v (v = Re q / |Re q|, q numpy's unit eigenvector of
+    i omega) one turn of the orbit moves rho by d(rho) = 2 pi l2 rho^5 / a^4 + O(rho^6) with
+    a = 2 |Re q| (on the center manifold x - x0 = 2 Re(w q) + O(|w|^2), and one turn of
+    w' = i omega w + c2 w|w|^4 changes |w| by 2 pi (Re c2 / omega) |w|^5; l1 = 0 at z).  The orbit
+    is integrated in x - x0 (DOP853, rtol 1e-13) from 17 rho in [0.04, 0.2]; d / rho^5 is fitted
+    by a polynomial of degree 6 in rho and taken at rho = 0 (degrees 4 to 7 agree within 5e-5
+    relative)."""
+    from scipy.integrate import solve_ivp
+
+    model = AB()
+    x0, p = z[:2], {"D": z[2], "B": z[3], "beta": 3.0}
+    w, vecs = np.linalg.eig(model.jacobian(x0, p).toarray())
+    k = int(np.argmax(w.imag))
+    omega, q = float(w[k].imag), vecs[:, k] / np.linalg.norm(vecs[:, k])
+    a = 2 * float(np.linalg.norm(q.real))
+    v = q.real / np.linalg.norm(q.real)
+    normal = np.array([-v[1], v[0]])
+
+    def section(t, y):
+        return float(y @ normal)
+
+    rhos = np.linspace(0.04, 0.2, 17)
+    ratios = []
+    for rho in rhos:
+        sol = solve_ivp(lambda t, y: model.residual(x0 + y, p), (0.0, 3 * math.pi / omega), rho * v, method="DOP853",
+                        rtol=1e-13, atol=1e-18, events=section)
+        back = next(y for t, y in zip(sol.t_events[0], sol.y_events[0]) if y @ v > 0 and t > math.pi / omega)
+        ratios.append((float(back @ v) - rho) / rho**5)
+    return float(np.polyfit(rhos, ratios, 6)[-1]) * a**4 / (2 * math.pi)
+
+
 def test_auto_ab_hopf_curve_gh_against_the_defining_system():
     """AUTO's ab at beta = 3: from the lower HB at B = 14 (subcritical) the Hopf curve in (D, B)
     passes a BT at B = 64/3 one way and a GH the other way, then the upper (supercritical) HB."""
@@ -165,6 +267,13 @@ def test_auto_ab_hopf_curve_gh_against_the_defining_system():
     assert gh.params["D"] == pytest.approx(z[2], rel=1e-8)
     assert gh.params["B"] == pytest.approx(z[3], rel=1e-8)
     assert np.allclose(gh.state[:2], z[:2], rtol=1e-8, atol=0)
+    # l2 of the GH (-0.44258) against its Poincare map (the reference's own spread: 5e-5)
+    from contin.codim2tests import second_lyapunov
+
+    reference = ab_l2_poincare(z)
+    assert gh.data["l2"] == pytest.approx(reference, rel=1e-4)
+    omega = math.sqrt(np.linalg.det(model.jacobian(z[:2], {"D": z[2], "B": z[3], "beta": 3.0}).toarray()))
+    assert second_lyapunov(model, z[:2], {"D": z[2], "B": z[3], "beta": 3.0}, omega) == pytest.approx(reference, rel=1e-4)
 
 
 def test_ab_scene_hopf_curve_gh_from_the_cli(tmp_path):

@@ -1,5 +1,6 @@
 """Zero-Hopf (ZH) and double-Hopf (HH) points on fold and Hopf curves (``contin.codim2tests``),
-against closed forms of two small systems built for the purpose:
+against closed forms of two small systems built for the purpose (defined, with their scenes for
+the CLI, in tests/codim2_fixture_scenes.py):
 
 - ``FoldHopf``: x' = a + b - x^2 + b x and an oscillator (v, w) with real part r = b - 1 + x,
   frequency 1 and cubic damping.  Folds: x = b/2, a = -b - b^2/4; Hopf points: x = 1 - b,
@@ -24,55 +25,7 @@ from contin.continuation import trace, trace_both
 from contin.foldcurve import trace_fold_curve
 from contin.hopfcurve import trace_hopf_curve
 from contin.options import ContinuationOptions, DetectionOptions, StepOptions
-
-
-class FoldHopf:
-    parameter_names = ("a", "b")
-
-    def residual(self, u, p):
-        x, v, w = u
-        r, rho = p["b"] - 1 + x, v * v + w * w
-        return np.array([p["a"] + p["b"] - x * x + p["b"] * x, r * v - w - v * rho, v + r * w - w * rho])
-
-    def jacobian(self, u, p):
-        x, v, w = u
-        r, rho = p["b"] - 1 + x, v * v + w * w
-        return sp.csr_matrix(np.array([[-2 * x + p["b"], 0.0, 0.0],
-                                       [v, r - rho - 2 * v * v, -1 - 2 * v * w],
-                                       [w, 1 - 2 * v * w, r - rho - 2 * w * w]]))
-
-    def dresidual_dp(self, u, p, name):
-        x, v, w = u
-        return np.array([1.0, 0.0, 0.0]) if name == "a" else np.array([1 + x, v, w])
-
-
-class TwoOscillators:
-    parameter_names = ("a", "b")
-
-    def _parts(self, p):
-        return p["a"] + p["b"] + p["b"] ** 2 - 1, p["b"] - p["a"] / 2
-
-    def residual(self, u, p):
-        v1, w1, v2, w2 = u
-        r1, r2 = self._parts(p)
-        s1, s2 = v1 * v1 + w1 * w1, v2 * v2 + w2 * w2
-        return np.array([r1 * v1 - w1 - v1 * s1, v1 + r1 * w1 - w1 * s1,
-                         r2 * v2 - 2 * w2 - v2 * s2, 2 * v2 + r2 * w2 - w2 * s2])
-
-    def jacobian(self, u, p):
-        v1, w1, v2, w2 = u
-        r1, r2 = self._parts(p)
-        s1, s2 = v1 * v1 + w1 * w1, v2 * v2 + w2 * w2
-        j = np.zeros((4, 4))
-        j[:2, :2] = [[r1 - s1 - 2 * v1 * v1, -1 - 2 * v1 * w1], [1 - 2 * v1 * w1, r1 - s1 - 2 * w1 * w1]]
-        j[2:, 2:] = [[r2 - s2 - 2 * v2 * v2, -2 - 2 * v2 * w2], [2 - 2 * v2 * w2, r2 - s2 - 2 * w2 * w2]]
-        return sp.csr_matrix(j)
-
-    def dresidual_dp(self, u, p, name):
-        v1, w1, v2, w2 = u
-        d1, d2 = (1.0, -0.5) if name == "a" else (1 + 2 * p["b"], 1.0)
-        return np.array([d1 * v1, d1 * w1, d2 * v2, d2 * w2])
-
+from tests.codim2_fixture_scenes import CoupledFoldHopf, FoldHopf, TwoOscillators
 
 STEP = StepOptions(ds=0.02, ds_max=0.05)
 
@@ -216,3 +169,166 @@ def test_bogdanov_takens_normal_form_coefficients():
                             parameter="b1")
     (on_fold,) = fold.points("BT")
     assert on_fold.data["a"] == pytest.approx(1.0, abs=1e-8) and on_fold.data["b"] == pytest.approx(-1.0, abs=1e-8)
+
+
+def _one(points):
+    (point,) = points
+    return point
+
+
+def test_switching_at_zero_hopf_between_the_fold_and_the_hopf_curve():
+    """From the ZH of the fold curve the Hopf curve starts (the pair +-i of the base pencil), and
+    from the ZH of the Hopf curve the fold curve (the real zero eigenvalue's null vector): every
+    point of each switched curve lies on the other curve's closed form (Hopf: x = 1 - b,
+    a = (1 - b)(1 - 2 b) - b, omega = 1; fold: x = b/2, a = -b - b^2/4), both sides of the ZH are
+    traced, and the start is the one ZH of the new curve, at (a, b) = (-7/9, 2/3)."""
+    from contin.foldcurve import SegmentRegrid
+    from contin.twoparam import NotAvailable, continue_point, continuable_types
+
+    assert {"ZH", "HH"} <= set(continuable_types())
+    pb, br = _fold_hopf_points()
+    opts = ContinuationOptions(step=STEP, bounds={"a": (-2, 2), "b": (-0.5, 1.0)}, max_steps=400)
+    fold = trace_fold_curve(pb, _one(br.points("LP")), "b", opts, parameter="a")
+    hopf = continue_point(pb, fold, _one(fold.points("ZH")), "b", opts)
+    assert hopf.kind == "hopf-curve" and hopf.free == ("a", "b")
+    b, n = hopf.params["b"], 3
+    assert b.min() < 0 and b.max() > 0.99  # both sides of b = 2/3
+    assert np.max(np.abs(hopf.params["a"] - ((1 - b) * (1 - 2 * b) - b))) < 1e-10
+    assert np.max(np.abs(hopf.states[:, 0] - (1 - b))) < 1e-10
+    assert np.max(np.abs(hopf.observables["kappa"] - 1.0)) < 1e-10  # omega = 1 all along
+    for i in range(len(hopf)):  # the base state is an equilibrium: F = 0 (fold-curve states are not: phi != 0)
+        p = {"a": hopf.params["a"][i], "b": b[i]}
+        assert np.max(np.abs(pb.residual(hopf.state(i)[:n], p))) < 1e-10
+    start = _one(hopf.points("ZH"))
+    assert start.params["a"] == pytest.approx(-7 / 9, abs=1e-10) and start.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+    assert "start: ZH" in start.note and start.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    assert not hopf.points("BT") and not hopf.points("HH") and not hopf.points("GH")
+
+    back = continue_point(pb, hopf, start, "b", opts)
+    assert back.kind == "fold-curve"
+    b = back.params["b"]
+    assert b.min() < 0 and b.max() > 0.99
+    assert np.max(np.abs(back.params["a"] - (-b - b**2 / 4))) < 1e-10
+    assert np.max(np.abs(back.states[:, 0] - b / 2)) < 1e-10
+    start = _one(back.points("ZH"))
+    assert start.params["a"] == pytest.approx(-7 / 9, abs=1e-10) and start.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+    assert "start: ZH" in start.note and start.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    # no regridding; no HH on a fold curve
+    with pytest.raises(NotAvailable, match="zero-Hopf"):
+        continue_point(pb, fold, _one(fold.points("ZH")), "b", opts, regrid=SegmentRegrid(None))
+    with pytest.raises(NotAvailable, match="from a Hopf curve, not from a fold-curve"):
+        continue_point(pb, fold, replace(_one(fold.points("ZH")), type="HH"), "b", opts)
+
+
+def test_no_generalized_hopf_at_the_pole_of_l1_and_l2_of_the_true_one():
+    """CoupledFoldHopf (c = 0.5): l1 has a pole at the ZH (-7/9, 2/3); the Hopf curve through it
+    reported a converged GH there (l1 = -7.5e10).  Now its only GH is the true one, at
+    b = (2 - c)/3 = 1/2, a = (1 - b)(1 - 2 b) - b = -1/2, with l2 = -4/c = -8 (closed form: the
+    class docstring); the Hopf curve switched from the fold curve's ZH has the same GH and none
+    at its start."""
+    from contin.twoparam import continue_point
+
+    pb = CoupledFoldHopf(0.5)
+    br = trace_both(pb, np.array([0.5, 0.0, 0.0]), {"a": 0.25, "b": 0.0}, "a",
+                    ContinuationOptions(step=STEP, bounds={"a": (-0.5, 2.0)}, max_steps=400))
+    opts = ContinuationOptions(step=STEP, bounds={"a": (-2, 2), "b": (-0.5, 1.0)}, max_steps=400)
+    hopf = trace_hopf_curve(pb, _one(br.points("HB")), "b", opts, parameter="a")
+    fold = trace_fold_curve(pb, _one(br.points("LP")), "b", opts, parameter="a")
+    switched = continue_point(pb, fold, _one(fold.points("ZH")), "b", opts)
+    for curve in (hopf, switched):
+        zh, gh = _one(curve.points("ZH")), _one(curve.points("GH"))
+        assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+        assert gh.params["b"] == pytest.approx(0.5, abs=1e-8) and gh.params["a"] == pytest.approx(-0.5, abs=1e-8)
+        assert gh.converged and abs(gh.data["l1"]) < 1e-8
+        assert gh.data["l2"] == pytest.approx(-8.0, abs=1e-6)
+
+
+def test_switching_at_double_hopf_to_the_other_pair():
+    """From the HH of the first oscillator's Hopf curve (a = 1 - b - b^2, omega = 1) the Hopf
+    curve of the second oscillator starts: r2 = b - a/2 = 0, i.e. a = 2 b, with omega = 2 all
+    along; its start is its one HH (omega 2, omega2 1) at b = (sqrt(13) - 3)/2."""
+    from contin.twoparam import continue_point
+
+    pb = TwoOscillators()
+    br = trace(pb, np.zeros(4), {"a": 0.5, "b": 0.0}, "a",
+               ContinuationOptions(step=STEP, bounds={"a": (0.5, 2.0)}, max_steps=200))
+    opts = ContinuationOptions(step=STEP, bounds={"a": (-1.0, 2.0), "b": (-0.2, 0.8)}, max_steps=200)
+    first = trace_hopf_curve(pb, _one(br.points("HB")), "b", opts, parameter="a")
+    other = continue_point(pb, first, _one(first.points("HH")), "b", opts)
+    assert other.kind == "hopf-curve"
+    b = other.params["b"]
+    assert b.min() == pytest.approx(-0.2, abs=1e-12) and b.max() == pytest.approx(0.8, abs=1e-12)  # bound to bound
+    assert np.max(np.abs(other.params["a"] - 2 * b)) < 1e-10
+    assert np.max(np.abs(other.observables["kappa"] - 4.0)) < 1e-10
+    assert np.max(np.abs(other.states[:, :4])) < 1e-10  # the equilibrium u = 0
+    start = _one(other.points("HH"))
+    assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+    assert start.params["a"] == pytest.approx(math.sqrt(13) - 3, abs=1e-10)
+    assert start.data == pytest.approx({"omega": 2.0, "omega2": 1.0}, rel=1e-10) and "start: HH" in start.note
+    assert not other.points("ZH") and not other.points("BT")
+    # and back: from the new curve's HH, the first oscillator's curve a = 1 - b - b^2
+    again = continue_point(pb, other, start, "b", opts)
+    b = again.params["b"]
+    assert np.max(np.abs(again.params["a"] - (1 - b - b**2))) < 1e-10
+    assert np.max(np.abs(again.observables["kappa"] - 1.0)) < 1e-10
+
+
+def test_cli_continue_from_zero_hopf_and_double_hopf(tmp_path, monkeypatch):
+    """`contin continue FILE --from ZHk / HHk --free b` on the fixture scenes: the fold curve's ZH
+    starts the Hopf curve, that curve's ZH the fold curve again, the Hopf curve's HH the other
+    oscillator's Hopf curve; every stored curve lies on its closed form."""
+    import json
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from contin import io
+    from contin.cli import main
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parent))
+    monkeypatch.setenv("CONTIN_SCENES", "codim2_fixture_scenes:SCENES")
+
+    def run(*args):
+        res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+        assert res.exit_code == 0, res.output
+        return res
+
+    def label(res, kind):
+        (row,) = [sp for sp in json.loads(res.stdout)["special_points"] if sp["type"] == kind]
+        return row["label"], row["params"]
+
+    box = ("--bounds", "a=-2:2", "--bounds", "b=-0.5:1")
+    first, fold, hopf, back = (tmp_path / f"{n}.h5" for n in ("run", "fold", "hopf", "back"))
+    run("trace", "fold-hopf", "--no-stability", "-q", "-o", first)
+    (branch,), _ = io.load(first)
+    res = run("continue", first, "--from", _one(branch.points("LP")).name, "--free", "b", *box, "-o", fold, "--json")
+    zh, at = label(res, "ZH")  # `continue --from LP` now detects ZH, as trace_fold_curve did
+    assert at["a"] == pytest.approx(-7 / 9, abs=1e-10) and at["b"] == pytest.approx(2 / 3, abs=1e-10)
+    res = run("continue", fold, "--from", zh, "--free", "b", *box, "-o", hopf, "--json")
+    assert f"Hopf curve from {zh}" in res.stderr
+    (curve,), _ = io.load(hopf)
+    b = curve.params["b"]
+    assert curve.kind == "hopf-curve" and b.min() < 0 and b.max() > 0.99
+    assert np.max(np.abs(curve.params["a"] - ((1 - b) * (1 - 2 * b) - b))) < 1e-10
+    (start,) = curve.points("ZH")
+    assert start.params["b"] == pytest.approx(2 / 3, abs=1e-10) and start.params["a"] == pytest.approx(-7 / 9, abs=1e-10)
+    res = run("continue", hopf, "--from", start.name, "--free", "b", *box, "-o", back, "--json")
+    assert f"fold curve from {start.name}" in res.stderr
+    (curve,), _ = io.load(back)
+    b = curve.params["b"]
+    assert curve.kind == "fold-curve" and np.max(np.abs(curve.params["a"] - (-b - b**2 / 4))) < 1e-10
+
+    first, hopf, other = (tmp_path / f"{n}.h5" for n in ("osc", "osc-hopf", "osc-other"))
+    box = ("--bounds", "a=-1:2", "--bounds", "b=-0.2:0.8")
+    run("trace", "two-oscillators", "--no-stability", "-q", "-o", first)
+    (branch,), _ = io.load(first)
+    res = run("continue", first, "--from", _one(branch.points("HB")).name, "--free", "b", *box, "-o", hopf, "--json")
+    hh, at = label(res, "HH")
+    assert at["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+    res = run("continue", hopf, "--from", hh, "--free", "b", *box, "-o", other, "--json")
+    assert f"Hopf curve from {hh}" in res.stderr
+    (curve,), _ = io.load(other)
+    b = curve.params["b"]
+    assert np.max(np.abs(curve.params["a"] - 2 * b)) < 1e-10 and np.max(np.abs(curve.observables["kappa"] - 4)) < 1e-10
+    (start,) = curve.points("HH")
+    assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)

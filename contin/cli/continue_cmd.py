@@ -33,8 +33,8 @@ from contin.limits import MIN_MAX_GRID
 
 
 def _what(point: Any, curve: Any) -> str:
-    """'LP curve', 'HB curve', ...; from a BT the curve it starts ('fold curve', 'Hopf curve')."""
-    if point.type == "BT":
+    """'LP curve', 'HB curve', ...; from a BT, ZH or HH the curve it starts ('fold curve', 'Hopf curve')."""
+    if point.type in ("BT", "ZH", "HH"):
         return {"fold-curve": "fold curve", "hopf-curve": "Hopf curve"}.get(curve.kind, "curve")
     return f"{point.type} curve"
 
@@ -176,8 +176,9 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         problem = on_grid(problem, int(point.grid))
         own_grid = int(point.grid)
     size = getattr(problem, "size", None)
-    if isinstance(size, int) and point.state is not None and size != len(point.state) and point.type != "BT":
-        # (a BT lies on a fold or Hopf curve: its augmented state is checked by contin.twoparam)
+    if (isinstance(size, int) and point.state is not None and size != len(point.state)
+            and point.type not in ("BT", "ZH", "HH")):
+        # (a BT, ZH or HH lies on a fold or Hopf curve: its augmented state is checked by contin.twoparam)
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")
     from contin.cancel import stop_on_sigint

@@ -1,23 +1,28 @@
 """Grid hooks of the non-local problems (``contin.adapt``'s ``grid_size``, ``with_grid``,
-``transfer``, ``error_estimate``), so that ``contin verify`` can re-solve their stored points on
-a finer grid.
+``transfer``, ``error_estimate``): adaptive resolution (``contin trace nonlocal-* --tol``) and
+``contin verify``'s re-solves on a finer grid.
 
 Both problems (:class:`problems.nonlocal_flow.plane.PlaneShear`,
 :class:`problems.nonlocal_flow.cylinder.CylindricalCouette`) lay out their states alike: two
-profiles on the grid (phi and g = W gamma, or phi and u) and the scalar P.  The estimate is the
-measure of plane shear's resolution guard: the tail of the profiles' Chebyshev coefficients,
-phi's relative to its variation across the gap and the second profile's relative to its maximum.
-On finite-difference grids there is no such estimate (NaN: ``contin verify`` reports the measured
-error only); the scenes are not adaptive (``Scene.adaptive`` is False), so no tracer relies on it.
+profiles on the grid (phi and g = W gamma, or phi and u) and the scalar P.
 
-The resolution guard (``under_resolved``, every fixed-grid trace at ``resolution_tol``) measures
-instead: the two-grid error of the state (``contin.adapt.two_grid_error``: one Newton correction
-on the grid twice as fine, Richardson-scaled on FD grids), together with the Chebyshev tail on
-Chebyshev grids.  Session 15's audit (every stored state against a cheb 128 reference solve):
-without it ``contin trace nonlocal-cylinder`` (no guard at all) stored states 1.3e-3 off on cheb
-16, 1.1e-2 on fd2 32 -- the tail read 2.2e-5 where the error was 1.1e-3 -- and plane shear's
-guard, Chebyshev only, let ``nonlocal-shear --method fd2 --grid 32`` store states 0.16 off, all
-with exit 0 and no warning.  The two-grid error matched the reference to 2-5 % in every case.
+The estimate (``error_estimate``) is *measured*: the state's two-grid error
+(``contin.adapt.two_grid_error``: one Newton correction on the grid GUARD_FACTOR times finer,
+Richardson-scaled on FD grids), on Chebyshev grids together with the tail of the profiles'
+Chebyshev coefficients (phi's relative to its variation across the gap, the second profile's
+relative to its maximum; :meth:`NonlocalGridHooks.tail_error`).  The tail alone under-states the
+error of these problems, and FD grids have none: session 15's audit (every stored state against a
+cheb 128 reference solve) found ``contin trace nonlocal-cylinder`` (no guard then) storing states
+1.3e-3 off on cheb 16, 1.1e-2 on fd2 32 -- the tail read 2.2e-5 where the error was 1.1e-3 -- and
+plane shear's guard, Chebyshev only, let ``nonlocal-shear --method fd2 --grid 32`` store states
+0.16 off, all with exit 0 and no warning.  The two-grid error matched the reference to 2-5 % in
+every case.  Its cost is one residual, Jacobian and LU on the fine grid (states of 2N + 3
+unknowns: ~1 ms on cheb 48).
+
+The fixed-grid resolution guard (``under_resolved``, every trace on a --grid at
+``resolution_tol``) measures the same: the two-grid error, with the Chebyshev tail on Chebyshev
+grids (a run on a fixed grid ends MX "need a finer --grid" where it exceeds tol; an adaptive run
+refines instead).
 """
 
 from __future__ import annotations
@@ -97,10 +102,10 @@ class NonlocalGridHooks:
 
     def under_resolved(self, x: Array, p: Mapping[str, Any], tol: float) -> str | None:
         """contin's resolution guard: None if the state's two-grid error (:meth:`two_grid_error`)
-        and, on Chebyshev grids, its coefficient tail (:meth:`error_estimate`) are <= tol."""
+        and, on Chebyshev grids, its coefficient tail (:meth:`tail_error`) are <= tol."""
         method, n = self.grid.method, int(self.grid.intervals)  # type: ignore[attr-defined]
         if method == "cheb":
-            tail = self.error_estimate(x, p)
+            tail = self.tail_error(x)
             if tail > tol:
                 return (f"Chebyshev tail {tail:.1e} of the profiles' scale (> {tol:.1e}) on cheb {n}: "
                         "need a finer --grid")
@@ -110,10 +115,16 @@ class NonlocalGridHooks:
                     f"{method} {GUARD_FACTOR * n}: need a finer --grid")
         return None
 
-    def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
-        """Estimated relative error of x: the larger of :func:`profile_tails` on Chebyshev grids,
-        NaN on finite-difference grids (module docstring)."""
+    def tail_error(self, x: Array) -> float:
+        """The larger of :func:`profile_tails` on Chebyshev grids; 0 on finite-difference grids
+        (no spectral tail there: the two-grid error alone measures them)."""
         if self.grid.method != "cheb":  # type: ignore[attr-defined]
-            return math.nan
+            return 0.0
         phi, f, _ = self.split(np.asarray(x, dtype=float))  # type: ignore[attr-defined]
         return max(profile_tails(phi, f))
+
+    def error_estimate(self, x: Array, p: Mapping[str, Any]) -> float:
+        """Estimated relative error of x (module docstring): the larger of its two-grid error
+        (:meth:`two_grid_error`) and, on Chebyshev grids, its coefficient tail (:meth:`tail_error`)."""
+        tail = self.tail_error(x)
+        return max(tail, self.two_grid_error(x, p))

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.adapt import on_grid, point_problem
 from contin.branch import Branch, relabel
 from contin.continuation import trace_both
 from contin.options import ContinuationOptions, StepOptions
@@ -64,6 +65,13 @@ SHEAR_DEFAULTS: dict[str, Any] = {
 #: Relative tolerance of the uniform-phi branch against the closed form (Chebyshev resolves it
 #: to ~1e-14; the note flags anything worse, e.g. an FD grid or a layer thinner than the grid).
 ANALYTIC_TOL = 1e-8
+
+
+#: The tol of a run without --grid and --tol (``Scene.default_tol``), per scene: at most the
+#: largest two-grid error of a state the former fixed default grid (cheb 48) stored -- plane
+#: shear 3.2e-7 (pair 2 at ell = 1 and W = 120; the closed-form comparison asks ANALYTIC_TOL),
+#: the cylinder 3.9e-11, mu(I) 3.8e-11 -- so that no stored state is less accurate than there.
+DEFAULT_TOL = {"nonlocal-shear": ANALYTIC_TOL, "nonlocal-cylinder": 1e-10, "nonlocal-muI": 1e-10}
 
 
 #: The pairs' mu_w branches run over 0 <= mu_w <= MU_W_SPAN mu (zeta^2 = (1 - mu_w/mu)/ell^2 > 0).
@@ -160,13 +168,14 @@ def run_shear(request: SceneRequest) -> SceneResult:
                   "mu_w": (0.0, MU_W_SPAN * s["mu"], 0.01),
                   "W": (s["W_min"], s["W_max"], 1.0)}
         asym = 0.0
+        traced: dict[str, Branch] = {}
         for name, (lo, hi, ds) in ranges.items():
             bid = f"pair{k}.{name}"
-            br = em.run(bid, lambda name=name, lo=lo, hi=hi, ds=ds, bid=bid: _trace(pb, p, name, lo, hi, ds, request, bid))
+            br = traced[name] = em.run(bid, lambda name=name, lo=lo, hi=hi, ds=ds, bid=bid: _trace(pb, p, name, lo, hi, ds, request, bid))
             asym = max(asym, float(np.max(br.observables["asym_phi"])), float(np.max(br.observables["asym_u"])))
             if br.status != "EP":
                 notes.append(f"{bid}: ended {br.status}: {br.message}")
-        obs = pb.observables(_solve(pb, p), p)
+        obs = _at_start(pb, traced["ell"], "ell", p)
         an = PlaneShearAnalytic(p["W"], K, p["ell"], mu_w, p["mu"])
         extra[f"pair{k}"] = {"K": K, "mu_w": mu_w, "max_asymmetry": asym, "uniform_delta": an.wall_layer, **obs}
         notes.append(f"pair {k} (K = {K:g}, mu_w = {mu_w:g}) at ell = {p['ell']:g}, W = {p['W']:g}, phi_bar = {p['phi_bar']:g}: "
@@ -184,6 +193,32 @@ def run_shear(request: SceneRequest) -> SceneResult:
     )
 
 
+def _on_own_grid(pb: Any, state: Any) -> tuple[Any, np.ndarray]:
+    """(the problem on the grid of ``state``, state): a state of any grid of ``pb``'s method
+    (adaptive runs store each point on its own grid; both problems hold 2 (N + 1) + 1 values)."""
+    x = np.asarray(state, dtype=float)
+    return (pb if x.size == pb.size else on_grid(pb, (x.size - 1) // 2 - 1)), x
+
+
+def _on_start_grid(pb: Any, state: Any) -> np.ndarray:
+    """A state of any grid of ``pb``'s method on ``pb``'s own nodes (the file's y)."""
+    own, x = _on_own_grid(pb, state)
+    return x if own is pb else own.transfer(x, pb)
+
+
+def _at_start(pb: Any, branch: Branch, parameter: str, p: Mapping[str, float]) -> dict[str, float]:
+    """The observables at the branch's start point p (the branch passes through it: trace_both
+    from p), on that point's own grid; solved on ``pb``'s grid if the branch lacks it."""
+    hit = np.flatnonzero(np.asarray(branch.params[parameter]) == p[parameter]) if len(branch) else []
+    for i in hit:
+        try:
+            x = branch.state(int(i))
+        except KeyError:
+            continue
+        return point_problem(pb, branch, int(i)).observables(x, p)
+    return pb.observables(_solve(pb, p), p)
+
+
 def _solve(pb: PlaneShear, p: Mapping[str, float]) -> np.ndarray:
     from contin.continuation import newton
 
@@ -194,21 +229,25 @@ def _solve(pb: PlaneShear, p: Mapping[str, float]) -> np.ndarray:
 
 
 def _shear_profiles(pb: PlaneShear, state: np.ndarray) -> dict[str, np.ndarray]:
-    """phi, gamma W = du/d(y/W) and u - u(0) on y/W (u(0) = K gamma(0) needs K/W: see the branch)."""
-    phi, g, _ = pb.split(np.asarray(state))
+    """phi, gamma W = du/d(y/W) and u - u(0) on y/W (u(0) = K gamma(0) needs K/W: see the branch),
+    on ``pb``'s nodes for a state of any grid."""
+    phi, g, _ = pb.split(_on_start_grid(pb, state))
     rel = np.concatenate([[0.0], np.cumsum(pb.cells @ g)])
     return {"phi": phi.copy(), "gamma_W": g.copy(), "u_minus_u0": rel}
 
 
 def _analytic_errors(pb: PlaneShear, branch: Branch, base: Mapping[str, float]) -> tuple[float, float]:
-    """Max |u - u_exact| and max relative error of the wall-layer width along a uniform-phi branch."""
+    """Max |u - u_exact| and max relative error of the wall-layer width along a uniform-phi branch
+    (each point on its own grid, ``Branch.grid``)."""
     eu = ed = 0.0
-    idx = branch.state_index if branch.state_index is not None else np.arange(len(branch.states))
-    for row, i in zip(branch.states, idx):
+    idx = branch.state_index if branch.state_index is not None else np.arange(len(branch))
+    for i in (int(j) for j in idx):
+        row = branch.state(i)
+        own = point_problem(pb, branch, i)
         p = dict(base)
         p.update({name: float(col[i]) for name, col in branch.params.items()})
         an = PlaneShearAnalytic(p["W"], p["K"], p["ell"], p["mu_w"], p["mu"])
-        eu = max(eu, float(np.max(np.abs(pb.velocity(row, p) - an.u(pb.y(p))))))
+        eu = max(eu, float(np.max(np.abs(own.velocity(row, p) - an.u(own.y(p))))))
         ed = max(ed, abs(float(branch.observables["delta"][i]) / an.wall_layer - 1.0))
     return eu, ed
 
@@ -249,7 +288,8 @@ def run_muI(request: SceneRequest) -> SceneResult:
 
     mui = em.run("muI.U", lambda: trace_U(pb, 0.0, "muI.U"))
     # U = 0 is the quasi-static model: the first point against the plane-shear problem with dmu = 0
-    quasi = _solve(pb, dict(p, dmu=0.0))
+    first = point_problem(pb, mui, 0)  # (its own grid: adaptive runs)
+    quasi = _solve(first, dict(p, dmu=0.0))
     diff = float(np.max(np.abs(mui.state(0) - quasi)))
     I_max = np.asarray(mui.observables["I_max"])
     U = np.asarray(mui.params["U"])
@@ -330,8 +370,7 @@ def run_cylinder(request: SceneRequest) -> SceneResult:
         br = em.run(bid, lambda pb=pb, bid=bid: _trace(pb, p, "ratio", s["ratio_min"], s["ratio_max"], 0.02, request, bid))
         if br.status != "EP":
             notes.append(f"{bid}: ended {br.status}: {br.message}")
-        x = _solve(pb, p)
-        obs = pb.observables(x, p)
+        obs = _at_start(pb, br, "ratio", p)
         extra[op] = obs
         changes = int(np.max(br.observables["gamma_sign_changes"]))
         notes.append(f"{op} equations at r_o/r_i = {p['ratio']:g}, W = {p['W']:g}: P = {obs['P']:.6g}, u(r_i) = {obs['u_inner']:.6g}, "
@@ -344,10 +383,16 @@ def run_cylinder(request: SceneRequest) -> SceneResult:
         parameters=s,
         discretization={"method": first.grid.method, "intervals": first.grid.intervals},
         y=first.grid.y + 0.5,
-        profiles=lambda state: {"phi": np.asarray(state)[:first.n].copy(), "u": np.asarray(state)[first.n:2 * first.n].copy()},
+        profiles=lambda state: _cylinder_profiles(first, state),
         notes=notes,
         extra=extra,
     )
+
+
+def _cylinder_profiles(pb: CylindricalCouette, state: np.ndarray) -> dict[str, np.ndarray]:
+    """phi and u on ``pb``'s nodes, for a state of any grid."""
+    phi, u, _ = pb.split(_on_start_grid(pb, state))
+    return {"phi": phi.copy(), "u": u.copy()}
 
 
 def cylinder_factory(parameters: Mapping[str, Any], discretization: Mapping[str, Any]) -> CylindricalCouette:
@@ -371,6 +416,8 @@ SCENES = {
         run=run_shear,
         x="ell",
         y="delta",
+        adaptive=True,
+        default_tol=DEFAULT_TOL["nonlocal-shear"],
         problem_factory=shear_factory,
         stability=False,
     ),
@@ -381,6 +428,8 @@ SCENES = {
         run=run_muI,
         x="U",
         y="delta",
+        adaptive=True,
+        default_tol=DEFAULT_TOL["nonlocal-muI"],
         stability=False,  # and no problem_factory: muI.U and phiI.U are states of two problems
     ),
     "nonlocal-cylinder": Scene(
@@ -390,6 +439,8 @@ SCENES = {
         run=run_cylinder,
         x="ratio",
         y="phi",
+        adaptive=True,
+        default_tol=DEFAULT_TOL["nonlocal-cylinder"],
         problem_factory=cylinder_factory,
         stability=False,
     ),
