@@ -447,3 +447,21 @@ def test_a_scene_error_after_ctrl_c_is_still_an_interrupt(tmp_path):
     assert "note: after the Ctrl-C the scene ended with: branch 1 ended early" in stderr
     assert f"saved in {out} (continue with --resume {out})" in stderr
     assert io.load(out)[1]["stopped"] == "interrupted"
+
+
+def test_an_interrupted_depth_run_does_not_suggest_resume(tmp_path):
+    """`contin trace SCENE --depth 2 -o F` + Ctrl-C said `(continue with --resume F)` (and `contin info
+    F` 'continue it with --resume'), but --depth refuses --resume ('runs ... from scratch').  The
+    note and info no longer suggest it for a --depth run."""
+    import h5py
+
+    out = tmp_path / "d.h5"
+    res = run(["trace", "swift-hohenberg", "--depth", "1", "--no-stability", "-q", "-o", str(out)])
+    assert res.exit_code in (0, 3), res.stderr
+    with h5py.File(out, "r+") as f:  # what an interrupted --depth run leaves
+        f.attrs["complete"], f.attrs["stopped"] = False, "interrupted"
+    text = run(["info", str(out)]).stdout
+    assert "(incomplete: the run was interrupted; a --depth run is started again from scratch)" in text
+    assert "--resume" not in text
+    err = one_error(run(["trace", "swift-hohenberg", "--depth", "1", "--resume", str(out)]))
+    assert "--depth runs on a fixed grid and from scratch" in err

@@ -224,7 +224,7 @@ def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress,
     progress.done()
 
 
-def _stopped(writer: Any, exc: BaseException) -> None:
+def _stopped(writer: Any, exc: BaseException, *, can_resume: bool = True) -> None:
     """Record why the run stopped in the published file, say where the work is, drop the lock.
 
     An interrupt (Ctrl-C, SIGTERM), a full disk or a crash can be continued with --resume; bad
@@ -234,7 +234,9 @@ def _stopped(writer: Any, exc: BaseException) -> None:
     from contin.cancel import is_stopped_branch, stopped_by
 
     interrupted = isinstance(exc, KeyboardInterrupt)
-    resumable = not isinstance(exc, ValueError | LookupError)  # bad input would fail the same way again
+    # bad input would fail the same way again; a --depth run cannot be resumed (its note suggested
+    # --resume, which --depth refuses: qa16)
+    resumable = can_resume and not isinstance(exc, ValueError | LookupError)
     why = ("terminated by SIGTERM" if isinstance(exc, Terminated) else "interrupted" if interrupted
            else f"failed: {error_line(exc)}")
     try:
@@ -250,7 +252,8 @@ def _stopped(writer: Any, exc: BaseException) -> None:
     if writer.publishes and (done or partial):
         hint = f" (continue with --resume {writer.path})" if resumable else ""
         parts = [f"{len(done)} finished branch(es)"] if done else []
-        parts += [f"branch {b.id} up to its last point ({len(b)} points, {stopped_by(b)}; --resume traces it again)"
+        again = "; --resume traces it again" if resumable else ""
+        parts += [f"branch {b.id} up to its last point ({len(b)} points, {stopped_by(b)}{again})"
                   for b in partial]  # the branch in progress, ended at its last point by the first Ctrl-C/SIGTERM
         verb = "is" if len(parts) == 1 and not done else "are"
         echo_err(f"note: {' and '.join(parts)} {verb} saved in {writer.path}{hint}")
@@ -496,7 +499,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         writer = io.H5Writer(output, scene=scene, parameters={**sc.defaults, **params},
                              discretization={k: v for k, v in (("method", method), ("grid", grid)) if v is not None},
                              options=overrides, branches=completed.values(),
-                             diagram_x=sc.x, diagram_y=sc.y, checkpoint_ratio=CHECKPOINT_RATIO)
+                             diagram_x=sc.x, diagram_y=sc.y, checkpoint_ratio=CHECKPOINT_RATIO,
+                             extra={} if depth is None else {"depth": depth})  # (contin info of a stopped --depth run)
     progress = Progress(enabled=not quiet)
 
     def on_branch(branch: Any) -> None:
@@ -514,7 +518,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         """Save what was computed, say where, and end: Terminated as exit 143, others re-raised."""
         progress.close()
         if writer is not None:
-            _stopped(writer, exc)
+            _stopped(writer, exc, can_resume=depth is None)
         if isinstance(exc, Terminated):
             echo_err("Error: terminated by SIGTERM")
             raise click.exceptions.Exit(EXIT_TERMINATED) from None
@@ -573,7 +577,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         number_new_points(result.branches)  # HB points the stability pass located after the run
         if writer is not None:
             writer.update(parameters=result.parameters, discretization=result.discretization, options=options,
-                          notes=list(result.notes), extra=dict(result.extra), y=result.y, profiles=result.profiles)
+                          notes=list(result.notes), extra={**result.extra, **({} if depth is None else {"depth": depth})},
+                          y=result.y, profiles=result.profiles)
             writer.set_branches(result.branches)
             writer.close()
     except BaseException as exc:
