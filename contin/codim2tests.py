@@ -37,7 +37,7 @@ import numpy as np
 
 from contin.branch import SpecialPoint
 from contin.pointtests import Crossing
-from contin.problem import Array
+from contin.problem import Array, has
 from contin.testfunctions import sign_log_crossing
 
 #: (augmented state, parameters) -> (base state u, base parameters q with p2 in place)
@@ -83,6 +83,18 @@ class BaseEigenTest:
         if self.own_kappa is not None:
             kappa = float(x[self.own_kappa])
             data["omega"] = math.sqrt(kappa) if kappa > 0 else math.nan
+        problem = self.hopf.problem
+        if has(problem, "eigenproblem"):  # its own M is not the steady one (as for BT): no normal form
+            return replace(sp_, data=data)
+        u, q = self.split(x[:-1], system.params_at(x[-1]))
+        if self.own_kappa is None:  # ZH of a fold curve
+            omega = abs(float(data.get("omega", math.nan)))
+            data.update(zero_hopf_coefficients(problem, u, q, omega) if omega > 0 else _zh_nan())
+        else:
+            w1, w2 = float(data["omega"]), abs(float(data.get("omega2", math.nan)))
+            ok = w1 > 0 and w2 > 0
+            data.update(double_hopf_coefficients(problem, u, q, w1, w2) if ok else
+                        {k: math.nan for k in DOUBLE_HOPF_KEYS})
         return replace(sp_, data=data)
 
 
@@ -115,7 +127,12 @@ class ZeroHopfTest:
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         kappa = float(x[self.kappa_index])
-        return replace(sp_, data={**sp_.data, "omega": math.sqrt(kappa) if kappa > 0 else math.nan})
+        omega = math.sqrt(kappa) if kappa > 0 else math.nan
+        data = {**sp_.data, "omega": omega}
+        if not has(self.problem, "eigenproblem"):  # as for BT: its own M is not the steady one
+            u, q = self.split(x[:-1], system.params_at(x[-1]))
+            data.update(zero_hopf_coefficients(self.problem, u, q, omega) if omega > 0 else _zh_nan())
+        return replace(sp_, data=data)
 
 
 def generalized_null_vector(jac: Any, mass: Any, q0: Array, p1: Array) -> Array:
@@ -313,3 +330,196 @@ def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: 
            + C(qb, qb, h30) + 3 * C(q, q, h21b) + 6 * C(q, qb, h21) + 3 * C(q, h20b, h20) + 6 * C(q, h11, h11)
            + 6 * C(qb, h20, h11) + 2 * B(qb, h31) + 3 * B(q, h22) + B(h20b, h30) + 3 * B(h21b, h20) + 6 * B(h11, h21))
     return float(complex(np.vdot(p, r32)).real / (12 * omega))
+
+
+def _zh_nan() -> dict[str, float]:
+    return {k: math.nan for k in ZERO_HOPF_KEYS}
+
+
+#: The normal-form data of a zero-Hopf point (:func:`zero_hopf_coefficients`)
+ZERO_HOPF_KEYS = ("B", "C", "E", "s", "theta")
+
+
+def zero_hopf_coefficients(problem: Any, u: Array, params: Mapping[str, float], omega: float) -> dict[str, float]:
+    """Normal-form coefficients of a zero-Hopf (fold-Hopf) point (u, p) of M u' = F(u, p) with
+    the pair +-i omega: Kuznetsov, *Elements of Applied Bifurcation Theory*, 3rd ed., sec. 8.5
+    (Lemma 8.9 and eq. (8.81)), by the projection method of Kuznetsov, SIAM J. Numer. Anal. 36
+    (1999) generalized to M (f = M^-1 F).  On the center manifold u = u0 + xi q0 + z q1 + zb qb1
+    + ... the restricted system in Taylor coefficients reads
+
+        xi' = g200 xi^2 + g011 |z|^2 + g300 xi^3 + g111 xi |z|^2 + ...,
+        z'  = i omega z + g110 xi z + g210 xi^2 z + g021 z |z|^2 + ...,
+
+    with J q0 = 0, J^T p0 = 0, p0^T M q0 = 1, J q1 = i omega M q1, p1^H J = i omega p1^H M,
+    p1^H M q1 = 1 and (B, C the second and third derivatives of F)
+
+        g200 = p0^T B(q0, q0) / 2,   g011 = p0^T B(q1, qb1),   g110 = p1^H B(q0, q1),
+        J h200 = g200' M q0 - B(q0, q0),  -J h011 = B(q1, qb1) - g011 M q0   (p0^T M h = 0),
+        (i omega M - J) h110 = B(q0, q1) - g110 M q1  (p1^H M h110 = 0),
+        h020 = (2 i omega M - J)^-1 B(q1, q1),   (g200' = 2 g200)
+        g300 = p0^T [C(q0, q0, q0) + 3 B(q0, h200)] / 6,
+        g111 = p0^T [C(q0, q1, qb1) + B(q0, h011) + B(q1, hb110) + B(qb1, h110)],
+        g210 = p1^H [C(q0, q0, q1) + B(q1, h200) + 2 B(q0, h110)] / 2,
+        g021 = p1^H [C(q1, q1, qb1) + 2 B(q1, h011) + B(qb1, h020)] / 2;
+
+    the normal form xi' = beta1 + B xi^2 + C |z|^2, z' = (beta2 + i omega1) z + D xi z
+    + E xi^2 z (+ O(4)) has
+
+        B = g200,  C = g011,  theta = Re D / B = Re g110 / g200,
+        E = Re[g210 + g110 (Re g021 / g011 - 3 g300 / (2 g200) + g111 / (2 g011)) - g021 g200 / g011],
+
+    and s = sign(B C) = +-1: with theta they select Guckenheimer-Holmes' unfolding (s = 1: no
+    cycles off the Hopf curve for theta > 0 ...; s = -1, theta < 0: a torus (Neimark-Sacker curve
+    of the cycles) is born, the sign of E deciding its stability; Kuznetsov Figs. 8.12-8.19).
+    Normalization (the choice, as for BT and l1): q0 unit and q1 with q1^H W q1 = 1 (W the
+    problem's ``inner_product_weights``, else I), q0's sign such that B >= 0; then B ~ |q0|,
+    C ~ |q1|^2 / |q0|, E ~ |q0|^2, while s, theta and the sign of E do not depend on it.  B, C,
+    E scale with time (t -> t / k multiplies them by k).  NaN for all when the vectors or solves
+    fail (e.g. at a BT, where p0^T M q0 = 0)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from contin.hopf import _Forms, _mass, hopf_vectors
+    from contin.normalform import null_vectors
+    from contin.problem import inner_product_weights
+
+    u = np.asarray(u, float)
+    q_ = dict(params)
+    omega = abs(float(omega))
+    try:
+        jac = sp.csc_matrix(problem.jacobian(u, q_), dtype=float)
+        n = jac.shape[0]
+        mass = sp.csc_matrix(_mass(problem, u, q_, n), dtype=float)
+        weights = inner_product_weights(problem, u, q_)
+        nulls = null_vectors(jac)
+        q0, p0 = np.asarray(nulls.phi, float), np.asarray(nulls.psi, float)
+        q0 = q0 / math.sqrt(float(q0 @ (q0 if weights is None else weights * q0)))
+        mq0 = np.asarray(mass @ q0)
+        p0 = p0 / float(p0 @ mq0)
+        q1, p1 = hopf_vectors(jac, mass, omega, weights=weights)
+        forms = _Forms(problem, u, q_)
+        B, C = forms.B, forms.C
+        q0c, qb1 = q0.astype(complex), np.conj(q1)
+        jc, mc = sp.csc_matrix(jac, dtype=complex), sp.csc_matrix(mass, dtype=complex)
+        mq1 = np.asarray(mc @ q1)
+        b00 = np.real(B(q0c, q0c))
+        b11 = np.real(B(q1, qb1))
+        b01 = B(q0c, q1)
+        g200p = float(p0 @ b00)  # 2 g200
+        g011 = float(p0 @ b11)
+        g110 = complex(np.vdot(p1, b01))
+        zero = spla.splu(sp.bmat([[jac, mq0[:, None]], [np.asarray(mass.T @ p0)[None, :], None]], format="csc"))
+        h200 = zero.solve(np.concatenate([g200p * mq0 - b00, [0.0]]))[:n]
+        h011 = zero.solve(np.concatenate([g011 * mq0 - b11, [0.0]]))[:n]
+        one = spla.splu(sp.bmat([[sp.csc_matrix(1j * omega * mc - jc), sp.csc_matrix(mq1[:, None])],
+                                 [sp.csc_matrix(np.conj(np.asarray(mc.T @ p1))[None, :]), None]], format="csc"))
+        h110 = one.solve(np.concatenate([b01 - g110 * mq1, [0.0]]))[:n]
+        h020 = _solve_shifted(2j * omega * mc - jc, B(q1, q1))
+        h200c, h011c = h200.astype(complex), h011.astype(complex)
+        g300 = float(np.real(p0 @ (C(q0c, q0c, q0c) + 3 * B(q0c, h200c)))) / 6
+        g111 = float(np.real(p0 @ (C(q0c, q1, qb1) + B(q0c, h011c) + B(q1, np.conj(h110)) + B(qb1, h110))))
+        g210 = complex(np.vdot(p1, C(q0c, q0c, q1) + B(q1, h200c) + 2 * B(q0c, h110))) / 2
+        g021 = complex(np.vdot(p1, C(q1, q1, qb1) + 2 * B(q1, h011c) + B(qb1, h020))) / 2
+    except (np.linalg.LinAlgError, RuntimeError, ValueError, ZeroDivisionError):
+        return _zh_nan()
+    g200 = g200p / 2
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # g200 or g011 = 0 (degenerate): NaN
+        b_, c_ = np.float64(g200), np.float64(g011)
+        e = (g210.real + g110.real * (g021.real / c_ - 3 * g300 / (2 * b_) + g111 / (2 * c_))
+             - g021.real * b_ / c_)
+        theta = g110.real / b_
+    if g200 < 0:  # q0 -> -q0: B, C change sign; E, theta do not
+        g200, g011 = -g200, -g011
+    out = {"B": g200, "C": g011, "E": float(e), "s": float(np.sign(g200 * g011)), "theta": float(theta)}
+    return {k: (v if math.isfinite(v) else math.nan) for k, v in out.items()}
+
+
+def _solve_shifted(matrix: Any, rhs: Any) -> Any:
+    """matrix^-1 rhs for a shifted pencil i k M - J of a center-manifold coefficient; a zero right
+    side (a system without the quadratic term, e.g. odd) gives zero without a solve, so that a
+    resonant shift (i k an eigenvalue: HH with omega2 = 2 omega) does not fail where the term is
+    absent.  A singular matrix with a nonzero right side raises RuntimeError (splu)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    rhs = np.asarray(rhs, complex)
+    if not np.any(rhs):
+        return np.zeros_like(rhs)
+    return spla.splu(sp.csc_matrix(matrix, dtype=complex)).solve(rhs)
+
+
+#: The normal-form data of a double-Hopf point (:func:`double_hopf_coefficients`)
+DOUBLE_HOPF_KEYS = ("p11", "p12", "p21", "p22", "theta", "delta")
+
+
+def double_hopf_coefficients(problem: Any, u: Array, params: Mapping[str, float], omega1: float,
+                             omega2: float) -> dict[str, float]:
+    """Normal-form coefficients of a double-Hopf (Hopf-Hopf) point (u, p) of M u' = F(u, p) with
+    the pairs +-i omega1 (the Hopf curve's own pair, data ``omega``) and +-i omega2 (the pair that
+    crosses, data ``omega2``): Kuznetsov, *Elements of Applied Bifurcation Theory*, 3rd ed.,
+    sec. 8.6, by the projection method (Kuznetsov, SIAM J. Numer. Anal. 36, 1999) generalized to
+    M as :func:`contin.hopf.first_lyapunov`.  On the center manifold u = u0 + z1 q1 + z2 q2 + cc
+    + ... the restricted system reads, in Taylor coefficients,
+
+        z1' = i omega1 z1 + g2100 z1 |z1|^2 + g1011 z1 |z2|^2 + ...,
+        z2' = i omega2 z2 + g1110 z2 |z1|^2 + g0021 z2 |z2|^2 + ...,
+
+    with J q_k = i omega_k M q_k, p_k^H J = i omega_k p_k^H M, p_k^H M q_k = 1, q_k^H W q_k = 1
+    (W the problem's ``inner_product_weights``, else I: the normalization of l1) and
+
+        h1100 = -J^-1 B(q1, qb1),  h0011 = -J^-1 B(q2, qb2),  h2000 = (2 i omega1 M - J)^-1 B(q1, q1),
+        h0020 = (2 i omega2 M - J)^-1 B(q2, q2),  h1010 = (i (omega1 + omega2) M - J)^-1 B(q1, q2),
+        h1001 = (i (omega1 - omega2) M - J)^-1 B(q1, qb2),
+        g2100 = p1^H [C(q1, q1, qb1) + B(qb1, h2000) + 2 B(q1, h1100)] / 2,
+        g1011 = p1^H [C(q1, q2, qb2) + B(q1, h0011) + B(q2, h1001) + B(qb2, h1010)],
+        g1110 = p2^H [C(q1, qb1, q2) + B(q1, hb1001) + B(qb1, h1010) + B(q2, h1100)],
+        g0021 = p2^H [C(q2, q2, qb2) + B(qb2, h0020) + 2 B(q2, h0011)] / 2;
+
+    p11 = Re g2100, p12 = Re g1011, p21 = Re g1110, p22 = Re g0021 (the amplitude equations
+    r1' = r1 (mu1 + p11 r1^2 + p12 r2^2), r2' = r2 (mu2 + p21 r1^2 + p22 r2^2)), theta = p12 / p22,
+    delta = p21 / p11: p11 p22 > 0 is the "simple" case, p11 p22 < 0 the "difficult" one (with
+    tori and possibly chaos; Kuznetsov sec. 8.6.2).  p11 = omega1 l1 of the first pair and p22 =
+    omega2 l1 of the second (l1 in contin's normalization).  p_ij scale with |q_j|^2 and with time
+    (t -> t / k multiplies them by k); theta, delta and the signs do not.  Swapping the pairs swaps
+    p11 <-> p22, p12 <-> p21, theta <-> delta.  NaN for all when a solve fails (e.g. a
+    resonance omega2 = 2 omega1 with a quadratic term; an absent quadratic term is solved as zero)."""
+    import scipy.sparse as sp
+
+    from contin.hopf import _Forms, _mass, hopf_vectors
+    from contin.problem import inner_product_weights
+
+    u = np.asarray(u, float)
+    q_ = dict(params)
+    w1, w2 = abs(float(omega1)), abs(float(omega2))
+    nan = {k: math.nan for k in DOUBLE_HOPF_KEYS}
+    try:
+        jac = sp.csc_matrix(problem.jacobian(u, q_), dtype=float)
+        n = jac.shape[0]
+        mass = sp.csc_matrix(_mass(problem, u, q_, n), dtype=float)
+        weights = inner_product_weights(problem, u, q_)
+        q1, p1 = hopf_vectors(jac, mass, w1, weights=weights)
+        q2, p2 = hopf_vectors(jac, mass, w2, weights=weights)
+        forms = _Forms(problem, u, q_)
+        B, C = forms.B, forms.C
+        qb1, qb2 = np.conj(q1), np.conj(q2)
+        jc, mc = sp.csc_matrix(jac, dtype=complex), sp.csc_matrix(mass, dtype=complex)
+
+        def shifted(k: float, rhs: Any) -> Any:
+            return _solve_shifted(1j * k * mc - jc, rhs)
+
+        h1100 = shifted(0.0, B(q1, qb1))
+        h0011 = shifted(0.0, B(q2, qb2))
+        h2000 = shifted(2 * w1, B(q1, q1))
+        h0020 = shifted(2 * w2, B(q2, q2))
+        h1010 = shifted(w1 + w2, B(q1, q2))
+        h1001 = shifted(w1 - w2, B(q1, qb2))
+        g2100 = complex(np.vdot(p1, C(q1, q1, qb1) + B(qb1, h2000) + 2 * B(q1, h1100))) / 2
+        g1011 = complex(np.vdot(p1, C(q1, q2, qb2) + B(q1, h0011) + B(q2, h1001) + B(qb2, h1010)))
+        g1110 = complex(np.vdot(p2, C(q1, qb1, q2) + B(q1, np.conj(h1001)) + B(qb1, h1010) + B(q2, h1100)))
+        g0021 = complex(np.vdot(p2, C(q2, q2, qb2) + B(qb2, h0020) + 2 * B(q2, h0011))) / 2
+    except (np.linalg.LinAlgError, RuntimeError, ValueError, ZeroDivisionError):
+        return nan
+    p11, p12, p21, p22 = g2100.real, g1011.real, g1110.real, g0021.real
+    out = {"p11": p11, "p12": p12, "p21": p21, "p22": p22,
+           "theta": p12 / p22 if p22 != 0 else math.nan, "delta": p21 / p11 if p11 != 0 else math.nan}
+    return {k: (float(v) if math.isfinite(v) else math.nan) for k, v in out.items()}

@@ -306,6 +306,11 @@ def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
         data = {"omega": omega}
         if point.type == "HH":
             data["omega2"] = float(point.data.get("omega", math.nan))
+    # the normal form of the source point (contin.codim2tests), where it was computed; an HH's
+    # pairs swap roles on the new curve (its own pair is the source's omega2)
+    swap = {"p11": "p22", "p22": "p11", "p12": "p21", "p21": "p12", "theta": "delta", "delta": "theta"}
+    nf_keys = {"ZH": {k: k for k in ("B", "C", "E", "s", "theta")}, "HH": swap}.get(point.type, {})
+    normal_form = {new: float(point.data[old]) for old, new in nf_keys.items() if old in point.data}
     base = replace(point, type="LP" if to_fold else "HB", state=state[:n].copy(), params=params, tangent=None,
                    data=data)
     if to_fold:
@@ -318,7 +323,7 @@ def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
         curve = trace_hopf_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id)
     if point.type == "BT":
         data = {k: v for k, v in point.data.items() if k in ("a", "b")}  # the BT's normal form, where it was located
-    return _start_as(curve, point, branch.kind, data)
+    return _start_as(curve, point, branch.kind, {**data, **normal_form})
 
 
 def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, float]) -> Branch:
@@ -330,7 +335,8 @@ def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, fl
     either side and "locates" such a point there: on ab's fold curve from the Hopf curve's BT,
     5.5e-7 off B = 64/3, marked converged.  That point is replaced by the start point itself
     (corrected onto the new curve, where the source point is), with ``data`` (BT: its normal
-    form a, b; ZH: omega; HH: omega and omega2 of the new curve).  A Hopf curve from a ZH also
+    form a, b; ZH: omega and its normal form B, C, E, s, theta; HH: omega and omega2 of the new
+    curve and the normal form p11 ... delta, the pairs swapped).  A Hopf curve from a ZH also
     loses a GH next to its start: l1 has a pole there (J singular), no zero
     (:func:`contin.hopfcurve._no_gh_at_zero_hopf`)."""
     s = _start_index(curve, source)

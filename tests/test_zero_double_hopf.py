@@ -37,6 +37,15 @@ def _fold_hopf_points():
     return pb, br
 
 
+def _assert_decoupled_zero_hopf_normal_form(zh):
+    """FoldHopf's ZH in xi = x - 1/3, Z = v + i w: xi' = -xi^2, Z' = i Z + xi Z - Z |Z|^2, i.e.
+    (z = Z / sqrt(2), q1 unit) g200 = -1, g011 = 0, g110 = 1: B = 1 (q0 -> -q0 for B >= 0), C = 0,
+    theta = Re g110 / g200 = -1; a degenerate ZH (C = 0: the oscillator does not feed back), so
+    s = sign(B C) = 0 and E (which divides by C) is NaN."""
+    assert zh.data["B"] == pytest.approx(1.0, rel=1e-8) and abs(zh.data["C"]) < 1e-12
+    assert zh.data["theta"] == pytest.approx(-1.0, rel=1e-8) and zh.data["s"] == 0 and math.isnan(zh.data["E"])
+
+
 def test_zero_hopf_on_the_fold_curve():
     pb, br = _fold_hopf_points()
     (lp,) = br.points("LP")
@@ -48,6 +57,7 @@ def test_zero_hopf_on_the_fold_curve():
     assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
     assert zh.params["a"] == pytest.approx(-7 / 9, abs=1e-10)
     assert zh.state[0] == pytest.approx(1 / 3, abs=1e-10) and zh.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    _assert_decoupled_zero_hopf_normal_form(zh)
     # the fold curve itself is a = -b - b^2/4
     b = curve.params["b"]
     assert np.allclose(curve.params["a"], -b - b**2 / 4, atol=1e-10)
@@ -64,6 +74,7 @@ def test_zero_hopf_on_the_hopf_curve_and_no_spurious_bt_gh_hh():
     assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
     assert zh.params["a"] == pytest.approx(-7 / 9, abs=1e-10)
     assert zh.data["omega"] == pytest.approx(1.0, rel=1e-10)
+    _assert_decoupled_zero_hopf_normal_form(zh)
     b = curve.params["b"]
     assert np.allclose(curve.params["a"], (1 - b) * (1 - 2 * b) - b, atol=1e-10)
     assert not curve.points("BT") and not curve.points("GH") and not curve.points("HH")
@@ -82,12 +93,19 @@ def test_double_hopf_on_the_hopf_curve():
     assert hh.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
     assert hh.params["a"] == pytest.approx(math.sqrt(13) - 3, abs=1e-10)
     assert hh.data["omega"] == pytest.approx(1.0, rel=1e-10) and hh.data["omega2"] == pytest.approx(2.0, rel=1e-10)
+    # the normal form: z_k = Z_k / sqrt(2) (q unit), Z_k' = (i omega_k - |Z_k|^2) Z_k at the HH, so
+    # z_k' = i omega_k z_k - 2 z_k |z_k|^2: p11 = p22 = -2, p12 = p21 = 0 (uncoupled), theta = delta = 0
+    # (a 1:2 resonance, omega2 = 2 omega, without quadratic terms: the resonant solves are not needed)
+    assert {k: hh.data[k] for k in HH_NF} == pytest.approx(HH_NF, abs=1e-8)
     assert not curve.points("ZH") and not curve.points("BT")
     b = curve.params["b"]
     assert np.allclose(curve.params["a"], 1 - b - b**2, atol=1e-10)
     # HH detection follows HB detection: off with detect_hopf=False
     off = trace_hopf_curve(pb, hb, "b", replace(opts, detection=DetectionOptions(detect_hopf=False)), parameter="a")
     assert not off.points("HH") and off.params["b"].max() > 0.6  # past the HH at b = 0.303
+
+
+HH_NF = {"p11": -2.0, "p12": 0.0, "p21": 0.0, "p22": -2.0, "theta": 0.0, "delta": 0.0}
 
 
 class SlavedBT:
@@ -235,9 +253,16 @@ def test_no_generalized_hopf_at_the_pole_of_l1_and_l2_of_the_true_one():
     hopf = trace_hopf_curve(pb, _one(br.points("HB")), "b", opts, parameter="a")
     fold = trace_fold_curve(pb, _one(br.points("LP")), "b", opts, parameter="a")
     switched = continue_point(pb, fold, _one(fold.points("ZH")), "b", opts)
+    # the ZH's normal form: in xi = x - 1/3, Z = v + i w, xi' = -xi^2 + c |Z|^2, Z' = i Z + xi Z - Z |Z|^2;
+    # in z = Z / sqrt(2) (q1 unit): g200 = -1, g011 = 2 c, g110 = 1, g021 = -2, g300 = g111 = g210 = 0, so
+    # (Kuznetsov sec. 8.5; q0 -> -q0 for B >= 0) B = 1, C = -2 c, s = -1, theta = -1,
+    # E = Re[g110 Re g021 / g011 - g021 g200 / g011] = -1/c - 1/c = -2/c
+    nf = {"B": 1.0, "C": -1.0, "E": -4.0, "s": -1.0, "theta": -1.0}
+    assert {k: _one(fold.points("ZH")).data[k] for k in nf} == pytest.approx(nf, rel=1e-7)
     for curve in (hopf, switched):
         zh, gh = _one(curve.points("ZH")), _one(curve.points("GH"))
         assert zh.params["b"] == pytest.approx(2 / 3, abs=1e-10)
+        assert {k: zh.data[k] for k in nf} == pytest.approx(nf, rel=1e-7)
         assert gh.params["b"] == pytest.approx(0.5, abs=1e-8) and gh.params["a"] == pytest.approx(-0.5, abs=1e-8)
         assert gh.converged and abs(gh.data["l1"]) < 1e-8
         assert gh.data["l2"] == pytest.approx(-8.0, abs=1e-6)
@@ -264,13 +289,21 @@ def test_switching_at_double_hopf_to_the_other_pair():
     start = _one(other.points("HH"))
     assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
     assert start.params["a"] == pytest.approx(math.sqrt(13) - 3, abs=1e-10)
-    assert start.data == pytest.approx({"omega": 2.0, "omega2": 1.0}, rel=1e-10) and "start: HH" in start.note
+    assert start.data == pytest.approx({"omega": 2.0, "omega2": 1.0, **HH_NF}, rel=1e-10, abs=1e-8)
+    assert "start: HH" in start.note
     assert not other.points("ZH") and not other.points("BT")
     # and back: from the new curve's HH, the first oscillator's curve a = 1 - b - b^2
     again = continue_point(pb, other, start, "b", opts)
     b = again.params["b"]
     assert np.max(np.abs(again.params["a"] - (1 - b - b**2))) < 1e-10
     assert np.max(np.abs(again.observables["kappa"] - 1.0)) < 1e-10
+    # the start of the new curve carries the HH's normal form with the pairs swapped (its own pair
+    # is the source's second): an HH with made-up unequal coefficients
+    made_up = {"p11": 1.0, "p12": 2.0, "p21": 3.0, "p22": 4.0, "theta": 0.5, "delta": 3.0}
+    hh = _one(first.points("HH"))
+    swapped = _one(continue_point(pb, first, replace(hh, data={**hh.data, **made_up}), "b", opts).points("HH"))
+    assert {k: swapped.data[k] for k in made_up} == {"p11": 4.0, "p12": 3.0, "p21": 2.0, "p22": 1.0, "theta": 3.0,
+                                                     "delta": 0.5}
 
 
 def test_cli_continue_from_zero_hopf_and_double_hopf(tmp_path, monkeypatch):
