@@ -345,6 +345,7 @@ def test_cli_continue_from_zero_hopf_and_double_hopf(tmp_path, monkeypatch):
     assert np.max(np.abs(curve.params["a"] - ((1 - b) * (1 - 2 * b) - b))) < 1e-10
     (start,) = curve.points("ZH")
     assert start.params["b"] == pytest.approx(2 / 3, abs=1e-10) and start.params["a"] == pytest.approx(-7 / 9, abs=1e-10)
+    _assert_decoupled_zero_hopf_normal_form(start)  # the ZH's normal form, through the file
     res = run("continue", hopf, "--from", start.name, "--free", "b", *box, "-o", back, "--json")
     assert f"fold curve from {start.name}" in res.stderr
     (curve,), _ = io.load(back)
@@ -365,3 +366,4 @@ def test_cli_continue_from_zero_hopf_and_double_hopf(tmp_path, monkeypatch):
     assert np.max(np.abs(curve.params["a"] - 2 * b)) < 1e-10 and np.max(np.abs(curve.observables["kappa"] - 4)) < 1e-10
     (start,) = curve.points("HH")
     assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+    assert {k: start.data[k] for k in HH_NF} == pytest.approx(HH_NF, abs=1e-8)  # the HH's normal form, through the file
