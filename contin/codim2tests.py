@@ -21,9 +21,10 @@ state of each point, located by re-correcting onto the curve like every point te
 eigenvalue tests cost one eigen-solve of the base pencil per point (dense QZ up to the Hopf
 test's ``dense_max``, shift-invert ARPACK above) and are on where HB detection would be on for
 the base problem (``contin.hopf.hopf_test``: ``DetectionOptions.detect_hopf``); the determinant
-test costs one LU.  Normal-form coefficients of ZH and HH points are not computed; those of BT
-points are (:func:`bogdanov_takens_coefficients`), and the second Lyapunov coefficient of GH
-points of Hopf curves (:func:`second_lyapunov`, stored by ``contin.hopfsystem.LyapunovTest``).
+test costs one LU.  Located ZH and HH points carry their normal-form coefficients
+(:func:`zero_hopf_coefficients`, :func:`double_hopf_coefficients`, in ``finish``), BT points
+theirs (:func:`bogdanov_takens_coefficients`), and GH points of Hopf curves the second Lyapunov
+coefficient (:func:`second_lyapunov`, stored by ``contin.hopfsystem.LyapunovTest``).
 """
 
 from __future__ import annotations
@@ -368,9 +369,11 @@ def zero_hopf_coefficients(problem: Any, u: Array, params: Mapping[str, float], 
         B = g200,  C = g011,  theta = Re D / B = Re g110 / g200,
         E = Re[g210 + g110 (Re g021 / g011 - 3 g300 / (2 g200) + g111 / (2 g011)) - g021 g200 / g011],
 
-    and s = sign(B C) = +-1: with theta they select Guckenheimer-Holmes' unfolding (s = 1: no
-    cycles off the Hopf curve for theta > 0 ...; s = -1, theta < 0: a torus (Neimark-Sacker curve
-    of the cycles) is born, the sign of E deciding its stability; Kuznetsov Figs. 8.12-8.19).
+    and s = sign(B C) = +-1 (0 for a degenerate C = 0, where E is NaN): with theta they select
+    Guckenheimer-Holmes' four unfoldings (Kuznetsov sec. 8.5.2); in the amplitude equations
+    xi' = beta1 + B xi^2 + C r^2, r' = r (beta2 + Re D xi + E xi^2) the cycle born at the Hopf
+    curve has a Neimark-Sacker bifurcation (a torus) only for s theta < 0, where E enters its
+    stability.
     Normalization (the choice, as for BT and l1): q0 unit and q1 with q1^H W q1 = 1 (W the
     problem's ``inner_product_weights``, else I), q0's sign such that B >= 0; then B ~ |q0|,
     C ~ |q1|^2 / |q0|, E ~ |q0|^2, while s, theta and the sign of E do not depend on it.  B, C,
