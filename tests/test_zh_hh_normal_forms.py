@@ -169,3 +169,104 @@ def test_double_hopf_normal_form_of_the_normal_form_and_its_transforms(p):
         swapped = double_hopf_coefficients(pb, np.zeros(5), {"p": 0.0}, k * w2, k * w1)
         assert swapped == pytest.approx({"p11": ref["p22"], "p12": ref["p21"], "p21": ref["p12"], "p22": ref["p11"],
                                          "theta": ref["delta"], "delta": ref["theta"]}, rel=1e-6, abs=1e-9), kw
+
+
+class Unfolded(Warped):
+    """Warped with a field f(x, p) of the parameters (a, b); dF/dp by complex steps too."""
+
+    parameter_names = ("a", "b")
+
+    def residual(self, y, p):
+        g = self.k * np.linalg.solve(np.eye(self.n) + self._dn(y), self.t.T @ self.f(self.t @ (y + self._n(y)), p))
+        return g if self.m is None else self.m @ g
+
+    def dresidual_dp(self, y, p, name):
+        q = dict(p)
+        q[name] = q[name] + 1e-30j
+        return np.imag(self.residual(y, q)) / 1e-30
+
+
+def test_located_double_hopf_carries_its_normal_form():
+    """The HH normal form (the difficult case of HH_CASES) unfolded, Z1' = (a + i + ...) Z1,
+    Z2' = (b + 1.7 i + ...) Z2, in warped coordinates with a mass matrix: the branch in a at
+    b = -0.5 has its HB at a = 0, the Hopf curve a = 0 its HH at b = 0, where the stored normal
+    form is p_ij = 2 Re P_ij (1e-6) and omega = 1, omega2 = 1.7; the curve of the other pair
+    switched from it starts with the pairs swapped."""
+    from contin.continuation import trace
+    from contin.hopfcurve import trace_hopf_curve
+    from contin.options import ContinuationOptions, StepOptions
+    from contin.twoparam import continue_point
+
+    p = HH_CASES[1]
+    normal = _double_hopf_field(1.0, 1.7, p)
+
+    def f(x, q):
+        out = normal(x)
+        v1, x1, v2, x2 = x[:4]
+        return out + np.array([q["a"] * v1, q["a"] * x1, q["b"] * v2, q["b"] * x2, 0.0])
+
+    mass = np.diag([2.0, 1.5, 3.0, 1.0, 0.5]) + 0.2 * np.eye(5, k=1)
+    pb = Unfolded(f, 5, t=_rotation(5, [0.7, 0.4, -0.9, 0.3]), m=mass)
+    step = StepOptions(ds=0.05, ds_max=0.1)
+    br = trace(pb, np.zeros(5), {"a": -0.5, "b": -0.5}, "a",
+               ContinuationOptions(step=step, bounds={"a": (-0.5, 0.5)}, max_steps=100))
+    (hb,) = br.points("HB")
+    opts = ContinuationOptions(step=step, bounds={"a": (-1, 1), "b": (-0.5, 0.5)}, max_steps=100)
+    curve = trace_hopf_curve(pb, hb, "b", opts, parameter="a")
+    (hh,) = curve.points("HH")
+    assert abs(hh.params["b"]) < 1e-10 and abs(hh.params["a"]) < 1e-10
+    assert hh.data["omega"] == pytest.approx(1.0, rel=1e-10) and hh.data["omega2"] == pytest.approx(1.7, rel=1e-10)
+    pij = {"p11": 2 * p[0][0].real, "p12": 2 * p[0][1].real, "p21": 2 * p[1][0].real, "p22": 2 * p[1][1].real}
+    ref = {**pij, "theta": pij["p12"] / pij["p22"], "delta": pij["p21"] / pij["p11"]}
+    assert {k: hh.data[k] for k in ref} == pytest.approx(ref, rel=1e-6)
+    assert ref["p11"] * ref["p22"] < 0  # the difficult case
+    other = continue_point(pb, curve, hh, "b", opts)
+    (start,) = other.points("HH")
+    assert start.data["omega"] == pytest.approx(1.7, rel=1e-10)
+    swapped = {"p11": ref["p22"], "p12": ref["p21"], "p21": ref["p12"], "p22": ref["p11"], "theta": ref["delta"],
+               "delta": ref["theta"]}
+    assert {k: start.data[k] for k in swapped} == pytest.approx(swapped, rel=1e-6)
+
+
+def test_located_zero_hopf_carries_its_normal_form():
+    """The ZH normal form (ZH_CASES[0]) unfolded, xi' = a + b/2 - xi^2 + c |Z|^2, Z' = (b + i + d xi
+    + e xi^2) Z, in warped coordinates with a mass matrix: equilibria xi = +-sqrt(a + b/2) (Z = 0),
+    the fold curve a = -b/2 and the Hopf curve b = -xi - 0.7 xi^2 meet at the ZH a = b = 0; located
+    on both curves it stores _zero_hopf_reference's B, C, E, s, theta (1e-6).  (With xi' = a - xi^2
+    the fold curve a = 0 cannot be parametrized by a: its start correction at fixed a is singular.)"""
+    from scipy.optimize import fsolve
+
+    from contin.continuation import trace_both
+    from contin.foldcurve import trace_fold_curve
+    from contin.hopfcurve import trace_hopf_curve
+    from contin.options import ContinuationOptions, StepOptions
+
+    coeffs = ZH_CASES[0]
+    normal = _zero_hopf_field(*coeffs)
+
+    def f(x, q):
+        out = normal(x)
+        xi, v, w = x[:3]
+        return out + np.array([q["a"] + q["b"] / 2, q["b"] * v, q["b"] * w, 0.0])
+
+    mass = np.array([[2.0, 0.3, 0.0, 0.1], [0.1, 1.5, 0.2, 0.0], [0.0, 0.4, 3.0, 0.2], [0.3, 0.0, 0.1, 1.0]])
+    pb = Unfolded(f, 4, t=_rotation(4, [0.7, 0.4, -0.9]), m=mass, warp=0.2)
+    xi = 0.2  # the equilibrium xi = sqrt(a + b/2) at a = 0.29, b = -0.5, with the slaved s = xi^2 / (1 - xi / 2)
+    x0 = np.array([xi, 0.0, 0.0, xi * xi / (1 - xi / 2)])
+    y0 = fsolve(lambda y: pb.t @ (y + pb._n(y)) - x0, pb.t.T @ x0, xtol=1e-13)
+    start = {"a": xi * xi + 0.25, "b": -0.5}
+    assert np.max(np.abs(pb.residual(y0, start))) < 1e-12
+    step = StepOptions(ds=0.02, ds_max=0.05)
+    br = trace_both(pb, y0, start, "a", ContinuationOptions(step=step, bounds={"a": (0.2, 0.6)}, max_steps=200))
+    (lp,) = br.points("LP")
+    (hb,) = br.points("HB")
+    assert lp.params["a"] == pytest.approx(0.25, abs=1e-10)
+    assert hb.params["a"] == pytest.approx(0.25 + ((math.sqrt(2.4) - 1) / 1.4) ** 2, rel=1e-8)
+    opts = ContinuationOptions(step=step, bounds={"a": (-1, 1), "b": (-0.6, 0.5)}, max_steps=200)
+    ref = _zero_hopf_reference(*coeffs)
+    fold = trace_fold_curve(pb, lp, "b", opts, parameter="a")
+    hopf = trace_hopf_curve(pb, hb, "b", opts, parameter="a")
+    for curve in (fold, hopf):
+        (zh,) = curve.points("ZH")
+        assert abs(zh.params["a"]) < 1e-9 and abs(zh.params["b"]) < 1e-9
+        assert {k: zh.data[k] for k in ref} == pytest.approx(ref, rel=1e-6, abs=1e-9), curve.kind
