@@ -91,7 +91,16 @@ def _zero_hopf_reference(b, c, d, e, g=0.0, h=0j, k=1.0):
     (sec. 8.5) B = g200, C = g011, theta = Re g110 / g200,
     E = Re[g210 + g110 (Re g021 / g011 - 3 g300 / (2 g200) + g111 / (2 g011)) - g021 g200 / g011]
     (E = Re e when g = h = 0: the field is then in the normal form itself); with q0 -> -q0 where
-    b < 0 (contin's B >= 0): B, C change sign.  Time scaling by k multiplies B, C, E by k."""
+    b < 0 (contin's B >= 0): B, C change sign.  Time scaling by k multiplies B, C, E by k.
+
+    E derived here, independently of the code and the book: in r = |z| the field is
+    xi' = b xi^2 + C r^2 + G3 xi^3 + G1 xi r^2, r' = r (dr xi + er xi^2 + hr r^2) (dr = Re d,
+    er = Re e, hr = Re g021, C = g011, G3 = g300, G1 = g111).  xi = eta + gamma r^2 with
+    gamma = -hr / dr removes r^3 from r' and turns G1 into G1 + 2 gamma (b - dr); the time
+    t -> (1 + alpha eta) t and eta = mu + beta mu^2 remove mu^3 and mu r^2 from mu'
+    (alpha = -G3 / b, beta = (G1 + 2 gamma (b - dr) + alpha C) / (2 C)) and leave
+    r' = r (dr mu + (er + dr (alpha + beta)) mu^2), so E = er + dr (alpha + beta)
+    = er + dr (hr / C - 3 G3 / (2 b) + G1 / (2 C)) - hr b / C: the formula above."""
     g011, g111, g021 = 2 * c, 2 * g, 2 * h
     e_ref = (e + d * (g021.real / g011 + g111 / (2 * g011)) - g021 * b / g011).real
     sign = 1.0 if b > 0 else -1.0
