@@ -355,9 +355,10 @@ def zero_hopf_coefficients(problem: Any, u: Array, params: Mapping[str, float], 
     p1^H M q1 = 1 and (B, C the second and third derivatives of F)
 
         g200 = p0^T B(q0, q0) / 2,   g011 = p0^T B(q1, qb1),   g110 = p1^H B(q0, q1),
-        J h200 = g200' M q0 - B(q0, q0),  -J h011 = B(q1, qb1) - g011 M q0   (p0^T M h = 0),
+        J h200 = 2 g200 M q0 - B(q0, q0),  -J h011 = B(q1, qb1) - g011 M q0   (p0^T M h = 0),
         (i omega M - J) h110 = B(q0, q1) - g110 M q1  (p1^H M h110 = 0),
-        h020 = (2 i omega M - J)^-1 B(q1, q1),   (g200' = 2 g200)
+        h020 = (2 i omega M - J)^-1 B(q1, q1)   (bordered solves as in :func:`second_lyapunov`;
+        the orthogonality conditions remove the M h terms of the cubic equations),
         g300 = p0^T [C(q0, q0, q0) + 3 B(q0, h200)] / 6,
         g111 = p0^T [C(q0, q1, qb1) + B(q0, h011) + B(q1, hb110) + B(qb1, h110)],
         g210 = p1^H [C(q0, q0, q1) + B(q1, h200) + 2 B(q0, h110)] / 2,
