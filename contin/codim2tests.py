@@ -255,6 +255,8 @@ def second_lyapunov_estimate(problem: Any, u: Array, params: Mapping[str, float]
     kept.  At the default steps the differences resolve a nonlinearity on the scale max(1, |u|):
     a state scaled by 1e-4 (or 1e4) gave l2 wrong by a factor 1e15 (1e8) with no sign of it."""
 
+    from contin.hopf import step_ladder
+
     def at(m: float) -> tuple[float, float]:
         with np.errstate(all="ignore"):
             a = second_lyapunov(problem, u, params, omega, step_scale=m)
@@ -262,22 +264,7 @@ def second_lyapunov_estimate(problem: Any, u: Array, params: Mapping[str, float]
         err = abs(a - b)
         return (a, err) if math.isfinite(a) and math.isfinite(err) else (math.nan, math.inf)
 
-    def good(v: tuple[float, float]) -> bool:
-        return v[1] <= L2_ACCEPT * abs(v[0])
-
-    first = best = at(1.0)
-    for factor in (0.1, 10.0):
-        last, m = first, 1.0
-        for _ in range(L2_STEP_DECADES):
-            if good(best):
-                break
-            m *= factor
-            v = at(m)
-            best = min(best, v, key=lambda w: w[1])
-            if not v[1] < last[1]:
-                break  # past the best of this direction
-            last = v
-    return best
+    return step_ladder(at, L2_ACCEPT, L2_STEP_DECADES)
 
 
 def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: float,
