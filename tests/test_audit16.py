@@ -171,3 +171,113 @@ def test_traced_hb_of_a_scaled_bautin_system(caplog):
         assert ("l1 doubtful" in hb.note) == doubtful and ("l1 doubtful" in caplog.text) == doubtful
         if not doubtful:
             assert hb.data["l1"] == pytest.approx(0.2 / 1e-8, rel=3e-5)
+
+
+# ----------------------------------------------------------------------------- ZH / HH switching
+class _TwoOscillators:
+    """tests.codim2_fixture_scenes.TwoOscillators with the second frequency f (1:1 resonance as
+    f -> 1), in coordinates y with u = T y (T a fixed random matrix, cond 9.8: J non-normal, the
+    two pairs' eigenvectors not orthogonal).  Hopf curves: a = 1 - b - b^2 (omega 1) and a = 2 b
+    (omega f), meeting at the HH b = (sqrt(13) - 3)/2."""
+
+    parameter_names = ("a", "b")
+
+    def __init__(self, f):
+        from tests.codim2_fixture_scenes import TwoOscillators
+
+        self.base, self.f = TwoOscillators(), f
+        rng = np.random.default_rng(1)
+        self.t = np.eye(4) + 0.8 * rng.standard_normal((4, 4))
+        self.ti = np.linalg.inv(self.t)
+
+    def _res(self, u, p):
+        v1, w1, v2, w2 = u
+        r1, r2 = self.base._parts(p)
+        s1, s2 = v1 * v1 + w1 * w1, v2 * v2 + w2 * w2
+        f = self.f
+        return np.array([r1 * v1 - w1 - v1 * s1, v1 + r1 * w1 - w1 * s1,
+                         r2 * v2 - f * w2 - v2 * s2, f * v2 + r2 * w2 - w2 * s2])
+
+    def residual(self, y, p):
+        return self.ti @ self._res(self.t @ y, p)
+
+    def jacobian(self, y, p):
+        u = self.t @ y
+        j = self.base.jacobian(u, p).toarray()
+        v2, w2 = u[2:]
+        j[2, 3], j[3, 2] = -self.f - 2 * v2 * w2, self.f - 2 * v2 * w2
+        return sp.csr_matrix(self.ti @ j @ self.t)
+
+    def dresidual_dp(self, y, p, name):
+        return self.ti @ self.base.dresidual_dp(self.t @ y, p, name)
+
+
+@pytest.mark.parametrize("f", [1.0001, 1.000001])
+def test_double_hopf_switch_next_to_a_one_to_one_resonance(f):
+    """From the HH of the omega = 1 curve, omega2 = f within 1e-6 of it: the switched curve is the
+    other pair's (a = 2 b, kappa = f^2 at every point, the start included: 1e-10, where the old
+    curve's kappa = 1 differs by 2e-6), not the old one retraced."""
+    from contin.continuation import trace
+    from contin.hopfcurve import trace_hopf_curve
+    from contin.options import ContinuationOptions, StepOptions
+    from contin.twoparam import continue_point
+
+    step = StepOptions(ds=0.02, ds_max=0.05)
+    pb = _TwoOscillators(f)
+    br = trace(pb, np.zeros(4), {"a": 0.5, "b": 0.0}, "a",
+               ContinuationOptions(step=step, bounds={"a": (0.5, 2.0)}, max_steps=200))
+    opts = ContinuationOptions(step=step, bounds={"a": (-1.0, 2.0), "b": (-0.2, 0.8)}, max_steps=200)
+    first = trace_hopf_curve(pb, br.points("HB")[0], "b", opts, parameter="a")
+    (hh,) = first.points("HH")
+    assert hh.data["omega2"] == pytest.approx(f, abs=1e-12)
+    other = continue_point(pb, first, hh, "b", opts)
+    b = other.params["b"]
+    assert b.min() == pytest.approx(-0.2) and b.max() == pytest.approx(0.8)
+    assert np.max(np.abs(other.params["a"] - 2 * b)) < 1e-10
+    assert np.max(np.abs(other.observables["kappa"] - f * f)) < 1e-10
+    (start,) = other.points("HH")
+    assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+
+
+@pytest.mark.parametrize("f", [1e-4, 1e-8])
+def test_zero_hopf_switch_with_a_tiny_omega(f):
+    """FoldHopf with the oscillator's frequency f (the ZH next to a triple zero): the Hopf curve
+    from the fold curve's ZH lies on x = 1 - b, a = (1 - b)(1 - 2 b) - b with kappa = f^2 (to
+    1e-12 relative), and the fold curve back from its ZH on x = b/2, a = -b - b^2/4."""
+    from contin.continuation import trace_both
+    from contin.foldcurve import trace_fold_curve
+    from contin.options import ContinuationOptions, StepOptions
+    from contin.twoparam import continue_point
+    from tests.codim2_fixture_scenes import FoldHopf
+
+    class Slow(FoldHopf):
+        def residual(self, u, p):
+            r = FoldHopf.residual(self, u, p)
+            x, v, w = u
+            return r + np.array([0.0, (1 - f) * w, (f - 1) * v])
+
+        def jacobian(self, u, p):
+            j = FoldHopf.jacobian(self, u, p).toarray()
+            j[1, 2] += 1 - f
+            j[2, 1] += f - 1
+            return sp.csr_matrix(j)
+
+    step = StepOptions(ds=0.02, ds_max=0.05)
+    pb = Slow()
+    br = trace_both(pb, np.array([0.5, 0.0, 0.0]), {"a": 0.25, "b": 0.0}, "a",
+                    ContinuationOptions(step=step, bounds={"a": (-0.5, 2.0)}, max_steps=400))
+    opts = ContinuationOptions(step=step, bounds={"a": (-2, 2), "b": (-0.5, 1.0)}, max_steps=400)
+    fold = trace_fold_curve(pb, br.points("LP")[0], "b", opts, parameter="a")
+    (zh,) = fold.points("ZH")
+    assert zh.data["omega"] == pytest.approx(f, rel=1e-7)
+    hopf = continue_point(pb, fold, zh, "b", opts)
+    b = hopf.params["b"]
+    assert b.min() < 0 and b.max() > 0.99
+    assert np.max(np.abs(hopf.params["a"] - ((1 - b) * (1 - 2 * b) - b))) < 1e-10
+    assert np.max(np.abs(hopf.states[:, 0] - (1 - b))) < 1e-10
+    fe = 1.0 - (1.0 - f)  # the fixture's frequency in floating point (exact: Sterbenz)
+    assert np.max(np.abs(hopf.observables["kappa"] - fe * fe)) < 1e-12 * f * f
+    back = continue_point(pb, hopf, hopf.points("ZH")[0], "b", opts)
+    b = back.params["b"]
+    assert np.max(np.abs(back.params["a"] - (-b - b ** 2 / 4))) < 1e-10
+    assert np.max(np.abs(back.states[:, 0] - b / 2)) < 1e-10
