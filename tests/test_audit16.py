@@ -281,3 +281,22 @@ def test_zero_hopf_switch_with_a_tiny_omega(f):
     b = back.params["b"]
     assert np.max(np.abs(back.params["a"] - (-b - b ** 2 / 4))) < 1e-10
     assert np.max(np.abs(back.states[:, 0] - b / 2)) < 1e-10
+
+
+# ----------------------------------------------------------------------------- continue curves
+def test_stored_ab_curves_against_fsolve_of_their_defining_systems():
+    """Every point of results/ab_hopf.h5 (Hopf curve, 1871 points) and results/ab_fold.h5 (the
+    fold curve switched at its BT, 453 points) solves F = 0 with tr J = 0 (det J = 0) to 1e-12
+    (fsolve from the stored point, benchmarks.audit_curves; measured 4.3e-13 and 3.2e-14)."""
+    from pathlib import Path
+
+    from benchmarks.audit_curves import ab_model, audit_curve
+    from contin import io
+
+    root = Path(__file__).resolve().parent.parent / "results"
+    for name in ("ab_hopf.h5", "ab_fold.h5"):
+        branches, meta = io.load(str(root / name))
+        f, j = ab_model(float(meta["parameters"]["beta"]))
+        (b,) = [b for b in branches if b.kind in ("fold-curve", "hopf-curve")]
+        err, _ = audit_curve(b.kind, 2, np.asarray(b.states), np.asarray(b.params["D"]), np.asarray(b.params["B"]), f, j)
+        assert err < 1e-12, name
