@@ -264,7 +264,7 @@ def second_lyapunov_estimate(problem: Any, u: Array, params: Mapping[str, float]
         err = abs(a - b)
         return (a, err) if math.isfinite(a) and math.isfinite(err) else (math.nan, math.inf)
 
-    return step_ladder(at, L2_ACCEPT, L2_STEP_DECADES)
+    return step_ladder(at, L2_ACCEPT, L2_STEP_DECADES)[:2]
 
 
 def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: float,

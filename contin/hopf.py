@@ -72,8 +72,8 @@ L1_ACCEPT = 1e-5
 L1_DOUBTFUL = 1e-3
 
 
-def step_ladder(at: Any, accept: float, decades: int = 6) -> tuple[float, float]:
-    """(value, estimated absolute error) of a coefficient computed by differences of J whose
+def step_ladder(at: Any, accept: float, decades: int = 6) -> tuple[float, float, float]:
+    """(value, estimated absolute error, the multiplier m used) of a coefficient computed by differences of J whose
     steps are all multiplied by m: ``at(m)`` returns (value at m, its difference from the value at
     2 m).  m = 1 first; unless its estimate is below ``accept`` |value|, m walks down by decades
     while the estimate improves, then up, up to ``decades`` each way; the best is kept.  The
@@ -81,17 +81,17 @@ def step_ladder(at: Any, accept: float, decades: int = 6) -> tuple[float, float]
     nonlinearity: a state scaled by 1e-4 needs steps 1e-4 times smaller, one scaled by 1e4
     larger (l1 and l2 of such a Bautin system were wrong by factors up to 1e15, silently)."""
 
-    def good(v: tuple[float, float]) -> bool:
+    def good(v: tuple[float, float, float]) -> bool:
         return v[1] <= accept * abs(v[0])
 
-    first = best = at(1.0)
+    first = best = (*at(1.0), 1.0)
     for factor in (0.1, 10.0):
         last, m = first, 1.0
         for _ in range(decades):
             if good(best):
                 break
             m *= factor
-            v = at(m)
+            v = (*at(m), m)
             best = min(best, v, key=lambda w: w[1])
             if not v[1] < last[1]:
                 break  # past the best of this direction
@@ -314,6 +314,12 @@ class _Forms:
 def first_lyapunov_estimate(problem: Any, u: Array, params: dict[str, float], omega: float) -> tuple[float, float]:
     """(l1, its estimated absolute error): :func:`first_lyapunov` with its steps times m and 2 m
     along :func:`step_ladder` (accepted below L1_ACCEPT |l1|)."""
+    return first_lyapunov_ladder(problem, u, params, omega)[:2]
+
+
+def first_lyapunov_ladder(problem: Any, u: Array, params: dict[str, float], omega: float) -> tuple[float, float, float]:
+    """:func:`first_lyapunov_estimate` and the step multiplier m it chose (the GH test of a Hopf
+    curve uses the m of its first point all along: ``contin.hopfsystem.LyapunovTest``)."""
 
     def at(m: float) -> tuple[float, float]:
         with np.errstate(all="ignore"):

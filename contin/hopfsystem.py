@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -236,6 +236,24 @@ class LyapunovTest:
     curve: Any
     name: str = "gh"
     kind: str = "GH"
+    #: {'m': the multiplier of l1's difference steps}, chosen at the curve's first Hopf point
+    _steps: dict[str, float] = field(default_factory=dict, compare=False, hash=False, repr=False)
+
+    def step_scale(self, u: Array, q: Mapping[str, float], omega: float) -> float:
+        """The multiplier of l1's difference steps along the curve: :func:`contin.hopf.step_ladder`
+        at its first Hopf point, then kept (one step size all along: a sign change of l1 is not
+        one of its steps).  The default steps resolve a nonlinearity on the scale max(1, |u|)
+        only: the Bautin system scaled by 1e-4 had no GH, scaled by 1e4 its GH at b2 = 0.021
+        (exact 0), 'converged' (session 16 audit)."""
+        if "m" not in self._steps:
+            from contin.hopf import first_lyapunov_ladder
+
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                l1, _, m = first_lyapunov_ladder(self.curve.problem, np.asarray(u, float), dict(q), omega)
+            if not math.isfinite(l1):
+                return 1.0  # not at this point (a singular J): chosen at the next
+            self._steps["m"] = m
+        return self._steps["m"]
 
     def value(self, system: Any, x: Array) -> tuple[float, bool]:
         from contin.hopf import first_lyapunov
@@ -244,8 +262,9 @@ class LyapunovTest:
         if not kappa > 0:
             return (0.0, False)
         try:
+            m = self.step_scale(u, q, math.sqrt(kappa))
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # a singular J (a ZH): l1 NaN, no bracket
-                l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
+                l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa), step_scale=m)
         except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
             import logging
 

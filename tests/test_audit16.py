@@ -300,3 +300,24 @@ def test_stored_ab_curves_against_fsolve_of_their_defining_systems():
         (b,) = [b for b in branches if b.kind in ("fold-curve", "hopf-curve")]
         err, _ = audit_curve(b.kind, 2, np.asarray(b.states), np.asarray(b.params["D"]), np.asarray(b.params["B"]), f, j)
         assert err < 1e-12, name
+
+
+@pytest.mark.parametrize("eps, b2_tol", [(1e-4, 1e-6), (1e4, 3e-5)])
+def test_gh_of_a_scaled_bautin_system(eps, b2_tol):
+    """The GH of the Hopf curve b1 = 0 is at b2 = 0 (l1 = 2 b2 / eps^2) with l2 = -4 / eps^4.
+    Before: scaled by 1e-4 the curve had no GH, by 1e4 it was at b2 = 0.021, 'converged' (the GH
+    test's l1 at the default steps); now the steps of l1 are chosen at the curve's first point
+    (LyapunovTest.step_scale).  b2_tol: l1's accuracy at that scale (rounding: ~2e-5 of l1)."""
+    from contin.continuation import trace
+    from contin.hopfcurve import trace_hopf_curve
+    from contin.options import ContinuationOptions, StepOptions
+
+    pb = ScaledBautin(-1.0, eps)
+    step = StepOptions(ds=0.05, ds_max=0.1)
+    br = trace(pb, np.zeros(3), {"b1": -0.3, "b2": -0.4}, "b1",
+               ContinuationOptions(step=step, bounds={"b1": (-0.5, 0.5)}, max_steps=100))
+    curve = trace_hopf_curve(pb, br.points("HB")[0], "b1",
+                             ContinuationOptions(step=step, bounds={"b2": (-0.4, 0.3)}, max_steps=100), parameter="b2")
+    (gh,) = curve.points("GH")
+    assert abs(gh.params["b2"]) < b2_tol and abs(gh.params["b1"]) < 1e-10
+    assert gh.data["l2"] == pytest.approx(-4 / eps ** 4, rel=1e-6) and "doubtful" not in gh.note
