@@ -237,6 +237,12 @@ def test_double_hopf_switch_next_to_a_one_to_one_resonance(f):
     assert np.max(np.abs(other.observables["kappa"] - f * f)) < 1e-10
     (start,) = other.points("HH")
     assert start.params["b"] == pytest.approx((math.sqrt(13) - 3) / 2, abs=1e-10)
+    assert "doubtful" not in start.note
+    # the check behind it: a start whose kappa is the other pair's (the source curve retraced)
+    from contin.twoparam import _pair_check
+
+    assert "start doubtful: kappa" in _pair_check(other, hh, 1.0)  # omega = 1: the source curve's pair
+    assert _pair_check(other, hh, f) == ""
 
 
 @pytest.mark.parametrize("f", [1e-4, 1e-8])
