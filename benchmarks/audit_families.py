@@ -8,6 +8,7 @@ solved again there by Newton at its own parameters and compared in the problem's
 
     python -m benchmarks.audit_families bratu --method fd2 --tol 1e-4
     python -m benchmarks.audit_families disks-steady --tol 1e-6 -- -s H=64
+    python -m benchmarks.audit_families nonlocal      # the adaptive non-local scenes (audit16)
 
 Prints one line per (branch, worst point) and a summary: states audited, max error / tol, the
 warnings the run printed and its exit code.  Special points are compared by the caller (closed
@@ -251,6 +252,7 @@ def audit_run(scene: str, method: str, tol: float | None, extra: list[str], *, r
         return out
     branches, meta, problem_of = file_problem(run.path)
     params = numeric(meta.get("parameters", {}))
+    out["run_tol"] = run_tol(meta)
     audit = audit_branches(branches, problem_of, params, ref_min=ref_min, ref_max=ref_max)
     out["audit"] = audit
     out["branches"] = [(b.id, b.status, b.message[:160], len(b)) for b in branches]
@@ -273,8 +275,19 @@ def audit_run(scene: str, method: str, tol: float | None, extra: list[str], *, r
     return out
 
 
+def run_tol(meta: Mapping[str, Any]) -> float | None:
+    """The tol a run file was computed to: its adaptive tol (a scene's default_tol when --tol was
+    not given), else None."""
+    options = meta.get("options") or {}
+    adapt = options.get("adapt") or {}
+    tol = adapt.get("tol") if isinstance(adapt, Mapping) else None
+    if tol is None:  # an unfinished or failed run: its options are the overrides ({'tol': 1e-08})
+        tol = options.get("tol")
+    return float(tol) if isinstance(tol, int | float) and not isinstance(tol, bool) else None
+
+
 def report(r: dict[str, Any]) -> str:
-    tol = r["tol"] or 3e-5
+    tol = r["tol"] or r.get("run_tol") or 3e-5
     lines = [f"== {r['scene']} {r['method']} tol {r['tol']} {' '.join(r['extra'])}: exit {r['exit']}, "
              f"{len(r['warnings'])} warnings, {r['seconds']:.1f} s"]
     lines += [f"   W {w[:220]}" for w in r["warnings"] if "accepted by its estimate" not in w]
@@ -343,8 +356,36 @@ def batch(argv: list[str] | None = None) -> None:
                     print(f"== {scene} {method} tol {tol}: TIMEOUT", flush=True)
 
 
+#: The adaptive non-local scenes of session 16 (audit16): scene, its extra options
+NONLOCAL = (("nonlocal-shear", []), ("nonlocal-cylinder", ["-s", "report_eqs=1"]), ("nonlocal-muI", []))
+
+
+def nonlocal_audit(argv: list[str] | None = None) -> None:
+    """Every stored state of the adaptive non-local scenes at their default tol, 1e-6 and 1e-10,
+    on cheb and fd4, against cheb 128..160 re-solves (one SUMMARY line per run: max error / tol,
+    the states above tol no warning names)."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scenes", default=",".join(s for s, _ in NONLOCAL))
+    ap.add_argument("--methods", default="cheb,fd4")
+    ap.add_argument("--tols", default=",1e-6,1e-10", help="'' is the scene's default tol")
+    ap.add_argument("--ref-max", type=int, default=160)
+    a = ap.parse_args(argv)
+    extras = dict(NONLOCAL)
+    for scene in a.scenes.split(","):
+        for method in a.methods.split(","):
+            for tol in a.tols.split(","):
+                try:
+                    r = audit_run(scene, method, float(tol) if tol else None, list(extras.get(scene, [])),
+                                  ref_min=128, ref_max=a.ref_max, timeout=900)
+                    print(report(r), flush=True)
+                except subprocess.TimeoutExpired:
+                    print(f"== {scene} {method} tol {tol}: TIMEOUT", flush=True)
+
+
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "batch":
         batch(sys.argv[2:])
+    elif len(sys.argv) > 1 and sys.argv[1] == "nonlocal":
+        nonlocal_audit(sys.argv[2:])
     else:
         raise SystemExit(main())

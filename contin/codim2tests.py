@@ -253,7 +253,40 @@ def _complex_form_at(problem: Any, u: Array, params: Mapping[str, float], args: 
     return out
 
 
-def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: float) -> float:
+#: Relative error of l2 accepted at the first step scale (the difference of l2 at the steps h and 2 h)
+L2_ACCEPT = 1e-6
+#: Relative error estimate of l2 above which a GH's l2 is reported doubtful (warning, note)
+L2_DOUBTFUL = 1e-3
+#: Decades either side of the default steps tried for l2 (multipliers 10^-k .. 10^k of all the
+#: difference steps, B, C, D and E): the steps are relative to max(1, |u|_inf), which says
+#: nothing about the length scale of F's nonlinearity (a problem whose state is scaled by 1e-4
+#: needs steps 1e-4 times smaller, one scaled by 1e4 larger)
+L2_STEP_DECADES = 6
+
+
+def second_lyapunov_estimate(problem: Any, u: Array, params: Mapping[str, float],
+                             omega: float) -> tuple[float, float]:
+    """(l2, its estimated absolute error): :func:`second_lyapunov` with all its difference steps
+    multiplied by m and by 2 m, the difference of the two the error estimate (the l2 returned is
+    the one at m).  m = 1 first; unless its estimate is below L2_ACCEPT |l2|, m walks down by
+    decades while the estimate improves, then up, up to L2_STEP_DECADES each way, and the best is
+    kept.  At the default steps the differences resolve a nonlinearity on the scale max(1, |u|):
+    a state scaled by 1e-4 (or 1e4) gave l2 wrong by a factor 1e15 (1e8) with no sign of it."""
+
+    from contin.hopf import step_ladder
+
+    def at(m: float) -> tuple[float, float]:
+        with np.errstate(all="ignore"):
+            a = second_lyapunov(problem, u, params, omega, step_scale=m)
+            b = second_lyapunov(problem, u, params, omega, step_scale=2 * m)
+        err = abs(a - b)
+        return (a, err) if math.isfinite(a) and math.isfinite(err) else (math.nan, math.inf)
+
+    return step_ladder(at, L2_ACCEPT, L2_STEP_DECADES)[:2]
+
+
+def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: float,
+                    step_scale: float = 1.0) -> float:
     """Second Lyapunov coefficient l2 at a generalized Hopf (Bautin) point (u, p) of M u' = F(u, p)
     with frequency omega (where l1 = 0): the multilinear formula of Kuznetsov, SIAM J. Numer.
     Anal. 36, 1104-1124, 1999, sec. 7 (the normal form of *Elements of Applied Bifurcation
@@ -278,7 +311,8 @@ def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: 
     the normal form w' = i omega w + (G21 / 2) w|w|^2 + (G32 / 12) w|w|^4 on the center manifold
     u = u0 + 2 Re(w q) + ...; l2 = Re c2 / omega as l1 = Re c1 / omega (MatCont and
     BifurcationKit report omega l2).  B, C: central differences of J as for l1; D, E: third and
-    fourth mixed differences of J (steps FD_STEP_D, FD_STEP_E; relative accuracy ~1e-6).  For the
+    fourth mixed differences of J (steps FD_STEP_D, FD_STEP_E; relative accuracy ~1e-6; all steps,
+    those of B and C too, times ``step_scale``: :func:`second_lyapunov_estimate`).  For the
     Bautin normal form z' = (b1 + i) z + b2 z|z|^2 + s z|z|^4 in x = Re z, y = Im z (q = (1, -i) /
     sqrt(2), z = sqrt(2) w): l1 = 2 b2 and, at b2 = 0, l2 = 4 s."""
     import scipy.sparse as sp
@@ -295,13 +329,14 @@ def second_lyapunov(problem: Any, u: Array, params: Mapping[str, float], omega: 
     q, p = hopf_vectors(jac, mass, omega, weights=inner_product_weights(problem, u, q_))
     qb = np.conj(q)
     forms = _Forms(problem, u, q_)
+    forms.scale *= step_scale
     B, C = forms.B, forms.C
 
     def D(a, b, c, y):
-        return _complex_form(problem, u, q_, (a, b, c), y, FD_STEP_D)
+        return _complex_form(problem, u, q_, (a, b, c), y, FD_STEP_D * step_scale)
 
     def E(a, b, c, d, y):
-        return _complex_form(problem, u, q_, (a, b, c, d), y, FD_STEP_E)
+        return _complex_form(problem, u, q_, (a, b, c, d), y, FD_STEP_E * step_scale)
 
     jc = sp.csc_matrix(jac, dtype=complex)
     mc = sp.csc_matrix(mass, dtype=complex)

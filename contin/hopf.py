@@ -66,6 +66,37 @@ REAL_TOL = 1e-10
 #: Relative step of the central differences of J in the multilinear forms (error ~ h^2).
 FD_STEP_B = 1e-5
 FD_STEP_C = 1e-4
+#: Relative error estimate of an HB's l1 accepted at the default steps (session 16 audit)
+L1_ACCEPT = 1e-5
+#: Relative error estimate of an HB's l1 above which it is reported doubtful (warning, note)
+L1_DOUBTFUL = 1e-3
+
+
+def step_ladder(at: Any, accept: float, decades: int = 6) -> tuple[float, float, float]:
+    """(value, estimated absolute error, the multiplier m used) of a coefficient computed by differences of J whose
+    steps are all multiplied by m: ``at(m)`` returns (value at m, its difference from the value at
+    2 m).  m = 1 first; unless its estimate is below ``accept`` |value|, m walks down by decades
+    while the estimate improves, then up, up to ``decades`` each way; the best is kept.  The
+    steps are relative to max(1, |u|_inf), which says nothing about the length scale of F's
+    nonlinearity: a state scaled by 1e-4 needs steps 1e-4 times smaller, one scaled by 1e4
+    larger (l1 and l2 of such a Bautin system were wrong by factors up to 1e15, silently)."""
+
+    def good(v: tuple[float, float, float]) -> bool:
+        return v[1] <= accept * abs(v[0])
+
+    first = best = (*at(1.0), 1.0)
+    for factor in (0.1, 10.0):
+        last, m = first, 1.0
+        for _ in range(decades):
+            if good(best):
+                break
+            m *= factor
+            v = (*at(m), m)
+            best = min(best, v, key=lambda w: w[1])
+            if not v[1] < last[1]:
+                break  # past the best of this direction
+            last = v
+    return best
 
 
 def hopf_test(problem: Any, detection: DetectionOptions, n: int) -> HopfTest | None:
@@ -174,7 +205,11 @@ class HopfTest:
         data = hopf_numbers(self.problem, u, q, self.dense_max, self.k)
         l1 = data["l1"]
         kind = "" if not math.isfinite(l1) else ("subcritical" if l1 > 0 else "supercritical")
-        note = "; ".join(t for t in (kind, sp.note) if t)
+        doubt = ""
+        if "l1_error" in data:
+            doubt = f"l1 doubtful (estimated relative error {data['l1_error'] / abs(l1) if l1 else math.inf:.1e})"
+            log.warning("HB at %s=%g: %s", system.parameter, x[-1], doubt)
+        note = "; ".join(t for t in (kind, doubt, sp.note) if t)
         return replace(sp, data={**sp.data, **data}, note=note)
 
 
@@ -190,9 +225,13 @@ def hopf_numbers(problem: Any, u: Array, params: dict[str, float], dense_max: in
     if has(problem, "eigenproblem"):
         return {"omega": omega, "l1": math.nan}
     try:
-        l1 = first_lyapunov(problem, u, params, omega)
+        l1, err = first_lyapunov_estimate(problem, u, params, omega)
     except (np.linalg.LinAlgError, RuntimeError, ValueError):
-        l1 = math.nan
+        l1, err = math.nan, math.nan
+    if math.isfinite(l1) and not err <= L1_DOUBTFUL * abs(l1):
+        # no step of the differences resolves F's second and third derivatives (or l1 ~ 0): the
+        # estimate is kept (and named by the HB's note), the sign may be wrong
+        return {"omega": omega, "l1": l1, "l1_error": err}
     return {"omega": omega, "l1": l1}
 
 
@@ -237,9 +276,9 @@ def hopf_vectors(jac: Any, mass: Any, omega: float, seed: int = 0,
 class _Forms:
     """Second and third derivatives of F in u as multilinear forms, from J by central differences."""
 
-    def __init__(self, problem: Any, u: Array, params: dict[str, float]) -> None:
+    def __init__(self, problem: Any, u: Array, params: dict[str, float], step_scale: float = 1.0) -> None:
         self.problem, self.u, self.params = problem, u, params
-        self.scale = max(1.0, float(np.max(np.abs(u), initial=0.0)))
+        self.scale = max(1.0, float(np.max(np.abs(u), initial=0.0))) * step_scale
 
     def _jac(self, du: Array) -> Any:
         return self.problem.jacobian(self.u + du, self.params)
@@ -272,15 +311,36 @@ class _Forms:
                 + 1j * (self._c_real(xr, yi, z) + self._c_real(xi, yr, z)))
 
 
-def first_lyapunov(problem: Any, u: Array, params: dict[str, float], omega: float) -> float:
+def first_lyapunov_estimate(problem: Any, u: Array, params: dict[str, float], omega: float) -> tuple[float, float]:
+    """(l1, its estimated absolute error): :func:`first_lyapunov` with its steps times m and 2 m
+    along :func:`step_ladder` (accepted below L1_ACCEPT |l1|)."""
+    return first_lyapunov_ladder(problem, u, params, omega)[:2]
+
+
+def first_lyapunov_ladder(problem: Any, u: Array, params: dict[str, float], omega: float) -> tuple[float, float, float]:
+    """:func:`first_lyapunov_estimate` and the step multiplier m it chose (the GH test of a Hopf
+    curve uses the m of its first point all along: ``contin.hopfsystem.LyapunovTest``)."""
+
+    def at(m: float) -> tuple[float, float]:
+        with np.errstate(all="ignore"):
+            a = first_lyapunov(problem, u, params, omega, step_scale=m)
+            b = first_lyapunov(problem, u, params, omega, step_scale=2 * m)
+        err = abs(a - b)
+        return (a, err) if math.isfinite(a) and math.isfinite(err) else (math.nan, math.inf)
+
+    return step_ladder(at, L1_ACCEPT)
+
+
+def first_lyapunov(problem: Any, u: Array, params: dict[str, float], omega: float, step_scale: float = 1.0) -> float:
     """First Lyapunov coefficient l1 at the Hopf point (u, p) with frequency omega (module
     docstring: Kuznetsov's eq. (3.20) with q^H W q = 1, W the problem's
-    ``inner_product_weights`` or I, generalized to a mass matrix)."""
+    ``inner_product_weights`` or I, generalized to a mass matrix); the difference steps of B and
+    C times ``step_scale`` (:func:`first_lyapunov_estimate`)."""
     jac = problem.jacobian(u, params)
     n = jac.shape[0]
     mass = _mass(problem, u, params, n)
     q, p = hopf_vectors(jac, mass, omega, weights=inner_product_weights(problem, u, params))
-    forms = _Forms(problem, u, params)
+    forms = _Forms(problem, u, params, step_scale)
     qb = np.conj(q)
     jc = sp.csc_matrix(jac, dtype=complex)
     mc = sp.csc_matrix(mass, dtype=complex)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -236,6 +236,24 @@ class LyapunovTest:
     curve: Any
     name: str = "gh"
     kind: str = "GH"
+    #: {'m': the multiplier of l1's difference steps}, chosen at the curve's first Hopf point
+    _steps: dict[str, float] = field(default_factory=dict, compare=False, hash=False, repr=False)
+
+    def step_scale(self, u: Array, q: Mapping[str, float], omega: float) -> float:
+        """The multiplier of l1's difference steps along the curve: :func:`contin.hopf.step_ladder`
+        at its first Hopf point, then kept (one step size all along: a sign change of l1 is not
+        one of its steps).  The default steps resolve a nonlinearity on the scale max(1, |u|)
+        only: the Bautin system scaled by 1e-4 had no GH, scaled by 1e4 its GH at b2 = 0.021
+        (exact 0), 'converged' (session 16 audit)."""
+        if "m" not in self._steps:
+            from contin.hopf import first_lyapunov_ladder
+
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                l1, _, m = first_lyapunov_ladder(self.curve.problem, np.asarray(u, float), dict(q), omega)
+            if not math.isfinite(l1):
+                return 1.0  # not at this point (a singular J): chosen at the next
+            self._steps["m"] = m
+        return self._steps["m"]
 
     def value(self, system: Any, x: Array) -> tuple[float, bool]:
         from contin.hopf import first_lyapunov
@@ -244,8 +262,9 @@ class LyapunovTest:
         if not kappa > 0:
             return (0.0, False)
         try:
+            m = self.step_scale(u, q, math.sqrt(kappa))
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # a singular J (a ZH): l1 NaN, no bracket
-                l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa))
+                l1 = first_lyapunov(self.curve.problem, np.asarray(u, float), q, math.sqrt(kappa), step_scale=m)
         except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
             import logging
 
@@ -260,26 +279,35 @@ class LyapunovTest:
 
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         """l1 (~0), omega, kappa and the second Lyapunov coefficient l2 of the GH
-        (:func:`contin.codim2tests.second_lyapunov`; NaN where it cannot be computed, the reason
-        logged): its sign tells the GH's two unfoldings apart (l2 < 0: the fold curve of cycles
+        (:func:`contin.codim2tests.second_lyapunov_estimate`; NaN where it cannot be computed,
+        the reason logged) with its estimated absolute error ``l2_error`` (a warning and the note
+        'l2 doubtful' above L2_DOUBTFUL |l2|): its sign tells the GH's two unfoldings apart (l2 < 0: the fold curve of cycles
         that starts at the GH bounds a region with a stable and an unstable cycle; Kuznetsov
         sec. 8.3)."""
-        from contin.codim2tests import second_lyapunov
+        import logging
+
+        from contin.codim2tests import L2_DOUBTFUL, second_lyapunov_estimate
 
         l1, hopf = self.value(system, x)
         kappa = float(x[3 * self.curve.n])
         omega = math.sqrt(kappa) if kappa > 0 else math.nan
-        l2 = math.nan
+        l2, l2_err = math.nan, math.nan
+        note = sp_.note
         if hopf:
             u, _, _, _, q = self.curve.split(x[:-1], system.params_at(x[-1]))
             try:
-                l2 = second_lyapunov(self.curve.problem, np.asarray(u, float), q, omega)
+                l2, l2_err = second_lyapunov_estimate(self.curve.problem, np.asarray(u, float), q, omega)
             except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
-                import logging
-
                 logging.getLogger("contin").warning("GH: l2 failed at %s=%g: %s", system.parameter, x[-1], exc)
-        return replace(sp_, data={**sp_.data, "l1": l1 if hopf else math.nan, "l2": l2 if math.isfinite(l2) else math.nan,
-                                  "omega": omega, "kappa": kappa})
+            if math.isfinite(l2) and not l2_err <= L2_DOUBTFUL * abs(l2):
+                # the differences of J found no step that resolves F's fourth and fifth derivatives
+                msg = f"l2 doubtful (estimated relative error {l2_err / abs(l2) if l2 else math.inf:.1e})"
+                logging.getLogger("contin").warning("GH at %s=%g: %s", system.parameter, x[-1], msg)
+                note = f"{note}; {msg}" if note else msg
+        if not math.isfinite(l2):
+            l2, l2_err = math.nan, math.nan
+        return replace(sp_, note=note, data={**sp_.data, "l1": l1 if hopf else math.nan, "l2": l2, "l2_error": l2_err,
+                                             "omega": omega, "kappa": kappa})
 
 
 def _l1_or_nan(v: tuple[float, bool]) -> float:

@@ -323,10 +323,37 @@ def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
         curve = trace_hopf_curve(problem, base, second, options, parameter=branch.parameter, branch_id=branch_id)
     if point.type == "BT":
         data = {k: v for k, v in point.data.items() if k in ("a", "b")}  # the BT's normal form, where it was located
-    return _start_as(curve, point, branch.kind, {**data, **normal_form})
+    doubt = ""
+    if not to_fold and point.type in ("ZH", "HH"):
+        doubt = _pair_check(curve, point, float(data["omega"]))
+    return _start_as(curve, point, branch.kind, {**data, **normal_form}, doubt)
 
 
-def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, float]) -> Branch:
+#: Relative difference of the switched Hopf curve's kappa at its start from omega^2 of the pair
+#: it was started on (ZH, HH) above which the start is reported doubtful
+PAIR_TOL = 1e-6
+
+
+def _pair_check(curve: Branch, source: SpecialPoint, omega: float) -> str:
+    """'' when the Hopf curve switched at a ZH or HH has kappa = omega^2 of the pair it was started
+    on at its start point, else a note (and a warning): the corrector may have taken another pair
+    (next to a 1:1 resonance at an HH, omega2 ~ omega, it would retrace the source curve)."""
+    import logging
+
+    s = _start_index(curve, source)
+    kappa = curve.observables.get("kappa") if curve.observables else None
+    if s is None or kappa is None:
+        return ""
+    k0, want = float(kappa[s]), omega * omega
+    if abs(k0 - want) <= PAIR_TOL * want:
+        return ""
+    msg = (f"start doubtful: kappa = {k0:.10g} at the start, not omega^2 = {want:.10g} of the pair "
+           f"{source.name} gave (another pair was taken)")
+    logging.getLogger("contin").warning("%s: %s", source.name, msg)
+    return msg
+
+
+def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, float], doubt: str = "") -> Branch:
     """The curve with its start marked as the BT, ZH or HH it came from.
 
     The new curve starts on the zero of its own test function of that type (BT: kappa or
@@ -344,8 +371,8 @@ def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, fl
         return curve
     if source.type == "ZH" and curve.kind == "hopf-curve":  # l1's pole at the start (J singular) is no GH
         curve.special_points = [sp for sp in curve.special_points if not (sp.type == "GH" and sp.index in (s - 1, s))]
-    return _mark_start(curve, s, source.type,
-                       f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}", data=data)
+    note = f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}"
+    return _mark_start(curve, s, source.type, f"{note}; {doubt}" if doubt else note, data=data)
 
 
 def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: str,
