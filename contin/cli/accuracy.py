@@ -111,6 +111,10 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
             report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
                                   progress=None if quiet else (lambda m: progress.line(f"running {m}")),
                                   tols=tol_list, repeats=repeats)
+    except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM lost every finished run (qa17): keep them, marked
+        progress.close()
+        _save_partial(getattr(exc, "partial_report", None), outdir, plots=not no_plots, as_json=as_json)
+        raise  # the group's one Error line, exit 130 (143)
     finally:
         progress.close()
     if not report.reference:
@@ -151,3 +155,23 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
             why = a.failed or f"achieved error {fmt(a.worst_error, 2)} at {a.worst_key} exceeds it"
             click.echo(f"inaccurate: adaptive run at tol {a.tol:g} ({a.request}): {why}", err=True)
         raise click.exceptions.Exit(EXIT_INACCURATE)
+
+
+def _save_partial(report: Any, outdir: str | None, *, plots: bool, as_json: bool) -> None:
+    """After Ctrl-C/SIGTERM: write the finished runs' report (atomically, marked incomplete) and say so."""
+    if report is None:
+        return
+    from contin.accuracy import _clean, write_outputs
+
+    what = report.incomplete
+    if not report.runs and not report.adaptive:
+        echo_err(f"note: {what}; nothing to save")
+        return
+    if as_json:
+        echo_json(_clean(report.to_json()))
+    if outdir is None:
+        echo_err(f"note: {what}; they are not saved (no -o DIR)")
+        return
+    written = write_outputs(report, outdir, plots=plots)
+    echo_err(f"note: {what}; their rows are saved in {written[0]} (marked incomplete, reference "
+             f"{report.reference_from})")
