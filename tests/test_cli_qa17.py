@@ -1,0 +1,102 @@
+"""Robustness sweep, round 5 (session 16, qa17): the leftovers of qa16 (Ctrl-C in `contin accuracy`
+and during argument parsing, codimension-2 points on a bound, the first Ctrl-C's wait) and what
+session 16 added (ZH/HH switching, the stored l2 at GH, the adaptive non-local scenes, partial
+branches of interrupted runs).
+
+Each test names the command that misbehaved before its fix.
+"""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from contin.cli import main
+
+
+@pytest.fixture(autouse=True)
+def real_scenes(monkeypatch):
+    monkeypatch.delenv("CONTIN_SCENES", raising=False)
+
+
+def run(args: list[str]):
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def one_error(res) -> str:
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
+    assert res.exit_code != 0 and len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
+    return errors[0]
+
+
+def test_ctrl_c_while_click_parses_the_arguments_is_one_error_line(monkeypatch):
+    """Ctrl-C while click parsed the group's arguments (before any command ran) printed click's
+    'Aborted!' and exit 1 (bad input's code) instead of `Error: interrupted (Ctrl-C)`, exit 130."""
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(type(main), "parse_args", interrupted)
+    res = run(["info", "x.h5"])
+    assert res.exit_code == 130 and res.stderr == "Error: interrupted (Ctrl-C)\n", res.stderr
+
+
+@pytest.mark.parametrize("stop, code, reason", [(KeyboardInterrupt, 130, "interrupted (Ctrl-C)"),
+                                                ("Terminated", 143, "terminated by SIGTERM")])
+def test_an_interrupted_accuracy_run_keeps_its_finished_rows(tmp_path, monkeypatch, stop, code, reason):
+    """`contin accuracy bratu -o DIR` stopped by Ctrl-C (SIGTERM) after some runs wrote nothing:
+    `Error: interrupted (Ctrl-C)`, exit 130, every finished run lost.  Now the finished runs' rows
+    are written (atomically) marked incomplete, with one note line."""
+    import json
+
+    import contin.accuracy as acc
+    from contin.cli._runctl import Terminated
+
+    exc = Terminated if stop == "Terminated" else stop
+    real, calls = acc.measure, []
+
+    def measure(*args, **kwargs):
+        calls.append(args[2:4])
+        if len(calls) == 3:
+            raise exc()
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(acc, "measure", measure)
+    res = run(["accuracy", "bratu", "--methods", "cheb", "--grids", "16,24,32", "--no-memory", "--no-plots",
+               "-o", str(tmp_path)])
+    assert res.exit_code == code and one_error(res) == f"Error: {reason}", res.stderr
+    notes = [ln for ln in res.stderr.splitlines() if ln.startswith("note:")]
+    assert notes == [f"note: {reason}: 2 of 3 runs finished; their rows are saved in {tmp_path / 'accuracy_bratu.csv'} "
+                     "(marked incomplete, reference cheb N=24)"], res.stderr
+    lines = (tmp_path / "accuracy_bratu.csv").read_text().splitlines()
+    assert [ln.split(",")[1:3] for ln in lines[1:-1]] == [["cheb", "16"], ["cheb", "24"]], lines
+    assert lines[-1].startswith(f"#incomplete,{reason}: 2 of 3 runs finished"), lines
+    doc = json.loads((tmp_path / "accuracy_bratu.json").read_text())
+    assert doc["incomplete"] == f"{reason}: 2 of 3 runs finished" and len(doc["runs"]) == 2
+    assert not list(tmp_path.glob("*.tmp*"))
+
+
+@pytest.fixture
+def codim2_scenes(monkeypatch):
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parent))
+    monkeypatch.setenv("CONTIN_SCENES", "codim2_fixture_scenes:SCENES")
+
+
+@pytest.mark.parametrize("bounds", [("a=-2:2", "b=-0.5:0.6666666666666666"), ("a=-2:2", "b=-0.5:0.6666666666666667"),
+                                    ("a=-0.7777777777777778:2", "b=-0.5:1")])
+def test_a_zero_hopf_point_on_a_bound_is_reported(tmp_path, codim2_scenes, bounds):
+    """`contin continue run.h5 --from LP2 --free b --bounds b=-0.5:0.6666666666666666` (the ZH of
+    fold-hopf at (a, b) = (-7/9, 2/3) on the bound of b; also a = -7/9 on the bound of a, which
+    the tracer lands on) reported no ZH, exit 0, while a bound 1e-12 further out did: the ZH
+    located 1e-12 beyond the landed point was cut (b), its test function kept its sign at the
+    landed point (a).  A point on the bound is in the range."""
+    import json
+
+    run(["trace", "fold-hopf", "--no-stability", "-q", "-o", str(tmp_path / "run.h5")])
+    res = run(["continue", str(tmp_path / "run.h5"), "--from", "LP2", "--free", "b", "--bounds", bounds[0],
+               "--bounds", bounds[1], "-o", str(tmp_path / "f.h5"), "--json"])
+    assert res.exit_code == 0, res.stderr
+    zh = [sp for sp in json.loads(res.stdout)["special_points"] if sp["type"] == "ZH"]
+    assert len(zh) == 1, res.stderr
+    assert zh[0]["params"]["a"] == pytest.approx(-7 / 9, abs=1e-10) and zh[0]["params"]["b"] == pytest.approx(2 / 3, abs=1e-10)
