@@ -100,3 +100,27 @@ def test_a_zero_hopf_point_on_a_bound_is_reported(tmp_path, codim2_scenes, bound
     zh = [sp for sp in json.loads(res.stdout)["special_points"] if sp["type"] == "ZH"]
     assert len(zh) == 1, res.stderr
     assert zh[0]["params"]["a"] == pytest.approx(-7 / 9, abs=1e-10) and zh[0]["params"]["b"] == pytest.approx(2 / 3, abs=1e-10)
+
+
+def test_a_double_hopf_point_on_the_bound_starts_its_curve(tmp_path, codim2_scenes):
+    """`contin continue h.h5 --from HH2 --free b --bounds b=0.30277563773199456:0.8` (the bound at
+    HH2's b, to rounding) said `Error: start value b=0.302776 of HH2 lies outside its bounds
+    (0.302776, 0.8)`: the located HH lay 1e-16 below the bound.  A start on a bound is in the range
+    (the bound moves onto it); one really outside is still refused, with 10 digits."""
+    from contin import io
+
+    run(["trace", "two-oscillators", "--no-stability", "-q", "-o", str(tmp_path / "osc.h5")])
+    res = run(["continue", str(tmp_path / "osc.h5"), "--from", "HB1", "--free", "b", "--bounds", "a=-1:2",
+               "--bounds", "b=-0.2:0.8", "-o", str(tmp_path / "h.h5")])
+    assert res.exit_code == 0, res.stderr
+    (curve,), _ = io.load(tmp_path / "h.h5")
+    (hh,) = curve.points("HH")
+    b = float(hh.params["b"])
+    res = run(["continue", str(tmp_path / "h.h5"), "--from", hh.name, "--free", "b", "--bounds", "a=-1:2",
+               "--bounds", f"b={b * (1 + 1e-13)!r}:0.8", "-o", str(tmp_path / "o.h5")])
+    assert res.exit_code == 0, res.stderr
+    (other,), _ = io.load(tmp_path / "o.h5")
+    assert other.params["b"].min() >= b and other.params["b"].max() == pytest.approx(0.8, abs=1e-12)
+    res = run(["continue", str(tmp_path / "h.h5"), "--from", hh.name, "--free", "b", "--bounds", "a=-1:2",
+               "--bounds", "b=0.3028:0.8", "-o", str(tmp_path / "x.h5")])
+    assert one_error(res) == f"Error: start value b={b:.10g} of {hh.name} lies outside its bounds (0.3028, 0.8)"
