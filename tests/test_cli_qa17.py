@@ -124,3 +124,32 @@ def test_a_double_hopf_point_on_the_bound_starts_its_curve(tmp_path, codim2_scen
     res = run(["continue", str(tmp_path / "h.h5"), "--from", hh.name, "--free", "b", "--bounds", "a=-1:2",
                "--bounds", "b=0.3028:0.8", "-o", str(tmp_path / "x.h5")])
     assert one_error(res) == f"Error: start value b={b:.10g} of {hh.name} lies outside its bounds (0.3028, 0.8)"
+
+
+def test_the_first_ctrl_c_does_not_wait_for_a_stability_pass():
+    """`contin trace gravity` + Ctrl-C after 4 s took 35 s to end: the first Ctrl-C ends the branch
+    at its last point, but the scene's stability pass then ran over all of its 265 points.  The
+    stability loops (contin.stability.stability_pass / growth_columns, the gPCF operator's
+    pitchfork._stability_columns) ask contin.cancel.stop_requested() between points; a stopped
+    pass leaves the branch without stability (a --resume computes it)."""
+    from pathlib import Path
+
+    from contin import io
+    from contin.cancel import request_stop, stop_on_sigint
+    from contin.stability import growth_columns, stability_pass
+    from problems.couette import pitchfork as pf
+    from problems.couette.scenes import problem_factory
+    from problems.demo import AB
+
+    (branch, *_), meta = io.load(Path(__file__).parents[1] / "results" / "pitchfork.h5")
+    problem = problem_factory(meta["parameters"], meta["discretization"])
+    branch.stable = branch.n_unstable = branch.eigenvalues = None
+    (ab,), ab_meta = io.load(Path(__file__).parents[1] / "results" / "ab.h5")
+    ab.stable = ab.n_unstable = ab.eigenvalues = None
+    with stop_on_sigint():
+        request_stop()
+        assert pf.stability(problem, branch, meta["parameters"]) == [] and branch.n_unstable is None
+        assert pf.growth_rates(problem, branch, meta["parameters"], 0.5) is None
+        stability_pass(AB(), ab, ab_meta["parameters"])
+        assert ab.n_unstable is None
+        assert growth_columns(AB(), ab, ab_meta["parameters"], kx=0.5) == {}
