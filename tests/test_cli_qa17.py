@@ -153,3 +153,20 @@ def test_the_first_ctrl_c_does_not_wait_for_a_stability_pass():
         stability_pass(AB(), ab, ab_meta["parameters"])
         assert ab.n_unstable is None
         assert growth_columns(AB(), ab, ab_meta["parameters"], kx=0.5) == {}
+
+
+def test_the_first_ctrl_c_ends_the_disks_criticality_sweep():
+    """`contin trace disks-criticality` + Ctrl-C after 3 s ended 41 s later: the scene's sweep over
+    (e, nu) ran on (its normal-form computations trace nothing, so no step saw the stop).  It asks
+    contin.cancel.stop_requested() between samples; the CLI then exits 130 (143)."""
+    import time
+
+    from contin.cancel import request_stop, stop_on_sigint
+    from contin.scene import SceneRequest
+    from problems.disks.scenes import run_criticality
+
+    t0 = time.perf_counter()
+    with stop_on_sigint():
+        request_stop()
+        result = run_criticality(SceneRequest(params={}))
+    assert result.extra["curves"] == {} and time.perf_counter() - t0 < 5
