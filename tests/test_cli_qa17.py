@@ -170,3 +170,31 @@ def test_the_first_ctrl_c_ends_the_disks_criticality_sweep():
         request_stop()
         result = run_criticality(SceneRequest(params={}))
     assert result.extra["curves"] == {} and time.perf_counter() - t0 < 5
+
+
+def test_profiles_of_an_interrupted_run_say_why_there_are_none(tmp_path):
+    """`contin profiles F --at ell=5` of a nonlocal-shear run interrupted by Ctrl-C said `Error: F
+    stores no solution profiles`, as for a scene that has none: the profiles are written at the
+    end of a run.  It now says the run was interrupted before they were written, and --resume."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "n.h5"
+    code = ("import sys\n"
+            "from contin.cancel import request_stop\n"
+            "import contin.cli.trace as t\n"
+            "from contin.cli import main\n"
+            "import contin.scene as s\n"
+            "real = s.SceneRequest.finished\n"
+            "def finished(self, branch):\n"
+            "    real(self, branch)\n"
+            "    request_stop()\n"
+            "s.SceneRequest.finished = finished\n"
+            "main.main(sys.argv[1:], prog_name='contin')\n")
+    proc = subprocess.run([sys.executable, "-c", code, "trace", "nonlocal-shear", "--no-stability", "-q",
+                           "--tol", "1e-6", "--max-grid", "64", "-o", str(out)],
+                          capture_output=True, text=True, timeout=120, env={**__import__("os").environ, "CONTIN_SCENES": ""})
+    assert proc.returncode == 130, proc.stderr
+    res = run(["profiles", str(out), "--at", "ell=5", "-o", str(tmp_path / "p.png")])
+    assert one_error(res) == (f"Error: {out} stores no solution profiles: its run was interrupted before they were "
+                              "written (at the end of a run); continue it with --resume")
