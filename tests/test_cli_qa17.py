@@ -198,3 +198,26 @@ def test_profiles_of_an_interrupted_run_say_why_there_are_none(tmp_path):
     res = run(["profiles", str(out), "--at", "ell=5", "-o", str(tmp_path / "p.png")])
     assert one_error(res) == (f"Error: {out} stores no solution profiles: its run was interrupted before they were "
                               "written (at the end of a run); continue it with --resume")
+
+
+def test_an_interrupt_inside_the_lock_release_does_not_close_it_twice(tmp_path, monkeypatch):
+    """A Ctrl-C at the very end of `contin trace bp-curve -o F` (inside the output lock's release,
+    after its descriptor was closed) ended with `Error: Bad file descriptor`, exit 1: the lock
+    still held the closed descriptor and the interrupt handler's release closed it again."""
+    import os
+
+    from contin import atomic
+
+    lock = atomic.OutputLock(tmp_path / "x.h5").acquire()
+    real_close = os.close
+
+    def close_then_interrupt(fd):
+        real_close(fd)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic.os, "close", close_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        lock.release()
+    monkeypatch.setattr(atomic.os, "close", real_close)
+    lock.release()  # the interrupt handler's release: OSError [Errno 9] Bad file descriptor before
+    assert lock.fd is None
