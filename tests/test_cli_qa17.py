@@ -172,6 +172,50 @@ def test_the_first_ctrl_c_ends_the_disks_criticality_sweep():
     assert result.extra["curves"] == {} and time.perf_counter() - t0 < 5
 
 
+STOP_AFTER_FIRST_BRANCH = (
+    "import sys\n"
+    "from contin.cancel import request_stop\n"
+    "from contin.cli import main\n"
+    "import contin.scene as s\n"
+    "real = s.SceneRequest.finished\n"
+    "def finished(self, branch):\n"
+    "    real(self, branch)\n"
+    "    request_stop()\n"
+    "s.SceneRequest.finished = finished\n"
+    "main.main(sys.argv[1:], prog_name='contin')\n")
+
+
+def interrupted_run(*args: str) -> None:
+    """`contin trace ARGS` stopped (as by the first Ctrl-C) when its first branch is finished."""
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", STOP_AFTER_FIRST_BRANCH, "trace", *args], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, "CONTIN_SCENES": ""})
+    assert proc.returncode == 130, proc.stderr
+
+
+def test_resume_of_an_interrupted_run_keeps_its_discretization(tmp_path):
+    """`contin trace jj-walls --grid 32 -o F` interrupted, then `--resume F --grid 64` (or `--method
+    fd4`) was accepted (the checkpoint recorded 'grid', the check read 'intervals'), ended with
+    `Error: matmul: dimension mismatch ...` and relabelled F as cheb 64; `--resume F` alone went on
+    adaptively (states of 244 unknowns beside the stored 100, F saying cheb 32)."""
+    from contin import io
+
+    f = tmp_path / "j.h5"
+    interrupted_run("jj-walls", "--grid", "32", "--no-stability", "-q", "-o", str(f))
+    err = one_error(run(["trace", "jj-walls", "--resume", str(f), "--grid", "64", "--no-stability", "-q"]))
+    assert err == f"Error: '{f}' was computed with --grid 32, not 64; resume with the same discretization (or start a new run)"
+    err = one_error(run(["trace", "jj-walls", "--resume", str(f), "--method", "fd4", "--no-stability", "-q"]))
+    assert "was computed without --method (the scene's own discretization), not --method fd4" in err, err
+    res = run(["trace", "jj-walls", "--resume", str(f), "--no-stability", "-q"])
+    assert "Traceback" not in res.stderr and res.exit_code in (0, 3), res.stderr
+    branches, meta = io.load(f)
+    assert meta["complete"] and meta["discretization"]["intervals"] == 32
+    assert len(branches) > 2 and all(b.states.shape[1] == 100 for b in branches)  # cheb 32: 3 x 33 + 1 unknowns
+
+
 def test_profiles_of_an_interrupted_run_say_why_there_are_none(tmp_path):
     """`contin profiles F --at ell=5` of a nonlocal-shear run interrupted by Ctrl-C said `Error: F
     stores no solution profiles`, as for a scene that has none: the profiles are written at the
