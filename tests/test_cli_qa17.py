@@ -265,3 +265,24 @@ def test_an_interrupt_inside_the_lock_release_does_not_close_it_twice(tmp_path, 
     monkeypatch.setattr(atomic.os, "close", real_close)
     lock.release()  # the interrupt handler's release: OSError [Errno 9] Bad file descriptor before
     assert lock.fd is None
+
+
+def test_an_interrupted_accuracy_run_without_output_shows_its_finished_rows(monkeypatch):
+    """`contin accuracy bratu` (no -o) + Ctrl-C printed only `Error: interrupted (Ctrl-C)`: the
+    finished runs' table is shown, with one note line."""
+    import contin.accuracy as acc
+
+    real, calls = acc.measure, []
+
+    def measure(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(acc, "measure", measure)
+    res = run(["accuracy", "bratu", "--methods", "cheb", "--grids", "16,24,32", "--no-memory", "--no-plots"])
+    assert res.exit_code == 130 and one_error(res) == "Error: interrupted (Ctrl-C)"
+    assert "reference: cheb N=24" in res.stderr and "0/LP1      cheb    16" in res.stderr, res.stderr
+    assert ("note: interrupted (Ctrl-C): 2 of 3 runs finished; their rows are shown above; no file is written "
+            "(no -o DIR)") in res.stderr
