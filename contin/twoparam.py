@@ -306,6 +306,15 @@ def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
         data = {"omega": omega}
         if point.type == "HH":
             data["omega2"] = float(point.data.get("omega", math.nan))
+            # the other pair must be another frequency than the curve's own (sqrt(kappa) of the state):
+            # with omega2 = omega (a damaged file) the curve it lies on was traced again as "the Hopf
+            # curve from HH2", exit 0 (qa17); a 1:1 resonance cannot tell the two pairs apart either
+            kappa = float(state[3 * n]) if state.size > 3 * n else math.nan
+            own = math.sqrt(kappa) if kappa > 0 else math.nan
+            if math.isfinite(own) and abs(omega - own) <= 1e-6 * own:
+                raise ValueError(f"{point.name}'s omega2 = {omega:.10g} is the frequency of the Hopf curve it lies "
+                                 f"on (omega = {own:.10g}): the other pair is unknown (a damaged file, or a 1:1 "
+                                 "resonance where the two pairs cannot be told apart)")
     base = replace(point, type="LP" if to_fold else "HB", state=state[:n].copy(), params=params, tangent=None,
                    data=data)
     if to_fold:

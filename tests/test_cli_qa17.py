@@ -286,3 +286,21 @@ def test_an_interrupted_accuracy_run_without_output_shows_its_finished_rows(monk
     assert "reference: cheb N=24" in res.stderr and "0/LP1      cheb    16" in res.stderr, res.stderr
     assert ("note: interrupted (Ctrl-C): 2 of 3 runs finished; their rows are shown above; no file is written "
             "(no -o DIR)") in res.stderr
+
+
+def test_a_double_hopf_point_whose_other_pair_is_its_own_is_refused(tmp_path, codim2_scenes):
+    """`contin continue h.h5 --from HH2 --free b` of a file whose HH2 has omega2 = omega (damaged)
+    traced the Hopf curve HH2 lies on again and called it 'the Hopf curve from HH2', exit 0."""
+    import h5py
+
+    osc, h = tmp_path / "osc.h5", tmp_path / "h.h5"
+    run(["trace", "two-oscillators", "--no-stability", "-q", "-o", str(osc)])
+    box = ["--bounds", "a=-1:2", "--bounds", "b=-0.2:0.8"]
+    assert run(["continue", str(osc), "--from", "HB1", "--free", "b", *box, "-o", str(h)]).exit_code == 0
+    with h5py.File(h, "r+") as f:
+        sp = f["special_points"]
+        i = [t.decode() if isinstance(t, bytes) else t for t in sp["type"][:]].index("HH")
+        sp["data"]["omega2"][i] = sp["data"]["omega"][i]
+    res = run(["continue", str(h), "--from", "HH2", "--free", "b", *box, "-o", str(tmp_path / "o.h5")])
+    assert one_error(res).startswith("Error: HH2's omega2 = 1 is the frequency of the Hopf curve it lies on (omega = 1)")
+    assert not (tmp_path / "o.h5").exists()
