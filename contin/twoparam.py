@@ -131,6 +131,8 @@ def _cusp_at_start(curve: Branch, fold: Any, source: SpecialPoint) -> Branch:
 def _start_index(curve: Branch, source: SpecialPoint) -> int | None:
     """The index of the curve's point at the source point's (p1, p2) (its corrected start), or None."""
     first, second = curve.free
+    if len(curve) == 0:  # the start failed (the caller says so)
+        return None
     p1, p2 = curve.params[first], curve.params[second]
     scale1, scale2 = max(1.0, abs(source.params[first])), max(1.0, abs(source.params[second]))
     distance = np.abs(p1 - source.params[first]) / scale1 + np.abs(p2 - source.params[second]) / scale2
@@ -345,6 +347,11 @@ def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, fl
     s = _start_index(curve, source)
     if s is None:  # the start was not kept (not expected): leave the curve as traced
         return curve
+    kappa = curve.observables.get("kappa")
+    if curve.kind == "hopf-curve" and "omega" in data and kappa is not None and float(kappa[s]) > 0:
+        # the new curve's own frequency at its start, not the value the file gave as its guess (a
+        # damaged omega = 3 was shown as the start's 'omega=3' on the curve of omega 1; qa17)
+        data = {**data, "omega": math.sqrt(float(kappa[s]))}
     if source.type == "ZH" and curve.kind == "hopf-curve":  # l1's pole at the start (J singular) is no GH
         curve.special_points = [sp for sp in curve.special_points if not (sp.type == "GH" and sp.index in (s - 1, s))]
     return _mark_start(curve, s, source.type,
@@ -415,8 +422,14 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
         if regrid is not None:
             what = {"BT": "a Bogdanov-Takens", "ZH": "a zero-Hopf", "HH": "a double-Hopf"}[point.type]
             raise NotAvailable(NO_REGRID.format(what=f"{point.name} is {what} point"))
-        return _from_codim2(problem, branch, point, second, options,
-                                     branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
+        curve = _from_codim2(problem, branch, point, second, options,
+                             branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
+        from contin.cancel import is_stopped_branch
+
+        if len(curve) <= 1 and not is_stopped_branch(curve):  # (it ended in 'argmin of an empty sequence', qa17)
+            what = curve.kind.replace("-curve", "").replace("hopf", "Hopf").replace("fold", "fold")
+            raise ValueError(f"the {what} curve from {point.name} did not start: {curve.message}")
+        return curve
     kw: dict[str, Any] = {}
     if regrid is not None:
         if point.type == "HB":  # before the hook check: the clearer message

@@ -304,3 +304,28 @@ def test_a_double_hopf_point_whose_other_pair_is_its_own_is_refused(tmp_path, co
     res = run(["continue", str(h), "--from", "HH2", "--free", "b", *box, "-o", str(tmp_path / "o.h5")])
     assert one_error(res).startswith("Error: HH2's omega2 = 1 is the frequency of the Hopf curve it lies on (omega = 1)")
     assert not (tmp_path / "o.h5").exists()
+
+
+@pytest.mark.parametrize("omega", [3.0, 1e-8])
+def test_a_zero_hopf_point_with_a_wrong_omega(tmp_path, codim2_scenes, omega):
+    """`contin continue f.h5 --from ZH2 --free b` of a file whose ZH2 omega was damaged: with 3 the
+    Hopf curve (omega 1) was found but its start was shown as 'omega=3'; with 1e-8 the start failed
+    and the command ended `Error: attempt to get argmin of an empty sequence`."""
+    import json
+
+    import h5py
+
+    run(["trace", "fold-hopf", "--no-stability", "-q", "-o", str(tmp_path / "run.h5")])
+    box = ["--bounds", "a=-2:2", "--bounds", "b=-0.5:1"]
+    f = tmp_path / "f.h5"
+    assert run(["continue", str(tmp_path / "run.h5"), "--from", "LP2", "--free", "b", *box, "-o", str(f)]).exit_code == 0
+    with h5py.File(f, "r+") as h:
+        sp = h["special_points"]
+        sp["data"]["omega"][[t.decode() if isinstance(t, bytes) else t for t in sp["type"][:]].index("ZH")] = omega
+    res = run(["continue", str(f), "--from", "ZH2", "--free", "b", *box, "-o", str(tmp_path / "o.h5"), "--json"])
+    if omega == 3.0:
+        assert res.exit_code == 0, res.stderr
+        (start,) = [sp for sp in json.loads(res.stdout)["special_points"] if sp["type"] == "ZH"]
+        assert start["data"]["omega"] == pytest.approx(1.0, abs=1e-10)
+    else:
+        assert one_error(res).startswith("Error: the Hopf curve from ZH2 did not start: "), res.stderr
