@@ -144,14 +144,19 @@ class AccuracyReport:
     runs: list[Run]
     rows: list[Row] = field(default_factory=list)
     adaptive: list[AdaptiveRow] = field(default_factory=list)
+    #: why the report is partial ("interrupted (Ctrl-C): 3 of 28 runs finished"), "" when complete
+    incomplete: str = ""
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        out = {
             "scene": self.scene, "params": {k: _jsonable(v) for k, v in self.params.items()},
             "reference": self.reference, "reference_from": self.reference_from,
             "runs": [asdict(r) for r in self.runs], "rows": [asdict(r) for r in self.rows],
             "recommendations": recommend(self), "adaptive": [asdict(a) for a in self.adaptive],
         }
+        if self.incomplete:
+            out["incomplete"] = self.incomplete
+        return out
 
     @property
     def inaccurate(self) -> list[AdaptiveRow]:
@@ -269,7 +274,39 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
     requests = REQUESTS if scene.special_key_points else REQUESTS[:1]
     jobs += [(adaptive_method, None, float(t), request) for request in requests for t in tols]
     best: dict[int, Run] = {}
+    state = {"round": 1}
+    try:
+        _measure_jobs(scene, params, jobs, best, state, repeats=repeats, memory=memory, overrides=overrides,
+                      progress=progress, engine=engine)
+    except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM (contin.cli._runctl.Terminated): the finished runs
+        # are the exception's partial_report (the CLI writes it, marked incomplete; qa17: all was lost)
+        why = "terminated by SIGTERM" if type(exc).__name__ == "Terminated" else "interrupted (Ctrl-C)"
+        where = f" (timing round {state['round']} of {repeats})" if repeats > 1 else ""
+        exc.partial_report = _report(  # type: ignore[attr-defined]
+            scene, params, jobs, best, incomplete=f"{why}: {len(best)} of {len(jobs)} runs finished{where}")
+        raise
+    return _report(scene, params, jobs, best)
+
+
+def _report(scene: Scene, params: Mapping[str, Any], jobs: Sequence[tuple[str, int | None, float | None, str]],
+            best: Mapping[int, Run], incomplete: str = "") -> AccuracyReport:
+    """The report of the finished runs ``best`` (job index -> Run) of ``jobs``."""
+    fixed = [best[i] for i, job in enumerate(jobs) if job[2] is None and i in best]
+    reference, source = references(fixed)
+    report = AccuracyReport(scene.name, dict(params), reference, source, fixed, incomplete=incomplete)
+    report.rows = tabulate(fixed, reference)
+    report.adaptive = [adaptive_row(best[i], job[2], report, job[3]) for i, job in enumerate(jobs)
+                       if job[2] is not None and i in best]
+    return report
+
+
+def _measure_jobs(scene: Scene, params: Mapping[str, Any], jobs: Sequence[tuple[str, int | None, float | None, str]],
+                  best: dict[int, Run], state: dict[str, int], *, repeats: int, memory: bool, overrides: Mapping[str, Any] | None,
+                  progress: Callable[[str], None] | None, engine: str | None) -> None:
+    """Run every job ``repeats`` times, keeping each one's fastest Run in ``best`` as it finishes
+    (``state['round']``: the round under way, from 1)."""
     for rnd in range(repeats):
+        state["round"] = rnd + 1
         for i, (method, n, tol, request) in enumerate(jobs):
             if i in best and best[i].failed:
                 continue
@@ -293,12 +330,6 @@ def run_accuracy(scene: Scene, params: Mapping[str, Any], methods: Sequence[str]
                 if i in best and not math.isnan(best[i].peak_memory_mb):
                     run.peak_memory_mb = best[i].peak_memory_mb
                 best[i] = run
-    fixed = [best[i] for i, job in enumerate(jobs) if job[2] is None]
-    reference, source = references(fixed)
-    report = AccuracyReport(scene.name, dict(params), reference, source, fixed)
-    report.rows = tabulate(fixed, reference)
-    report.adaptive = [adaptive_row(best[i], job[2], report, job[3]) for i, job in enumerate(jobs) if job[2] is not None]
-    return report
 
 
 def adaptive_row(run: Run, tol: float, report: AccuracyReport, request: str = "all") -> AdaptiveRow:
@@ -419,6 +450,8 @@ def write_outputs(report: AccuracyReport, directory: str | Path, *, plots: bool 
     for r in report.runs:
         if r.failed:
             lines.append(",".join(["#failed", r.method, str(r.grid), _csv_cell(r.failed)] + [""] * (len(COLUMNS) - 4)))
+    if report.incomplete:  # a run stopped by Ctrl-C/SIGTERM: the rows of the finished runs only
+        lines.append(",".join(["#incomplete", _csv_cell(report.incomplete)] + [""] * (len(COLUMNS) - 2)))
     _publish_text(d / f"{stem}.csv", "\n".join(lines) + "\n")
     written.append(d / f"{stem}.csv")
     _publish_text(d / f"{stem}.json", json.dumps(_clean(report.to_json()), indent=1) + "\n")
@@ -432,6 +465,8 @@ def write_outputs(report: AccuracyReport, directory: str | Path, *, plots: bool 
             cells = (a.tol, a.request, a.worst_error, a.worst_key, a.met, a.cpu, a.wall, a.newton_iterations, g[0], g[1],
                      a.fixed_method, a.fixed_grid, a.fixed_cpu, a.ratio, a.failed)
             lines.append(",".join(_csv_cell("" if c is None else c) for c in cells))
+        if report.incomplete:
+            lines.append(",".join(["#incomplete", _csv_cell(report.incomplete)] + [""] * (len(cols) - 2)))
         _publish_text(d / f"{stem}_adaptive.csv", "\n".join(lines) + "\n")
         written.append(d / f"{stem}_adaptive.csv")
     if plots and report.rows:

@@ -159,14 +159,17 @@ class OutputLock:
         return self
 
     def release(self) -> None:
-        if self.fd is None:
+        # the descriptor is forgotten before it is closed: a Ctrl-C that landed between the close
+        # and `self.fd = None` made the caller's second release close it again ('Error: Bad file
+        # descriptor', exit 1, after a finished `contin trace bp-curve`; qa17)
+        fd, self.fd = self.fd, None
+        if fd is None:
             return
         OutputLock._held.pop(str(self.lockfile), None)
         try:
             self.lockfile.unlink(missing_ok=True)
         finally:
-            os.close(self.fd)  # closing drops the flock
-            self.fd = None
+            os.close(fd)  # closing drops the flock
 
     def __enter__(self) -> OutputLock:
         return self.acquire()

@@ -1002,6 +1002,7 @@ def trace(
                 ds = reduced_step(ds, sopt)
                 continue
             tracer.special.extend(found)
+            tracer.special.extend(_on_the_bound(tracer, new, stepped, bound, len(tracer.points) - 1))
             tracer.append(new, system.norm(new.x - cur.x), corr.iterations)
             message = f"reached bound {parameter}={bound:g}"
             break
@@ -1135,6 +1136,26 @@ def _detect_checked(tracer: _Tracer, step: int, cur: _Point, new: _Point, steppe
     if tracer.eigen is not None:  # the eigenvalue-count cross-check (contin.bpdetect)
         return tracer.eigen.check(tracer, cur, new, found, ds, ds > sopt.ds_min * (1 + 1e-12))
     return found
+
+
+def _on_the_bound(tracer: _Tracer, landed: _Point, stepped: _Point, bound: float, index: int) -> list[SpecialPoint]:
+    """Special points on a parameter bound itself: a test function whose zero is the landed point
+    (to rounding) may keep its sign there, so the step cur -> landed does not see it.  The zeros
+    between the landed point and the step beyond the bound (``stepped``) that are located within
+    the location tolerance of the bound belong to the branch (point ``index``'s step).  `contin
+    continue F --from LP2 --free b --bounds a=-0.7777777777777778:2` (ZH at a = -7/9) reported no
+    ZH, a bound 1e-12 further did (qa17)."""
+    if not (stepped.tests.extra.keys() == landed.tests.extra.keys()):
+        return []
+    saved = tracer._gaps, tracer._gap_point  # detect() resets the step's detection-gap lines
+    try:
+        found, _ = tracer.detect(landed, stepped, index)
+    finally:
+        tracer._gaps, tracer._gap_point = saved
+    parameter = tracer.system.parameter
+    tol = tracer.options.detection.locate_tol * max(1.0, abs(bound))
+    return [replace(sp, index=index) for sp in found
+            if sp.converged and abs(sp.params[parameter] - bound) <= tol]
 
 
 def _jump_retry(tracer: _Tracer, step: int, cur: _Point, new: _Point, direction: Array, ds: float,

@@ -236,9 +236,14 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float,
     end = SpecialPoint(type="EP", index=n_keep, params=dict(uz.params), order_parameter=uz.order_parameter,
                        state=uz.state.copy(), tangent=None if uz.tangent is None else uz.tangent.copy(),
                        bracket=uz.bracket, note=f"reached bound {second}={p2:g}")
+    # a point of the crossing step on the bound itself (to its location tolerance) is in the range:
+    # `contin continue F --from LP2 --free b --bounds b=-0.5:0.6666666666666666` (ZH at b = 2/3)
+    # dropped the ZH located 1e-12 beyond the landed point, while a bound 1e-12 further kept it (qa17)
+    on_bound = ON_BOUND * max(1.0, abs(bound))
     keep = [s for s in branch.special_points
             if s.type not in ("EP", "MX") and s is not located and (s.index < i or (s.index == i and s.params.get(branch.parameter) is not None
-                                                                                and _before(branch, s, uz)))]
+                                                                                and (_before(branch, s, uz)
+                                                                                     or _within(s, j, lo, hi, on_bound))))]
     states = branch.states[:n_keep] if branch.state_index is None else branch.states[branch.state_index < n_keep]
     state_index = None if branch.state_index is None else np.append(branch.state_index[branch.state_index < n_keep], n_keep)
     cut = replace(
@@ -285,6 +290,18 @@ def _stop_outside(branch: Branch, second: str, lo: float, hi: float, j: int) -> 
                        note=f"reached bound {second}={at:g}")
     return replace(cut, special_points=[sp_ for sp_ in cut.special_points if sp_.type not in ("EP", "MX")] + [end],
                    status="EP", message=f"reached bound {second}={at:g}")
+
+
+#: a located point this close to a bound (relative to max(1, |bound|)) is on it: ten times the
+#: tracer's default location tolerance (``DetectionOptions.locate_tol``)
+ON_BOUND = 1e-10
+
+
+def _within(s: SpecialPoint, j: int, lo: float, hi: float, slack: float) -> bool:
+    """Whether the second parameter of ``s`` (state entry ``j``) lies in [lo - slack, hi + slack]."""
+    if s.state is None or len(s.state) <= j:
+        return False
+    return bool(lo - slack <= float(s.state[j]) <= hi + slack)
 
 
 def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:

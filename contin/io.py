@@ -676,9 +676,9 @@ class H5Writer:
 
     def release(self) -> None:
         """Drop the output lock (also done by :meth:`close`; a dying process drops it anyway)."""
-        if self._lock is not None:
-            self._lock.release()
-            self._lock = None
+        lock, self._lock = self._lock, None  # (forgotten first: a Ctrl-C inside must not release it twice)
+        if lock is not None:
+            lock.release()
 
 
 def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:

@@ -166,6 +166,8 @@ class SceneRequest:
                  if isinstance(v, int | float | np.floating | np.integer) and not isinstance(v, bool)}
         if branch.n_unstable is None:
             stability_pass(problem, branch, fixed, n_eigs=n_eigs)
+            if branch.n_unstable is None:  # a stop request ended the pass (contin.cancel)
+                return []
         messages = audit(branch)
         if any("complex pair" in m for m in messages):  # Hopf points the tracer did not locate
             messages = self._hopf_points(problem, branch, fixed, 0.0, branch.n_unstable) + audit(branch)

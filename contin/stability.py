@@ -300,7 +300,9 @@ def stability_pass(
     The parameters at point i are ``params_fixed`` updated with ``branch.params[name][i]``
     for every name the branch records.  A point whose eigenproblem fails (singular shift,
     ARPACK not converging) is logged and marked ``n_unstable = -1``, ``stable = False``,
-    eigenvalues nan; :func:`audit` reports such points instead of guessing.
+    eigenvalues nan; :func:`audit` reports such points instead of guessing.  A stop request
+    (:func:`contin.cancel.stop_requested`, asked between points) ends the pass with the branch
+    left without stability columns.
     """
     from contin.adapt import point_problem
 
@@ -317,7 +319,11 @@ def stability_pass(
                       "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
                       "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
                       stacklevel=2)
+    from contin.cancel import stop_requested
+
     for i in range(s):
+        if stop_requested():  # the first Ctrl-C/SIGTERM: no wait for the rest of the pass (35 s on a
+            return            # gravity branch, qa17); the branch stays without stability (--resume fills it)
         p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
         try:
             u = branch.state(i)
@@ -367,7 +373,11 @@ def growth_columns(
                       stacklevel=2)
     from contin.adapt import point_problem
 
+    from contin.cancel import stop_requested
+
     for i in range(s):
+        if stop_requested():  # the first Ctrl-C/SIGTERM: no columns rather than a wait for the whole pass
+            return {}
         p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
         try:
             # each point on its own grid (adaptive runs, contin.adapt.point_problem)

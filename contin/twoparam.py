@@ -131,6 +131,8 @@ def _cusp_at_start(curve: Branch, fold: Any, source: SpecialPoint) -> Branch:
 def _start_index(curve: Branch, source: SpecialPoint) -> int | None:
     """The index of the curve's point at the source point's (p1, p2) (its corrected start), or None."""
     first, second = curve.free
+    if len(curve) == 0:  # the start failed (the caller says so)
+        return None
     p1, p2 = curve.params[first], curve.params[second]
     scale1, scale2 = max(1.0, abs(source.params[first])), max(1.0, abs(source.params[second]))
     distance = np.abs(p1 - source.params[first]) / scale1 + np.abs(p2 - source.params[second]) / scale2
@@ -306,6 +308,17 @@ def _from_codim2(problem: Any, branch: Branch, point: SpecialPoint, second: str,
         data = {"omega": omega}
         if point.type == "HH":
             data["omega2"] = float(point.data.get("omega", math.nan))
+            # the other pair must be another frequency than the curve's own (sqrt(kappa) of the state):
+            # with omega2 = omega (a damaged file) the curve it lies on was traced again as "the Hopf
+            # curve from HH2", exit 0 (qa17); a 1:1 resonance cannot tell the two pairs apart either
+            kappa = float(state[3 * n]) if state.size > 3 * n else math.nan
+            own = math.sqrt(kappa) if kappa > 0 else math.nan
+            # (to 1e-9: a genuine pair 1e-6 apart switches correctly, audit16's test, so only a
+            # rounding-level coincidence is refused)
+            if math.isfinite(own) and abs(omega - own) <= 1e-9 * own:
+                raise ValueError(f"{point.name}'s omega2 = {omega:.10g} is the frequency of the Hopf curve it lies "
+                                 f"on (omega = {own:.10g}): the other pair is unknown (a damaged file, or a 1:1 "
+                                 "resonance where the two pairs cannot be told apart)")
     # the normal form of the source point (contin.codim2tests), where it was computed; an HH's
     # pairs swap roles on the new curve (its own pair is the source's omega2)
     swap = {"p11": "p22", "p22": "p11", "p12": "p21", "p21": "p12", "theta": "delta", "delta": "theta"}
@@ -369,6 +382,11 @@ def _start_as(curve: Branch, source: SpecialPoint, kind: str, data: dict[str, fl
     s = _start_index(curve, source)
     if s is None:  # the start was not kept (not expected): leave the curve as traced
         return curve
+    kappa = curve.observables.get("kappa")
+    if curve.kind == "hopf-curve" and "omega" in data and kappa is not None and float(kappa[s]) > 0:
+        # the new curve's own frequency at its start, not the value the file gave as its guess (a
+        # damaged omega = 3 was shown as the start's 'omega=3' on the curve of omega 1; qa17)
+        data = {**data, "omega": math.sqrt(float(kappa[s]))}
     if source.type == "ZH" and curve.kind == "hopf-curve":  # l1's pole at the start (J singular) is no GH
         curve.special_points = [sp for sp in curve.special_points if not (sp.type == "GH" and sp.index in (s - 1, s))]
     note = f"start: {source.name} of the {kind.replace('-', ' ').replace('hopf', 'Hopf')}"
@@ -417,20 +435,36 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     on_curve = on_curve_message(branch, point)
     if on_curve is not None:
         raise NotAvailable(on_curve)
+    from contin.hopfcurve import ON_BOUND
+
     for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
         # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)
         lo, hi = options.bounds.get(name, (-math.inf, math.inf))
         value = float(point.params[name])
-        if not lo <= value <= hi:
-            raise ValueError(f"start value {name}={value:g} of {point.name} lies outside its bounds ({lo:g}, {hi:g})")
+        # a point on a bound (to its location tolerance, 1e-12 beyond it) is in the range: the bound
+        # is moved onto it (`--from HH2 --bounds b=<HH2's b>:0.8` said 'start value b=0.302776 of HH2
+        # lies outside its bounds (0.302776, 0.8)', qa17)
+        if lo - ON_BOUND * max(1.0, abs(lo)) <= value < lo:
+            options = replace(options, bounds={**options.bounds, name: (value, hi)})
+        elif hi < value <= hi + ON_BOUND * max(1.0, abs(hi)):
+            options = replace(options, bounds={**options.bounds, name: (lo, value)})
+        elif not lo <= value <= hi:
+            raise ValueError(f"start value {name}={value:.10g} of {point.name} lies outside its bounds "
+                             f"({lo:.10g}, {hi:.10g})")
     if point.state is None:
         raise ValueError(f"{point.name} has no stored state")
     if point.type in SWITCH_TYPES:
         if regrid is not None:
             what = {"BT": "a Bogdanov-Takens", "ZH": "a zero-Hopf", "HH": "a double-Hopf"}[point.type]
             raise NotAvailable(NO_REGRID.format(what=f"{point.name} is {what} point"))
-        return _from_codim2(problem, branch, point, second, options,
-                                     branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
+        curve = _from_codim2(problem, branch, point, second, options,
+                             branch_id=branch_id if branch_id is not None else f"{point.name}.{second}")
+        from contin.cancel import is_stopped_branch
+
+        if len(curve) <= 1 and not is_stopped_branch(curve):  # (it ended in 'argmin of an empty sequence', qa17)
+            what = curve.kind.replace("-curve", "").replace("hopf", "Hopf").replace("fold", "fold")
+            raise ValueError(f"the {what} curve from {point.name} did not start: {curve.message}")
+        return curve
     kw: dict[str, Any] = {}
     if regrid is not None:
         if point.type == "HB":  # before the hook check: the clearer message

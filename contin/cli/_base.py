@@ -50,6 +50,16 @@ EXIT_INTERRUPTED = 130
 class ContinGroup(click.Group):
     """A group whose commands turn any exception into one ``Error:`` line (exit 1)."""
 
+    def make_context(self, info_name: str | None, args: list[str], parent: click.Context | None = None,
+                     **extra: Any) -> click.Context:
+        # Ctrl-C while click parses the group's arguments (before invoke) printed click's 'Aborted!'
+        # and exit 1 (qa17): the same Error line and exit 130 as during a command
+        try:
+            return super().make_context(info_name, args, parent=parent, **extra)
+        except KeyboardInterrupt:
+            click.echo("Error: interrupted (Ctrl-C)", err=True)
+            raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
+
     def invoke(self, ctx: click.Context) -> Any:
         from contin.cli._runctl import EXIT_TERMINATED, Terminated, sigterm_as_interrupt
 

@@ -67,7 +67,7 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
     With --tols, the scene is also run asking for each accuracy instead of a grid.
     """
     import contin.scene as scene_mod
-    from contin.accuracy import recommend, run_accuracy, write_outputs
+    from contin.accuracy import run_accuracy, write_outputs
 
     params = parse_settings(settings)
     guard, _ = resolution_guard(resolution_tol)  # every trace of every run
@@ -111,6 +111,10 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
             report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
                                   progress=None if quiet else (lambda m: progress.line(f"running {m}")),
                                   tols=tol_list, repeats=repeats)
+    except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM lost every finished run (qa17): keep them, marked
+        progress.close()
+        _save_partial(getattr(exc, "partial_report", None), outdir, plots=not no_plots, as_json=as_json, quiet=quiet)
+        raise  # the group's one Error line, exit 130 (143)
     finally:
         progress.close()
     if not report.reference:
@@ -122,28 +126,7 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
 
         echo_json(_clean(report.to_json()))
     if not quiet:
-        rows = [(r.key, r.method, r.grid, fmt(r.value, 13), fmt(r.error, 2), fmt(r.order, 3), f"{r.cpu:.3f}",
-                 f"{r.wall:.3f}", r.newton_iterations, fmt(r.peak_memory_mb, 3)) for r in report.rows]
-        echo_err(table(rows, ("key point", "method", "N", "value", "rel.error", "order", "cpu s", "wall s",
-                              "newton", "peak MB")))
-        echo_err(f"reference: {report.reference_from}")
-        for r in report.runs:
-            if r.failed:
-                echo_err(f"failed: {r.method} N={r.grid}: {r.failed}")
-        rec = [(f"{x['target']:.0e}", x["method"] or "-", x["grid"] or "-",
-                fmt(x["cpu"], 3) if x["method"] else "-", fmt(x["worst_error"], 2) if x["method"] else "not reached")
-               for x in recommend(report)]
-        echo_err(table(rec, ("budget", "method", "N", "cpu s", "worst error")))
-        if report.adaptive:
-            rows = [(f"{a.tol:.0e}", a.request, fmt(a.worst_error, 2), a.worst_key, "yes" if a.met else "NO",
-                     "-" if a.grids is None else f"{a.grids[0]}..{a.grids[1]}", f"{a.cpu:.3f}",
-                     f"{a.fixed_method} {a.fixed_grid}" if a.fixed_method else "none",
-                     fmt(a.fixed_cpu, 3) if a.fixed_method else "-", fmt(a.ratio, 3) if a.fixed_method else "-")
-                    for a in report.adaptive]
-            echo_err(table(rows, ("tol", "asked of", "achieved", "worst key point", "met", "grids", "cpu s",
-                                  "cheapest fixed", "its cpu s", "ratio")))
-        for path in written:
-            echo_err(f"wrote {path}")
+        _show(report, written)
     if report.inaccurate:
         from contin.cli.verify import EXIT_INACCURATE
 
@@ -151,3 +134,55 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
             why = a.failed or f"achieved error {fmt(a.worst_error, 2)} at {a.worst_key} exceeds it"
             click.echo(f"inaccurate: adaptive run at tol {a.tol:g} ({a.request}): {why}", err=True)
         raise click.exceptions.Exit(EXIT_INACCURATE)
+
+
+def _save_partial(report: Any, outdir: str | None, *, plots: bool, as_json: bool, quiet: bool = False) -> None:
+    """After Ctrl-C/SIGTERM: write the finished runs' report (atomically, marked incomplete) and say so."""
+    if report is None:
+        return
+    from contin.accuracy import _clean, write_outputs
+
+    what = report.incomplete
+    if not report.runs and not report.adaptive:
+        echo_err(f"note: {what}; nothing to save")
+        return
+    if as_json:
+        echo_json(_clean(report.to_json()))
+    written = write_outputs(report, outdir, plots=plots) if outdir is not None else []
+    shown = not quiet and bool(report.rows)
+    if shown:  # the finished runs' table, as a complete run shows it
+        _show(report, [])
+    if outdir is None:
+        echo_err(f"note: {what}; " + ("their rows are shown above; no file is written (no -o DIR)" if shown
+                                      else "they are not saved (no -o DIR)"))
+        return
+    echo_err(f"note: {what}; their rows are saved in {written[0]} (marked incomplete, reference "
+             f"{report.reference_from})")
+
+
+def _show(report: Any, written: list[Any]) -> None:
+    """The tables of ``report`` and the files written, on stderr."""
+    from contin.accuracy import recommend
+
+    rows = [(r.key, r.method, r.grid, fmt(r.value, 13), fmt(r.error, 2), fmt(r.order, 3), f"{r.cpu:.3f}",
+             f"{r.wall:.3f}", r.newton_iterations, fmt(r.peak_memory_mb, 3)) for r in report.rows]
+    echo_err(table(rows, ("key point", "method", "N", "value", "rel.error", "order", "cpu s", "wall s",
+                          "newton", "peak MB")))
+    echo_err(f"reference: {report.reference_from}")
+    for r in report.runs:
+        if r.failed:
+            echo_err(f"failed: {r.method} N={r.grid}: {r.failed}")
+    rec = [(f"{x['target']:.0e}", x["method"] or "-", x["grid"] or "-",
+            fmt(x["cpu"], 3) if x["method"] else "-", fmt(x["worst_error"], 2) if x["method"] else "not reached")
+           for x in recommend(report)]
+    echo_err(table(rec, ("budget", "method", "N", "cpu s", "worst error")))
+    if report.adaptive:
+        rows = [(f"{a.tol:.0e}", a.request, fmt(a.worst_error, 2), a.worst_key, "yes" if a.met else "NO",
+                 "-" if a.grids is None else f"{a.grids[0]}..{a.grids[1]}", f"{a.cpu:.3f}",
+                 f"{a.fixed_method} {a.fixed_grid}" if a.fixed_method else "none",
+                 fmt(a.fixed_cpu, 3) if a.fixed_method else "-", fmt(a.ratio, 3) if a.fixed_method else "-")
+                for a in report.adaptive]
+        echo_err(table(rows, ("tol", "asked of", "achieved", "worst key point", "met", "grids", "cpu s",
+                              "cheapest fixed", "its cpu s", "ratio")))
+    for path in written:
+        echo_err(f"wrote {path}")

@@ -32,6 +32,13 @@ def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str
     io.check_writable(output)
     branches, meta = io.load(file)
     if meta["y"] is None or not meta["profiles"]:
+        if not meta["complete"] and not str(meta.get("stopped", "")).startswith("failed"):
+            # an interrupted run is saved before its profiles are written (at the run's end): it said
+            # only 'stores no solution profiles', as for a scene that has none (qa17)
+            depth = isinstance(meta.get("extra"), dict) and "depth" in meta["extra"]  # --depth refuses --resume
+            fail(f"{file} stores no solution profiles: its run was {meta.get('stopped') or 'interrupted'} before "
+                 f"they were written (at the end of a run); "
+                 + ("run it again (a --depth run starts from scratch)" if depth else "continue it with --resume"))
         fail(f"{file} stores no solution profiles")
     if branch_ids:
         missing = [i for i in branch_ids if i not in {b.id for b in branches}]

@@ -466,14 +466,27 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                 fail(f"{resume!r} was computed with {name}={fmt(before)}, not {fmt(value)}; resume with the same parameters")
         # The stored states belong to the file's discretization: another one is refused, and
         # none given means the file's (a resumed cheb-32 run silently mixed in cheb-64 states).
-        stored = meta["discretization"]
+        stored = dict(meta["discretization"])
+        if "grid" in stored and "intervals" not in stored:  # a checkpoint written before qa17 (key 'grid')
+            stored["intervals"] = stored.pop("grid")
         for what, given, key in (("--method", method, "method"), ("--grid", grid, "intervals")):
             if key in stored and given is not None and str(given) != str(stored[key]):
                 fail(f"{resume!r} was computed with {what} {stored[key]}, not {given}; resume with the same "
                      f"discretization (or start a new run)")
+            if key not in stored and given is not None and not meta["complete"]:
+                # an unfinished file records only the --method/--grid its run was given: none means the
+                # scene's own (`--resume F --grid 64` of a --grid 32 run, or `--method fd4` of a default
+                # run, was accepted, failed with 'matmul: dimension mismatch' and relabelled the file; qa17)
+                fail(f"{resume!r} was computed without {what} (the scene's own discretization), not {what} "
+                     f"{given}; resume without it (or start a new run)")
         method = method if method is not None or "method" not in stored else str(stored["method"])
         grid = grid if grid is not None or "intervals" not in stored else int(stored["intervals"])
         stored_options = _in_progress_options(meta.get("options"))
+        if stored_options == {} and not meta["complete"]:
+            # an unfinished run without overrides: no tol, so a fixed grid (an adaptive scene's run
+            # always records its tol); `--resume F` of an interrupted `--grid 32` run of jj-walls
+            # went on adaptively (states of 244 unknowns beside those of 100, the file saying cheb 32; qa17)
+            stored_options = {"overrides": {}, "adapt": None}
         _resume_accuracy(resume, stored_options, overrides, tol=tol, special_tol=special_tol,
                          max_grid=max_grid, no_solve_check=no_solve_check)
         _resume_settings(resume, stored_options, step_overrides)
@@ -497,7 +510,8 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     writer = None
     if output is not None:  # checked (and locked against a second writer) before any computing
         writer = io.H5Writer(output, scene=scene, parameters={**sc.defaults, **params},
-                             discretization={k: v for k, v in (("method", method), ("grid", grid)) if v is not None},
+                             # (the reader's key 'intervals': a checkpoint said 'grid', which --resume did not see, qa17)
+                             discretization={k: v for k, v in (("method", method), ("intervals", grid)) if v is not None},
                              options=overrides, branches=completed.values(),
                              diagram_x=sc.x, diagram_y=sc.y, checkpoint_ratio=CHECKPOINT_RATIO,
                              extra={} if depth is None else {"depth": depth})  # (contin info of a stopped --depth run)

@@ -655,12 +655,18 @@ def finite_eigenvalues(A: Any, B: Any) -> np.ndarray:
 
 
 def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx: float,
-                       n_eigs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       n_eigs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(stable, n_unstable, eigenvalues) of every stored point; None when a stop request
+    (``contin.cancel.stop_requested``, the first Ctrl-C/SIGTERM) ended the loop between points."""
+    from contin.cancel import stop_requested
+
     s = len(branch)
     stable = np.zeros(s, dtype=bool)
     n_unstable = np.full(s, -1, dtype=np.int64)
     eigs = np.full((s, n_eigs), np.nan + 0j)
     for i in range(s):
+        if stop_requested():  # the first Ctrl-C waited for the whole pass (35 s on a gravity branch, qa17)
+            return None
         p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
         op_i = op if branch.grid is None else type(op)(point_problem(op.problem, branch, i))  # its own grid
         try:
@@ -685,8 +691,10 @@ def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, floa
     ``branch.audit`` after the continuation's own entries.
     """
     before = list(branch.audit)
-    branch.stable, branch.n_unstable, branch.eigenvalues = _stability_columns(
-        StabilityOperator(problem), branch, params, 0.0, n_eigs)
+    columns = _stability_columns(StabilityOperator(problem), branch, params, 0.0, n_eigs)
+    if columns is None:  # stopped: the branch stays without stability (a --resume computes it)
+        return []
+    branch.stable, branch.n_unstable, branch.eigenvalues = columns
     msgs = audit_branch(branch)
     branch.audit = before + [f"stability audit: {m}" for m in msgs]
     return msgs
@@ -699,9 +707,13 @@ def audit_branch(branch: Branch) -> list[str]:
 
 
 @limited()
-def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list]:
-    """max Re omega and the unstable count at wavenumber k_x (k_z = 0) at every stored point."""
-    _, counts, eigs = _stability_columns(StabilityOperator(problem), branch, params, kx, 1)
+def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list] | None:
+    """max Re omega and the unstable count at wavenumber k_x (k_z = 0) at every stored point
+    (None when a stop request ended the loop)."""
+    columns = _stability_columns(StabilityOperator(problem), branch, params, kx, 1)
+    if columns is None:
+        return None
+    _, counts, eigs = columns
     return {"growth_rate": [float(v) for v in eigs[:, 0].real], "n_unstable": [int(c) for c in counts]}
 
 

@@ -178,7 +178,8 @@ class _Run:
     def finish(self, branch: Branch, *, stability_from: Branch | None = None) -> Branch:
         """Stability (or a copy from the branch it mirrors), audit, extra k_x; then publish."""
         req, pb = self.request, self.problem
-        fresh = branch.id not in req.completed
+        # (a reused branch without stability: its run was stopped in the stability pass, qa17)
+        fresh = branch.id not in req.completed or branch.n_unstable is None
         if req.stability and fresh:
             if stability_from is not None and stability_from.n_unstable is not None:
                 branch.stable = stability_from.stable.copy()
@@ -202,6 +203,8 @@ class _Run:
                 key = f"{kx:g}"
                 cached = self.kx_extra.get(src.id, {}).get(key)
                 data = cached if cached is not None else pf.growth_rates(pb, src, self.params, kx)
+                if data is None:  # a stop request ended the pass: no column
+                    continue
                 self.kx_extra.setdefault(branch.id, {})[key] = data
                 # Also as observable columns, as contin.stability.growth_columns gives every other
                 # scene: `contin diagram -y growth_rate_kx0.5` (nan where the eigenproblem failed).

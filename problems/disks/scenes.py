@@ -224,12 +224,18 @@ def run_criticality(request: SceneRequest) -> SceneResult:
     extra: dict[str, Any] = {"nu": nus.tolist(), "e": es, "curves": {}}
     notes: list[str] = []
     done: list[Branch] = []
+    from contin.cancel import stop_requested
+
     for e in es:
+        if stop_requested():  # the first Ctrl-C/SIGTERM: the run ends here (it waited ~40 s for the sweep, qa17)
+            break
         base_p = {**DEFAULTS, **extra_p, "e": e}
         nu_th = threshold_density(base_p, closure)
         a = np.full(nus.size, np.nan)
         hc = np.full(nus.size, np.nan)
         for i, nu in enumerate(nus):
+            if stop_requested():
+                break
             if math.isfinite(nu_th) and nu <= nu_th:
                 continue
             request.report(f"disks-criticality: e = {e:g}, nu = {nu:g}")
@@ -239,6 +245,8 @@ def run_criticality(request: SceneRequest) -> SceneResult:
                 notes.append(f"e = {e:g}, nu = {nu:g}: no bend ({exc})")
                 continue
             a[i], hc[i] = b.a, b.H_c
+        if stop_requested():  # an e whose sweep was cut short has no result
+            break
         tri = tricritical(pb, e, nus, a, extra=extra_p)
         # the sample next to the threshold is bracketed between threshold (a -> -inf) and the first sample
         first = int(np.flatnonzero(np.isfinite(a))[0]) if np.isfinite(a).any() else None
@@ -255,7 +263,7 @@ def run_criticality(request: SceneRequest) -> SceneResult:
         checks = []
         for k in range(int(s["fold_checks"])):
             finite = np.flatnonzero(np.isfinite(a))
-            if finite.size <= k:
+            if finite.size <= k or stop_requested():
                 break
             j = int(finite[len(finite) // 2 + k])
             request.report(f"disks-criticality: e = {e:g}, fold-route check at nu = {nus[j]:g}")
