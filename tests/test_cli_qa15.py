@@ -17,19 +17,7 @@ from click.testing import CliRunner
 from contin.cli import main
 
 
-@pytest.fixture(autouse=True)
-def real_scenes(monkeypatch):
-    monkeypatch.delenv("CONTIN_SCENES", raising=False)
-
-
-def run(args: list[str]):
-    return CliRunner().invoke(main, args, catch_exceptions=False)
-
-
-def one_error(res) -> str:
-    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
-    assert res.exit_code != 0 and len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
-    return errors[0]
+from tests.cli_sweep import one_error, real_scenes, run  # noqa: E402,F401  (real_scenes: autouse)
 
 
 @pytest.mark.parametrize("scene, floor", [("pitchfork", "2e-06"), ("jj-walls", "4e-06")])

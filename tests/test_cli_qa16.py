@@ -15,10 +15,8 @@ import time
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from contin import io
-from contin.cli import main
 
 HERE = Path(__file__).resolve().parent
 FIXTURE_ENV = {**os.environ, "CONTIN_SCENES": "cli_fixture_scenes:SCENES",
@@ -26,19 +24,7 @@ FIXTURE_ENV = {**os.environ, "CONTIN_SCENES": "cli_fixture_scenes:SCENES",
                "CONTIN_PROGRESS_SECONDS": "0"}
 
 
-@pytest.fixture(autouse=True)
-def real_scenes(monkeypatch):
-    monkeypatch.delenv("CONTIN_SCENES", raising=False)
-
-
-def run(args: list[str]):
-    return CliRunner().invoke(main, args, catch_exceptions=False)
-
-
-def one_error(res) -> str:
-    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
-    assert res.exit_code != 0 and len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
-    return errors[0]
+from tests.cli_sweep import one_error, real_scenes, run  # noqa: E402,F401  (real_scenes: autouse)
 
 
 def _branches(path: Path) -> list:

@@ -9,24 +9,11 @@ Each test names the command that misbehaved before its fix.
 from __future__ import annotations
 
 import pytest
-from click.testing import CliRunner
 
 from contin.cli import main
 
 
-@pytest.fixture(autouse=True)
-def real_scenes(monkeypatch):
-    monkeypatch.delenv("CONTIN_SCENES", raising=False)
-
-
-def run(args: list[str]):
-    return CliRunner().invoke(main, args, catch_exceptions=False)
-
-
-def one_error(res) -> str:
-    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("Error:")]
-    assert res.exit_code != 0 and len(errors) == 1 and "Traceback" not in res.stderr, res.stderr
-    return errors[0]
+from tests.cli_sweep import one_error, real_scenes, run  # noqa: E402,F401  (real_scenes: autouse)
 
 
 def test_ctrl_c_while_click_parses_the_arguments_is_one_error_line(monkeypatch):
