@@ -273,15 +273,9 @@ def second_lyapunov_estimate(problem: Any, u: Array, params: Mapping[str, float]
     kept.  At the default steps the differences resolve a nonlinearity on the scale max(1, |u|):
     a state scaled by 1e-4 (or 1e4) gave l2 wrong by a factor 1e15 (1e8) with no sign of it."""
 
-    from contin.hopf import step_ladder
+    from contin.hopf import step_ladder, two_step_estimate
 
-    def at(m: float) -> tuple[float, float]:
-        with np.errstate(all="ignore"):
-            a = second_lyapunov(problem, u, params, omega, step_scale=m)
-            b = second_lyapunov(problem, u, params, omega, step_scale=2 * m)
-        err = abs(a - b)
-        return (a, err) if math.isfinite(a) and math.isfinite(err) else (math.nan, math.inf)
-
+    at = two_step_estimate(lambda m: second_lyapunov(problem, u, params, omega, step_scale=m))
     return step_ladder(at, L2_ACCEPT, L2_STEP_DECADES)[:2]
 
 

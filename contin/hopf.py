@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -321,14 +322,21 @@ def first_lyapunov_ladder(problem: Any, u: Array, params: dict[str, float], omeg
     """:func:`first_lyapunov_estimate` and the step multiplier m it chose (the GH test of a Hopf
     curve uses the m of its first point all along: ``contin.hopfsystem.LyapunovTest``)."""
 
+    return step_ladder(two_step_estimate(lambda m: first_lyapunov(problem, u, params, omega, step_scale=m)), L1_ACCEPT)
+
+
+def two_step_estimate(value: Callable[[float], float]) -> Callable[[float], tuple[float, float]]:
+    """m -> (value(m), |value(m) - value(2 m)|): a difference-step quantity at step multiplier m and
+    its error estimate from the step doubled ((nan, inf) where either is not finite), for
+    :func:`step_ladder`."""
+
     def at(m: float) -> tuple[float, float]:
         with np.errstate(all="ignore"):
-            a = first_lyapunov(problem, u, params, omega, step_scale=m)
-            b = first_lyapunov(problem, u, params, omega, step_scale=2 * m)
+            a, b = value(m), value(2 * m)
         err = abs(a - b)
         return (a, err) if math.isfinite(a) and math.isfinite(err) else (math.nan, math.inf)
 
-    return step_ladder(at, L1_ACCEPT)
+    return at
 
 
 def first_lyapunov(problem: Any, u: Array, params: dict[str, float], omega: float, step_scale: float = 1.0) -> float:

@@ -211,17 +211,7 @@ def test_profiles_of_an_interrupted_run_say_why_there_are_none(tmp_path):
     import sys
 
     out = tmp_path / "n.h5"
-    code = ("import sys\n"
-            "from contin.cancel import request_stop\n"
-            "import contin.cli.trace as t\n"
-            "from contin.cli import main\n"
-            "import contin.scene as s\n"
-            "real = s.SceneRequest.finished\n"
-            "def finished(self, branch):\n"
-            "    real(self, branch)\n"
-            "    request_stop()\n"
-            "s.SceneRequest.finished = finished\n"
-            "main.main(sys.argv[1:], prog_name='contin')\n")
+    code = STOP_AFTER_FIRST_BRANCH
     proc = subprocess.run([sys.executable, "-c", code, "trace", "nonlocal-shear", "--no-stability", "-q",
                            "--tol", "1e-6", "--max-grid", "64", "-o", str(out)],
                           capture_output=True, text=True, timeout=120, env={**__import__("os").environ, "CONTIN_SCENES": ""})
