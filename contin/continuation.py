@@ -1224,17 +1224,18 @@ def _start_zeros(tracer: _Tracer, first: _Point) -> None:
             tracer.start_zeros.add(note)
 
 
-def _counts_for_stop(sp: SpecialPoint) -> bool:
+def _is_start_zero(sp: SpecialPoint) -> bool:
+    """Whether ``sp`` is a UZ that :func:`_start_zeros` labelled at a branch's start point."""
     from contin.events import AT_START
 
-    return not (sp.type == "UZ" and sp.note.endswith(AT_START))
+    return sp.type == "UZ" and sp.note.endswith(AT_START)
 
 
 def _stop_label(special: list[SpecialPoint], stop_at: tuple[str, ...]) -> str | None:
     """The first label of ``stop_at`` (e.g. 'LP1') whose count of that type is reached, else None
     (a UZ at the start point does not count, :func:`_start_zeros`)."""
     for label in stop_at:
-        if sum(sp.type == label[:2] and _counts_for_stop(sp) for sp in special) >= int(label[2:]):
+        if sum(sp.type == label[:2] and not _is_start_zero(sp) for sp in special) >= int(label[2:]):
             return label
     return None
 
@@ -1250,9 +1251,7 @@ def join(backward: Branch, forward: Branch) -> Branch:
     off = m - 1
     # the start point is both halves' first point: its UZ (_start_zeros) is kept once (the
     # reversed half's copy: Branch.reversed moved it to index off - 1, between its last two points)
-    from contin.events import AT_START
-
-    at_start = {sp.note for sp in r.special_points if sp.type == "UZ" and sp.note.endswith(AT_START)}
+    at_start = {sp.note for sp in r.special_points if _is_start_zero(sp)}
     sps = list(r.special_points) + [replace(sp, index=sp.index + off) for sp in forward.special_points
                                     if not (sp.index == 0 and sp.type == "UZ" and sp.note in at_start)]
 
