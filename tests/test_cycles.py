@@ -1,0 +1,113 @@
+"""Periodic orbits from Hopf points (contin.collocation, contin.cycles, contin.floquet).
+
+References are independent of the collocation: closed forms of the Stuart-Landau and Bautin
+normal forms (radius, period, multiplier, fold of cycles), the collocation orders of de Boor &
+Swartz (1973), and solve_ivp integrations / shooting of the ODE (orbit closure, period doubling).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from contin.branch import SpecialPoint
+from contin.collocation import Mesh, lagrange_tables
+from contin.continuation import trace
+from contin.cycles import CycleOptions, CycleProblem, continue_cycles, first_orbit, hopf_start
+from contin.newton import newton
+from contin.options import ContinuationOptions
+from contin.problem import check_jacobian
+from tests.cycle_models import Bautin, StuartLandau
+
+W = 2.0
+
+
+def sl_hopf() -> SpecialPoint:
+    """The HB of Stuart-Landau's trivial branch, located by contin (mu = 0, omega = w)."""
+    b = trace(StuartLandau(), np.zeros(2), {"mu": -0.3, "w": W}, "mu", ContinuationOptions(bounds={"mu": (-1, 1)}))
+    (hb,) = b.points("HB")
+    return hb
+
+
+def test_lagrange_tables_differentiate_polynomials_exactly():
+    for ncol in (1, 2, 4, 7):
+        z, w, L, D = lagrange_tables(ncol)
+        s = np.arange(ncol + 1) / ncol
+        assert math.isclose(w.sum(), 1.0, rel_tol=1e-14)
+        for deg in range(ncol + 1):
+            np.testing.assert_allclose(L @ s**deg, z**deg, atol=1e-13)
+            np.testing.assert_allclose(D @ s**deg, deg * z ** max(deg - 1, 0) if deg else 0 * z, atol=1e-12)
+
+
+def test_stuart_landau_branch_radius_period_multiplier():
+    hb = sl_hopf()
+    br = continue_cycles(StuartLandau(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.5)}, max_steps=80))
+    assert br.kind == "periodic-orbits" and br.status == "EP" and len(br) > 5
+    mu = br.parameter_values
+    assert mu[0] > 0 and math.isclose(mu[-1], 0.5, rel_tol=1e-12)  # supercritical: cycles for mu > 0
+    period = br.observables["period"]
+    np.testing.assert_allclose(period, 2 * np.pi / W, rtol=1e-9)  # exact for every mu
+    mesh = Mesh(2)
+    for i in range(len(br)):
+        nodes, _ = mesh.split(br.state(i))
+        np.testing.assert_allclose(np.hypot(nodes[:, 0], nodes[:, 1]), math.sqrt(mu[i]), rtol=1e-7)
+    # the only nontrivial multiplier: exp(-2 mu T) (the radial linearization -2 mu over one period)
+    np.testing.assert_allclose(br.eigenvalues[:, 0].real, np.exp(-2 * mu * period), rtol=1e-7, atol=1e-12)
+    assert np.all(br.observables["floquet_error"] < 1e-10)
+    assert br.stable.all() and not br.n_unstable.any()
+    l2 = br.observables["l2norm"]
+    np.testing.assert_allclose(l2, np.sqrt(mu), rtol=1e-7)  # |u| = sqrt(mu) all along the orbit
+
+
+def test_start_follows_the_normal_form():
+    """The first orbit at amplitude eps = 2 |z| sits at mu = r^2 = eps^2 / 2 (l1 = -2 / w)."""
+    eps = 0.05
+    hb = sl_hopf()
+    start = hopf_start(StuartLandau(), hb, "mu")
+    assert math.isclose(start.dlambda, 1.0, rel_tol=1e-6)  # lambda = mu + i w
+    _, predicted, _ = first_orbit(start, Mesh(2), "mu", eps)
+    assert math.isclose(predicted, eps**2 / 2, rel_tol=1e-6)  # the prediction, before any Newton step
+    br = continue_cycles(StuartLandau(), hb, "mu", ContinuationOptions(max_steps=1), CycleOptions(amplitude=eps))
+    assert math.isclose(br.parameter_values[0], eps**2 / 2, rel_tol=1e-7)
+    assert math.isclose(br.observables["period"][0], np.pi, rel_tol=1e-10)
+
+
+@pytest.mark.parametrize("ncol", [2, 3, 4])
+def test_collocation_orders(ncol):
+    """Error of the Stuart-Landau orbit at mu = 1/2: O(h^{2 NCOL}) at the mesh points and in T
+    (superconvergence), O(h^{NCOL + 1}) uniformly (de Boor & Swartz 1973)."""
+    p = {"mu": 0.5, "w": W}
+    r = math.sqrt(0.5)
+    errs = []
+    for ntst in (8, 16):
+        mesh = Mesh(2, ntst, ncol)
+        t = mesh.node_times
+        guess = 0.9 * np.c_[np.cos(2 * np.pi * t), np.sin(2 * np.pi * t)]
+        cp = CycleProblem(StuartLandau(), mesh, guess)
+        res = newton(cp, mesh.pack(guess, 3.0), p)
+        assert res.converged
+        nodes, period = mesh.split(res.u)
+        ph = math.atan2(nodes[0, 1], nodes[0, 0])
+        exact = lambda s: r * np.c_[np.cos(2 * np.pi * s + ph), np.sin(2 * np.pi * s + ph)]  # noqa: E731
+        e_mesh = np.abs(mesh.evaluate(nodes, mesh.t[:-1]) - exact(mesh.t[:-1])).max()
+        tt = np.linspace(0, 1, 2001)
+        e_uniform = np.abs(mesh.evaluate(nodes, tt) - exact(tt)).max()
+        errs.append((e_mesh, abs(period - np.pi), e_uniform))
+    (m1, p1, u1), (m2, p2, u2) = errs
+    assert math.log2(m1 / m2) == pytest.approx(2 * ncol, abs=0.3)
+    assert math.log2(p1 / p2) == pytest.approx(2 * ncol, abs=0.3)
+    assert math.log2(u1 / u2) == pytest.approx(ncol + 1, abs=0.4)
+
+
+def test_collocation_jacobian_is_exact():
+    """Against central differences, on an orbit off the solution (all blocks nonzero)."""
+    mesh = Mesh(2, 6, 3)
+    t = mesh.node_times
+    ref = np.c_[np.cos(2 * np.pi * t) + 0.3 * np.sin(4 * np.pi * t), 0.7 * np.sin(2 * np.pi * t)]
+    cp = CycleProblem(Bautin(), mesh, ref)
+    x = mesh.pack(ref * 1.1, 2.5)
+    chk = check_jacobian(cp, x, {"mu": 0.1, "b": 0.8, "w": 1.3}, parameters=("mu", "b"))
+    assert chk.relative_error < 1e-7
+    assert max(chk.dp_errors.values()) < 1e-7
