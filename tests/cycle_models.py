@@ -70,3 +70,37 @@ class Roessler:
     def dresidual_dp(self, u, p, name):
         x, y, z = u
         return {"a": np.array([0.0, y, 0.0]), "b": np.array([0.0, 0.0, 1.0]), "c": np.array([0.0, 0.0, -z])}[name]
+
+
+class DrivenPair:
+    """Stuart-Landau (x, y) driving a linear-plus-cubic oscillator (u, v):
+    u' = (alpha - k r^2) u - w2 v - u s^2, v' = w2 u + (alpha - k r^2) v - v s^2 (r^2 = x^2 + y^2,
+    s^2 = u^2 + v^2).  On the cycle r^2 = mu, (u, v) = 0 the (u, v) multipliers are
+    exp((alpha - k mu) T +- i w2 T), T = 2 pi / w: a Neimark-Sacker point at mu = alpha / k."""
+
+    parameter_names = ("mu", "w", "alpha", "k", "w2")
+
+    def residual(self, z, p):
+        x, y, u, v = z
+        r2, s2 = x * x + y * y, u * u + v * v
+        g = p["alpha"] - p["k"] * r2 - s2
+        return np.concatenate([StuartLandau().residual(z[:2], p), [g * u - p["w2"] * v, p["w2"] * u + g * v]])
+
+    def jacobian(self, z, p):
+        x, y, u, v = z
+        r2, s2 = x * x + y * y, u * u + v * v
+        g = p["alpha"] - p["k"] * r2 - s2
+        k, w2 = p["k"], p["w2"]
+        out = np.zeros((4, 4))
+        out[:2, :2] = StuartLandau().jacobian(z[:2], p).toarray()
+        out[2] = [-2 * k * x * u, -2 * k * y * u, g - 2 * u * u, -w2 - 2 * u * v]
+        out[3] = [-2 * k * x * v, -2 * k * y * v, w2 - 2 * u * v, g - 2 * v * v]
+        return sp.csc_matrix(out)
+
+    def dresidual_dp(self, z, p, name):
+        x, y, u, v = z
+        r2 = x * x + y * y
+        if name in ("mu", "w"):
+            return np.concatenate([StuartLandau().dresidual_dp(z[:2], p, name), [0.0, 0.0]])
+        return {"alpha": np.array([0.0, 0.0, u, v]), "k": np.array([0.0, 0.0, -r2 * u, -r2 * v]),
+                "w2": np.array([0.0, 0.0, -v, u])}[name]

@@ -111,3 +111,100 @@ def test_collocation_jacobian_is_exact():
     chk = check_jacobian(cp, x, {"mu": 0.1, "b": 0.8, "w": 1.3}, parameters=("mu", "b"))
     assert chk.relative_error < 1e-7
     assert max(chk.dp_errors.values()) < 1e-7
+
+
+def _hopf_of(problem, u0, params, parameter, bounds):
+    b = trace(problem, u0, params, parameter, ContinuationOptions(bounds={parameter: bounds}))
+    return b.points("HB")[0]
+
+
+def test_bautin_fold_of_cycles():
+    """r' = r (mu + b r^2 - r^4): the subcritical cycles turn at mu = -b^2/4, r^2 = b/2 (LPC);
+    multiplier exp(T (2 b r^2 - 4 r^4)) along the branch; unstable before the fold, stable after."""
+    bb, w = 1.0, 1.0
+    hb = _hopf_of(Bautin(), np.zeros(2), {"mu": -0.3, "b": bb, "w": w}, "mu", (-1, 1))
+    assert hb.data["l1"] > 0  # subcritical
+    br = continue_cycles(Bautin(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.3)}, max_steps=200))
+    (lpc,) = br.points("LPC")
+    assert lpc.converged and "fold of cycles" in lpc.note
+    assert abs(lpc.params["mu"] + bb**2 / 4) < 1e-8
+    nodes, period = Mesh(2).split(lpc.state)
+    np.testing.assert_allclose(nodes[:, 0] ** 2 + nodes[:, 1] ** 2, bb / 2, rtol=1e-7)
+    assert math.isclose(period, 2 * math.pi / w, rel_tol=1e-9)
+    r2 = br.observables["l2norm"] ** 2  # |u| is constant on these circles
+    exponent = br.observables["period"] * (2 * bb * r2 - 4 * r2**2)  # log of the multiplier (down to 1e-10)
+    np.testing.assert_allclose(np.log(br.eigenvalues[:, 0].real), exponent, rtol=1e-6, atol=1e-9)
+    small = r2 < bb / 2
+    assert not br.stable[small].any() and br.stable[~small].all()
+
+
+def test_period_doubling_of_roessler_against_shooting():
+    """Roessler (b = 2, c = 4): the cycle born at the HB near a = 0.125 doubles its period near
+    a = 0.335; reference: the a where a multiplier of the orbit is -1, by shooting with solve_ivp
+    (periodic orbit by fsolve on the flow map, monodromy from the variational equation)."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq, fsolve
+
+    from tests.cycle_models import Roessler
+
+    b, c = 2.0, 4.0
+
+    def rhs(t, v, a):
+        x, y, z = v[:3]
+        out = np.empty_like(v)
+        out[:3] = [-y - z, x + a * y, b + z * (x - c)]
+        if v.size > 3:
+            out[3:] = (np.array([[0, -1, -1], [1, a, 0], [z, 0, x - c]]) @ v[3:].reshape(3, 3)).ravel()
+        return out
+
+    def flow(u0, period, a, var=False):
+        v0 = np.concatenate([u0, np.eye(3).ravel()]) if var else u0
+        return solve_ivp(rhs, (0, period), v0, args=(a,), method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+
+    # an initial orbit: the attractor at a = 0.33 (a stable cycle), cut at y = 0, y' > 0
+    s = solve_ivp(rhs, (0, 300), np.array([1.0, 1.0, 0.0]), args=(0.33,), rtol=1e-10, atol=1e-10, dense_output=True)
+    ts = np.linspace(250, 300, 20001)
+    ys = s.sol(ts)
+    up = np.flatnonzero((ys[1, :-1] < 0) & (ys[1, 1:] >= 0))
+    guess = [np.array([ys[0, up[0]], ys[2, up[0]], ts[up[1]] - ts[up[0]]])]
+
+    def pd(a):
+        def g(v):
+            u0 = np.array([v[0], 0.0, v[1]])
+            return flow(u0, v[2], a) - u0
+
+        guess[0] = fsolve(g, guess[0], xtol=1e-13)
+        u0 = np.array([guess[0][0], 0.0, guess[0][1]])
+        mu = np.linalg.eigvals(flow(u0, guess[0][2], a, var=True)[3:].reshape(3, 3))
+        return float(mu[np.argmin(mu.real)].real) + 1.0
+
+    reference = brentq(pd, 0.32, 0.345, xtol=1e-13)
+
+    a0 = 0.05
+    z0 = (c - math.sqrt(c * c - 4 * a0 * b)) / (2 * a0)
+    hb = _hopf_of(Roessler(), np.array([a0 * z0, -z0, z0]), {"a": a0, "b": b, "c": c}, "a", (0.01, 0.6))
+    br = continue_cycles(Roessler(), hb, "a", ContinuationOptions(bounds={"a": (0.0, 0.6)}, max_steps=300))
+    (pdp,) = br.points("PD")
+    assert pdp.converged and "period doubling" in pdp.note
+    assert abs(pdp.params["a"] - reference) < 1e-8
+    assert math.isclose(pdp.data["multiplier"], -1.0, abs_tol=1e-9)
+    before = br.parameter_values < pdp.params["a"]
+    assert br.stable[before].all() and not br.stable[~before].any()
+
+
+def test_neimark_sacker_of_a_driven_pair():
+    """The driven oscillator's multipliers exp((alpha - k mu) T +- i w2 T) leave the unit circle at
+    mu = alpha / k with angle w2 T (closed form, tests/cycle_models.DrivenPair)."""
+    from tests.cycle_models import DrivenPair
+
+    p = {"mu": -0.3, "w": W, "alpha": 0.2, "k": 1.0, "w2": 0.7}
+    hb = _hopf_of(DrivenPair(), np.zeros(4), p, "mu", (-1, 1))
+    br = continue_cycles(DrivenPair(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.5)}, max_steps=100))
+    (ns,) = br.points("NS")
+    assert ns.converged and abs(ns.params["mu"] - 0.2) < 1e-9
+    assert math.isclose(ns.data["theta"], p["w2"] * 2 * math.pi / W, abs_tol=1e-8)  # w2 T < pi here
+    mu, period = br.parameter_values, br.observables["period"]
+    pair = br.eigenvalues[:, :2]
+    expected = np.exp((p["alpha"] - p["k"] * mu) * period)
+    np.testing.assert_allclose(np.abs(pair), np.c_[expected, expected], rtol=1e-7)
+    assert list(br.n_unstable) == [2 if m < 0.2 else 0 for m in mu]
