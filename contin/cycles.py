@@ -24,8 +24,9 @@ kept too long lets the phase condition degenerate as the orbit changes shape).
 
 Recorded per point (``Branch.observables``): period T, amplitude (max - min over the nodes of the
 problem's order parameter, or of the first component without one), l2norm (AUTO's L2-NORM,
-sqrt(int_0^1 |u|^2 dt)), floquet_error (the trivial multiplier's distance from 1); 'phi' is the
-amplitude.  Floquet multipliers (all but the trivial one) are the ``eigenvalues`` column, with
+sqrt(int_0^1 |u|^2 dt)), floquet_error (the trivial multiplier's distance from 1), flow_error
+(the residual of its eigenvector, the check that also holds at folds: ``contin.floquet``); 'phi'
+is the amplitude.  Floquet multipliers (all but the trivial one) are the ``eigenvalues`` column, with
 ``stable`` and ``n_unstable`` from them.
 
 Supported: problems with the required methods (residual, jacobian, dresidual_dp) and, optionally,
@@ -65,18 +66,26 @@ class CycleOptions:
         problem's ``inner_product_weights`` or I); None: 1e-3 max(1, |u_H|_inf) ... see
         :func:`default_amplitude`.
     rephase_every : steps after which the phase reference is renewed (a new segment).
+    floquet_tol : largest distance of the trivial multiplier from 1 of an accepted orbit: past it
+        the mesh no longer resolves the orbit (a sharpening relaxation oscillation, a period
+        growing towards a homoclinic orbit) and the branch ends with MX "under-resolved at ...",
+        through the tracer's resolution guard (``ContinuationOptions.resolution_tol`` not None);
+        None: no such end (a warning line names the worst point instead).
     """
 
     ntst: int = NTST
     ncol: int = NCOL
     amplitude: float | None = None
     rephase_every: int = 20
+    floquet_tol: float | None = FLOQUET_DOUBTFUL
 
     def __post_init__(self) -> None:
         if self.ntst < 2 or self.ncol < 1:
             raise ValueError(f"cycles need NTST >= 2 and NCOL >= 1, got NTST = {self.ntst}, NCOL = {self.ncol}")
         if self.amplitude is not None and not (math.isfinite(self.amplitude) and self.amplitude > 0):
             raise ValueError(f"the start amplitude must be a finite number > 0, got {self.amplitude}")
+        if self.floquet_tol is not None and not (math.isfinite(self.floquet_tol) and self.floquet_tol > 0):
+            raise ValueError(f"floquet_tol must be a finite number > 0 or None, got {self.floquet_tol}")
         if self.rephase_every < 1:
             raise ValueError(f"rephase_every must be >= 1, got {self.rephase_every}")
 
@@ -89,7 +98,8 @@ def default_amplitude(u_h: Array) -> float:
 class CycleProblem:
     """The periodic BVP of ``problem`` on ``mesh`` as a contin Problem (module docstring)."""
 
-    def __init__(self, problem: Any, mesh: Mesh, reference: Array, mass: Array | None = None) -> None:
+    def __init__(self, problem: Any, mesh: Mesh, reference: Array, mass: Array | None = None,
+                 floquet_tol: float | None = FLOQUET_DOUBTFUL) -> None:
         if has(problem, "eigenproblem"):
             raise ValueError("periodic orbits need the dynamics M u' = F(u, p); this problem defines its own "
                              "eigenproblem (its linearization is not the Jacobian of F), which cycles do not support")
@@ -98,6 +108,7 @@ class CycleProblem:
         self.colloc = Collocation(problem, mesh, reference, mass)
         self.parameter_names = tuple(problem.parameter_names)
         self._cache: tuple[bytes, Multipliers] | None = None
+        self.floquet_tol = floquet_tol
 
     # --- the Problem protocol ------------------------------------------------------------
     def residual(self, x: Array, p: dict[str, float]) -> Array:
@@ -135,9 +146,27 @@ class CycleProblem:
         key = np.asarray(x, dtype=float).tobytes() + repr(sorted(p.items())).encode()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        mu = multipliers(self.colloc.interval_blocks(x, p))
+        u0 = self.mesh.split(x)[0][0]
+        flow = np.asarray(self.problem.residual(u0, p), dtype=float)
+        if self.colloc.mass is not None:
+            flow = np.linalg.lstsq(self.colloc.mass, flow, rcond=None)[0]
+        mu = multipliers(self.colloc.interval_blocks(x, p), flow)
         self._cache = (key, mu)
         return mu
+
+    def under_resolved(self, x: Array, p: dict[str, float], tol: float) -> str | None:
+        """The trivial multiplier's distance from 1 above ``floquet_tol`` (the tracer's ``tol`` is
+        a relative state error, which this estimate is not: it is not used)."""
+        if self.floquet_tol is None:
+            return None
+        try:
+            err = self.multipliers(x, p).flow_error
+        except np.linalg.LinAlgError:
+            err = math.inf
+        if err <= self.floquet_tol:
+            return None
+        return (f"the monodromy moves the flow direction by {err:.1e} (> {self.floquet_tol:g}): NTST = "
+                f"{self.mesh.ntst} does not resolve the orbit (try NTST = {2 * self.mesh.ntst})")
 
     def point_tests(self) -> list[Any]:
         return [FloquetTest(self, "PD"), FloquetTest(self, "NS")]
@@ -227,7 +256,7 @@ def start_orbit(problem: Any, point: SpecialPoint, parameter: str, cycle: CycleO
     mesh = Mesh(start.state.size, cycle.ntst, cycle.ncol)
     eps = cycle.amplitude if cycle.amplitude is not None else default_amplitude(start.state)
     x, p1, direction = first_orbit(start, mesh, parameter, eps)
-    cp = CycleProblem(problem, mesh, x[:-1], start.mass)
+    cp = CycleProblem(problem, mesh, x[:-1], start.mass, cycle.floquet_tol)
     system = ExtendedSystem(cp, start.params, parameter, options.step.theta, n=x.size)
     guess = system.pack(x, p1)
     corr = correct(system, guess, system.row(direction), options.newton)
@@ -302,6 +331,7 @@ def finish_branch(cp: CycleProblem, branch: Branch) -> Branch:
     n = cp.mesh.n
     eig = np.full((s, n - 1 if n > 1 else 1), np.nan + 0j)
     err = np.full(s, np.nan)
+    flow_err = np.full(s, np.nan)
     stable = np.zeros(s, dtype=bool)
     n_unst = np.zeros(s, dtype=np.int64)
     for i in range(s):
@@ -310,17 +340,19 @@ def finish_branch(cp: CycleProblem, branch: Branch) -> Branch:
         mu = cp.multipliers(x, p)
         eig[i, : mu.others.size] = mu.others
         err[i] = mu.error
+        flow_err[i] = mu.flow_error
         stable[i] = mu.stable
         n_unst[i] = mu.n_unstable
     branch.eigenvalues, branch.stable, branch.n_unstable = eig, stable, n_unst
     branch.observables["floquet_error"] = err
+    branch.observables["flow_error"] = flow_err
     branch.kind = KIND
     branch.special_points = [dataclasses.replace(sp, type="LPC", note="; ".join(
         t for t in ("fold of cycles", sp.note) if t)) if sp.type == "LP" else sp for sp in branch.special_points]
-    worst = float(np.nanmax(err)) if s else 0.0
+    worst = float(np.nanmax(flow_err)) if s else 0.0
     if worst > FLOQUET_DOUBTFUL:
-        i = int(np.nanargmax(err))
-        line = (f"Floquet multipliers doubtful: the trivial multiplier is {worst:.1e} away from 1 at "
+        i = int(np.nanargmax(flow_err))
+        line = (f"Floquet multipliers doubtful: the monodromy moves the flow direction by {worst:.1e} at "
                 f"{branch.parameter} = {branch.parameter_values[i]:.6g} (refine the mesh: NTST)")
         log.warning(line)
         branch.audit.append("warning: " + line)

@@ -7,6 +7,7 @@ Swartz (1973), and solve_ivp integrations / shooting of the ODE (orbit closure, 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -208,3 +209,72 @@ def test_neimark_sacker_of_a_driven_pair():
     expected = np.exp((p["alpha"] - p["k"] * mu) * period)
     np.testing.assert_allclose(np.abs(pair), np.c_[expected, expected], rtol=1e-7)
     assert list(br.n_unstable) == [2 if m < 0.2 else 0 for m in mu]
+
+
+AB_PARAMS = {"D": 0.0, "B": 14.0, "beta": 3.0}
+
+
+def ab_hopf() -> SpecialPoint:
+    """HB1 of AUTO's demo ab, traced as the scene ``ab`` does (u = 0 at D = 0, in D)."""
+    from contin.options import StepOptions
+    from problems.demo import AB
+
+    opts = ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=2000, step=StepOptions(ds=0.01, ds_max=0.05))
+    return trace(AB(), np.zeros(2), AB_PARAMS, "D", opts).points("HB")[0]
+
+
+def test_ab_period_at_the_hopf_point_and_orbit_closure():
+    """AUTO demo ab, cycles from HB1: the period tends to 2 pi / omega at the HB (omega from a scipy
+    solve of F = 0, tr J = 0, det J = omega^2), and an orbit integrated by solve_ivp from its first
+    node for one period closes, and passes through the collocation nodes, to 1e-6."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import fsolve
+
+    from problems.demo import AB
+
+    pr = AB()
+
+    def hopf(v):
+        u, d = v[:2], v[2]
+        q = {**AB_PARAMS, "D": d}
+        return [*pr.residual(u, q), np.trace(pr.jacobian(u, q).toarray())]
+
+    hb = ab_hopf()
+    sol = fsolve(hopf, [*hb.state, hb.params["D"]], xtol=1e-14)
+    omega = math.sqrt(np.linalg.det(pr.jacobian(sol[:2], {**AB_PARAMS, "D": sol[2]}).toarray()))
+    small = continue_cycles(pr, hb, "D", ContinuationOptions(max_steps=1), CycleOptions(amplitude=1e-4))
+    assert math.isclose(small.observables["period"][0], 2 * math.pi / omega, rel_tol=1e-6)
+
+    br = continue_cycles(pr, hb, "D", ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=12))
+    assert br.parent == "HB1" and len(br) == 13
+    assert np.all(br.parameter_values < hb.params["D"])  # subcritical (l1 > 0): cycles below D_H
+    assert np.all(np.diff(br.observables["amplitude"]) > 0)
+    i = 10
+    mesh = Mesh(2)
+    nodes, period = mesh.split(br.state(i))
+    q = {k: float(v[i]) for k, v in br.params.items()}
+    run = solve_ivp(lambda t, u: pr.residual(u, q), (0, period), nodes[0], method="DOP853", rtol=1e-12,
+                    atol=1e-12, t_eval=mesh.node_times * period)
+    err = np.abs(run.y.T - nodes)
+    assert err[::4].max() < 1e-6  # the mesh points (superconvergent, O(h^8))
+    assert err.max() < 1e-4  # every node (O(h^5) inside the intervals)
+    end = solve_ivp(lambda t, u: pr.residual(u, q), (0, period), nodes[0], method="DOP853", rtol=1e-12, atol=1e-12)
+    assert np.abs(end.y[:, -1] - nodes[0]).max() < 1e-6
+    assert not br.stable.any()  # the subcritical branch before its fold: one multiplier > 1
+    assert np.all(br.eigenvalues[1:, 0].real > 1)
+
+
+def test_under_resolved_orbits_end_the_branch():
+    """Past the fold of demo ab the orbits sharpen into relaxation oscillations that NTST = 20
+    does not resolve: the branch ends with MX naming the flow residual and a finer NTST instead of
+    going on with wrong orbits; with the guard off (floquet_tol None) a warning names them."""
+    from problems.demo import AB
+
+    hb = ab_hopf()
+    opts = ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=60)
+    br = continue_cycles(AB(), hb, "D", opts)
+    assert br.status == "MX" and "under-resolved" in br.message and "NTST = 40" in br.message
+    assert np.all(br.observables["flow_error"] <= 1e-4)
+    off = continue_cycles(AB(), hb, "D", dataclasses.replace(opts, max_steps=25), CycleOptions(floquet_tol=None))
+    assert off.observables["flow_error"].max() > 1e-4
+    assert any(line.startswith("warning: Floquet multipliers doubtful") for line in off.audit)
