@@ -278,3 +278,66 @@ def test_under_resolved_orbits_end_the_branch():
     off = continue_cycles(AB(), hb, "D", dataclasses.replace(opts, max_steps=25), CycleOptions(floquet_tol=None))
     assert off.observables["flow_error"].max() > 1e-4
     assert any(line.startswith("warning: Floquet multipliers doubtful") for line in off.audit)
+
+
+# --- command line --------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def ab_file(tmp_path_factory):
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    path = tmp_path_factory.mktemp("cycles") / "ab.h5"
+    r = CliRunner().invoke(main, ["trace", "ab", "-q", "-o", str(path)])
+    assert r.exit_code == 0, r.output
+    return path
+
+
+def _cli(*args):
+    from click.testing import CliRunner
+
+    from contin.cli import main
+
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def test_cli_cycles_end_to_end(ab_file, tmp_path):
+    """trace ab -> continue --from HB1 --cycles (NTST 80: past the fold) -> info, diagram; the
+    file's branch is the same as the API's, and the LPC sits where a finer mesh puts it."""
+    from contin import io
+    from problems.demo import AB
+
+    out = tmp_path / "cyc.h5"
+    r = _cli("continue", ab_file, "--from", "HB1", "--cycles", "--ntst", "80", "--max-steps", "40", "-o", out)
+    # the orbits past the fold sharpen until NTST = 80 no longer resolves them: MX, exit 3, said so
+    assert r.exit_code == 3, r.output
+    assert "warning: the branch of periodic orbits ended with MX: under-resolved" in r.output
+    (br,), meta = io.load(out)
+    assert br.kind == "periodic-orbits" and br.parent == "HB1" and meta["diagram_y"] == "amplitude"
+    assert meta["extra"]["cycles"] == {"ntst": 80, "ncol": 4, "n": 2}
+    (lpc,) = br.points("LPC")
+    fine = continue_cycles(AB(), ab_hopf(), "D", ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=40),
+                           CycleOptions(ntst=160))
+    assert abs(lpc.params["D"] - fine.points("LPC")[0].params["D"]) < 1e-8
+    assert br.eigenvalues.shape == (len(br), 1) and br.stable[-1] and not br.stable[0]
+    info = _cli("info", out)
+    assert info.exit_code == 0 and "periodic-orbits" in info.output and "LPC" in info.output
+    for y in ("amplitude", "period"):
+        d = _cli("diagram", out, "-y", y, "-o", tmp_path / f"{y}.png")
+        assert d.exit_code == 0, d.output
+        assert (tmp_path / f"{y}.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--from", "EP3", "--cycles"], "--cycles starts at a Hopf point (HB); EP3 is not one"),
+    (["--from", "HB1", "--cycles", "--free", "B"], "--free B is for two-parameter curves"),
+    (["--from", "HB1", "--ntst", "30", "--free", "B"], "--ntst needs --cycles"),
+    (["--from", "HB1"], "Missing option '--free'"),
+    (["--from", "HB1", "--cycles", "--amplitude", "nan"], "--amplitude must be a finite number > 0"),
+    (["--from", "HB1", "--cycles", "--bounds", "B=0:1"], "with --cycles only the branch's parameter 'D'"),
+])
+def test_cli_cycles_bad_input(ab_file, args, says):
+    r = _cli("continue", ab_file, *args)
+    assert r.exit_code not in (0, 3) and "Traceback" not in r.output
+    errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 1 and says in errors[0], r.output

@@ -71,7 +71,7 @@ def _refuse_own_input(file: str, output: str) -> None:
 @main.command("continue")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--from", "label", required=True, metavar="LABEL", help="Special point to start from (LP1, BP2, ...).")
-@click.option("--free", "second", required=True, metavar="NAME", help="Second free parameter.")
+@click.option("--free", "second", default=None, metavar="NAME", help="Second free parameter (required without --cycles).")
 @click.option("--branch", "branch_id", default=None, metavar="ID", help="Branch of the point (when the label is not unique).")
 @click.option("--bounds", multiple=True, metavar="NAME=LO:HI",
               help="Bounds of either parameter (repeatable) [default: the run's bounds of the first].")
@@ -91,12 +91,22 @@ def _refuse_own_input(file: str, output: str) -> None:
               help="With --tol: accept a point of the curve by the resolution guard alone, without the two-grid "
                    "check of its augmented solve (AdaptOptions.solve_check = False; faster, but points next to a "
                    "fold can miss REL).")
+@click.option("--cycles", is_flag=True, default=False,
+              help="From an HB: the branch of periodic orbits born there, in the branch's parameter (no --free).")
+@click.option("--ntst", type=click.IntRange(min=2, max=10_000), default=None, metavar="N",
+              help="With --cycles: mesh intervals of the orbits [default: 20].")
+@click.option("--ncol", type=click.IntRange(min=1, max=7), default=None, metavar="M",
+              help="With --cycles: Gauss collocation points per interval [default: 4].")
+@click.option("--amplitude", type=float, default=None, metavar="EPS",
+              help="With --cycles: amplitude of the first orbit [default: 1e-2 max(1, |u_H|)].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="HDF5 file of the curve.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
-def continue_command(file: str, label: str, second: str, branch_id: str | None, bounds: tuple[str, ...],
+def continue_command(file: str, label: str, second: str | None, branch_id: str | None, bounds: tuple[str, ...],
                      max_steps: int, ds: float | None, ds_max: float | None, tol: float | None, max_grid: int | None,
-                     no_solve_check: bool, output: str | None, as_json: bool) -> None:
-    """Continue the point LABEL of FILE in two parameters (the branch's and --free NAME)."""
+                     no_solve_check: bool, cycles: bool, ntst: int | None, ncol: int | None, amplitude: float | None,
+                     output: str | None, as_json: bool) -> None:
+    """Continue the point LABEL of FILE in two parameters (the branch's and --free NAME), or with
+    --cycles the periodic orbits born at the Hopf point LABEL (in the branch's parameter)."""
     import dataclasses
 
     from contin import io
@@ -112,6 +122,11 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         fail("--max-grid needs --tol (the grid is fixed without it)")
     if no_solve_check and tol is None:
         fail("--no-solve-check needs --tol (the check belongs to adaptive grids)")
+    from contin.cli.cycles_cmd import check_cycle_flags
+
+    cycle_options = check_cycle_flags(cycles, second, tol, ntst, ncol, amplitude)
+    if not cycles and second is None:
+        fail("Missing option '--free' (the second free parameter; or --cycles from an HB)")
     box = parse_bounds(bounds)
     if output is not None:  # checked before any computing
         from contin.cli._runctl import check_hdf5_output
@@ -127,6 +142,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         click.get_current_context().call_on_close(OutputLock(output).acquire().release)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
+    if cycles and point.type != "HB":
+        fail(f"--cycles starts at a Hopf point (HB); {point.name} is not one (type {point.type})")
     from contin.twoparam import continuable_types
 
     if point.type not in continuable_types():  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
@@ -139,6 +156,8 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         fail(on_curve)
     first = branch.parameter
     unknown = [n for n in box if n not in (first, second)]
+    if unknown and cycles:
+        fail(f"--bounds names {unknown[0]!r}; with --cycles only the branch's parameter {first!r} can be bounded")
     if unknown:
         fail(f"--bounds names {unknown[0]!r}; only the two free parameters {first!r} and {second!r} can be bounded")
     try:
@@ -181,6 +200,11 @@ def continue_command(file: str, label: str, second: str, branch_id: str | None, 
         # (a BT, ZH or HH lies on a fold or Hopf curve: its augmented state is checked by contin.twoparam)
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")
+    if cycle_options is not None:
+        from contin.cli.cycles_cmd import run_cycles
+
+        run_cycles(problem, file, meta, branch, point, options, cycle_options, output, as_json, own_grid)
+        return
     from contin.cancel import stop_on_sigint
     from contin.twoparam import continue_point
 

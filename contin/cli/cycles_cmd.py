@@ -1,0 +1,103 @@
+"""``contin continue FILE --from HB1 --cycles``: the periodic orbits born at a Hopf point.
+
+The helper of the ``continue`` command (``contin.cli.continue_cmd``) for ``--cycles``: the branch
+of periodic orbits (``contin.cycles.continue_cycles``) in the run's parameter, written to ``-o``
+as a branch of kind 'periodic-orbits' whose diagram is the amplitude against the parameter
+(``contin diagram OUT.h5 -y period`` for the period).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import click
+
+from contin.cli._base import echo_err, echo_json, fail, fmt, special_points_table
+
+
+def check_cycle_flags(cycles: bool, second: str | None, tol: float | None, ntst: int | None, ncol: int | None,
+                      amplitude: float | None) -> Any:
+    """The CycleOptions of ``--cycles`` (None without it); one ``Error:`` line for flags that do
+    not go together."""
+    if not cycles:
+        for name, v in (("--ntst", ntst), ("--ncol", ncol), ("--amplitude", amplitude)):
+            if v is not None:
+                fail(f"{name} needs --cycles (it sets the collocation of periodic orbits)")
+        return None
+    if second is not None:
+        fail(f"--cycles continues the orbits in the branch's own parameter; --free {second} is for two-parameter "
+             "curves (leave it out)")
+    if tol is not None:
+        fail("--tol is for fold curves on adaptive grids; with --cycles refine the orbits' mesh with --ntst")
+    if amplitude is not None and not (math.isfinite(amplitude) and amplitude > 0):
+        fail(f"--amplitude must be a finite number > 0, got {amplitude}")
+    from contin.cycles import CycleOptions
+
+    base = CycleOptions()
+    return CycleOptions(ntst=ntst or base.ntst, ncol=ncol or base.ncol, amplitude=amplitude)
+
+
+def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, options: Any, cycle: Any,
+               output: str | None, as_json: bool, own_grid: int | None) -> None:
+    """Continue the orbits from ``point`` and report / write them (exit 3 when the branch ends
+    with MX, as ``continue`` does for curves)."""
+    from contin import io
+    from contin.cancel import stop_on_sigint
+    from contin.cli._runctl import Terminated
+    from contin.cycles import continue_cycles
+
+    first = branch.parameter
+    with stop_on_sigint(sigterm=Terminated) as stop:
+        try:
+            cycles = continue_cycles(problem, point, first, options, cycle, parent=point.name)
+        except ValueError as exc:
+            fail(str(exc))
+    interrupted = stop.requested
+    summary = (f"periodic orbits from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
+               f"period 2 pi / omega = {fmt(2 * math.pi / point.data['omega']) if point.data.get('omega') else '?'}), "
+               f"NTST = {cycle.ntst}, NCOL = {cycle.ncol}")
+    if output is not None:
+        extra = {"source": file, "from": point.name, "branch": branch.id, "free": [first],
+                 "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": int(len(point.state))}}
+        notes = [summary + f" in {file}"]
+        if own_grid is not None:
+            notes.append(f"on the fixed grid {own_grid} of {point.name}")
+        io.write(output, [cycles], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
+                 discretization=meta.get("discretization", {}), options=dataclasses.replace(options, save_every=1),
+                 notes=notes, extra=extra, diagram_x=first, diagram_y="amplitude")
+    if as_json:
+        from contin.jsonout import run_document
+
+        doc = run_document(scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
+                           discretization=meta.get("discretization", {}), branches=[cycles], notes=[],
+                           extra={"from": point.name, "branch": branch.id, "free": [first],
+                                  "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol}},
+                           output=output, stability={})
+        echo_json(doc)
+    echo_err(f"{summary}: {len(cycles)} points, {cycles.status} {cycles.message}")
+    if len(cycles):
+        t, a = cycles.observables["period"], cycles.observables["amplitude"]
+        echo_err(f"period {fmt(t[0], 7)} .. {fmt(t[-1], 7)}, amplitude {fmt(a[0], 7)} .. {fmt(a[-1], 7)}, "
+                 f"stable at {int(cycles.stable.sum())} of {len(cycles)} points, largest flow residual "
+                 f"{float(max(cycles.observables['flow_error'])):.1e}")
+    echo_err(special_points_table([cycles]))
+    for line in cycles.audit:
+        if line.startswith("warning: "):
+            echo_err(line)
+    if output is not None:
+        echo_err(f"wrote {output}")
+    if interrupted:
+        from contin.cancel import SIGTERM
+        from contin.cli._base import EXIT_INTERRUPTED
+        from contin.cli._runctl import EXIT_TERMINATED
+
+        term = stop.reason == SIGTERM
+        echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
+        raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
+    if cycles.status == "MX":
+        from contin.cli._base import EXIT_INCOMPLETE
+
+        echo_err(f"warning: the branch of periodic orbits ended with MX: {cycles.message}")
+        raise click.exceptions.Exit(EXIT_INCOMPLETE)
