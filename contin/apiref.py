@@ -30,6 +30,7 @@ MODULES = (
     "contin.twoparam",
     "contin.foldcurve",
     "contin.hopfcurve",
+    "contin.cycles",
     "contin.diagram",
     "contin.bpfit",
     "contin.fit",

@@ -53,6 +53,8 @@ from contin.problem import Array, has, inner_product_weights
 
 log = logging.getLogger("contin")
 
+__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "hopf_start", "start_orbit", "finish_branch"]
+
 #: Branch.kind of a branch of periodic orbits.
 KIND = "periodic-orbits"
 
