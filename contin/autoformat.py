@@ -170,6 +170,9 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     for position, branch in enumerate(branches, start=1):
         if list(branch.params) != names:
             raise ValueError(f"branch {branch.id} has other parameters than branch {branches[0].id}")
+        if branch.kind == "periodic-orbits":  # it wrote the orbits as NDIM = n NTST NCOL + 1 steady states
+            raise ValueError(f"branch {branch.id} holds periodic orbits, which AUTO stores as IPS = 2 solutions with "
+                             "their mesh; that format is not written (export the steady branches)")
         n_base = base_size(branch)
         rows = _rows(branch, n_base)
         # an observable NaN everywhere is "not computed" (the reader allows it): no column, not an error

@@ -341,3 +341,14 @@ def test_cli_cycles_bad_input(ab_file, args, says):
     assert r.exit_code not in (0, 3) and "Traceback" not in r.output
     errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
     assert len(errors) == 1 and says in errors[0], r.output
+
+
+def test_cli_cycles_file_refused_by_steady_state_commands(ab_file, tmp_path):
+    """stability and export --auto read a branch's states as steady states: for orbits they said
+    'too many values to unpack' and wrote an AUTO file with NDIM = 161 steady 'states' (exit 0)."""
+    out = tmp_path / "cyc.h5"
+    assert _cli("continue", ab_file, "--from", "HB1", "--cycles", "--max-steps", "3", "-o", out).exit_code == 0
+    r = _cli("stability", out, "--point", "1")
+    assert r.exit_code == 1 and "holds periodic orbits" in r.output.splitlines()[-1]
+    r = _cli("export", out, "--auto", "orb", "-d", tmp_path)
+    assert r.exit_code == 1 and "holds periodic orbits" in r.output and not (tmp_path / "b.orb").exists()

@@ -257,6 +257,9 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
         if branch_id not in ids:
             fail(f"no branch {branch_id!r} in {file}; branches: {', '.join(ids) or 'none'}")
         branch = branches[ids.index(branch_id)]
+    if branch.kind == "periodic-orbits":  # states [orbit nodes, T]: "too many values to unpack"
+        fail(f"branch {branch.id} of {file} holds periodic orbits: their stability is the Floquet multipliers "
+             "stored with them (eigenvalues, stable: contin info), not the eigenvalues of a steady state")
     if len(branch.free) != 1:  # its states are augmented (u, phi, p2, ...): numpy's broadcast error
         # ('operands could not be broadcast together with shapes (37,) (75,)') or a size mismatch before
         fail(f"branch {branch.id} of {file} is a two-parameter curve ({branch.kind or 'curve'}, free {', '.join(branch.free)}): "
