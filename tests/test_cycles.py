@@ -352,3 +352,22 @@ def test_cli_cycles_file_refused_by_steady_state_commands(ab_file, tmp_path):
     assert r.exit_code == 1 and "holds periodic orbits" in r.output.splitlines()[-1]
     r = _cli("export", out, "--auto", "orb", "-d", tmp_path)
     assert r.exit_code == 1 and "holds periodic orbits" in r.output and not (tmp_path / "b.orb").exists()
+
+
+def test_segments_with_a_new_phase_reference_join_into_one_branch():
+    """Renewing the phase reference every 3 steps (segments) gives the branch of every 20 steps:
+    the same LPC, one EP at the end, special points indexed between their bracketing points."""
+    hb = _hopf_of(Bautin(), np.zeros(2), {"mu": -0.3, "b": 1.0, "w": 1.0}, "mu", (-1, 1))
+    opts = ContinuationOptions(bounds={"mu": (-1, 0.3)}, max_steps=200)
+    one = continue_cycles(Bautin(), hb, "mu", opts)
+    many = continue_cycles(Bautin(), hb, "mu", opts, CycleOptions(rephase_every=3))
+    assert [s.type for s in many.special_points] == ["LPC", "EP"] == [s.type for s in one.special_points]
+    assert many.points("LPC")[0].params["mu"] == pytest.approx(-0.25, abs=1e-10)
+    lpc = many.points("LPC")[0]
+    mu = many.parameter_values
+    r2 = many.observables["l2norm"] ** 2
+    assert r2[lpc.index] < 0.5 < r2[lpc.index + 1]  # the fold (r^2 = b/2) between its neighbours
+    assert many.special_points[-1].index == len(many) - 1 and mu[-1] == pytest.approx(0.3, abs=1e-14)
+    assert np.all(many.ds[1:] > 0) and many.status == "EP" and "reached bound" in many.message
+    # the orbits of every segment are the cycles
+    assert np.abs(mu + r2 - r2**2).max() < 1e-7  # on the cycles: mu + b r^2 - r^4 = 0 (b = 1)
