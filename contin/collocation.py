@@ -180,6 +180,36 @@ class Mesh:
         np.add.at(row, self.interval_nodes, coef)
         return row.ravel()
 
+    def highest_derivative(self, nodes: Array) -> Array:
+        """u^(NCOL) on each interval (constant there: the NCOL-th difference of its equally spaced
+        node values over (h / NCOL)^NCOL), shape (NTST, n)."""
+        blocks = self.blocks(nodes)
+        diff = np.diff(blocks, n=self.ncol, axis=1)[:, 0, :]
+        return diff / (self.h[:, None] / self.ncol) ** self.ncol
+
+    def adapted(self, nodes: Array, floor: float = 0.05) -> Mesh:
+        """A mesh that equidistributes the collocation error estimate of the orbit ``nodes``
+        (AUTO's mesh adaptation, Russell & Christiansen 1978): the error of interval j is about
+        h_j^(NCOL+1) |u^(NCOL+1)|, so the new mesh equidistributes int |u^(NCOL+1)|^(1/(NCOL+1)) dt,
+        with u^(NCOL+1) from the jumps of u^(NCOL) between neighbouring intervals (periodically).
+        ``floor`` (a fraction of the mean monitor added everywhere) keeps intervals where the
+        orbit is nearly a straight line from growing without bound."""
+        m = self.ncol
+        d = self.highest_derivative(nodes)
+        jump = np.max(np.abs(np.roll(d, -1, axis=0) - d), axis=1)  # at t_{j+1}, between j and j + 1
+        h = self.h
+        at_points = 2 * jump / (h + np.roll(h, -1))  # |u^(m+1)| at the mesh points t_1 .. t_N (t_N = t_0)
+        per_interval = 0.5 * (at_points + np.roll(at_points, 1)) ** (1.0 / (m + 1))
+        mean = float(np.sum(per_interval * h))
+        if not (math.isfinite(mean) and mean > 0):
+            return self
+        monitor = per_interval + floor * mean
+        cumulative = np.concatenate([[0.0], np.cumsum(monitor * h)])
+        targets = np.linspace(0.0, cumulative[-1], self.ntst + 1)
+        points = np.interp(targets, cumulative, self.t)
+        points[0], points[-1] = 0.0, 1.0
+        return Mesh(self.n, self.ntst, self.ncol, tuple(float(v) for v in points))
+
     def resample(self, other: Mesh, nodes: Array) -> Array:
         """The node values of an orbit carried onto the nodes of ``other`` (interpolation)."""
         return self.evaluate(nodes, other.node_times)

@@ -53,7 +53,7 @@ from contin.problem import Array, has, inner_product_weights
 
 log = logging.getLogger("contin")
 
-__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "hopf_start", "start_orbit", "finish_branch"]
+__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "orbit_of", "hopf_start", "start_orbit", "finish_branch"]
 
 #: Branch.kind of a branch of periodic orbits.
 KIND = "periodic-orbits"
@@ -67,7 +67,12 @@ class CycleOptions:
     amplitude : eps of the first orbit u_H + eps Re(q e^{2 pi i t}) (q with q^H W q = 1, W the
         problem's ``inner_product_weights`` or I); None: 1e-3 max(1, |u_H|_inf) ... see
         :func:`default_amplitude`.
-    rephase_every : steps after which the phase reference is renewed (a new segment).
+    rephase_every : steps after which the phase reference is renewed (a new segment) and, with
+        ``adapt_mesh``, the mesh adapted to the last orbit (AUTO's IAD).
+    adapt_mesh : equidistribute the mesh at every new segment (``contin.collocation.Mesh.adapted``),
+        and where an orbit is under-resolved (``floquet_tol``) go on from the last accepted orbit on
+        its adapted mesh (once per point: a second miss there ends the branch); False: the uniform
+        mesh throughout.
     floquet_tol : largest distance of the trivial multiplier from 1 of an accepted orbit: past it
         the mesh no longer resolves the orbit (a sharpening relaxation oscillation, a period
         growing towards a homoclinic orbit) and the branch ends with MX "under-resolved at ...",
@@ -78,8 +83,9 @@ class CycleOptions:
     ntst: int = NTST
     ncol: int = NCOL
     amplitude: float | None = None
-    rephase_every: int = 20
+    rephase_every: int = 5
     floquet_tol: float | None = FLOQUET_DOUBTFUL
+    adapt_mesh: bool = True
 
     def __post_init__(self) -> None:
         if self.ntst < 2 or self.ncol < 1:
@@ -111,6 +117,13 @@ class CycleProblem:
         self.parameter_names = tuple(problem.parameter_names)
         self._cache: tuple[bytes, Multipliers] | None = None
         self.floquet_tol = floquet_tol
+
+    def with_mesh(self, mesh: Mesh, reference: Array | None = None) -> CycleProblem:
+        """The same problem collocated on ``mesh`` (phase reference: the given node values, else
+        the present reference carried over)."""
+        if reference is None:
+            reference = self.mesh.resample(mesh, self.colloc.reference)
+        return CycleProblem(self.problem, mesh, reference, self.colloc.mass, self.floquet_tol)
 
     # --- the Problem protocol ------------------------------------------------------------
     def residual(self, x: Array, p: dict[str, float]) -> Array:
@@ -287,25 +300,74 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
     parent = parent or point.name
     segments: list[Branch] = []
     tangent: Array | None = secant
+    retried = -1  # the point count at the last restart after an under-resolved orbit
     while True:
         steps = min(cycle.rephase_every, remaining)
         seg = trace(cp, x0, params, parameter, dataclasses.replace(options, max_steps=steps), tangent=tangent,
                     branch_id=branch_id, kind=KIND, parent=parent)
-        segments.append(seg)
-        remaining -= len(seg) - 1
-        if not _stopped_by_count(seg, steps) or remaining <= 0 or len(seg) < 2:
+        segments.append(_with_mesh(seg, cp.mesh))
+        remaining -= max(len(seg) - 1, 0)
+        done = sum(len(b) - 1 for b in segments)
+        unresolved = (cycle.adapt_mesh and seg.status == "MX" and seg.message.startswith("under-resolved")
+                      and len(seg) >= 2 and done != retried)
+        if unresolved:
+            retried = done
+        elif not _stopped_by_count(seg, steps) or len(seg) < 2:
             break
-        # a new segment from the last orbit, which becomes the phase reference
-        x0 = seg.state(-1)
+        if remaining <= 0:
+            break
+        # a new segment from the last orbit: the new phase reference, on its adapted mesh
+        size = cp.mesh.size  # (the stored rows carry the mesh after [nodes, T]: _with_mesh)
+        x_last, t_last = seg.state(-1)[:size], seg.tangent(-1)
         params = {k: float(v[-1]) for k, v in seg.params.items()}
-        tangent = seg.tangent(-1)
+        nodes, period = cp.mesh.split(x_last)
+        mesh = cp.mesh.adapted(nodes) if cycle.adapt_mesh else cp.mesh
+        new_nodes = cp.mesh.resample(mesh, nodes)
+        x0 = mesh.pack(new_nodes, period)
+        tangent = np.concatenate([cp.mesh.resample(mesh, cp.mesh.split(t_last[:size])[0]).ravel(),
+                                  [t_last[size - 1], t_last[-1]]])
+        cp = cp.with_mesh(mesh, new_nodes)
+        if unresolved:  # the last stored orbit ends this segment; its MX is not the branch's end
+            segments[-1].special_points = [sp for sp in segments[-1].special_points if sp.type != "MX"]
+            segments[-1].status = "EP"
         last = float(abs(seg.ds[-1])) or abs(options.step.ds)  # go on with the step the tracer had reached
         options = dataclasses.replace(options, step=dataclasses.replace(
             options.step, ds=math.copysign(min(last, options.step.ds_max), options.step.ds)))
-        cp.colloc.set_reference(x0[:-1])
-        cp._cache = None
     branch = _concatenate(segments)
-    return finish_branch(cp, branch)
+    if _stopped_by_count(segments[-1], 0) and remaining <= 0:  # the segment's count is not the run's
+        msg = f"maximum number of steps ({options.max_steps}) reached"
+        branch.message = msg
+        branch.special_points = [dataclasses.replace(sp, note=msg) if sp.type == "EP" and sp.index == len(branch) - 1
+                                 else sp for sp in branch.special_points]
+    return finish_branch(problem, branch, cp.mesh.n, cycle, cp.colloc.mass)
+
+
+def orbit_of(state: Array, n: int, ntst: int = NTST, ncol: int = NCOL) -> tuple[Mesh, Array, float]:
+    """(mesh, node values (NTST NCOL, n), T) of a stored orbit: a row of a cycle branch's states,
+    [node values, T, interior mesh points t_1 .. t_{NTST-1}]."""
+    state = np.asarray(state, dtype=float)
+    size = n * ntst * ncol + 1
+    if state.size != size + ntst - 1:
+        raise ValueError(f"a stored orbit of n = {n}, NTST = {ntst}, NCOL = {ncol} has {size + ntst - 1} entries, "
+                         f"not {state.size}")
+    mesh = Mesh(n, ntst, ncol, (0.0, *(float(v) for v in state[size:]), 1.0))
+    nodes, period = mesh.split(state[:size])
+    return mesh, nodes, period
+
+
+def _with_mesh(seg: Branch, mesh: Mesh) -> Branch:
+    """The segment with the interior mesh points appended to every state (the stored orbit,
+    :func:`orbit_of`), zeros in the tangents before the parameter, and the same in its points."""
+    inner = mesh.t[1:-1]
+    k = inner.size
+    if len(seg):
+        seg.states = np.hstack([seg.states, np.repeat(inner[None, :], seg.states.shape[0], axis=0)])
+        seg.tangents = np.hstack([seg.tangents[:, :-1], np.zeros((len(seg), k)), seg.tangents[:, -1:]])
+    seg.special_points = [dataclasses.replace(
+        sp, state=np.concatenate([sp.state, inner]),
+        tangent=None if sp.tangent is None else np.concatenate([sp.tangent[:-1], np.zeros(k), sp.tangent[-1:]]))
+        for sp in seg.special_points]
+    return seg
 
 
 def _stopped_by_count(seg: Branch, steps: int) -> bool:
@@ -326,20 +388,24 @@ def _concatenate(segments: list[Branch]) -> Branch:
     return out
 
 
-def finish_branch(cp: CycleProblem, branch: Branch) -> Branch:
-    """Multipliers, stability, floquet_error at every point; LP -> LPC; warning when the trivial
-    multiplier is off by more than :data:`FLOQUET_DOUBTFUL`."""
+def finish_branch(problem: Any, branch: Branch, n: int, cycle: CycleOptions = CycleOptions(),
+                  mass: Array | None = None) -> Branch:
+    """Multipliers, stability, floquet_error and flow_error at every point; LP -> LPC; warning when
+    the flow residual exceeds :data:`FLOQUET_DOUBTFUL` (the guard was off)."""
     s = len(branch)
-    n = cp.mesh.n
     eig = np.full((s, n - 1 if n > 1 else 1), np.nan + 0j)
     err = np.full(s, np.nan)
     flow_err = np.full(s, np.nan)
     stable = np.zeros(s, dtype=bool)
     n_unst = np.zeros(s, dtype=np.int64)
+    problems: dict[tuple[float, ...], CycleProblem] = {}
     for i in range(s):
-        x = branch.state(i)
+        mesh, nodes, period = orbit_of(branch.state(i), n, cycle.ntst, cycle.ncol)
+        key = tuple(mesh.t)
+        if key not in problems:
+            problems[key] = CycleProblem(problem, mesh, nodes, mass)
         p = {k: float(v[i]) for k, v in branch.params.items()}
-        mu = cp.multipliers(x, p)
+        mu = problems[key].multipliers(mesh.pack(nodes, period), p)
         eig[i, : mu.others.size] = mu.others
         err[i] = mu.error
         flow_err[i] = mu.flow_error

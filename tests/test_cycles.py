@@ -16,7 +16,7 @@ import pytest
 from contin.branch import SpecialPoint
 from contin.collocation import Mesh, lagrange_tables
 from contin.continuation import trace
-from contin.cycles import CycleOptions, CycleProblem, continue_cycles, first_orbit, hopf_start
+from contin.cycles import CycleOptions, CycleProblem, continue_cycles, first_orbit, hopf_start, orbit_of
 from contin.newton import newton
 from contin.options import ContinuationOptions
 from contin.problem import check_jacobian
@@ -50,9 +50,8 @@ def test_stuart_landau_branch_radius_period_multiplier():
     assert mu[0] > 0 and math.isclose(mu[-1], 0.5, rel_tol=1e-12)  # supercritical: cycles for mu > 0
     period = br.observables["period"]
     np.testing.assert_allclose(period, 2 * np.pi / W, rtol=1e-9)  # exact for every mu
-    mesh = Mesh(2)
     for i in range(len(br)):
-        nodes, _ = mesh.split(br.state(i))
+        _, nodes, _ = orbit_of(br.state(i), 2)
         np.testing.assert_allclose(np.hypot(nodes[:, 0], nodes[:, 1]), math.sqrt(mu[i]), rtol=1e-7)
     # the only nontrivial multiplier: exp(-2 mu T) (the radial linearization -2 mu over one period)
     np.testing.assert_allclose(br.eigenvalues[:, 0].real, np.exp(-2 * mu * period), rtol=1e-7, atol=1e-12)
@@ -129,7 +128,7 @@ def test_bautin_fold_of_cycles():
     (lpc,) = br.points("LPC")
     assert lpc.converged and "fold of cycles" in lpc.note
     assert abs(lpc.params["mu"] + bb**2 / 4) < 1e-8
-    nodes, period = Mesh(2).split(lpc.state)
+    _, nodes, period = orbit_of(lpc.state, 2)
     np.testing.assert_allclose(nodes[:, 0] ** 2 + nodes[:, 1] ** 2, bb / 2, rtol=1e-7)
     assert math.isclose(period, 2 * math.pi / w, rel_tol=1e-9)
     r2 = br.observables["l2norm"] ** 2  # |u| is constant on these circles
@@ -250,8 +249,7 @@ def test_ab_period_at_the_hopf_point_and_orbit_closure():
     assert np.all(br.parameter_values < hb.params["D"])  # subcritical (l1 > 0): cycles below D_H
     assert np.all(np.diff(br.observables["amplitude"]) > 0)
     i = 10
-    mesh = Mesh(2)
-    nodes, period = mesh.split(br.state(i))
+    mesh, nodes, period = orbit_of(br.state(i), 2)
     q = {k: float(v[i]) for k, v in br.params.items()}
     run = solve_ivp(lambda t, u: pr.residual(u, q), (0, period), nodes[0], method="DOP853", rtol=1e-12,
                     atol=1e-12, t_eval=mesh.node_times * period)
@@ -265,19 +263,58 @@ def test_ab_period_at_the_hopf_point_and_orbit_closure():
 
 
 def test_under_resolved_orbits_end_the_branch():
-    """Past the fold of demo ab the orbits sharpen into relaxation oscillations that NTST = 20
-    does not resolve: the branch ends with MX naming the flow residual and a finer NTST instead of
-    going on with wrong orbits; with the guard off (floquet_tol None) a warning names them."""
+    """Past the fold of demo ab the orbits sharpen into relaxation oscillations that a uniform mesh
+    of NTST = 20 does not resolve: the branch ends with MX naming the flow residual and a finer NTST
+    instead of going on with wrong orbits; with the guard off (floquet_tol None) a warning names them."""
     from problems.demo import AB
 
     hb = ab_hopf()
     opts = ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=60)
-    br = continue_cycles(AB(), hb, "D", opts)
+    br = continue_cycles(AB(), hb, "D", opts, CycleOptions(adapt_mesh=False))
     assert br.status == "MX" and "under-resolved" in br.message and "NTST = 40" in br.message
     assert np.all(br.observables["flow_error"] <= 1e-4)
-    off = continue_cycles(AB(), hb, "D", dataclasses.replace(opts, max_steps=25), CycleOptions(floquet_tol=None))
+    off = continue_cycles(AB(), hb, "D", dataclasses.replace(opts, max_steps=25),
+                          CycleOptions(floquet_tol=None, adapt_mesh=False))
     assert off.observables["flow_error"].max() > 1e-4
     assert any(line.startswith("warning: Floquet multipliers doubtful") for line in off.audit)
+
+
+def test_adapted_mesh_follows_ab_past_its_fold():
+    """With the mesh equidistributed every 5 steps (default) NTST = 20 follows demo ab's orbits past
+    the fold onto the stable relaxation oscillations: the period of each stable orbit equals the
+    period of the attractor integrated by solve_ivp (successive crossings of a section, independent
+    of the collocation), and the LPC agrees with a uniform mesh four times finer."""
+    from scipy.integrate import solve_ivp
+
+    from problems.demo import AB
+
+    pr = AB()
+    hb = ab_hopf()
+    opts = ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=40)
+    br = continue_cycles(pr, hb, "D", opts)
+    assert br.status == "EP" and br.message == "maximum number of steps (40) reached"
+    (lpc,) = br.points("LPC")
+    uniform = continue_cycles(pr, hb, "D", opts, CycleOptions(ntst=80, adapt_mesh=False))
+    assert abs(lpc.params["D"] - uniform.points("LPC")[0].params["D"]) < 5e-9  # measured 1.3e-9
+    after = np.arange(len(br)) > lpc.index
+    assert br.stable[after].all() and not br.stable[~after].any()
+    assert br.parameter_values[-1] > 0.17  # far past the fold (D_LPC = 0.1617), period 4.1 from 7.4
+    checked = 0
+    for i in np.flatnonzero(after)[::6]:
+        mesh, nodes, period = orbit_of(br.state(i), 2)
+        assert mesh.h.max() / mesh.h.min() > 3  # adapted, not uniform
+        q = {k: float(v[i]) for k, v in br.params.items()}
+
+        def section(t, u, u0=nodes[0, 0]):
+            return u[0] - u0
+
+        section.direction = float(np.sign(pr.residual(nodes[0], q)[0]))
+        run = solve_ivp(lambda t, u: pr.residual(u, q), (0, 20 * period), nodes[0], method="DOP853",
+                        rtol=1e-12, atol=1e-12, events=section)
+        crossings = run.t_events[0]
+        assert math.isclose(period, (crossings[-1] - crossings[-6]) / 5, rel_tol=1e-5)  # measured 4e-6 .. 5e-8
+        checked += 1
+    assert checked >= 3
 
 
 # --- command line --------------------------------------------------------------------------
@@ -302,23 +339,25 @@ def _cli(*args):
 
 
 def test_cli_cycles_end_to_end(ab_file, tmp_path):
-    """trace ab -> continue --from HB1 --cycles (NTST 80: past the fold) -> info, diagram; the
-    file's branch is the same as the API's, and the LPC sits where a finer mesh puts it."""
+    """trace ab -> continue --from HB1 --cycles (past the fold, on adapted meshes) -> info, diagram;
+    the LPC sits where a uniform mesh four times finer puts it; with --ntst 20 --uniform-mesh the
+    sharpening orbits end the branch: MX, exit 3, said so."""
     from contin import io
     from problems.demo import AB
 
     out = tmp_path / "cyc.h5"
-    r = _cli("continue", ab_file, "--from", "HB1", "--cycles", "--ntst", "80", "--max-steps", "40", "-o", out)
-    # the orbits past the fold sharpen until NTST = 80 no longer resolves them: MX, exit 3, said so
-    assert r.exit_code == 3, r.output
-    assert "warning: the branch of periodic orbits ended with MX: under-resolved" in r.output
+    r = _cli("continue", ab_file, "--from", "HB1", "--cycles", "--max-steps", "40", "-o", out)
+    assert r.exit_code == 0, r.output
     (br,), meta = io.load(out)
     assert br.kind == "periodic-orbits" and br.parent == "HB1" and meta["diagram_y"] == "amplitude"
-    assert meta["extra"]["cycles"] == {"ntst": 80, "ncol": 4, "n": 2}
+    assert meta["extra"]["cycles"] == {"ntst": 20, "ncol": 4, "n": 2, "adapt_mesh": True}
     (lpc,) = br.points("LPC")
     fine = continue_cycles(AB(), ab_hopf(), "D", ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=40),
-                           CycleOptions(ntst=160))
-    assert abs(lpc.params["D"] - fine.points("LPC")[0].params["D"]) < 1e-8
+                           CycleOptions(ntst=80, adapt_mesh=False))
+    assert abs(lpc.params["D"] - fine.points("LPC")[0].params["D"]) < 5e-9
+    coarse = _cli("continue", ab_file, "--from", "HB1", "--cycles", "--uniform-mesh", "--max-steps", "40")
+    assert coarse.exit_code == 3, coarse.output
+    assert "warning: the branch of periodic orbits ended with MX: under-resolved" in coarse.output
     assert br.eigenvalues.shape == (len(br), 1) and br.stable[-1] and not br.stable[0]
     info = _cli("info", out)
     assert info.exit_code == 0 and "periodic-orbits" in info.output and "LPC" in info.output
@@ -332,6 +371,7 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
     (["--from", "EP3", "--cycles"], "--cycles starts at a Hopf point (HB); EP3 is not one"),
     (["--from", "HB1", "--cycles", "--free", "B"], "--free B is for two-parameter curves"),
     (["--from", "HB1", "--ntst", "30", "--free", "B"], "--ntst needs --cycles"),
+    (["--from", "HB1", "--uniform-mesh", "--free", "B"], "--uniform-mesh needs --cycles"),
     (["--from", "HB1"], "Missing option '--free'"),
     (["--from", "HB1", "--cycles", "--amplitude", "nan"], "--amplitude must be a finite number > 0"),
     (["--from", "HB1", "--cycles", "--bounds", "B=0:1"], "with --cycles only the branch's parameter 'D'"),

@@ -99,12 +99,14 @@ def _refuse_own_input(file: str, output: str) -> None:
               help="With --cycles: Gauss collocation points per interval [default: 4].")
 @click.option("--amplitude", type=float, default=None, metavar="EPS",
               help="With --cycles: amplitude of the first orbit [default: 1e-2 max(1, |u_H|)].")
+@click.option("--uniform-mesh", is_flag=True, default=False,
+              help="With --cycles: keep the uniform mesh (no adaptation every 5 steps).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="HDF5 file of the curve.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 def continue_command(file: str, label: str, second: str | None, branch_id: str | None, bounds: tuple[str, ...],
                      max_steps: int, ds: float | None, ds_max: float | None, tol: float | None, max_grid: int | None,
                      no_solve_check: bool, cycles: bool, ntst: int | None, ncol: int | None, amplitude: float | None,
-                     output: str | None, as_json: bool) -> None:
+                     uniform_mesh: bool, output: str | None, as_json: bool) -> None:
     """Continue the point LABEL of FILE in two parameters (the branch's and --free NAME), or with
     --cycles the periodic orbits born at the Hopf point LABEL (in the branch's parameter)."""
     import dataclasses
@@ -124,7 +126,7 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         fail("--no-solve-check needs --tol (the check belongs to adaptive grids)")
     from contin.cli.cycles_cmd import check_cycle_flags
 
-    cycle_options = check_cycle_flags(cycles, second, tol, ntst, ncol, amplitude)
+    cycle_options = check_cycle_flags(cycles, second, tol, ntst, ncol, amplitude, uniform_mesh)
     if not cycles and second is None:
         fail("Missing option '--free' (the second free parameter; or --cycles from an HB)")
     box = parse_bounds(bounds)

@@ -18,11 +18,12 @@ from contin.cli._base import echo_err, echo_json, fail, fmt, special_points_tabl
 
 
 def check_cycle_flags(cycles: bool, second: str | None, tol: float | None, ntst: int | None, ncol: int | None,
-                      amplitude: float | None) -> Any:
+                      amplitude: float | None, uniform_mesh: bool = False) -> Any:
     """The CycleOptions of ``--cycles`` (None without it); one ``Error:`` line for flags that do
     not go together."""
     if not cycles:
-        for name, v in (("--ntst", ntst), ("--ncol", ncol), ("--amplitude", amplitude)):
+        for name, v in (("--ntst", ntst), ("--ncol", ncol), ("--amplitude", amplitude),
+                        ("--uniform-mesh", uniform_mesh or None)):
             if v is not None:
                 fail(f"{name} needs --cycles (it sets the collocation of periodic orbits)")
         return None
@@ -36,7 +37,7 @@ def check_cycle_flags(cycles: bool, second: str | None, tol: float | None, ntst:
     from contin.cycles import CycleOptions
 
     base = CycleOptions()
-    return CycleOptions(ntst=ntst or base.ntst, ncol=ncol or base.ncol, amplitude=amplitude)
+    return CycleOptions(ntst=ntst or base.ntst, ncol=ncol or base.ncol, amplitude=amplitude, adapt_mesh=not uniform_mesh)
 
 
 def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, options: Any, cycle: Any,
@@ -57,10 +58,11 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     interrupted = stop.requested
     summary = (f"periodic orbits from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
                f"period 2 pi / omega = {fmt(2 * math.pi / point.data['omega']) if point.data.get('omega') else '?'}), "
-               f"NTST = {cycle.ntst}, NCOL = {cycle.ncol}")
+               f"NTST = {cycle.ntst}, NCOL = {cycle.ncol}, {'adapted' if cycle.adapt_mesh else 'uniform'} mesh")
     if output is not None:
         extra = {"source": file, "from": point.name, "branch": branch.id, "free": [first],
-                 "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": int(len(point.state))}}
+                 "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": int(len(point.state)),
+                            "adapt_mesh": cycle.adapt_mesh}}
         notes = [summary + f" in {file}"]
         if own_grid is not None:
             notes.append(f"on the fixed grid {own_grid} of {point.name}")
