@@ -411,3 +411,22 @@ def test_segments_with_a_new_phase_reference_join_into_one_branch():
     assert np.all(many.ds[1:] > 0) and many.status == "EP" and "reached bound" in many.message
     # the orbits of every segment are the cycles
     assert np.abs(mu + r2 - r2**2).max() < 1e-7  # on the cycles: mu + b r^2 - r^4 = 0 (b = 1)
+
+
+def test_mesh_adaptation_equidistributes_a_steep_front():
+    """u = tanh(20 sin 2 pi t): three adaptations cut the interpolation error of NTST = 20 by more
+    than 30 (the mesh gathers at the fronts t = 0, 1/2), and a sine keeps a near-uniform mesh."""
+    mesh = Mesh(1, 20, 4)
+    f = lambda t: np.tanh(20 * np.sin(2 * np.pi * t))  # noqa: E731
+    tt = np.linspace(0, 1, 4001)
+
+    def error(m):
+        return np.abs(m.evaluate(f(m.node_times)[:, None], tt)[:, 0] - f(tt)).max()
+
+    adapted = mesh
+    for _ in range(3):
+        adapted = adapted.adapted(f(adapted.node_times)[:, None])
+    assert error(adapted) < error(mesh) / 30
+    assert adapted.h[0] < 0.3 * adapted.h[5] and adapted.h[10] < 0.3 * adapted.h[15]
+    smooth = mesh.adapted(np.sin(2 * np.pi * mesh.node_times)[:, None])
+    assert smooth.h.max() / smooth.h.min() < 1.6
