@@ -47,7 +47,7 @@ import scipy.sparse as sp
 
 from contin.branch import Branch, SpecialPoint
 from contin.collocation import NCOL, NTST, Collocation, Mesh
-from contin.floquet import FLOQUET_DOUBTFUL, FloquetTest, Multipliers, multipliers
+from contin.floquet import FLOQUET_DOUBTFUL, FloquetTest, Multipliers, ShrinkTest, multipliers
 from contin.options import ContinuationOptions
 from contin.problem import Array, has, inner_product_weights
 
@@ -184,7 +184,21 @@ class CycleProblem:
                 f"{self.mesh.ntst} does not resolve the orbit (try NTST = {2 * self.mesh.ntst})")
 
     def point_tests(self) -> list[Any]:
-        return [FloquetTest(self, "PD"), FloquetTest(self, "NS")]
+        return [FloquetTest(self, "PD"), FloquetTest(self, "NS"), ShrinkTest(self)]
+
+    def signed_amplitude(self, x: Array) -> float:
+        """The orbit's amplitude along the phase reference's, signed (``contin.floquet.ShrinkTest``)."""
+        mesh = self.mesh
+        u = mesh.at_gauss(mesh.split(x)[0])
+        r = mesh.at_gauss(self.colloc.reference)
+        _, w, _, _ = mesh.tables
+
+        def centred(v: Array) -> Array:
+            return v - np.einsum("j,i,jin->n", mesh.h, w, v)
+
+        cu, cr = centred(u), centred(r)
+        ref = mesh.integrate(np.sum(cr * cr, axis=-1))
+        return mesh.integrate(np.sum(cu * cr, axis=-1)) / ref if ref > 0 else math.nan
 
     def orbit(self, x: Array, samples: int | None = None) -> tuple[Array, Array]:
         """(t, u(t)): the orbit at its nodes (t in [0, 1)), or at ``samples`` equally spaced times."""
@@ -295,7 +309,9 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
     from contin.continuation import trace
 
     cp, x0, params, secant = start_orbit(problem, point, parameter, cycle, options)
-    options = dataclasses.replace(options, save_every=1)  # every orbit: the multipliers need them
+    # every orbit stored (the multipliers need them); a segment ends at the first Hopf point (the
+    # orbits shrink to an equilibrium: beyond it the branch would come back over itself)
+    options = dataclasses.replace(options, save_every=1, stop_at=("HB1",))
     remaining = options.max_steps
     parent = parent or point.name
     segments: list[Branch] = []
@@ -313,6 +329,13 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
         if unresolved:
             retried = done
         elif not _stopped_by_count(seg, steps) or len(seg) < 2:
+            if seg.points("HB"):
+                hb = _hopf_end(cp, seg.points("HB")[0], parameter)
+                seg.special_points = [hb if sp.type == "HB" else sp for sp in seg.special_points]
+                seg.message = f"the orbits shrink to a Hopf point at {parameter} = {hb.params[parameter]:.10g}"
+                # the reversal through amplitude 0 is no fold of cycles
+                seg.special_points = [dataclasses.replace(sp, note=seg.message) if sp.type == "EP" else sp
+                                      for sp in seg.special_points if not (sp.type == "LP" and sp.index == hb.index)]
             break
         if remaining <= 0:
             break
@@ -340,6 +363,38 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
         branch.special_points = [dataclasses.replace(sp, note=msg) if sp.type == "EP" and sp.index == len(branch) - 1
                                  else sp for sp in branch.special_points]
     return finish_branch(problem, branch, cp.mesh.n, cycle, cp.colloc.mass)
+
+
+def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoint:
+    """The Hopf point where the orbits shrink to an equilibrium, solved from the Hopf defining
+    system of the base problem (``contin.hopfsystem.HopfCurveProblem`` with the branch's parameter
+    as its unknown), started from the mean and the period of the orbit the locator reached: the
+    locator's own point is inexact (the cycle system is singular at amplitude 0).  The point keeps
+    the locator's estimate (converged False, a note) when that solve fails."""
+    from contin.hopfsystem import HopfCurveProblem, hopf_basis
+    from contin.newton import newton
+
+    mesh = cp.mesh
+    nodes, period = mesh.split(np.asarray(sp.state)[: mesh.size])
+    u0 = np.einsum("j,i,jin->n", mesh.h, mesh.tables[1], mesh.at_gauss(nodes))
+    omega = 2 * math.pi / period
+    params = dict(sp.params)
+    try:
+        v, w, d = hopf_basis(cp.problem, u0, params, omega)
+        curve = HopfCurveProblem(cp.problem, parameter, v.copy(), d)
+        res = newton(curve, np.concatenate([u0, v, w, [omega**2, params[parameter]]]), params)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
+        return dataclasses.replace(sp, converged=False, note=f"{sp.note}; Hopf system not solved: {exc}")
+    n = u0.size
+    kappa = float(res.u[3 * n])
+    if not (res.converged and kappa > 0):
+        return dataclasses.replace(sp, converged=False, note=f"{sp.note}; Hopf system not solved: {res.message}")
+    u_h, omega = res.u[:n], math.sqrt(kappa)
+    params[parameter] = float(res.u[-1])
+    state = mesh.pack(np.repeat(u_h[None, :], mesh.nodes, axis=0), 2 * math.pi / omega)
+    return dataclasses.replace(sp, params=params, state=np.concatenate([state, np.asarray(sp.state)[mesh.size:]]),
+                               converged=True, order_parameter=0.0,
+                               data={**sp.data, "omega": omega, "period": 2 * math.pi / omega})
 
 
 def orbit_of(state: Array, n: int, ntst: int = NTST, ncol: int = NCOL) -> tuple[Mesh, Array, float]:

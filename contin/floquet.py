@@ -128,6 +128,30 @@ def circle_crossings(va: np.ndarray, vb: np.ndarray, kind: str) -> list[tuple[co
 
 
 @dataclass
+class ShrinkTest:
+    """Point test HB on a cycle branch: the orbits shrink to an equilibrium (a Hopf point).  g is the
+    signed amplitude a(x) = int <u - mean u, r - mean r> dt / int |r - mean r|^2 dt against the
+    segment's phase reference r: through zero amplitude the branch goes on with the orbits of the
+    approach traversed half a period shifted (a = -1 times theirs), so a changes sign there."""
+
+    cycles: Any
+    name: str = "shrink"
+    kind: str = "HB"
+
+    def value(self, system: Any, x: Array) -> float:
+        return float(self.cycles.signed_amplitude(x[:-1]))
+
+    def crossings(self, va: float, vb: float) -> list[Crossing]:
+        if math.isfinite(va) and math.isfinite(vb) and va * vb < 0:
+            return [("", lambda v: float(v))]
+        return []
+
+    def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
+        note = "Hopf point: the orbits shrink to an equilibrium (amplitude 0)"
+        return replace(sp, data={**sp.data, "period": float(x[-2])}, note="; ".join(t for t in (note, sp.note) if t))
+
+
+@dataclass
 class FloquetTest:
     """Point test PD or NS on a cycle branch (module docstring); ``cycles`` is the
     ``contin.cycles.CycleProblem`` (it computes and caches the multipliers)."""

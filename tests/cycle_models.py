@@ -104,3 +104,24 @@ class DrivenPair:
             return np.concatenate([StuartLandau().dresidual_dp(z[:2], p, name), [0.0, 0.0]])
         return {"alpha": np.array([0.0, 0.0, u, v]), "k": np.array([0.0, 0.0, -r2 * u, -r2 * v]),
                 "w2": np.array([0.0, 0.0, -v, u])}[name]
+
+
+class TwoHopfLandau:
+    """Stuart-Landau with mu = p (1 - p): Hopf points at p = 0 and p = 1 joined by the cycles
+    r^2 = p (1 - p), period 2 pi / w (the branch from one Hopf point ends at the other)."""
+
+    parameter_names = ("p", "w")
+
+    def _sl(self, p):
+        return {"mu": p["p"] * (1 - p["p"]), "w": p["w"]}
+
+    def residual(self, u, p):
+        return StuartLandau().residual(u, self._sl(p))
+
+    def jacobian(self, u, p):
+        return StuartLandau().jacobian(u, self._sl(p))
+
+    def dresidual_dp(self, u, p, name):
+        if name == "w":
+            return StuartLandau().dresidual_dp(u, self._sl(p), "w")
+        return (1 - 2 * p["p"]) * StuartLandau().dresidual_dp(u, self._sl(p), "mu")

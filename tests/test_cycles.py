@@ -430,3 +430,36 @@ def test_mesh_adaptation_equidistributes_a_steep_front():
     assert adapted.h[0] < 0.3 * adapted.h[5] and adapted.h[10] < 0.3 * adapted.h[15]
     smooth = mesh.adapted(np.sin(2 * np.pi * mesh.node_times)[:, None])
     assert smooth.h.max() / smooth.h.min() < 1.6
+
+
+def test_branch_ends_where_the_orbits_shrink_to_the_other_hopf_point():
+    """mu = p (1 - p): the cycles r^2 = p (1 - p) born at p = 0 shrink to the Hopf point p = 1; the
+    branch ends there (HB, EP) instead of coming back over itself through amplitude 0 (it went on to
+    p = 0 and back with spurious folds of cycles at both Hopf points, exit 0)."""
+    from tests.cycle_models import TwoHopfLandau
+
+    hb = _hopf_of(TwoHopfLandau(), np.zeros(2), {"p": -0.3, "w": W}, "p", (-1, 0.5))
+    br = continue_cycles(TwoHopfLandau(), hb, "p", ContinuationOptions(bounds={"p": (-1, 2)}, max_steps=300))
+    assert [s.type for s in br.special_points] == ["HB", "EP"]
+    (end,) = br.points("HB")
+    assert abs(end.params["p"] - 1.0) < 1e-8 and "shrink" in br.message and br.status == "EP"
+    assert math.isclose(end.data["period"], 2 * math.pi / W, rel_tol=1e-9)
+    p = br.parameter_values
+    assert np.all(np.diff(p[:-1]) > 0) and len(br) < 300
+    np.testing.assert_allclose(br.observables["l2norm"][:-1] ** 2, p[:-1] * (1 - p[:-1]), rtol=1e-7, atol=1e-12)
+
+
+def test_ab_cycles_from_hb1_end_at_hb2():
+    """Demo ab: the orbits born at HB1 (subcritical) turn at the LPC, become the stable relaxation
+    oscillations and shrink to HB2 (supercritical), where the branch ends; HB2 equals the
+    equilibrium branch's HB2 (located by contin's Hopf test on the steady states)."""
+    from contin.options import StepOptions
+    from problems.demo import AB
+
+    opts = ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=2000, step=StepOptions(ds=0.01, ds_max=0.05))
+    hb1, hb2 = trace(AB(), np.zeros(2), AB_PARAMS, "D", opts).points("HB")
+    br = continue_cycles(AB(), hb1, "D", ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=300))
+    assert [s.type for s in br.special_points] == ["LPC", "HB", "EP"]
+    end = br.points("HB")[0]
+    assert abs(end.params["D"] - hb2.params["D"]) < 1e-9
+    assert math.isclose(end.data["omega"], hb2.data["omega"], rel_tol=1e-9)
