@@ -463,3 +463,61 @@ def test_ab_cycles_from_hb1_end_at_hb2():
     end = br.points("HB")[0]
     assert abs(end.params["D"] - hb2.params["D"]) < 1e-9
     assert math.isclose(end.data["omega"], hb2.data["omega"], rel_tol=1e-9)
+
+
+class _SlowLandau(StuartLandau):
+    """M u' = F with M = c I (c = 2.5): the Stuart-Landau orbits, time slowed by c."""
+
+    C = 2.5
+
+    def mass_matrix(self, u, p):
+        import scipy.sparse as sp
+
+        return self.C * sp.identity(2, format="csr")
+
+
+def test_mass_matrix_scales_time():
+    """With M = c I the cycles are Stuart-Landau's with period c 2 pi / w and multiplier
+    exp(-2 mu T / c) (the Hopf start, collocation and Floquet all use M)."""
+    pr = _SlowLandau()
+    hb = _hopf_of(pr, np.zeros(2), {"mu": -0.3, "w": W}, "mu", (-1, 1))
+    assert math.isclose(hb.data["omega"], W / pr.C, rel_tol=1e-9)
+    br = continue_cycles(pr, hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.5)}, max_steps=40))
+    mu, period = br.parameter_values, br.observables["period"]
+    np.testing.assert_allclose(period, pr.C * 2 * np.pi / W, rtol=1e-9)
+    np.testing.assert_allclose(br.observables["l2norm"], np.sqrt(mu), rtol=1e-7)
+    np.testing.assert_allclose(br.eigenvalues[:, 0].real, np.exp(-2 * mu * period / pr.C), rtol=1e-7)
+    assert np.all(br.observables["flow_error"] < 1e-10)
+
+
+def test_api_refuses_a_start_that_is_no_hopf_point():
+    b = trace(StuartLandau(), np.zeros(2), {"mu": -0.3, "w": W}, "mu", ContinuationOptions(bounds={"mu": (-1, 1)}))
+    (ep,) = [s for s in b.special_points if s.type == "EP"][:1]
+    with pytest.raises(ValueError, match="periodic orbits start at a Hopf point"):
+        continue_cycles(StuartLandau(), ep, "mu")
+
+    class Pencil(StuartLandau):
+        def eigenproblem(self, u, p, **kw):
+            raise AssertionError("not to be called")
+
+    with pytest.raises(ValueError, match="defines its own eigenproblem"):
+        CycleProblem(Pencil(), Mesh(2), np.zeros((Mesh(2).nodes, 2)))
+
+
+def test_cli_cycles_json(ab_file, tmp_path):
+    import json
+
+    r = _cli("continue", ab_file, "--from", "HB1", "--cycles", "--max-steps", "4", "--json")
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.output[r.output.index("{"): r.output.rindex("}") + 1])
+    extra = doc["extra"]
+    assert extra["from"] == "HB1" and extra["cycles"] == {"ntst": 20, "ncol": 4, "adapt_mesh": True}
+    (branch,) = doc["branches"]
+    assert branch["kind"] == "periodic-orbits" and branch["n_points"] == 5
+    orbits = extra["orbits"]
+    assert len(orbits["D"]) == len(orbits["period"]) == 5 and orbits["stable"] == [False] * 5
+    from contin import io
+
+    (steady,), _ = io.load(ab_file)
+    omega = steady.points("HB")[0].data["omega"]
+    assert abs(orbits["period"][0] / (2 * math.pi / omega) - 1) < 1e-3  # the first orbit, amplitude 0.01

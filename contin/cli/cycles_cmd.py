@@ -75,7 +75,11 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         doc = run_document(scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                            discretization=meta.get("discretization", {}), branches=[cycles], notes=[],
                            extra={"from": point.name, "branch": branch.id, "free": [first],
-                                  "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol}},
+                                  "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "adapt_mesh": cycle.adapt_mesh},
+                                  "orbits": {first: cycles.parameter_values.tolist(),
+                                             **{k: cycles.observables[k].tolist()
+                                                for k in ("period", "amplitude", "l2norm", "flow_error")},
+                                             "stable": cycles.stable.tolist()}},
                            output=output, stability={})
         echo_json(doc)
     echo_err(f"{summary}: {len(cycles)} points, {cycles.status} {cycles.message}")
