@@ -361,6 +361,8 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
     assert br.eigenvalues.shape == (len(br), 1) and br.stable[-1] and not br.stable[0]
     info = _cli("info", out)
     assert info.exit_code == 0 and "periodic-orbits" in info.output and "LPC" in info.output
+    assert f"Floquet multipliers of branch 0: outside the unit circle 0..1, stable at {int(br.stable.sum())} " \
+           f"of {len(br)} points" in info.output and "kx=" not in info.output
     for y in ("amplitude", "period"):
         d = _cli("diagram", out, "-y", y, "-o", tmp_path / f"{y}.png")
         assert d.exit_code == 0, d.output
