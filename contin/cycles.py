@@ -135,6 +135,16 @@ class CycleProblem:
     def dresidual_dp(self, x: Array, p: dict[str, float], name: str) -> Array:
         return self.colloc.dresidual_dp(x, p, name)
 
+    def admissible(self, x: Array, p: dict[str, float]) -> str | None:
+        """The base problem's ``admissible`` at every node (None: all inside its domain)."""
+        if not has(self.problem, "admissible"):
+            return None
+        for k, v in enumerate(self.mesh.split(x)[0]):
+            reason = self.problem.admissible(v, p)
+            if reason is not None:
+                return f"{reason} (orbit node {k})"
+        return None
+
     def validate(self, p: dict[str, float]) -> None:
         if has(self.problem, "validate"):
             self.problem.validate(p)

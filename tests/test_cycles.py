@@ -523,3 +523,19 @@ def test_cli_cycles_json(ab_file, tmp_path):
     (steady,), _ = io.load(ab_file)
     omega = steady.points("HB")[0].data["omega"]
     assert abs(orbits["period"][0] / (2 * math.pi / omega) - 1) < 1e-3  # the first orbit, amplitude 0.01
+
+
+def test_orbits_stay_admissible():
+    """The base problem's admissible(u, p) holds at every node of every stored orbit (here r < 0.6:
+    the branch stops short of mu = 0.36 instead of computing orbits outside the domain)."""
+
+    class Bounded(StuartLandau):
+        def admissible(self, u, p):
+            return None if u @ u < 0.36 else "r >= 0.6"
+
+    hb = sl_hopf()
+    br = continue_cycles(Bounded(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.5)}, max_steps=80))
+    assert br.parameter_values.max() < 0.36 and br.parameter_values.max() > 0.3
+    for i in range(len(br)):
+        _, nodes, _ = orbit_of(br.state(i), 2)
+        assert np.all(np.sum(nodes**2, axis=1) < 0.36)
