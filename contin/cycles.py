@@ -404,6 +404,8 @@ def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoin
     state = mesh.pack(np.repeat(u_h[None, :], mesh.nodes, axis=0), 2 * math.pi / omega)
     return dataclasses.replace(sp, params=params, state=np.concatenate([state, np.asarray(sp.state)[mesh.size:]]),
                                converged=True, order_parameter=0.0,
+                               note="Hopf point: the orbits shrink to an equilibrium (amplitude 0), "
+                                    "solved from its Hopf system",
                                data={**sp.data, "omega": omega, "period": 2 * math.pi / omega})
 
 

@@ -445,6 +445,7 @@ def test_branch_ends_where_the_orbits_shrink_to_the_other_hopf_point():
     assert [s.type for s in br.special_points] == ["HB", "EP"]
     (end,) = br.points("HB")
     assert abs(end.params["p"] - 1.0) < 1e-8 and "shrink" in br.message and br.status == "EP"
+    assert end.converged and "did not converge" not in end.note
     assert math.isclose(end.data["period"], 2 * math.pi / W, rel_tol=1e-9)
     p = br.parameter_values
     assert np.all(np.diff(p[:-1]) > 0) and len(br) < 300

@@ -86,8 +86,9 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     if len(cycles):
         t, a = cycles.observables["period"], cycles.observables["amplitude"]
         echo_err(f"period {fmt(t[0], 7)} .. {fmt(t[-1], 7)}, amplitude {fmt(a[0], 7)} .. {fmt(a[-1], 7)}, "
-                 f"stable at {int(cycles.stable.sum())} of {len(cycles)} points, largest flow residual "
-                 f"{float(max(cycles.observables['flow_error'])):.1e}")
+                 f"stable at {int(cycles.stable.sum())} of {len(cycles)} points; accuracy: trivial multiplier within "
+                 f"{float(max(cycles.observables['floquet_error'])):.1e} of 1 (a fold of cycles makes it the square "
+                 f"root of the error), flow residual <= {float(max(cycles.observables['flow_error'])):.1e}")
     echo_err(special_points_table([cycles]))
     for line in cycles.audit:
         if line.startswith("warning: "):
