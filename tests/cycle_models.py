@@ -1,4 +1,6 @@
-"""Small ODEs with periodic orbits of known properties, for tests/test_cycles.py.
+"""Small ODEs with periodic orbits of known properties, for tests/test_cycles.py (dense
+Jacobians: contin accepts them for tiny problems, and the collocation evaluates one per
+collocation point).
 
 - Stuart-Landau (the Hopf normal form): x' = mu x - w y - x r^2, y' = w x + mu y - y r^2; for
   mu > 0 the circle r = sqrt(mu) with period 2 pi / w, nontrivial multiplier exp(-2 mu T).
@@ -11,7 +13,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 
 class StuartLandau:
@@ -25,7 +26,7 @@ class StuartLandau:
     def jacobian(self, u, p):
         x, y = u
         mu, w = p["mu"], p["w"]
-        return sp.csc_matrix(np.array([[mu - 3 * x * x - y * y, -w - 2 * x * y], [w - 2 * x * y, mu - x * x - 3 * y * y]]))
+        return np.array([[mu - 3 * x * x - y * y, -w - 2 * x * y], [w - 2 * x * y, mu - x * x - 3 * y * y]])
 
     def dresidual_dp(self, u, p, name):
         x, y = u
@@ -47,8 +48,8 @@ class Bautin:
         g = p["mu"] + p["b"] * r2 - r2 * r2
         gr = p["b"] - 2 * r2  # dg/d(r^2)
         w = p["w"]
-        return sp.csc_matrix(np.array([[g + 2 * x * x * gr, 2 * x * y * gr - w],
-                                       [2 * x * y * gr + w, g + 2 * y * y * gr]]))
+        return np.array([[g + 2 * x * x * gr, 2 * x * y * gr - w],
+                         [2 * x * y * gr + w, g + 2 * y * y * gr]])
 
     def dresidual_dp(self, u, p, name):
         x, y = u
@@ -65,7 +66,7 @@ class Roessler:
 
     def jacobian(self, u, p):
         x, y, z = u
-        return sp.csc_matrix(np.array([[0.0, -1.0, -1.0], [1.0, p["a"], 0.0], [z, 0.0, x - p["c"]]]))
+        return np.array([[0.0, -1.0, -1.0], [1.0, p["a"], 0.0], [z, 0.0, x - p["c"]]])
 
     def dresidual_dp(self, u, p, name):
         x, y, z = u
@@ -92,10 +93,10 @@ class DrivenPair:
         g = p["alpha"] - p["k"] * r2 - s2
         k, w2 = p["k"], p["w2"]
         out = np.zeros((4, 4))
-        out[:2, :2] = StuartLandau().jacobian(z[:2], p).toarray()
+        out[:2, :2] = StuartLandau().jacobian(z[:2], p)
         out[2] = [-2 * k * x * u, -2 * k * y * u, g - 2 * u * u, -w2 - 2 * u * v]
         out[3] = [-2 * k * x * v, -2 * k * y * v, w2 - 2 * u * v, g - 2 * v * v]
-        return sp.csc_matrix(out)
+        return out
 
     def dresidual_dp(self, z, p, name):
         x, y, u, v = z

@@ -340,9 +340,10 @@ def _cli(*args):
 
 def test_cli_cycles_end_to_end(ab_file, tmp_path):
     """trace ab -> continue --from HB1 --cycles (past the fold, on adapted meshes) -> info, diagram;
-    the LPC sits where a uniform mesh four times finer puts it; with --ntst 20 --uniform-mesh the
-    sharpening orbits end the branch: MX, exit 3, said so."""
+    the file holds the branch continue_cycles computes with the run's step options; with
+    --uniform-mesh the sharpening orbits end the branch: MX, exit 3, said so."""
     from contin import io
+    from contin.options import StepOptions
     from problems.demo import AB
 
     out = tmp_path / "cyc.h5"
@@ -352,9 +353,10 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
     assert br.kind == "periodic-orbits" and br.parent == "HB1" and meta["diagram_y"] == "amplitude"
     assert meta["extra"]["cycles"] == {"ntst": 20, "ncol": 4, "n": 2, "adapt_mesh": True}
     (lpc,) = br.points("LPC")
-    fine = continue_cycles(AB(), ab_hopf(), "D", ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=40),
-                           CycleOptions(ntst=80, adapt_mesh=False))
-    assert abs(lpc.params["D"] - fine.points("LPC")[0].params["D"]) < 5e-9
+    api = continue_cycles(AB(), ab_hopf(), "D", ContinuationOptions(bounds={"D": (0.0, 0.5)}, max_steps=40,
+                                                                     step=StepOptions(ds=0.01, ds_max=0.05)))
+    assert lpc.params["D"] == api.points("LPC")[0].params["D"]  # the run's steps (ds 0.01 .. 0.05): the same branch
+    np.testing.assert_array_equal(br.states, api.states)
     coarse = _cli("continue", ab_file, "--from", "HB1", "--cycles", "--uniform-mesh", "--max-steps", "40")
     assert coarse.exit_code == 3, coarse.output
     assert "warning: the branch of periodic orbits ended with MX: under-resolved" in coarse.output
