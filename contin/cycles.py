@@ -17,10 +17,17 @@ available).  The guess is corrected with the parameter free and its projection o
 mode held at eps (a pseudo-arclength corrector with the Hopf mode as direction), then traced away
 from the Hopf point.
 
-Phase condition: AUTO's int_0^1 <u(t), u_ref'(t)> dt = 0 with u_ref the start orbit for the
-first ``rephase_every`` steps; the branch is then traced on in segments, each with the last
+Phase condition and mesh: AUTO's int_0^1 <u(t), u_ref'(t)> dt = 0 with u_ref the start orbit for
+the first ``rephase_every`` steps; the branch is then traced on in segments, each with the last
 orbit of the previous one as reference (AUTO updates it every step; a reference orbit that is
-kept too long lets the phase condition degenerate as the orbit changes shape).
+kept too long lets the phase condition degenerate as the orbit changes shape) and on a mesh
+adapted to it (``contin.collocation.Mesh.adapted``; AUTO's IAD).  A stored orbit is the row
+[node values, T, interior mesh points] (:func:`orbit_of`).
+
+End at a Hopf point: where the orbits shrink to an equilibrium (their signed amplitude along the
+reference changes sign: ``contin.floquet.ShrinkTest``) the branch ends (HB, then EP one step past
+it); the HB is solved from the equilibrium's Hopf system, since the cycle system is singular at
+amplitude 0.  Beyond it the tracer would come back over the same orbits, half a period shifted.
 
 Recorded per point (``Branch.observables``): period T, amplitude (max - min over the nodes of the
 problem's order parameter, or of the first component without one), l2norm (AUTO's L2-NORM,
@@ -65,19 +72,20 @@ class CycleOptions:
 
     ntst, ncol : mesh intervals and Gauss points per interval (AUTO's NTST, NCOL).
     amplitude : eps of the first orbit u_H + eps Re(q e^{2 pi i t}) (q with q^H W q = 1, W the
-        problem's ``inner_product_weights`` or I); None: 1e-3 max(1, |u_H|_inf) ... see
-        :func:`default_amplitude`.
+        problem's ``inner_product_weights`` or I); None: :func:`default_amplitude`.
     rephase_every : steps after which the phase reference is renewed (a new segment) and, with
         ``adapt_mesh``, the mesh adapted to the last orbit (AUTO's IAD).
     adapt_mesh : equidistribute the mesh at every new segment (``contin.collocation.Mesh.adapted``),
         and where an orbit is under-resolved (``floquet_tol``) go on from the last accepted orbit on
         its adapted mesh (once per point: a second miss there ends the branch); False: the uniform
         mesh throughout.
-    floquet_tol : largest distance of the trivial multiplier from 1 of an accepted orbit: past it
-        the mesh no longer resolves the orbit (a sharpening relaxation oscillation, a period
-        growing towards a homoclinic orbit) and the branch ends with MX "under-resolved at ...",
-        through the tracer's resolution guard (``ContinuationOptions.resolution_tol`` not None);
-        None: no such end (a warning line names the worst point instead).
+    floquet_tol : largest flow residual |P f - f| / |f| of an accepted orbit (P the monodromy,
+        f = u'(0); ``contin.floquet``): past it the mesh no longer resolves the orbit (a sharpening
+        relaxation oscillation, a period growing towards a homoclinic orbit); with ``adapt_mesh``
+        the branch goes on from the last orbit on an adapted mesh, else (or when that misses too)
+        it ends with MX "under-resolved at ...", through the tracer's resolution guard
+        (``ContinuationOptions.resolution_tol`` not None); None: no such end (a warning line names
+        the worst point instead).
     """
 
     ntst: int = NTST
@@ -314,8 +322,10 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
                     options: ContinuationOptions = ContinuationOptions(), cycle: CycleOptions = CycleOptions(),
                     *, branch_id: str = "0", parent: str = "") -> Branch:
     """The branch of periodic orbits born at the Hopf point ``point``, continued in ``parameter``
-    away from it (module docstring).  Raises ValueError for a point that is no Hopf point or a
-    start that does not converge."""
+    away from it (module docstring).  ``options`` as for a trace, except ``save_every`` (every
+    orbit is kept) and ``stop_at`` (replaced: the branch ends at the first Hopf point of the
+    orbits).  Raises ValueError for a point that is no Hopf point or a start that does not
+    converge."""
     from contin.continuation import trace
 
     cp, x0, params, secant = start_orbit(problem, point, parameter, cycle, options)
@@ -343,8 +353,13 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
                 hb = _hopf_end(cp, seg.points("HB")[0], parameter)
                 seg.special_points = [hb if sp.type == "HB" else sp for sp in seg.special_points]
                 seg.message = f"the orbits shrink to a Hopf point at {parameter} = {hb.params[parameter]:.10g}"
+                if not hb.converged:  # a sign change of the signed amplitude without a Hopf point: say so
+                    seg.status = "MX"
+                    seg.message = (f"the orbits' amplitude along the phase reference changed sign near {parameter} = "
+                                   f"{hb.params[parameter]:.10g}, but no Hopf point solves there ({hb.note})")
                 # the reversal through amplitude 0 is no fold of cycles
-                seg.special_points = [dataclasses.replace(sp, note=seg.message) if sp.type == "EP" else sp
+                end = "EP" if hb.converged else "MX"
+                seg.special_points = [dataclasses.replace(sp, type=end, note=seg.message) if sp.type == "EP" else sp
                                       for sp in seg.special_points if not (sp.type == "LP" and sp.index == hb.index)]
             break
         if remaining <= 0:

@@ -542,3 +542,19 @@ def test_orbits_stay_admissible():
     for i in range(len(br)):
         _, nodes, _ = orbit_of(br.state(i), 2)
         assert np.all(np.sum(nodes**2, axis=1) < 0.36)
+
+
+def test_sign_change_without_a_hopf_point_ends_with_mx(monkeypatch):
+    """Where the signed amplitude changes sign but the Hopf system cannot be solved, the branch does
+    not claim a Hopf point: MX, the HB marked not converged, the message says why."""
+    import contin.hopfsystem
+    from tests.cycle_models import TwoHopfLandau
+
+    def broken(*args, **kwargs):
+        raise ValueError("no eigenvector")
+
+    hb = _hopf_of(TwoHopfLandau(), np.zeros(2), {"p": -0.3, "w": W}, "p", (-1, 0.5))
+    monkeypatch.setattr(contin.hopfsystem, "hopf_basis", broken)
+    br = continue_cycles(TwoHopfLandau(), hb, "p", ContinuationOptions(bounds={"p": (-1, 2)}, max_steps=300))
+    assert br.status == "MX" and "but no Hopf point solves there" in br.message and "no eigenvector" in br.message
+    assert [s.type for s in br.special_points] == ["HB", "MX"] and not br.points("HB")[0].converged
