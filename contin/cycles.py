@@ -60,7 +60,8 @@ from contin.problem import Array, has, inner_product_weights
 
 log = logging.getLogger("contin")
 
-__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "orbit_of", "hopf_start", "start_orbit", "finish_branch"]
+__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "continue_doubled", "orbit_of", "hopf_start",
+           "start_orbit", "period_doubled_start", "finish_branch"]
 
 #: Branch.kind of a branch of periodic orbits.
 KIND = "periodic-orbits"
@@ -326,14 +327,21 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
     orbit is kept) and ``stop_at`` (replaced: the branch ends at the first Hopf point of the
     orbits).  Raises ValueError for a point that is no Hopf point or a start that does not
     converge."""
+    cp, x0, params, secant = start_orbit(problem, point, parameter, cycle, options)
+    return _continue_from(problem, cp, x0, params, secant, parameter, options, cycle, branch_id,
+                          parent or point.name)
+
+
+def _continue_from(problem: Any, cp: CycleProblem, x0: Array, params: dict[str, float], secant: Array,
+                   parameter: str, options: ContinuationOptions, cycle: CycleOptions, branch_id: str,
+                   parent: str) -> Branch:
+    """The segmented continuation of :func:`continue_cycles` from the corrected orbit x0 of ``cp``."""
     from contin.continuation import trace
 
-    cp, x0, params, secant = start_orbit(problem, point, parameter, cycle, options)
     # every orbit stored (the multipliers need them); a segment ends at the first Hopf point (the
     # orbits shrink to an equilibrium: beyond it the branch would come back over itself)
     options = dataclasses.replace(options, save_every=1, stop_at=("HB1",))
     remaining = options.max_steps
-    parent = parent or point.name
     segments: list[Branch] = []
     tangent: Array | None = secant
     retried = -1  # the point count at the last restart after an under-resolved orbit
@@ -390,6 +398,65 @@ def continue_cycles(problem: Any, point: SpecialPoint, parameter: str,
     return finish_branch(problem, branch, cp.mesh.n, cycle, cp.colloc.mass)
 
 
+def period_doubled_start(problem: Any, point: SpecialPoint, parameter: str, n: int,
+                         cycle: CycleOptions = CycleOptions(), options: ContinuationOptions = ContinuationOptions(),
+                         mass: Array | None = None, parent_ncol: int | None = None
+                         ) -> tuple[CycleProblem, Array, dict[str, float], Array]:
+    """(cycle problem, corrected first orbit, its parameters, secant) of the period-doubled branch
+    at a PD point of a cycle branch (its state a stored orbit, :func:`orbit_of`, of NCOL
+    ``parent_ncol``, default ``cycle.ncol``).
+
+    The orbit u of period T traversed twice is an orbit of period 2 T; at the PD it is a branch
+    point of the doubled problem, the new branch leaving along w = (v, -v), v the solution of the
+    variational equation with v(0) the eigenvector of the multiplier -1 (v(1) = -v(0), so w is
+    continuous and 2T-periodic).  The guess u2 + eps w, 2 T is corrected with its projection on w
+    held (as at a Hopf point), on NTST intervals of ``cycle`` (adapted to the doubled orbit)."""
+    from contin.corrector import correct
+    from contin.extended import ExtendedSystem
+    from contin.floquet import eigenfunction, monodromy
+
+    if point.type != "PD":
+        raise ValueError(f"a period-doubled branch starts at a PD point, not at {point.name} ({point.type})")
+    mesh, nodes, period = orbit_of(point.state, n, None, parent_ncol or cycle.ncol)
+    params = dict(point.params)
+    base = CycleProblem(problem, mesh, nodes, mass, cycle.floquet_tol)
+    blocks = base.colloc.interval_blocks(mesh.pack(nodes, period), params)
+    mu, vecs = np.linalg.eig(monodromy(blocks))
+    k = int(np.argmin(np.abs(mu + 1.0)))
+    if not abs(mu[k] + 1.0) < 1e-3:
+        raise ValueError(f"{point.name} has no Floquet multiplier at -1 (nearest {complex(mu[k]):.6g})")
+    v = eigenfunction(blocks, np.real(vecs[:, k]))
+    v /= float(np.max(np.abs(v)))
+    twice = Mesh(n, 2 * mesh.ntst, mesh.ncol, tuple(np.concatenate([mesh.t / 2, 0.5 + mesh.t[1:] / 2])))
+    u2, w2 = np.vstack([nodes, nodes]), np.vstack([v[:-1], -v[:-1]])
+    target = Mesh(n, cycle.ntst, cycle.ncol)
+    if cycle.adapt_mesh:
+        for _ in range(2):
+            target = target.adapted(twice.resample(target, u2))
+    u_t, w_t = twice.resample(target, u2), twice.resample(target, w2)
+    eps = cycle.amplitude if cycle.amplitude is not None else default_amplitude(nodes.ravel())
+    cp = CycleProblem(problem, target, u_t, mass, cycle.floquet_tol)
+    system = ExtendedSystem(cp, params, parameter, options.step.theta, n=target.size)
+    doubled = system.pack(target.pack(u_t, 2 * period), params[parameter])
+    guess = system.pack(target.pack(u_t + eps * w_t, 2 * period), params[parameter])
+    corr = correct(system, guess, system.row(np.concatenate([w_t.ravel(), [0.0, 0.0]])), options.newton)
+    if not corr.converged:
+        raise ValueError(f"the first period-doubled orbit at {point.name} (amplitude {eps:g}) did not converge: "
+                         f"{corr.message}")
+    cp.colloc.set_reference(corr.x[:-2])
+    return cp, corr.x[:-1], system.params_at(corr.x[-1]), corr.x - doubled
+
+
+def continue_doubled(problem: Any, point: SpecialPoint, parameter: str, n: int,
+                     options: ContinuationOptions = ContinuationOptions(), cycle: CycleOptions = CycleOptions(),
+                     *, parent_ncol: int | None = None, mass: Array | None = None,
+                     branch_id: str = "0", parent: str = "") -> Branch:
+    """The branch of period-doubled orbits born at the PD ``point`` of a cycle branch
+    (:func:`period_doubled_start`), continued as :func:`continue_cycles` continues orbits."""
+    cp, x0, params, secant = period_doubled_start(problem, point, parameter, n, cycle, options, mass, parent_ncol)
+    return _continue_from(problem, cp, x0, params, secant, parameter, options, cycle, branch_id, parent or point.name)
+
+
 def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoint:
     """The Hopf point where the orbits shrink to an equilibrium, solved from the Hopf defining
     system of the base problem (``contin.hopfsystem.HopfCurveProblem`` with the branch's parameter
@@ -424,10 +491,12 @@ def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoin
                                data={**sp.data, "omega": omega, "period": 2 * math.pi / omega})
 
 
-def orbit_of(state: Array, n: int, ntst: int = NTST, ncol: int = NCOL) -> tuple[Mesh, Array, float]:
+def orbit_of(state: Array, n: int, ntst: int | None = None, ncol: int = NCOL) -> tuple[Mesh, Array, float]:
     """(mesh, node values (NTST NCOL, n), T) of a stored orbit: a row of a cycle branch's states,
-    [node values, T, interior mesh points t_1 .. t_{NTST-1}]."""
+    [node values, T, interior mesh points t_1 .. t_{NTST-1}] (NTST None: from the row's size)."""
     state = np.asarray(state, dtype=float)
+    if ntst is None:
+        ntst = max(state.size // (n * ncol + 1), 2)
     size = n * ntst * ncol + 1
     if state.size != size + ntst - 1:
         raise ValueError(f"a stored orbit of n = {n}, NTST = {ntst}, NCOL = {ncol} has {size + ntst - 1} entries, "

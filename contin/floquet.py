@@ -63,6 +63,22 @@ def monodromy(blocks: Array) -> Array:
     return out
 
 
+def eigenfunction(blocks: Array, v0: Array) -> Array:
+    """The solution v of the discretized variational equation with v(0) = v0 at every node
+    (shape (NTST NCOL + 1, n): the last row is v(1) = P v0), interval by interval as in
+    :func:`monodromy`."""
+    ntst, ncol, _, n, _ = blocks.shape
+    out = np.empty((ntst * ncol + 1, n), dtype=np.result_type(v0, float))
+    v = v0
+    for j in range(ntst):
+        e = blocks[j].transpose(0, 2, 1, 3).reshape(ncol * n, (ncol + 1) * n)
+        rest = np.linalg.solve(e[:, n:], -e[:, :n] @ v).reshape(ncol, n)
+        out[j * ncol] = v
+        out[j * ncol + 1: (j + 1) * ncol + 1] = rest
+        v = rest[-1]
+    return out
+
+
 @dataclass(frozen=True)
 class Multipliers:
     """The Floquet multipliers of one orbit: ``others`` (all but the trivial one, by decreasing
@@ -106,8 +122,18 @@ def _is_real(mu: complex) -> bool:
     return abs(mu.imag) <= REAL_TOL * max(1.0, abs(mu))
 
 
+def _log_distance(v: np.ndarray, target: complex) -> np.ndarray:
+    """Distances in log |mu| and arg mu (on the circle): multipliers spread over many decades (a
+    strongly stable orbit's 1e-18 next to -0.9) are paired by their growth, not by their
+    difference (a step from -0.88 to -15.9 paired -0.88 with 1e-17 and missed the PD)."""
+    lv = np.log(np.maximum(np.abs(v), 1e-300))
+    lt = math.log(max(abs(target), 1e-300))
+    da = np.abs(np.angle(v) - np.angle(target))
+    return np.abs(lv - lt) + np.minimum(da, 2 * np.pi - da)
+
+
 def _nearest(v: np.ndarray, target: complex) -> int:
-    return int(np.argmin(np.abs(v - target)))
+    return int(np.argmin(_log_distance(v, target)))
 
 
 def circle_crossings(va: np.ndarray, vb: np.ndarray, kind: str) -> list[tuple[complex, complex]]:

@@ -138,16 +138,18 @@ def test_bautin_fold_of_cycles():
     assert not br.stable[small].any() and br.stable[~small].all()
 
 
-def test_period_doubling_of_roessler_against_shooting():
-    """Roessler (b = 2, c = 4): the cycle born at the HB near a = 0.125 doubles its period near
-    a = 0.335; reference: the a where a multiplier of the orbit is -1, by shooting with solve_ivp
-    (periodic orbit by fsolve on the flow map, monodromy from the variational equation)."""
+ROESSLER_B, ROESSLER_C = 2.0, 4.0
+
+
+def roessler_pd_by_shooting(a_attractor: float, lo: float, hi: float, loops: int) -> float:
+    """The a in (lo, hi) where the Roessler orbit (b = 2, c = 4) of ``loops`` turns has a Floquet
+    multiplier -1, by shooting with solve_ivp: the orbit by fsolve on the flow map from the
+    section y = 0 (start: the attractor at ``a_attractor``, a stable orbit), its monodromy from
+    the variational equation, brentq on the multiplier + 1.  Independent of the collocation."""
     from scipy.integrate import solve_ivp
     from scipy.optimize import brentq, fsolve
 
-    from tests.cycle_models import Roessler
-
-    b, c = 2.0, 4.0
+    b, c = ROESSLER_B, ROESSLER_C
 
     def rhs(t, v, a):
         x, y, z = v[:3]
@@ -161,12 +163,12 @@ def test_period_doubling_of_roessler_against_shooting():
         v0 = np.concatenate([u0, np.eye(3).ravel()]) if var else u0
         return solve_ivp(rhs, (0, period), v0, args=(a,), method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
 
-    # an initial orbit: the attractor at a = 0.33 (a stable cycle), cut at y = 0, y' > 0
-    s = solve_ivp(rhs, (0, 300), np.array([1.0, 1.0, 0.0]), args=(0.33,), rtol=1e-10, atol=1e-10, dense_output=True)
-    ts = np.linspace(250, 300, 20001)
+    s = solve_ivp(rhs, (0, 600), np.array([1.0, 1.0, 0.0]), args=(a_attractor,), rtol=1e-10, atol=1e-10,
+                  dense_output=True)
+    ts = np.linspace(500, 600, 40001)
     ys = s.sol(ts)
-    up = np.flatnonzero((ys[1, :-1] < 0) & (ys[1, 1:] >= 0))
-    guess = [np.array([ys[0, up[0]], ys[2, up[0]], ts[up[1]] - ts[up[0]]])]
+    up = np.flatnonzero((ys[1, :-1] < 0) & (ys[1, 1:] >= 0))  # y = 0, y' > 0
+    guess = [np.array([ys[0, up[0]], ys[2, up[0]], ts[up[loops]] - ts[up[0]]])]
 
     def pd(a):
         def g(v):
@@ -178,17 +180,59 @@ def test_period_doubling_of_roessler_against_shooting():
         mu = np.linalg.eigvals(flow(u0, guess[0][2], a, var=True)[3:].reshape(3, 3))
         return float(mu[np.argmin(mu.real)].real) + 1.0
 
-    reference = brentq(pd, 0.32, 0.345, xtol=1e-13)
+    return brentq(pd, lo, hi, xtol=1e-13)
 
-    a0 = 0.05
+
+@pytest.fixture(scope="module")
+def roessler_cycles():
+    """The Roessler cycles from the HB near a = 0.125, to a = 0.6."""
+    from tests.cycle_models import Roessler
+
+    a0, b, c = 0.05, ROESSLER_B, ROESSLER_C
     z0 = (c - math.sqrt(c * c - 4 * a0 * b)) / (2 * a0)
     hb = _hopf_of(Roessler(), np.array([a0 * z0, -z0, z0]), {"a": a0, "b": b, "c": c}, "a", (0.01, 0.6))
-    br = continue_cycles(Roessler(), hb, "a", ContinuationOptions(bounds={"a": (0.0, 0.6)}, max_steps=300))
+    return continue_cycles(Roessler(), hb, "a", ContinuationOptions(bounds={"a": (0.0, 0.6)}, max_steps=300))
+
+
+def test_period_doubling_of_roessler_against_shooting(roessler_cycles):
+    """Roessler (b = 2, c = 4): the cycle born at the HB near a = 0.125 doubles its period near
+    a = 0.335 (reference: shooting, :func:`roessler_pd_by_shooting`)."""
+    reference = roessler_pd_by_shooting(0.33, 0.32, 0.345, loops=1)
+    br = roessler_cycles
     (pdp,) = br.points("PD")
     assert pdp.converged and "period doubling" in pdp.note
     assert abs(pdp.params["a"] - reference) < 1e-8
     assert math.isclose(pdp.data["multiplier"], -1.0, abs_tol=1e-9)
     before = br.parameter_values < pdp.params["a"]
+    assert br.stable[before].all() and not br.stable[~before].any()
+
+
+def test_period_doubled_branch_and_its_own_doubling(roessler_cycles):
+    """From PD1 the period-doubled orbits (two turns, period 2 T at the PD): stable, closing after
+    2 T but not after T (solve_ivp), and doubling again near a = 0.3748 (the period-4 onset; reference:
+    shooting on the two-turn orbit)."""
+    from scipy.integrate import solve_ivp
+
+    from contin.cycles import continue_doubled
+    from tests.cycle_models import Roessler
+
+    pd1 = roessler_cycles.points("PD")[0]
+    br = continue_doubled(Roessler(), pd1, "a", 3, ContinuationOptions(bounds={"a": (0.0, 0.6)}, max_steps=60),
+                          CycleOptions(ntst=40))
+    assert br.kind == "periodic-orbits" and br.parent == pd1.name
+    assert math.isclose(br.observables["period"][0], 2 * pd1.data["period"], rel_tol=1e-3)
+    (pd2,) = br.points("PD")
+    reference = roessler_pd_by_shooting(0.37, 0.37, 0.38, loops=2)
+    assert abs(pd2.params["a"] - reference) < 1e-8
+    assert math.isclose(pd2.data["period"], 2 * pd1.data["period"], rel_tol=0.01)
+    i = int(np.flatnonzero(br.parameter_values > 0.36)[0])
+    mesh, nodes, period = orbit_of(br.state(i), 3)
+    q = {k: float(v[i]) for k, v in br.params.items()}
+    run = solve_ivp(lambda t, u: Roessler().residual(u, q), (0, period), nodes[0], method="DOP853", rtol=1e-12,
+                    atol=1e-12, t_eval=[period / 2, period])
+    assert np.abs(run.y[:, 1] - nodes[0]).max() < 1e-5  # closes after two turns
+    assert np.abs(run.y[:, 0] - nodes[0]).max() > 0.1  # not after one
+    before = br.parameter_values < pd2.params["a"]
     assert br.stable[before].all() and not br.stable[~before].any()
 
 
