@@ -293,7 +293,8 @@ def first_orbit(start: HopfStart, mesh: Mesh, parameter: str, eps: float) -> tup
 
 
 def start_orbit(problem: Any, point: SpecialPoint, parameter: str, cycle: CycleOptions = CycleOptions(),
-                options: ContinuationOptions = ContinuationOptions()) -> tuple[CycleProblem, Array, dict[str, float], Array]:
+                options: ContinuationOptions = ContinuationOptions()
+                ) -> tuple[CycleProblem, Array, dict[str, float], Array]:
     """(cycle problem, corrected first orbit x, its parameters, the secant from the Hopf point).
 
     Raises ValueError when the start cannot be corrected."""

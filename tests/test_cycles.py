@@ -416,7 +416,7 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
 
 
 @pytest.mark.parametrize("args, says", [
-    (["--from", "EP3", "--cycles"], "--cycles starts at a Hopf point (HB); EP3 is not one"),
+    (["--from", "EP3", "--cycles"], "a period doubling (PD) of orbits; EP3 is neither"),
     (["--from", "HB1", "--cycles", "--free", "B"], "--free B is for two-parameter curves"),
     (["--from", "HB1", "--ntst", "30", "--free", "B"], "--ntst needs --cycles"),
     (["--from", "HB1", "--uniform-mesh", "--free", "B"], "--uniform-mesh needs --cycles"),
@@ -602,3 +602,27 @@ def test_sign_change_without_a_hopf_point_ends_with_mx(monkeypatch):
     br = continue_cycles(TwoHopfLandau(), hb, "p", ContinuationOptions(bounds={"p": (-1, 2)}, max_steps=300))
     assert br.status == "MX" and "but no Hopf point solves there" in br.message and "no eigenvector" in br.message
     assert [s.type for s in br.special_points] == ["HB", "MX"] and not br.points("HB")[0].converged
+
+
+def test_cli_period_doubled_orbits_from_pd(tmp_path, monkeypatch):
+    """trace roessler -> --cycles from HB1 -> --cycles from PD of that file: the period-doubled
+    orbits (period 2 T at the start), written and readable; a PD of a steady run is refused."""
+    from contin import io
+
+    here = __import__("pathlib").Path(__file__).parent
+    monkeypatch.syspath_prepend(str(here))
+    monkeypatch.setenv("CONTIN_SCENES", "cycle_fixture_scenes:SCENES")
+    run, cyc, dbl = tmp_path / "r.h5", tmp_path / "c.h5", tmp_path / "d.h5"
+    assert _cli("trace", "roessler", "-q", "--no-stability", "-o", run).exit_code == 0
+    r = _cli("continue", run, "--from", "HB1", "--cycles", "--max-steps", "60", "-o", cyc)
+    assert r.exit_code == 0, r.output
+    (orbits,), _ = io.load(cyc)
+    pd = orbits.points("PD")[0]
+    r = _cli("continue", cyc, "--from", pd.name, "--cycles", "--ntst", "40", "--max-steps", "10", "-o", dbl)
+    assert r.exit_code == 0, r.output
+    assert r.output.startswith(f"period-doubled orbits from {pd.name}")
+    (doubled,), meta = io.load(dbl)
+    assert doubled.parent == pd.name and meta["extra"]["cycles"]["n"] == 3 and meta["extra"]["cycles"]["ntst"] == 40
+    assert math.isclose(doubled.observables["period"][0], 2 * pd.data["period"], rel_tol=1e-3)
+    r = _cli("continue", run, "--from", "EP2", "--cycles")
+    assert r.exit_code == 1 and "--cycles starts at a Hopf point (HB) or a period doubling (PD)" in r.output

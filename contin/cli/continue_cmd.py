@@ -144,11 +144,13 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         click.get_current_context().call_on_close(OutputLock(output).acquire().release)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
-    if cycles and point.type != "HB":
-        fail(f"--cycles starts at a Hopf point (HB); {point.name} is not one (type {point.type})")
+    doubling = cycles and point.type == "PD" and branch.kind == "periodic-orbits"  # the period-doubled orbits
+    if cycles and point.type != "HB" and not doubling:
+        fail(f"--cycles starts at a Hopf point (HB) or a period doubling (PD) of orbits; {point.name} is neither "
+             f"(type {point.type})")
     from contin.twoparam import continuable_types
 
-    if point.type not in continuable_types():  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
+    if point.type not in continuable_types() and not doubling:  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
         fail(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two parameters, "
              f"not {point.type}")
     from contin.twoparam import on_curve_message
@@ -198,7 +200,7 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         own_grid = int(point.grid)
     size = getattr(problem, "size", None)
     if (isinstance(size, int) and point.state is not None and size != len(point.state)
-            and point.type not in ("BT", "ZH", "HH")):
+            and point.type not in ("BT", "ZH", "HH") and not doubling):
         # (a BT, ZH or HH lies on a fold or Hopf curve: its augmented state is checked by contin.twoparam)
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")

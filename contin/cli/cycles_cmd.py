@@ -37,7 +37,15 @@ def check_cycle_flags(cycles: bool, second: str | None, tol: float | None, ntst:
     from contin.cycles import CycleOptions
 
     base = CycleOptions()
-    return CycleOptions(ntst=ntst or base.ntst, ncol=ncol or base.ncol, amplitude=amplitude, adapt_mesh=not uniform_mesh)
+    return CycleOptions(ntst=ntst or base.ntst, ncol=ncol or base.ncol, amplitude=amplitude,
+                        adapt_mesh=not uniform_mesh)
+
+
+def _state_size(point: Any, meta: dict[str, Any]) -> int:
+    """n of the problem: the HB's state, or (a PD of orbits) the file's own record."""
+    if point.type == "PD":
+        return int(((meta.get("extra") or {}).get("cycles") or {})["n"])
+    return int(len(point.state))
 
 
 def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, options: Any, cycle: Any,
@@ -52,16 +60,30 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     first = branch.parameter
     with stop_on_sigint(sigterm=Terminated) as stop:
         try:
-            cycles = continue_cycles(problem, point, first, options, cycle, parent=point.name)
+            if point.type == "PD":  # a PD of a file of orbits: the period-doubled orbits
+                from contin.cycles import continue_doubled
+
+                stored = (meta.get("extra") or {}).get("cycles") or {}
+                if not isinstance(stored.get("n"), int):
+                    fail(f"{file} does not say the size n of its orbits (no 'cycles' entry): it was not written by "
+                         "contin continue --cycles")
+                cycles = continue_doubled(problem, point, first, stored["n"], options, cycle,
+                                          parent_ncol=int(stored.get("ncol", cycle.ncol)), parent=point.name)
+            else:
+                cycles = continue_cycles(problem, point, first, options, cycle, parent=point.name)
         except ValueError as exc:
             fail(str(exc))
     interrupted = stop.requested
-    summary = (f"periodic orbits from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
-               f"period 2 pi / omega = {fmt(2 * math.pi / point.data['omega']) if point.data.get('omega') else '?'}), "
+    if point.type == "PD":
+        born = f"period 2 T = {fmt(2 * point.data['period']) if point.data.get('period') else '?'}"
+    else:
+        born = f"period 2 pi / omega = {fmt(2 * math.pi / point.data['omega']) if point.data.get('omega') else '?'}"
+    what = "period-doubled orbits" if point.type == "PD" else "periodic orbits"
+    summary = (f"{what} from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, {born}), "
                f"NTST = {cycle.ntst}, NCOL = {cycle.ncol}, {'adapted' if cycle.adapt_mesh else 'uniform'} mesh")
     if output is not None:
         extra = {"source": file, "from": point.name, "branch": branch.id, "free": [first],
-                 "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": int(len(point.state)),
+                 "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": _state_size(point, meta),
                             "adapt_mesh": cycle.adapt_mesh}}
         notes = [summary + f" in {file}"]
         if own_grid is not None:
