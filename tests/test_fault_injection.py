@@ -30,6 +30,7 @@ from click.testing import CliRunner
 from contin import io
 from contin.atomic import OutputLock
 from contin.cli import main
+from tests.signals import signalled as _signalled
 
 HERE = Path(__file__).parent
 ENV = {**os.environ, "CONTIN_SCENES": "cli_fixture_scenes:SCENES,sweep_fixture_scenes:SCENES",
@@ -53,19 +54,8 @@ def popen(*args: str, **env) -> subprocess.Popen:
 
 
 def signalled(args: list[str], sig: int, ready, what: str, after: float = 0.0) -> tuple[int, str]:
-    """(exit code, stderr) of ``contin ARGS`` sent ``sig`` once ``ready()`` holds (and ``after``
-    seconds more).  SIGINT is reset to its default in the child: a shell without job control
-    starts background jobs with it ignored, and Python then never raises KeyboardInterrupt."""
-    proc = subprocess.Popen([sys.executable, "-m", "contin", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=ENV, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        wait_for(ready, what=what)
-        time.sleep(after)
-        proc.send_signal(sig)
-        _, stderr = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    return proc.returncode, stderr
+    """:func:`tests.signals.signalled` on the toy and sweep fixture scenes."""
+    return _signalled(args, sig, ready, env=ENV, what=what, after=after)
 
 
 def one_error(code: int, stderr: str, expect: str, exit_code: int = 1) -> str:
