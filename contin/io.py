@@ -681,12 +681,14 @@ class H5Writer:
             lock.release()
 
 
-def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:
+def write(path: str | os.PathLike[str], branches: Iterable[Branch], *, stopped: str = "", **meta: Any) -> Path:
     """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`.
 
     Without ``parameters=`` the file records the problem's parameters as the branches carry
     them: every parameter column of the first branch at its first point (the values a
-    restart or a rebuilt problem starts from).
+    restart or a rebuilt problem starts from).  ``stopped`` (e.g. ``"interrupted"``,
+    :data:`contin.cancel.STOPPED`) writes a partial result: ``complete=False`` and the reason, as a
+    run's writer leaves a stopped run (``contin info`` says it is incomplete).
     """
     if isinstance(branches, Branch):  # io.write(path, branch) met "'Branch' object is not iterable"
         branches = [branches]
@@ -702,7 +704,14 @@ def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any)
     meta.setdefault("lock", False)  # one publish, atomic by itself; no run to protect
     w = H5Writer(path, **meta)
     w.set_branches(branches)
-    w.close()
+    if not stopped:
+        w.close()
+        return w.path
+    w.update(stopped=stopped)
+    try:
+        w.publish()  # complete stays False
+    finally:
+        w.release()
     return w.path
 
 

@@ -247,9 +247,10 @@ def test_sigterm_during_continue_keeps_the_curve_computed_so_far(tmp_path):
     errors = [ln for ln in stderr.splitlines() if ln.startswith("Error: ")]
     assert rc == 143 and errors == ["Error: terminated by SIGTERM"], stderr
     assert "note: the curve computed before SIGTERM (" in stderr and f"is saved in {out}" in stderr
-    (curve,), _ = io.load(out)
+    (curve,), meta = io.load(out)
     assert curve.status == "MX" and "terminated by SIGTERM: the branch ends at its last point" in curve.message
     assert len(curve) > 10
+    assert meta["complete"] is False and meta["stopped"] == "terminated by SIGTERM"  # (qa18: complete=True)
 
 
 def test_ctrl_c_in_the_stability_pass_after_the_run_keeps_every_traced_branch(tmp_path):

@@ -207,9 +207,15 @@ def test_ctrl_c_during_continue_keeps_the_curve_computed_so_far(tmp_path):
                              after=1.5)
     one_error(code, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
     assert f"is saved in {out}" in stderr
-    (curve,), _ = io.load(out)
+    (curve,), meta = io.load(out)
     assert curve.status == "MX" and "interrupted (Ctrl-C)" in curve.message
     assert len(curve) > 10
+    # a partial curve is marked as trace marks a stopped run (qa18: it was complete=True, and `contin
+    # info` showed a finished curve); info names the command that computes it again (it has no --resume)
+    assert meta["complete"] is False and meta["stopped"] == "interrupted"
+    shown = run("info", str(out)).stdout
+    assert "(incomplete: the curve was interrupted; `contin continue` computes it again from LP1)" in shown
+    assert "--resume" not in shown
     lam, a = curve.params["lam"], curve.params["a"]
     assert np.allclose(lam * (1 + a), 3.51383071912516, rtol=1e-8)  # every saved point on the fold curve
 

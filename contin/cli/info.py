@@ -34,6 +34,9 @@ def info_command(file: str, as_json: bool) -> None:
         stopped = meta.get("stopped", "")
         if stopped.startswith("failed"):  # an error, not an interrupt: --resume would fail the same way
             click.echo(f"                (incomplete: the run {stopped})")
+        elif isinstance(meta.get("extra"), dict) and "free" in meta["extra"]:  # a `contin continue` curve (no --resume)
+            click.echo(f"                (incomplete: the curve was {stopped or 'interrupted'}; `contin continue` "
+                       f"computes it again from {meta['extra'].get('from', 'its point')})")
         elif isinstance(meta.get("extra"), dict) and "depth" in meta["extra"]:  # --depth refuses --resume
             click.echo(f"                (incomplete: the run was {stopped or 'interrupted'}; a --depth run is started "
                        f"again from scratch)")

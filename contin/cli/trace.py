@@ -231,13 +231,13 @@ def _stopped(writer: Any, exc: BaseException, *, can_resume: bool = True) -> Non
     input found late (ValueError, LookupError) would fail the same way again, so no --resume is
     suggested for it.  ``contin info`` says "failed: ...", not "interrupted", for any error.
     """
-    from contin.cancel import is_stopped_branch, stopped_by
+    from contin.cancel import CTRL_C, SIGTERM, STOPPED, is_stopped_branch, stopped_by
 
     interrupted = isinstance(exc, KeyboardInterrupt)
     # bad input would fail the same way again; a --depth run cannot be resumed (its note suggested
     # --resume, which --depth refuses: qa16)
     resumable = can_resume and not isinstance(exc, ValueError | LookupError)
-    why = ("terminated by SIGTERM" if isinstance(exc, Terminated) else "interrupted" if interrupted
+    why = (STOPPED[SIGTERM] if isinstance(exc, Terminated) else STOPPED[CTRL_C] if interrupted
            else f"failed: {error_line(exc)}")
     try:
         if writer.publishes or any(len(b) > 0 for b in writer.branches):
