@@ -18,6 +18,11 @@ builds its own by grouped differences from F alone, as a user's problem would).
   F1 = -x1 + D (1 - x1) E,  F2 = -x2 + D E (1 - x1 - s x2),
   F3 = -x3 - beta x3 + D B E (1 - x1 + alpha s x2),  E = e^{x3};
   PAR = (D, alpha, beta, B, s) = (0, 1, 1.55, 8, 0.04), u = 0.
+- BifurcationKit's neural mass tutorial (Tsodyks-Markram rate model, tutorials/ode/tutorialsBasic1,
+  after Cortes et al. 2013): tau E' = -E + g(J u x E + E0), x' = (1 - x)/tau_D - u x E,
+  u' = (U0 - u)/tau_F + U0 (1 - u) E, g(y) = alpha log(1 + e^{y/alpha}); (alpha, tau, J, E0,
+  tau_D, U0, tau_F) = (1.5, 0.013, 3.07, -2, 0.2, 0.3, 1.5), continued in E0 within [-4, -0.9]
+  and its Hopf curve in (E0, alpha).
 """
 
 from __future__ import annotations
@@ -89,3 +94,31 @@ def abc_J(u, p):
 
 def abc():
     return contin.from_functions(abc_F, np.zeros(3), ABC, mass_matrix=np.eye(3))
+
+
+TM = dict(alpha=1.5, tau=0.013, J=3.07, E0=-2.0, tauD=0.2, U0=0.3, tauF=1.5)
+TM_GUESS = (0.238616, 0.982747, 0.367876)  # the tutorial's z0 (an equilibrium at E0 = -2 to 1e-6)
+
+
+def tm_F(z, p):
+    e, x, u = z
+    s = p["J"] * u * x * e + p["E0"]
+    return np.array([(-e + p["alpha"] * np.log(1 + np.exp(s / p["alpha"]))) / p["tau"],
+                     (1 - x) / p["tauD"] - u * x * e,
+                     (p["U0"] - u) / p["tauF"] + p["U0"] * (1 - u) * e])
+
+
+def tm_J(z, p):
+    e, x, u = z
+    j, tau = p["J"], p["tau"]
+    sig = 1 / (1 + np.exp(-(j * u * x * e + p["E0"]) / p["alpha"]))  # g'
+    return np.array([[(-1 + sig * j * u * x) / tau, sig * j * u * e / tau, sig * j * x * e / tau],
+                     [-u * x, -1 / p["tauD"] - u * e, -x * e],
+                     [p["U0"] * (1 - u), 0 * e, -1 / p["tauF"] - p["U0"] * e]])
+
+
+def tm(z0):
+    """The tutorial's problem; the complex step (method='cs'): its rows scale with 1/tau = 77, and
+    central differences leave the augmented Hopf system a residual floor of ~1e-9, above
+    the corrector's 1e-10 (the Hopf curve's first point did not converge)."""
+    return contin.from_functions(tm_F, z0, TM, mass_matrix=np.eye(3), method="cs")

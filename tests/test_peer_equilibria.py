@@ -253,3 +253,119 @@ def test_auto_abc_hopf_points_and_stability():
         assert np.allclose(hb.state, z[:3], rtol=1e-7)
         assert hb.data["omega"] == pytest.approx(omega, rel=1e-7)
     assert_stability(pb, pm.abc_J, br, pm.ABC, "D")
+
+
+# --------------------------------------------------------------------------------------------
+# BifurcationKit's neural mass tutorial (Tsodyks-Markram)
+
+
+def hurwitz(a):
+    """(a1, a2, a3) of det(lambda I - A) = lambda^3 + a1 lambda^2 + a2 lambda + a3."""
+    a2 = sum(np.linalg.det(a[np.ix_([i, j], [i, j])]) for i in range(3) for j in range(i + 1, 3))
+    return -np.trace(a), a2, -np.linalg.det(a)
+
+
+def first_lyapunov(jac, z, p, h=1e-4):
+    """Kuznetsov's l1 (eq. 3.20; q^H q = 1, p^H q = 1) at a Hopf point, with B = the complex-step
+    directional derivative of the exact Jacobian and C = central differences of that B (the core
+    uses central differences of its own difference Jacobian)."""
+
+    def d_jac(x, v):  # dJ/dx along a real direction v, exact to rounding
+        return np.imag(jac(x + 1j * 1e-30 * v, p)) / 1e-30
+
+    def b(q, r, x=z):
+        return (d_jac(x, r.real) + 1j * d_jac(x, r.imag)) @ q
+
+    def c(q, r, s):
+        def along(v):
+            return (b(q, r, z + h * v) - b(q, r, z - h * v)) / (2 * h)
+        return along(s.real) + 1j * along(s.imag)
+
+    a = jac(z, p).astype(float)
+    mu, right = np.linalg.eig(a)
+    k = int(np.argmax(mu.imag))
+    omega, q = mu[k].imag, right[:, k] / np.linalg.norm(right[:, k])
+    mu_l, left = np.linalg.eig(a.T)
+    pl = left[:, int(np.argmin(np.abs(mu_l - np.conj(mu[k]))))]
+    pl = pl / np.conj(np.vdot(pl, q))
+    qb = np.conj(q)
+    total = (np.vdot(pl, c(q, q, qb)) - 2 * np.vdot(pl, b(q, np.linalg.solve(a, b(q, qb))))
+             + np.vdot(pl, b(qb, np.linalg.solve(2j * omega * np.eye(3) - a, b(q, q)))))
+    return float(total.real / (2 * omega))
+
+
+def tm_branch():
+    z0 = fsolve(pm.tm_F, pm.TM_GUESS, args=(pm.TM,), xtol=1e-14)
+    pb = pm.tm(z0)
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.1), bounds={"E0": (-4.0, -0.9)}, max_steps=500)
+    from contin.continuation import trace_both
+
+    br = trace_both(pb, z0, pm.TM, "E0", opts)
+    relabel([br])
+    return pb, br
+
+
+def test_bifurcationkit_neural_mass_folds_hopf_points_and_stability():
+    """The tutorial's branch in E0 within [-4, -0.9] (both sides of E0 = -2): two folds (F = 0,
+    det J = 0) and two Hopf points (F = 0, a1 a2 = a3, a2 > 0; omega = sqrt(a2)) at the scipy
+    solutions (1e-9), their l1 sign that of the independent Kuznetsov l1 (both subcritical, as
+    the tutorial's), nothing else; stability counts at every point."""
+    pb, br = tm_branch()
+    inner = [s for s in br.special_points if s.type != "EP"]
+    assert sorted(s.type for s in inner) == ["HB", "HB", "LP", "LP"], [(s.name, s.note) for s in inner]
+    for lp in br.fold_points:
+        z = fold_reference(pm.tm_F, pm.tm_J, pm.TM, "E0", lp)
+        assert lp.converged and lp.params["E0"] == pytest.approx(z[3], rel=1e-9, abs=0)
+        assert np.allclose(lp.state, z[:3], rtol=1e-7)
+    for hb in br.points("HB"):
+        z, omega = hopf_reference_3d(pm.tm_F, pm.tm_J, pm.TM, "E0", hb)
+        assert hb.converged and hb.params["E0"] == pytest.approx(z[3], rel=1e-9, abs=0)
+        assert hb.data["omega"] == pytest.approx(omega, rel=1e-7)
+        l1 = first_lyapunov(pm.tm_J, z[:3], dict(pm.TM, E0=z[3]))
+        assert l1 > 0 and hb.data["l1"] == pytest.approx(l1, rel=1e-4)
+    assert_stability(pb, pm.tm_J, br, pm.TM, "E0")
+
+
+def test_bifurcationkit_neural_mass_hopf_curve_zero_hopf_and_generalized_hopf():
+    """The Hopf curve of the first HB in (E0, alpha), alpha within [1, 2.3]: its zero-Hopf point
+    solves F = 0, det J = 0, tr J = 0 (eigenvalues 0, +-i omega) and its generalized Hopf point
+    F = 0, a1 a2 = a3, l1 = 0 (l1 independent, above), both to 1e-8; the two LPs are extrema of
+    E0 among their neighbours; every point of the curve solves F = 0 and a1 a2 = a3."""
+    from contin.hopfcurve import trace_hopf_curve
+
+    pb, br = tm_branch()
+    hb = min(br.points("HB"), key=lambda s: s.params["E0"])
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.5), bounds={"E0": (-4.0, -0.9), "alpha": (1.0, 2.3)},
+                               max_steps=500)
+    curve = trace_hopf_curve(pb, hb, "alpha", opts, parameter="E0")
+    relabel([curve])
+    kinds = [s.type for s in curve.special_points]
+    assert sorted(kinds) == ["EP", "EP", "GH", "LP", "LP", "ZH"], [(s.name, s.note) for s in curve.special_points]
+    n = 3
+    for i in range(len(curve)):
+        p = dict(pm.TM, E0=curve.params["E0"][i], alpha=curve.params["alpha"][i])
+        a1, a2, a3 = hurwitz(pm.tm_J(curve.states[i][:n], p))
+        assert abs(a1 * a2 - a3) < 1e-7 * a2 * abs(a1) + 1e-9 and np.max(np.abs(pm.tm_F(curve.states[i][:n], p))) < 1e-8
+    for lp in curve.fold_points:
+        near = curve.params["E0"][max(lp.index - 2, 0):lp.index + 3]
+        assert lp.params["E0"] >= near.max() - 1e-12 or lp.params["E0"] <= near.min() + 1e-12
+    (zh,) = curve.points("ZH")
+
+    def zero_hopf(z):
+        p = dict(pm.TM, E0=z[3], alpha=z[4])
+        a = pm.tm_J(z[:3], p)
+        return np.concatenate([pm.tm_F(z[:3], p), [np.linalg.det(a), np.trace(a)]])
+
+    z = solve(zero_hopf, np.concatenate([zh.state[:n], [zh.params["E0"], zh.params["alpha"]]]))
+    assert zh.params["E0"] == pytest.approx(z[3], rel=1e-8) and zh.params["alpha"] == pytest.approx(z[4], rel=1e-8)
+    (gh,) = curve.points("GH")
+
+    def bautin(z):
+        p = dict(pm.TM, E0=z[3], alpha=z[4])
+        a1, a2, a3 = hurwitz(pm.tm_J(z[:3], p))
+        return np.concatenate([pm.tm_F(z[:3], p), [(a1 * a2 - a3) / a2, first_lyapunov(pm.tm_J, z[:3], p)]])
+
+    z, _, ok, msg = fsolve(bautin, np.concatenate([gh.state[:n], [gh.params["E0"], gh.params["alpha"]]]),
+                           xtol=1e-13, full_output=True)
+    assert np.max(np.abs(bautin(z)[:3])) < 1e-9, msg
+    assert gh.params["E0"] == pytest.approx(z[3], rel=1e-8) and gh.params["alpha"] == pytest.approx(z[4], rel=1e-8)
