@@ -1,0 +1,173 @@
+"""Floquet multipliers of a periodic orbit from its collocation equations, and the PD / NS tests.
+
+Method: the monodromy matrix of the *discretized* variational equation M v' = T J(u(t)) v.  The
+linearized collocation equations of mesh interval j,
+
+    sum_k E[j, i, k] v_{j,k} = 0,   E[j, i, k] = D[i, k] M - h_j T L[i, k] J(u(z_ji))
+
+(``contin.collocation.Collocation.interval_blocks``), are NCOL n equations in the NCOL n values
+v_{j,1..NCOL} given v_{j,0}: solving them condenses the interval to a transfer matrix
+v_{j,NCOL} = P_j v_{j,0}, and the monodromy is P_{NTST-1} ... P_0 (the condensation of AUTO's
+Floquet computation, Fairgrieve & Jepson, SIAM J. Numer. Anal. 28, 1991, without their periodic
+Schur form).  Why this and not an integration of the variational equation by ``solve_ivp``: it
+costs NTST small dense solves with the Jacobians the continuation already evaluates, it is the
+linearization of exactly the equations that were solved, and its error is the collocation
+error (a trivial multiplier 1 to about 1e-10 at the defaults on smooth orbits).  Limitation: the
+plain product loses the multipliers that are smaller than about 1e-16 times the largest one
+(strongly stable directions of stiff orbits); they come out as rounding-level numbers, which
+does not change the stability verdict.
+
+The trivial multiplier (the one nearest 1: the time-shift mode u') is removed; its distance from
+1 is reported as the accuracy check (``floquet_error``).  Next to a fold of cycles it is no
+accuracy check: there the trivial multiplier is double with a Jordan block (the period changes
+with the amplitude), so a discretization error d moves it by sqrt(d) (AUTO demo ab: 1e-4 at the
+LPC for every NTST from 20 to 80).  The check that holds there too is the residual of the trivial
+multiplier's known eigenvector, the flow direction f = M^{-1} F(u(0)):
+``flow_error`` = |P f - f| / |f| with P the monodromy (O(d) at a fold as anywhere); the cycle
+guard (``contin.cycles.CycleOptions.floquet_tol``) uses it.  Stability: every other multiplier
+strictly inside the unit circle.
+
+Point tests (``contin.pointtests``) located by the tracer like folds: PD, a real multiplier
+through -1 (g = |mu| - 1 of the real negative multiplier tracked across the step), and NS, a
+complex pair through the unit circle (g = |mu| - 1 of the pair's member with Im mu > 0).  LPC,
+the fold of cycles, is the tracer's own LP test on the cycle system (``contin.cycles``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from contin.branch import SpecialPoint
+from contin.pointtests import Crossing
+from contin.problem import Array
+
+#: Relative imaginary part below which a multiplier counts as real.
+REAL_TOL = 1e-8
+#: Distance of the trivial multiplier from 1 above which an orbit's multipliers are doubtful.
+FLOQUET_DOUBTFUL = 1e-4
+
+
+def monodromy(blocks: Array) -> Array:
+    """The monodromy matrix P_{NTST-1} ... P_0 from the interval blocks E (module docstring),
+    shape (NTST, NCOL, NCOL + 1, n, n)."""
+    ntst, ncol, _, n, _ = blocks.shape
+    out = np.eye(n)
+    for j in range(ntst):
+        e = blocks[j].transpose(0, 2, 1, 3).reshape(ncol * n, (ncol + 1) * n)
+        transfer = np.linalg.solve(e[:, n:], -e[:, :n])[-n:]
+        out = transfer @ out
+    return out
+
+
+@dataclass(frozen=True)
+class Multipliers:
+    """The Floquet multipliers of one orbit: ``others`` (all but the trivial one, by decreasing
+    modulus) and the trivial one's distance from 1, ``error``."""
+
+    others: np.ndarray
+    trivial: complex
+    flow_error: float = math.nan
+
+    @property
+    def error(self) -> float:
+        return abs(self.trivial - 1.0)
+
+    @property
+    def stable(self) -> bool:
+        return bool(np.all(np.abs(self.others) < 1.0))
+
+    @property
+    def n_unstable(self) -> int:
+        return int(np.sum(np.abs(self.others) > 1.0))
+
+    @property
+    def all(self) -> np.ndarray:
+        return np.concatenate([[self.trivial], self.others])
+
+
+def multipliers(blocks: Array, flow: Array | None = None) -> Multipliers:
+    """The multipliers of the orbit whose interval blocks are ``blocks``; ``flow`` (u'(0), up to
+    a factor) gives ``flow_error`` (module docstring)."""
+    mono = monodromy(blocks)
+    mu = np.linalg.eigvals(mono)
+    k = int(np.argmin(np.abs(mu - 1.0)))
+    rest = np.delete(mu, k)
+    err = math.nan
+    if flow is not None and np.any(flow):
+        err = float(np.linalg.norm(mono @ flow - flow) / np.linalg.norm(flow))
+    return Multipliers(rest[np.argsort(-np.abs(rest), kind="stable")], complex(mu[k]), err)
+
+
+def _is_real(mu: complex) -> bool:
+    return abs(mu.imag) <= REAL_TOL * max(1.0, abs(mu))
+
+
+def _nearest(v: np.ndarray, target: complex) -> int:
+    return int(np.argmin(np.abs(v - target)))
+
+
+def circle_crossings(va: np.ndarray, vb: np.ndarray, kind: str) -> list[tuple[complex, complex]]:
+    """Multipliers at two points paired by mutual nearest neighbours whose modulus crosses 1:
+    ``kind`` 'PD' keeps the real negative ones, 'NS' the complex ones with Im > 0."""
+    out: list[tuple[complex, complex]] = []
+    for i, a in enumerate(va):
+        if vb.size == 0:
+            break
+        b = vb[_nearest(vb, a)]
+        if _nearest(va, b) != i or (abs(a) - 1.0) * (abs(b) - 1.0) >= 0:
+            continue
+        if kind == "PD" and _is_real(a) and _is_real(b) and a.real < 0 and b.real < 0:
+            out.append((complex(a), complex(b)))
+        elif kind == "NS" and not _is_real(a) and not _is_real(b) and a.imag > 0 and b.imag > 0:
+            out.append((complex(a), complex(b)))
+    return out
+
+
+@dataclass
+class FloquetTest:
+    """Point test PD or NS on a cycle branch (module docstring); ``cycles`` is the
+    ``contin.cycles.CycleProblem`` (it computes and caches the multipliers)."""
+
+    cycles: Any
+    kind: str = "PD"
+
+    @property
+    def name(self) -> str:
+        return self.kind.lower()
+
+    def value(self, system: Any, x: Array) -> np.ndarray:
+        try:
+            return self.cycles.multipliers(x[:-1], system.params_at(x[-1])).others
+        except np.linalg.LinAlgError:
+            return np.zeros(0, dtype=complex)
+
+    def crossings(self, va: np.ndarray, vb: np.ndarray) -> list[Crossing]:
+        out: list[Crossing] = []
+        for a, b in circle_crossings(va, vb, self.kind):
+
+            def g(v: np.ndarray, a: complex = a, b: complex = b) -> float:
+                if v.size == 0:
+                    return math.nan
+                # the multiplier nearest the segment [a, b] (as the Hopf test tracks its eigenvalue)
+                d = b - a
+                t = np.clip(((v - a) * np.conj(d)).real / abs(d) ** 2, 0.0, 1.0) if d != 0 else 0.0
+                return float(abs(v[int(np.argmin(np.abs(v - (a + t * d))))]) - 1.0)
+
+            out.append(("", g))
+        return out
+
+    def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:
+        mu = self.cycles.multipliers(x[:-1], system.params_at(x[-1]))
+        crit = mu.others[int(np.argmin(np.abs(np.abs(mu.others) - 1.0)))]
+        data = {"period": float(x[-2]), "floquet_error": mu.error}
+        if self.kind == "PD":
+            note = "period doubling (a multiplier through -1)"
+            data["multiplier"] = float(crit.real)
+        else:
+            note = "Neimark-Sacker (a complex pair through the unit circle)"
+            data["theta"] = abs(float(np.angle(crit)))
+        return replace(sp, data={**sp.data, **data}, note="; ".join(t for t in (note, sp.note) if t))

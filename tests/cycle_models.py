@@ -1,0 +1,106 @@
+"""Small ODEs with periodic orbits of known properties, for tests/test_cycles.py.
+
+- Stuart-Landau (the Hopf normal form): x' = mu x - w y - x r^2, y' = w x + mu y - y r^2; for
+  mu > 0 the circle r = sqrt(mu) with period 2 pi / w, nontrivial multiplier exp(-2 mu T).
+- Bautin form: r' = r (mu + b r^2 - r^4), theta' = w (Cartesian); cycles r^2 = (b +- sqrt(b^2 +
+  4 mu)) / 2, a fold of cycles at mu = -b^2 / 4, r^2 = b / 2; multiplier exp(T (2 b r^2 - 4 r^4)).
+- Roessler (1976): x' = -y - z, y' = x + a y, z' = b + z (x - c); period doubling of its cycle
+  near c = 2.83 for a = b = 0.2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class StuartLandau:
+    parameter_names = ("mu", "w")
+
+    def residual(self, u, p):
+        x, y = u
+        r2 = x * x + y * y
+        return np.array([p["mu"] * x - p["w"] * y - x * r2, p["w"] * x + p["mu"] * y - y * r2])
+
+    def jacobian(self, u, p):
+        x, y = u
+        mu, w = p["mu"], p["w"]
+        return sp.csc_matrix(np.array([[mu - 3 * x * x - y * y, -w - 2 * x * y], [w - 2 * x * y, mu - x * x - 3 * y * y]]))
+
+    def dresidual_dp(self, u, p, name):
+        x, y = u
+        return np.array([x, y]) if name == "mu" else np.array([-y, x])
+
+
+class Bautin:
+    parameter_names = ("mu", "b", "w")
+
+    def residual(self, u, p):
+        x, y = u
+        r2 = x * x + y * y
+        g = p["mu"] + p["b"] * r2 - r2 * r2
+        return np.array([x * g - p["w"] * y, y * g + p["w"] * x])
+
+    def jacobian(self, u, p):
+        x, y = u
+        r2 = x * x + y * y
+        g = p["mu"] + p["b"] * r2 - r2 * r2
+        gr = p["b"] - 2 * r2  # dg/d(r^2)
+        w = p["w"]
+        return sp.csc_matrix(np.array([[g + 2 * x * x * gr, 2 * x * y * gr - w],
+                                       [2 * x * y * gr + w, g + 2 * y * y * gr]]))
+
+    def dresidual_dp(self, u, p, name):
+        x, y = u
+        r2 = x * x + y * y
+        return {"mu": np.array([x, y]), "b": np.array([x * r2, y * r2]), "w": np.array([-y, x])}[name]
+
+
+class Roessler:
+    parameter_names = ("a", "b", "c")
+
+    def residual(self, u, p):
+        x, y, z = u
+        return np.array([-y - z, x + p["a"] * y, p["b"] + z * (x - p["c"])])
+
+    def jacobian(self, u, p):
+        x, y, z = u
+        return sp.csc_matrix(np.array([[0.0, -1.0, -1.0], [1.0, p["a"], 0.0], [z, 0.0, x - p["c"]]]))
+
+    def dresidual_dp(self, u, p, name):
+        x, y, z = u
+        return {"a": np.array([0.0, y, 0.0]), "b": np.array([0.0, 0.0, 1.0]), "c": np.array([0.0, 0.0, -z])}[name]
+
+
+class DrivenPair:
+    """Stuart-Landau (x, y) driving a linear-plus-cubic oscillator (u, v):
+    u' = (alpha - k r^2) u - w2 v - u s^2, v' = w2 u + (alpha - k r^2) v - v s^2 (r^2 = x^2 + y^2,
+    s^2 = u^2 + v^2).  On the cycle r^2 = mu, (u, v) = 0 the (u, v) multipliers are
+    exp((alpha - k mu) T +- i w2 T), T = 2 pi / w: a Neimark-Sacker point at mu = alpha / k."""
+
+    parameter_names = ("mu", "w", "alpha", "k", "w2")
+
+    def residual(self, z, p):
+        x, y, u, v = z
+        r2, s2 = x * x + y * y, u * u + v * v
+        g = p["alpha"] - p["k"] * r2 - s2
+        return np.concatenate([StuartLandau().residual(z[:2], p), [g * u - p["w2"] * v, p["w2"] * u + g * v]])
+
+    def jacobian(self, z, p):
+        x, y, u, v = z
+        r2, s2 = x * x + y * y, u * u + v * v
+        g = p["alpha"] - p["k"] * r2 - s2
+        k, w2 = p["k"], p["w2"]
+        out = np.zeros((4, 4))
+        out[:2, :2] = StuartLandau().jacobian(z[:2], p).toarray()
+        out[2] = [-2 * k * x * u, -2 * k * y * u, g - 2 * u * u, -w2 - 2 * u * v]
+        out[3] = [-2 * k * x * v, -2 * k * y * v, w2 - 2 * u * v, g - 2 * v * v]
+        return sp.csc_matrix(out)
+
+    def dresidual_dp(self, z, p, name):
+        x, y, u, v = z
+        r2 = x * x + y * y
+        if name in ("mu", "w"):
+            return np.concatenate([StuartLandau().dresidual_dp(z[:2], p, name), [0.0, 0.0]])
+        return {"alpha": np.array([0.0, 0.0, u, v]), "k": np.array([0.0, 0.0, -r2 * u, -r2 * v]),
+                "w2": np.array([0.0, 0.0, -v, u])}[name]
