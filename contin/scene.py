@@ -318,6 +318,98 @@ class Scene:
     start: Callable[[SceneRequest], DiagramStart] | None = None
     discretized: bool = True
 
+    def accuracy_overrides(self, *, grid: int | None = None, tol: float | None = None, max_grid: int | None = None,
+                           special_tol: float | None = None, solve_check: bool = True,
+                           names: Mapping[str, str] | None = None) -> dict[str, Any]:
+        """The adaptive-resolution keys of :attr:`SceneRequest.overrides` for a run of this scene.
+
+        The one rule ``contin trace`` and every ``contin sweep`` task resolve the accuracy with
+        (a sweep task of an adaptive scene without ``grid`` ran on the scene's fixed default grid
+        where ``trace`` ran adaptively at :attr:`default_tol`): an adaptive scene runs adaptively
+        when ``tol`` is given or no ``grid`` is (then at ``tol``, default :attr:`default_tol`; the
+        grid, if given, is the start grid), with ``solve_check``, ``special_tol`` and ``max_grid``
+        as given; ``grid`` alone fixes the grid (no keys) and takes none of them (``--grid 16
+        --max-grid 64`` ignored the max grid, exit 0).  A non-adaptive scene takes none of them.
+
+        ``names``: how the caller's settings are called in messages (default the command line's
+        ``--tol``, ``--max-grid``, ``--special-tol``, ``--no-solve-check``, ``--grid``).
+
+        Raises
+        ------
+        SceneError
+            An accuracy setting for a scene without adaptive resolution, ``special_tol``,
+            ``max_grid`` or ``solve_check=False`` with a fixed grid, or ``grid`` above ``max_grid``:
+            one sentence.
+        """
+        n = {**_ACCURACY_FLAGS, **dict(names or {})}
+        if (tol is not None or max_grid is not None or special_tol is not None or not solve_check) and not self.adaptive:
+            raise SceneError(f"scene {self.name!r} has no adaptive resolution ({n['tol']}, {n['max_grid']}, "
+                             f"{n['special_tol']}, {n['solve_check']}); choose its grid with {n['grid']}")
+        unused = [n[k] for k, v in (("special_tol", special_tol), ("max_grid", max_grid), ("solve_check", solve_check))
+                  if v is not None and v is not True]
+        if unused and grid is not None and tol is None:  # a fixed grid: they were ignored, exit 0 (max_grid, solve_check)
+            raise SceneError(f"{', '.join(unused)} {'needs' if len(unused) == 1 else 'need'} adaptive resolution: "
+                             f"drop {n['grid']} or add {n['tol']}")
+        if not self.adaptive or (tol is None and grid is not None):
+            return {}
+        out: dict[str, Any] = {"tol": tol if tol is not None else self.default_tol}
+        if not solve_check:
+            out["solve_check"] = False
+        if special_tol is not None:
+            out["special_tol"] = special_tol
+        if max_grid is not None:
+            if grid is not None and grid > max_grid:
+                raise SceneError(f"{n['grid']} {grid} exceeds {n['max_grid']} {max_grid}")
+            out["max_grid"] = max_grid
+        return out
+
+
+#: The command line's names of the accuracy settings (:meth:`Scene.accuracy_overrides` messages).
+_ACCURACY_FLAGS = {"tol": "--tol", "max_grid": "--max-grid", "special_tol": "--special-tol",
+                   "solve_check": "--no-solve-check", "grid": "--grid"}
+
+
+def stability_after_run(scene: Scene, request: SceneRequest, result: SceneResult,
+                        say: Callable[[str], None] = lambda line: None) -> None:
+    """The stability pass the scene left undone, through ``scene.problem_factory``: what
+    ``contin trace`` and every ``contin sweep`` task do after the scene's run (unless the user
+    switched stability off), so that a task file holds the stability columns ``trace`` writes.
+
+    Nothing for a scene with ``stability=False`` (a ``note:`` line).  Branches the scene left
+    without stability columns get :meth:`SceneRequest.run_stability` (k_x = k_z = 0, audit, and
+    the extra ``kx`` columns); a scene that computed stability itself is trusted with the extra
+    wavenumbers too.  Fold curves and other multi-parameter branches are skipped (their states
+    are not states of the problem).  Failures become ``warning:`` lines: the traced branches are
+    never lost to a stability problem.  ``say`` receives the ``note:`` and ``warning:`` lines as
+    they happen; ``request.report`` the progress (one status line per branch).
+    """
+    from contin.cli._base import error_line  # (lazy: the command line's one-line form of an error)
+
+    def missing(b: Branch) -> bool:
+        return len(b.free) == 1 and len(b) > 0 and b.n_unstable is None
+
+    if not scene.stability:  # no linear-stability operator (Scene.stability): a pass would be doubtful
+        say(f"note: scene {scene.name!r} has no linear-stability operator; branches are stored without stability")
+        return
+    todo = [b for b in result.branches if missing(b)]
+    if not todo:
+        return
+    if scene.problem_factory is None:
+        say(f"note: scene {scene.name!r} computed no stability and has no problem_factory; "
+            "branches are stored without stability")
+        return
+    try:
+        problem = scene.problem_factory(result.parameters, result.discretization)
+    except Exception as exc:  # noqa: BLE001 -- report, keep the branches
+        say(f"warning: stability skipped: cannot rebuild the problem ({error_line(exc)})")
+        return
+    for b in todo:
+        request.report(f"stability of branch {b.id} ({len(b)} points)")
+        try:
+            request.run_stability(problem, b, result.parameters)
+        except Exception as exc:  # noqa: BLE001
+            say(f"warning: stability of branch {b.id} failed: {error_line(exc)}")
+
 
 def scene_params(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:
     """``defaults`` merged with the request's values as typed; SceneError for an unknown name.
