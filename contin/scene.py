@@ -370,7 +370,7 @@ _ACCURACY_FLAGS = {"tol": "--tol", "max_grid": "--max-grid", "special_tol": "--s
 
 
 def stability_after_run(scene: Scene, request: SceneRequest, result: SceneResult,
-                        say: Callable[[str], None] = lambda line: None) -> None:
+                        say: Callable[[str], None] = lambda line: None, *, kx_name: str = "--kx") -> None:
     """The stability pass the scene left undone, through ``scene.problem_factory``: what
     ``contin trace`` and every ``contin sweep`` task do after the scene's run (unless the user
     switched stability off), so that a task file holds the stability columns ``trace`` writes.
@@ -380,9 +380,33 @@ def stability_after_run(scene: Scene, request: SceneRequest, result: SceneResult
     the extra ``kx`` columns); a scene that computed stability itself is trusted with the extra
     wavenumbers too.  Fold curves and other multi-parameter branches are skipped (their states
     are not states of the problem).  Failures become ``warning:`` lines: the traced branches are
-    never lost to a stability problem.  ``say`` receives the ``note:`` and ``warning:`` lines as
-    they happen; ``request.report`` the progress (one status line per branch).
+    never lost to a stability problem.  A nonzero k_x of ``request.kx`` that no branch has a
+    ``growth_rate_kx`` column for is one ``warning:`` line with the reason (never a silent
+    no-op; ``kx_name``: how the caller calls the setting).  ``say`` receives the ``note:`` and
+    ``warning:`` lines as they happen; ``request.report`` the progress (one line per branch).
     """
+    _stability_pass_after_run(scene, request, result, say)
+    missing = [f"{k:g}" for k in request.kx if k != 0
+               and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
+    if not missing:
+        return
+    name = scene.name
+    if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
+        why = (f"scene {name!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
+               f"k_x = 0 exists (that stability was computed)")
+    elif not scene.stability:
+        why = f"scene {name!r} has no linear-stability operator (no stability was computed)"
+    elif scene.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
+        why = (f"scene {name!r} computed no stability (it has no problem_factory to rebuild its problem "
+               f"for a stability pass)")
+    else:
+        why = f"scene {name!r} computed no stability"
+    say(f"warning: {kx_name} {','.join(missing)} ignored: {why}; no growth_rate_kx column was stored")
+
+
+def _stability_pass_after_run(scene: Scene, request: SceneRequest, result: SceneResult,
+                              say: Callable[[str], None]) -> None:
+    """The k_x = 0 pass (and extra kx columns) of :func:`stability_after_run`."""
     from contin.cli._base import error_line  # (lazy: the command line's one-line form of an error)
 
     def missing(b: Branch) -> bool:

@@ -489,7 +489,8 @@ def run_task(scene_name: str, params: Mapping[str, Any], options: Mapping[str, A
             request = _request(params, options, scene)
             result = scene.run(request)
             if options.get("stability", True):  # the pass `contin trace` runs after the scene's run
-                stability_after_run(scene, request, result, lambda line: result.notes.append(line.removeprefix("note: ")))
+                stability_after_run(scene, request, result, lambda line: result.notes.append(line.removeprefix("note: ")),
+                                    kx_name="option kx")
             number_new_points(result.branches)  # HB points a stability pass located (as trace numbers them)
     except (SceneError, ValueError) as exc:
         base.update(status="error", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)

@@ -155,3 +155,17 @@ def test_trace_refuses_accuracy_flags_a_fixed_grid_ignores(tmp_path, flags, erro
     res = run(["trace", "brusselator", "--grid", "16", *flags, "-q", "-o", str(tmp_path / "x.h5")])
     assert one_error(res) == error
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_sweep_task_says_when_its_kx_columns_cannot_be_computed(tmp_path):
+    """`contin trace brusselator --kx 1` warns that the problem has no wavenumber (one warning
+    line, the k_x = 0 pass kept); the sweep option kx = [1.0] was dropped without a word in a task
+    file.  Both now come from contin.scene.stability_after_run: the task's notes hold the warning."""
+    doc, (b,), meta = _task_file(tmp_path, "brusselator", {"a": 2.0}, {"kx": [1.0]})
+    warning = ("warning: option kx 1 ignored: scene 'brusselator' has no wavenumber: its problem has no "
+               "eigenproblem(u, p, kx, kz), so only k_x = 0 exists (that stability was computed); no growth_rate_kx "
+               "column was stored")
+    assert warning in doc["notes"] and warning in meta["notes"]
+    assert b.n_unstable is not None and not any(k.startswith("growth_rate_kx") for k in b.observables)
+    res = run(["trace", "brusselator", "-s", "a=2", "--kx", "1", "-q", "-o", str(tmp_path / "t.h5")])
+    assert res.exit_code == 0 and warning.replace("option kx", "--kx") in res.stderr.splitlines()

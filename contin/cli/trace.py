@@ -521,20 +521,6 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
             scene_mod.stability_after_run(sc, request, result, say)
         progress.close()
-        missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
-                      and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
-        if missing_kx:  # never a silent no-op: the README promises a column per --kx value
-            if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
-                why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
-                       f"k_x = 0 exists (that stability was computed)")
-            elif not sc.stability:
-                why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
-            elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
-                why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
-                       f"for a stability pass)")
-            else:
-                why = f"scene {scene!r} computed no stability"
-            echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
 
         if step_overrides and not request.resolved_options:
             echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")
