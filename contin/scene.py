@@ -9,7 +9,8 @@ Stability.  ``request.stability`` (default True; ``contin trace --no-stability``
 asks for the linear-stability pass at k_x = k_z = 0 on every branch, ``request.kx`` for extra
 wavenumbers.  A scene either calls :meth:`SceneRequest.run_stability` (problem, branch) on each
 branch before ``request.finished(branch)``, or leaves it to the CLI, which does it after the
-run when the scene has a ``problem_factory``.  A scene with ``Scene.stability = False`` has no
+run when the scene has a ``problem_factory`` (:func:`stability_after_run`: ``contin trace`` and
+every ``contin sweep`` task alike).  A scene with ``Scene.stability = False`` has no
 linear-stability operator (its residual has algebraic rows -- boundary conditions, constraints --
 and no mass matrix or ``eigenproblem`` to say which rows are dynamics): the CLI runs no pass on
 it and ``contin stability`` refuses its files, rather than count those rows as unstable modes
@@ -75,7 +76,8 @@ class SceneRequest:
         every trace of the run, ``contin.options.resolution_override``: scenes build options of
         their own too.)  Adaptive resolution (``--tol``, ``--max-grid``; only for scenes with
         ``Scene.adaptive``): keys 'tol', 'max_grid' and 'solve_check' (False: ``--no-solve-check``)
-        become ``ContinuationOptions.adapt``.
+        become ``ContinuationOptions.adapt``; ``contin trace`` and ``contin sweep`` set them by
+        :meth:`Scene.accuracy_overrides`.
     """
 
     params: Mapping[str, Any] = field(default_factory=dict)
