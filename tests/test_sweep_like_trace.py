@@ -169,3 +169,15 @@ def test_a_sweep_task_says_when_its_kx_columns_cannot_be_computed(tmp_path):
     assert b.n_unstable is not None and not any(k.startswith("growth_rate_kx") for k in b.observables)
     res = run(["trace", "brusselator", "-s", "a=2", "--kx", "1", "-q", "-o", str(tmp_path / "t.h5")])
     assert res.exit_code == 0 and warning.replace("option kx", "--kx") in res.stderr.splitlines()
+
+
+@pytest.mark.parametrize("scene, params", [
+    ("pitchfork", {"nu": 0.3, "e": 0.8, "modes": 1, "H_max": 30.0}),  # adaptive (3e-5), its own stability pass
+    ("ab", {"B": 1.0}),                                                # fixed, stability by problem_factory
+])
+def test_sweep_tasks_of_gpcf_and_ode_scenes_equal_their_trace(tmp_path, scene, params):
+    _, task, meta = _task_file(tmp_path, scene, params, {})
+    traced, tmeta = _trace_file(tmp_path, [scene, *(a for k, v in params.items() for a in ("-s", f"{k}={v:g}"))])
+    _same_branches(task, traced)
+    assert meta["discretization"] == tmeta["discretization"]
+    assert all(b.n_unstable is not None for b in task if len(b.free) == 1)
