@@ -416,7 +416,6 @@ def stability_pass(
     for name, values in branch.params.items():
         if len(values) != s:
             raise ValueError(f"branch parameter {name!r} has {len(values)} values but the branch has {s} states")
-    _check_n_eigs(n_eigs)
     _warn_identity_mass(problem, branch)
     columns = stability_columns(branch, params_fixed, _point_spectrum(problem, branch, kx=kx, kz=kz, n_eigs=n_eigs,
                                                                       dense_max=dense_max, sigma=shift),
