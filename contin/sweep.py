@@ -933,7 +933,8 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
     ``summary.h5`` layout::
 
         /                 attrs: format='contin-sweep', format_version, contin_version, scene,
-                                 sweep (JSON of the sweep file), counts (JSON), created_utc
+                                 sweep (JSON of the sweep file), counts (JSON), created_utc,
+                                 libraries (JSON: versions of the numerical stack)
         /tasks/           one row per grid point, in grid order:
             key, status, reason, file (text); cached (bool); seconds (float)
             params/<name> swept parameter values
@@ -947,6 +948,7 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
     import numpy as np
 
     from contin import __version__
+    from contin.io import library_versions
 
     s = summary
     text = h5py.string_dtype()
@@ -964,6 +966,7 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
             a["format"] = SUMMARY_FORMAT
             a["format_version"] = SUMMARY_FORMAT_VERSION
             a["contin_version"] = __version__
+            a["libraries"] = json.dumps(library_versions())
             a["scene"] = s.spec.scene
             a["sweep"] = json_dumps(s.spec.to_dict())
             a["counts"] = json.dumps(s.counts())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import sys
@@ -304,3 +305,18 @@ def test_write_of_a_stopped_result_is_incomplete_with_its_reason(tmp_path):
     for a, b in zip(b_done, b_part, strict=True):
         assert_same_branch(a, b)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["done.h5", "part.h5"]
+
+
+def test_files_record_the_library_versions(tmp_path):
+    """Bitwise reproduction of a file needs the same numpy/scipy (numba) builds: the file says which."""
+    import platform
+
+    import scipy
+
+    io.write(tmp_path / "run.h5", rich_branches(), scene="toy", parameters={"a": 2.5})
+    with h5py.File(tmp_path / "run.h5", "r") as f:
+        libs = json.loads(f.attrs["libraries"])
+    assert libs["numpy"] == np.__version__ and libs["scipy"] == scipy.__version__
+    assert libs["python"] == platform.python_version() and libs["h5py"] == h5py.__version__
+    _, meta = io.load(tmp_path / "run.h5")
+    assert meta["libraries"] == libs

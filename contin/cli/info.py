@@ -18,6 +18,8 @@ def info_command(file: str, as_json: bool) -> None:
     branches, meta = io.load(file)
     prov = {k: meta[k] for k in ("format_version", "contin_version", "git_commit", "created_utc", "command",
                                  "complete")}
+    if meta.get("libraries"):  # files written before session 18 do not record them
+        prov["libraries"] = ", ".join(f"{k} {v}" for k, v in meta["libraries"].items())
     if as_json:
         echo_json(run_document(scene=meta["scene"], parameters=meta["parameters"],
                                discretization=meta["discretization"], branches=branches,
