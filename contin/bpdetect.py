@@ -119,7 +119,11 @@ def disc_radius(sa: Spectrum, sb: Spectrum, k: int, moved: float = 0.0) -> float
     the smallest magnitude of each end and above ``moved`` (a bound on how far an eigenvalue
     moved in the step, ||J_b - J_a||_F: an eigenvalue that crossed zero is then inside at both
     ends; Bauer-Fike for normal J), choosing the widest such gap by ratio; the whole common
-    range if there is none.
+    range if there is none.  Equal counts inside do not prove that nothing crossed the rim: one
+    eigenvalue may leave while another enters (AUTO's ``enz``: the real pair +-1.417 swapping
+    magnitudes counted as a crossing, a spurious BP "not located (eigenvalue count only)"), so a
+    cut must also lie farther than ``moved`` from every magnitude of both ends, which no
+    eigenvalue can then have passed.
     """
     r = min(sa.radius, sb.radius)
     ma, mb = np.abs(sa.values), np.abs(sb.values)
@@ -131,6 +135,8 @@ def disc_radius(sa: Spectrum, sb: Spectrum, k: int, moved: float = 0.0) -> float
         if m[j] < floor or m[j] <= 0 or m[j + 1] / m[j] <= best:
             continue
         cut = math.sqrt(m[j] * m[j + 1])
+        if min(cut - m[j], m[j + 1] - cut) <= moved:
+            continue
         if np.count_nonzero(ma < cut) == np.count_nonzero(mb < cut):
             best, radius = m[j + 1] / m[j], cut
     return radius

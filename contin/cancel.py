@@ -22,6 +22,9 @@ from typing import Any
 #: the reason of a stop asked for by Ctrl-C (SIGINT) and by SIGTERM
 CTRL_C = "interrupted (Ctrl-C)"
 SIGTERM = "terminated by SIGTERM"
+#: what a run file records as ``stopped`` (``complete=False``) when a stop request ended it, by
+#: reason (``contin trace``'s writer, ``contin continue``'s curve; ``contin info`` prints it)
+STOPPED = {CTRL_C: "interrupted", SIGTERM: "terminated by SIGTERM"}
 #: the tail of the message of a branch a stop ended (after the reason)
 ENDS_AT_LAST_POINT = ": the branch ends at its last point"
 

@@ -17,6 +17,7 @@ rounding, F must accept complex input); the default central differences are accu
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -55,18 +56,28 @@ def column_groups(pattern: Any) -> np.ndarray:
 
 
 def detect_sparsity(F: Residual, u0: Array, params: Params, *, step: float = FD_STEP) -> sp.csc_matrix:
-    """Pattern of dF/du: nonzeros of dense differences at u0 and at a perturbed u0 (their union)."""
+    """Pattern of dF/du: nonzeros of dense differences at (u0, params) and at a perturbed u0 with
+    perturbed parameters (their union).  The parameters are perturbed too because a start value
+    often switches couplings off: AUTO's ``abc`` starts at D = 0, where J is diagonal, and a
+    pattern detected there dropped every D-dependent entry (Newton converged linearly with that
+    Jacobian, ds shrank to 1e-4 and the run found none of its folds and Hopf points).  Where F
+    cannot be evaluated at the perturbed parameters, the second pattern is taken at params."""
     u0 = np.asarray(u0, float)
     n = u0.size
     shift = 1e-3 * (1.0 + np.abs(u0)) * np.cos(np.arange(n) + 0.3)
+    moved = {k: v + 1e-3 * (1.0 + abs(v)) * math.cos(i + 0.7) for i, (k, v) in enumerate(params.items())}
+    try:
+        usable = bool(np.all(np.isfinite(np.asarray(F(u0 + shift, moved), float))))
+    except (ArithmeticError, ValueError):
+        usable = False
     rows, cols = [], []
-    for base in (u0, u0 + shift):
+    for base, p in ((u0, params), (u0 + shift, moved if usable else params)):
         for j in range(n):
             h = step * max(1.0, abs(base[j]))
             up, um = base.copy(), base.copy()
             up[j] += h
             um[j] -= h
-            col = np.asarray(F(up, params), float) - np.asarray(F(um, params), float)
+            col = np.asarray(F(up, p), float) - np.asarray(F(um, p), float)
             nz = np.nonzero(col)[0]
             rows.append(nz)
             cols.append(np.full(nz.size, j))

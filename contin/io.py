@@ -5,7 +5,9 @@ Layout (format "contin", format_version 2; version 1 files are read too)
 ::
 
     /                         attrs: format="contin", format_version=2, contin_version,
-                                     git_commit, created_utc, command (exact argv), scene,
+                                     git_commit, libraries (JSON: python, numpy, scipy, h5py
+                                     and numba versions; bitwise results need the same ones),
+                                     created_utc, command (exact argv), scene,
                                      parameters, discretization, options, notes, extra (JSON
                                      text), diagram_x, diagram_y, complete (bool),
                                      stopped (why an incomplete run stopped: "interrupted",
@@ -119,6 +121,7 @@ __all__ = [
     "NonFiniteError",
     "check_finite",
     "git_commit",
+    "library_versions",
     "load",
     "options_from_dict",
     "restart",
@@ -223,6 +226,28 @@ def git_commit(path: str | None = None) -> str:
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return (sha + "-dirty" if dirty else sha) or "unknown"
+
+
+def library_versions() -> dict[str, str]:
+    """Versions of the numerical stack a run used (Python, numpy, scipy, h5py, numba if loaded).
+
+    A file regenerated with other versions agrees with the shipped one to rounding, not bitwise:
+    results/pitchfork.h5 of numpy 2.4.6 / scipy 1.17.1 / numba 0.68.1 differs from the one
+    written before in the last bits (H_c within 1e-11 relative), and a step-size sequence that
+    depends on those bits moved n = 2's points by 8e-7.  Recording the versions says which.
+    """
+    import platform
+
+    import scipy
+
+    out = {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__}
+    h5 = sys.modules.get("h5py")
+    if h5 is not None:
+        out["h5py"] = h5.__version__
+    numba = sys.modules.get("numba")  # only when the compiled engine ran (importing it costs ~0.3 s)
+    if numba is not None:
+        out["numba"] = numba.__version__
+    return out
 
 
 def _contin_version() -> str:
@@ -630,6 +655,7 @@ class H5Writer:
         a["format_version"] = FORMAT_VERSION
         a["contin_version"] = _contin_version()
         a["git_commit"] = git_commit()
+        a["libraries"] = json.dumps(library_versions())
         a["complete"] = bool(self.complete)
         for key in ("created_utc", "command", "scene", "diagram_x", "diagram_y", "stopped"):
             a[key] = str(self.meta[key])
@@ -681,12 +707,14 @@ class H5Writer:
             lock.release()
 
 
-def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any) -> Path:
+def write(path: str | os.PathLike[str], branches: Iterable[Branch], *, stopped: str = "", **meta: Any) -> Path:
     """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`.
 
     Without ``parameters=`` the file records the problem's parameters as the branches carry
     them: every parameter column of the first branch at its first point (the values a
-    restart or a rebuilt problem starts from).
+    restart or a rebuilt problem starts from).  ``stopped`` (e.g. ``"interrupted"``,
+    :data:`contin.cancel.STOPPED`) writes a partial result: ``complete=False`` and the reason, as a
+    run's writer leaves a stopped run (``contin info`` says it is incomplete).
     """
     if isinstance(branches, Branch):  # io.write(path, branch) met "'Branch' object is not iterable"
         branches = [branches]
@@ -702,7 +730,14 @@ def write(path: str | os.PathLike[str], branches: Iterable[Branch], **meta: Any)
     meta.setdefault("lock", False)  # one publish, atomic by itself; no run to protect
     w = H5Writer(path, **meta)
     w.set_branches(branches)
-    w.close()
+    if not stopped:
+        w.close()
+        return w.path
+    w.update(stopped=stopped)
+    try:
+        w.publish()  # complete stays False
+    finally:
+        w.release()
     return w.path
 
 
@@ -857,6 +892,7 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
             for key in ("contin_version", "git_commit", "created_utc", "command", "scene", "diagram_x", "diagram_y",
                         "stopped"):
                 meta[key] = str(a.get(key, ""))
+            meta["libraries"] = _jsonload(a.get("libraries"), {})  # written since session 18
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
             check_parameters(meta["parameters"])  # a NaN there was shown by info and rebuilt into problems

@@ -9,7 +9,8 @@ Stability.  ``request.stability`` (default True; ``contin trace --no-stability``
 asks for the linear-stability pass at k_x = k_z = 0 on every branch, ``request.kx`` for extra
 wavenumbers.  A scene either calls :meth:`SceneRequest.run_stability` (problem, branch) on each
 branch before ``request.finished(branch)``, or leaves it to the CLI, which does it after the
-run when the scene has a ``problem_factory``.  A scene with ``Scene.stability = False`` has no
+run when the scene has a ``problem_factory`` (:func:`stability_after_run`: ``contin trace`` and
+every ``contin sweep`` task alike).  A scene with ``Scene.stability = False`` has no
 linear-stability operator (its residual has algebraic rows -- boundary conditions, constraints --
 and no mass matrix or ``eigenproblem`` to say which rows are dynamics): the CLI runs no pass on
 it and ``contin stability`` refuses its files, rather than count those rows as unstable modes
@@ -75,7 +76,8 @@ class SceneRequest:
         every trace of the run, ``contin.options.resolution_override``: scenes build options of
         their own too.)  Adaptive resolution (``--tol``, ``--max-grid``; only for scenes with
         ``Scene.adaptive``): keys 'tol', 'max_grid' and 'solve_check' (False: ``--no-solve-check``)
-        become ``ContinuationOptions.adapt``.
+        become ``ContinuationOptions.adapt``; ``contin trace`` and ``contin sweep`` set them by
+        :meth:`Scene.accuracy_overrides`.
     """
 
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -317,6 +319,122 @@ class Scene:
     stability: bool = True
     start: Callable[[SceneRequest], DiagramStart] | None = None
     discretized: bool = True
+
+    def accuracy_overrides(self, *, grid: int | None = None, tol: float | None = None, max_grid: int | None = None,
+                           special_tol: float | None = None, solve_check: bool = True,
+                           names: Mapping[str, str] | None = None) -> dict[str, Any]:
+        """The adaptive-resolution keys of :attr:`SceneRequest.overrides` for a run of this scene.
+
+        The one rule ``contin trace`` and every ``contin sweep`` task resolve the accuracy with
+        (a sweep task of an adaptive scene without ``grid`` ran on the scene's fixed default grid
+        where ``trace`` ran adaptively at :attr:`default_tol`): an adaptive scene runs adaptively
+        when ``tol`` is given or no ``grid`` is (then at ``tol``, default :attr:`default_tol`; the
+        grid, if given, is the start grid), with ``solve_check``, ``special_tol`` and ``max_grid``
+        as given; ``grid`` alone fixes the grid (no keys) and takes none of them (``--grid 16
+        --max-grid 64`` ignored the max grid, exit 0).  A non-adaptive scene takes none of them.
+
+        ``names``: how the caller's settings are called in messages (default the command line's
+        ``--tol``, ``--max-grid``, ``--special-tol``, ``--no-solve-check``, ``--grid``).
+
+        Raises
+        ------
+        SceneError
+            An accuracy setting for a scene without adaptive resolution, ``special_tol``,
+            ``max_grid`` or ``solve_check=False`` with a fixed grid, or ``grid`` above ``max_grid``:
+            one sentence.
+        """
+        n = {**_ACCURACY_FLAGS, **dict(names or {})}
+        if (tol is not None or max_grid is not None or special_tol is not None or not solve_check) and not self.adaptive:
+            raise SceneError(f"scene {self.name!r} has no adaptive resolution ({n['tol']}, {n['max_grid']}, "
+                             f"{n['special_tol']}, {n['solve_check']}); choose its grid with {n['grid']}")
+        unused = [n[k] for k, v in (("special_tol", special_tol), ("max_grid", max_grid), ("solve_check", solve_check))
+                  if v is not None and v is not True]
+        if unused and grid is not None and tol is None:  # a fixed grid: they were ignored, exit 0 (max_grid, solve_check)
+            raise SceneError(f"{', '.join(unused)} {'needs' if len(unused) == 1 else 'need'} adaptive resolution: "
+                             f"drop {n['grid']} or add {n['tol']}")
+        if not self.adaptive or (tol is None and grid is not None):
+            return {}
+        out: dict[str, Any] = {"tol": tol if tol is not None else self.default_tol}
+        if not solve_check:
+            out["solve_check"] = False
+        if special_tol is not None:
+            out["special_tol"] = special_tol
+        if max_grid is not None:
+            if grid is not None and grid > max_grid:
+                raise SceneError(f"{n['grid']} {grid} exceeds {n['max_grid']} {max_grid}")
+            out["max_grid"] = max_grid
+        return out
+
+
+#: The command line's names of the accuracy settings (:meth:`Scene.accuracy_overrides` messages).
+_ACCURACY_FLAGS = {"tol": "--tol", "max_grid": "--max-grid", "special_tol": "--special-tol",
+                   "solve_check": "--no-solve-check", "grid": "--grid"}
+
+
+def stability_after_run(scene: Scene, request: SceneRequest, result: SceneResult,
+                        say: Callable[[str], None] = lambda line: None, *, kx_name: str = "--kx") -> None:
+    """The stability pass the scene left undone, through ``scene.problem_factory``: what
+    ``contin trace`` and every ``contin sweep`` task do after the scene's run (unless the user
+    switched stability off), so that a task file holds the stability columns ``trace`` writes.
+
+    Nothing for a scene with ``stability=False`` (a ``note:`` line).  Branches the scene left
+    without stability columns get :meth:`SceneRequest.run_stability` (k_x = k_z = 0, audit, and
+    the extra ``kx`` columns); a scene that computed stability itself is trusted with the extra
+    wavenumbers too.  Fold curves and other multi-parameter branches are skipped (their states
+    are not states of the problem).  Failures become ``warning:`` lines: the traced branches are
+    never lost to a stability problem.  A nonzero k_x of ``request.kx`` that no branch has a
+    ``growth_rate_kx`` column for is one ``warning:`` line with the reason (never a silent
+    no-op; ``kx_name``: how the caller calls the setting).  ``say`` receives the ``note:`` and
+    ``warning:`` lines as they happen; ``request.report`` the progress (one line per branch).
+    """
+    _stability_pass_after_run(scene, request, result, say)
+    missing = [f"{k:g}" for k in request.kx if k != 0
+               and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
+    if not missing:
+        return
+    name = scene.name
+    if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
+        why = (f"scene {name!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
+               f"k_x = 0 exists (that stability was computed)")
+    elif not scene.stability:
+        why = f"scene {name!r} has no linear-stability operator (no stability was computed)"
+    elif scene.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
+        why = (f"scene {name!r} computed no stability (it has no problem_factory to rebuild its problem "
+               f"for a stability pass)")
+    else:
+        why = f"scene {name!r} computed no stability"
+    say(f"warning: {kx_name} {','.join(missing)} ignored: {why}; no growth_rate_kx column was stored")
+
+
+def _stability_pass_after_run(scene: Scene, request: SceneRequest, result: SceneResult,
+                              say: Callable[[str], None]) -> None:
+    """The k_x = 0 pass (and extra kx columns) of :func:`stability_after_run`."""
+    from contin.cli._base import error_line  # (lazy: the command line's one-line form of an error)
+
+    def missing(b: Branch) -> bool:
+        return len(b.free) == 1 and len(b) > 0 and b.n_unstable is None
+
+    if not scene.stability:  # no linear-stability operator (Scene.stability): a pass would be doubtful
+        say(f"note: scene {scene.name!r} has no linear-stability operator; branches are stored without stability")
+        return
+    todo = [b for b in result.branches if missing(b)]
+    if not todo:
+        return
+    if scene.problem_factory is None:
+        say(f"note: scene {scene.name!r} computed no stability and has no problem_factory; "
+            "branches are stored without stability")
+        return
+    try:
+        problem = scene.problem_factory(result.parameters, result.discretization)
+    except Exception as exc:  # noqa: BLE001 -- report, keep the branches
+        say(f"warning: stability skipped: cannot rebuild the problem ({error_line(exc)})")
+        return
+    for b in todo:
+        request.report(f"stability of branch {b.id} ({len(b)} points)")
+        try:
+            request.run_stability(problem, b, result.parameters)
+        except Exception as exc:  # noqa: BLE001
+            say(f"warning: stability of branch {b.id} failed: {error_line(exc)}")
 
 
 def scene_params(request: SceneRequest, defaults: Mapping[str, Any], scene: str) -> dict[str, Any]:

@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import logging
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -248,6 +248,28 @@ def operator_pair(problem: Any, u: NDArray[np.float64], params: Mapping[str, flo
     return A, B
 
 
+def finite_spectrum(
+    problem: Any,
+    u: NDArray[np.float64],
+    params: Mapping[str, float],
+    *,
+    kx: float = 0.0,
+    kz: float = 0.0,
+    n_eigs: int = 6,
+    dense_max: int = 600,
+    sigma: complex | None = None,
+) -> CArray:
+    """The finite eigenvalues :func:`stability_of_state` counts, real part descending.
+
+    A x = omega B x from :func:`operator_pair`, solved by :func:`eigenvalues`: every finite
+    eigenvalue on the dense path, the ``max(n_eigs, DEFAULT_SPARSE_K)`` nearest ``sigma`` on the
+    sparse path (n > dense_max).
+    """
+    A, B = operator_pair(problem, u, params, kx=kx, kz=kz)
+    k = None if A.shape[0] <= dense_max else max(n_eigs, DEFAULT_SPARSE_K)
+    return eigenvalues(A, B, k=k, sigma=sigma, dense_max=dense_max)
+
+
 def stability_of_state(
     problem: Any,
     u: NDArray[np.float64],
@@ -262,19 +284,105 @@ def stability_of_state(
 ) -> StabilityResult:
     """Leading eigenvalues and unstable count of the steady state ``u`` at ``params``.
 
-    Solves A x = omega B x from :func:`operator_pair` with :func:`eigenvalues`.  On the dense
-    path every finite eigenvalue is counted; on the sparse path (n > dense_max) only the
-    ``max(n_eigs, DEFAULT_SPARSE_K)`` eigenvalues nearest ``sigma``.
+    Solves A x = omega B x from :func:`operator_pair` with :func:`eigenvalues`
+    (:func:`finite_spectrum`).  On the dense path every finite eigenvalue is counted; on the
+    sparse path (n > dense_max) only the ``max(n_eigs, DEFAULT_SPARSE_K)`` eigenvalues nearest
+    ``sigma``.
     """
+    _check_n_eigs(n_eigs)
+    w = finite_spectrum(problem, u, params, kx=kx, kz=kz, n_eigs=n_eigs, dense_max=dense_max, sigma=sigma)
+    n_unst = count_unstable(w, tol)
+    return StabilityResult(_leading(w, n_eigs), n_unst, n_unst == 0, tol, float(kx), float(kz), int(w.size))
+
+
+def _check_n_eigs(n_eigs: int) -> None:
     if n_eigs < 1:
         raise ValueError(f"n_eigs must be >= 1, got {n_eigs}")
-    A, B = operator_pair(problem, u, params, kx=kx, kz=kz)
-    k = None if A.shape[0] <= dense_max else max(n_eigs, DEFAULT_SPARSE_K)
-    w = eigenvalues(A, B, k=k, sigma=sigma, dense_max=dense_max)
+
+
+def _leading(w: CArray, n_eigs: int) -> CArray:
+    """The first n_eigs of ``w``, padded with nan."""
     lead = np.full(n_eigs, np.nan + 0j)
     lead[: min(n_eigs, w.size)] = w[:n_eigs]
-    n_unst = count_unstable(w, tol)
-    return StabilityResult(lead, n_unst, n_unst == 0, tol, float(kx), float(kz), int(w.size))
+    return lead
+
+
+#: Failures of one point's eigenproblem that leave its stability unknown while the pass goes on
+#: (a singular shift, ARPACK not converging: RuntimeError includes ARPACK's ArpackError).
+EIGENPROBLEM_ERRORS: tuple[type[BaseException], ...] = (np.linalg.LinAlgError, RuntimeError)
+
+
+def stability_columns(
+    branch: Branch,
+    params_fixed: Mapping[str, float] | None,
+    spectrum: Callable[[int, NDArray[np.float64], dict[str, float]], CArray],
+    *,
+    n_eigs: int = 6,
+    tol: float = DEFAULT_TOL,
+    errors: tuple[type[BaseException], ...] = EIGENPROBLEM_ERRORS,
+    what: str = "stability",
+) -> tuple[NDArray[np.bool_], NDArray[np.int64], CArray] | None:
+    """(stable, n_unstable, eigenvalues (S x n_eigs)) of every stored point of ``branch``.
+
+    The one per-point loop of every stability pass (:func:`stability_pass`,
+    :func:`growth_columns`, problems with their own eigensolver).  ``spectrum(i, u, p)``
+    returns the finite eigenvalues of point i (state u, parameters p: ``params_fixed`` updated
+    with ``branch.params[name][i]``), real part descending; the point is unstable with
+    ``count_unstable(w, tol)`` eigenvalues (all of ``w``), its ``n_eigs`` leading ones are stored
+    (nan-padded).  A point whose state was not saved (``save_every > 1``) or whose ``spectrum``
+    raised one of ``errors`` (logged as "<what> failed at point i of branch ...") keeps
+    ``n_unstable = -1``, ``stable = False``, eigenvalues nan: unknown, not guessed.  A stop
+    request (:func:`contin.cancel.stop_requested`, the first Ctrl-C/SIGTERM), asked between
+    points, returns None: no wait for the rest of the pass (35 s on a gravity branch, qa17).
+    """
+    from contin.cancel import stop_requested
+
+    _check_n_eigs(n_eigs)
+    s = len(branch)
+    stable = np.zeros(s, dtype=bool)
+    n_unstable = np.full(s, -1, dtype=np.int64)
+    eigs = np.full((s, n_eigs), np.nan + 0j)
+    base = dict(params_fixed or {})
+    for i in range(s):
+        if stop_requested():
+            return None
+        p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
+        try:
+            u = branch.state(i)
+        except KeyError:  # save_every > 1 dropped this state: stability stays unknown
+            continue
+        try:
+            w = spectrum(i, u, p)
+        except errors as exc:
+            log.warning("%s failed at point %d of branch %s: %s", what, i, branch.id, exc)
+            continue
+        n_unstable[i] = count_unstable(w, tol)
+        stable[i] = n_unstable[i] == 0
+        eigs[i] = _leading(w, n_eigs)
+    return stable, n_unstable, eigs
+
+
+def _warn_identity_mass(problem: Any, branch: Branch) -> None:
+    """The UserWarning of a pass on a problem with neither mass_matrix nor eigenproblem (M = I),
+    attributed to the caller of the pass."""
+    if not has(problem, "mass_matrix") and not has(problem, "eigenproblem"):
+        warnings.warn(f"stability of branch {branch.id}: the problem has no mass_matrix (M du/dt = F), so M = I and "
+                      "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
+                      "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
+                      stacklevel=3)
+
+
+def _point_spectrum(problem: Any, branch: Branch, *, kx: float, kz: float, n_eigs: int, dense_max: int,
+                    sigma: complex | None) -> Callable[[int, NDArray[np.float64], dict[str, float]], CArray]:
+    """:func:`finite_spectrum` of point i, each point on its own grid (adaptive runs,
+    :func:`contin.adapt.point_problem`)."""
+    from contin.adapt import point_problem
+
+    def spectrum(i: int, u: NDArray[np.float64], p: dict[str, float]) -> CArray:
+        return finite_spectrum(point_problem(problem, branch, i), u, p, kx=kx, kz=kz, n_eigs=n_eigs,
+                               dense_max=dense_max, sigma=sigma)
+
+    return spectrum
 
 
 @limited()  # one BLAS thread for the small dense eigenproblems (contin.blas)
@@ -304,44 +412,17 @@ def stability_pass(
     (:func:`contin.cancel.stop_requested`, asked between points) ends the pass with the branch
     left without stability columns.
     """
-    from contin.adapt import point_problem
-
     s = len(branch)
     for name, values in branch.params.items():
         if len(values) != s:
             raise ValueError(f"branch parameter {name!r} has {len(values)} values but the branch has {s} states")
-    stable = np.zeros(s, dtype=bool)
-    n_unstable = np.full(s, -1, dtype=np.int64)
-    eigs = np.full((s, n_eigs), np.nan + 0j)
-    base = dict(params_fixed or {})
-    if not has(problem, "mass_matrix") and not has(problem, "eigenproblem"):
-        warnings.warn(f"stability of branch {branch.id}: the problem has no mass_matrix (M du/dt = F), so M = I and "
-                      "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
-                      "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
-                      stacklevel=2)
-    from contin.cancel import stop_requested
-
-    for i in range(s):
-        if stop_requested():  # the first Ctrl-C/SIGTERM: no wait for the rest of the pass (35 s on a
-            return            # gravity branch, qa17); the branch stays without stability (--resume fills it)
-        p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
-        try:
-            u = branch.state(i)
-        except KeyError:  # save_every > 1 dropped this state: stability stays unknown
-            continue
-        try:
-            # Each point on its own grid (adaptive runs, contin.adapt.point_problem).
-            res = stability_of_state(point_problem(problem, branch, i), u, p, kx=kx, kz=kz, n_eigs=n_eigs, tol=tol,
-                                     dense_max=dense_max, sigma=shift)
-        except (np.linalg.LinAlgError, RuntimeError) as exc:  # RuntimeError includes ARPACK's ArpackError
-            log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
-            continue
-        stable[i] = res.stable
-        n_unstable[i] = res.n_unstable
-        eigs[i] = res.eigenvalues
-    branch.stable = stable
-    branch.n_unstable = n_unstable
-    branch.eigenvalues = eigs
+    _warn_identity_mass(problem, branch)
+    columns = stability_columns(branch, params_fixed, _point_spectrum(problem, branch, kx=kx, kz=kz, n_eigs=n_eigs,
+                                                                      dense_max=dense_max, sigma=shift),
+                                n_eigs=n_eigs, tol=tol)
+    if columns is None:  # stopped: the branch stays without stability (--resume fills it)
+        return
+    branch.stable, branch.n_unstable, branch.eigenvalues = columns
     branch.stability_k = (float(kx), float(kz))
 
 
@@ -362,36 +443,16 @@ def growth_columns(
     (``<kx>`` formatted with ``:g``; ``_kz<kz>`` appended when kz != 0), shape (S,); nan
     where the state was not saved or the eigenproblem failed.
     """
-    s = len(branch)
-    growth = np.full(s, np.nan)
-    count = np.full(s, np.nan)
-    base = dict(params_fixed or {})
-    if not has(problem, "mass_matrix") and not has(problem, "eigenproblem"):
-        warnings.warn(f"stability of branch {branch.id}: the problem has no mass_matrix (M du/dt = F), so M = I and "
-                      "algebraic rows (boundary conditions, constraints) count as dynamic equations and may count "
-                      "as unstable; give the problem mass_matrix(u, p) with zero rows for them", UserWarning,
-                      stacklevel=2)
-    from contin.adapt import point_problem
-
-    from contin.cancel import stop_requested
-
-    for i in range(s):
-        if stop_requested():  # the first Ctrl-C/SIGTERM: no columns rather than a wait for the whole pass
-            return {}
-        p = {**base, **{name: float(values[i]) for name, values in branch.params.items()}}
-        try:
-            # each point on its own grid (adaptive runs, contin.adapt.point_problem)
-            res = stability_of_state(point_problem(problem, branch, i), branch.state(i), p, kx=kx, kz=kz, n_eigs=1, tol=tol,
-                                     dense_max=dense_max)
-        except KeyError:
-            continue
-        except (np.linalg.LinAlgError, RuntimeError) as exc:  # RuntimeError includes ARPACK's ArpackError
-            log.warning("stability at kx=%g failed at point %d of branch %s: %s", kx, i, branch.id, exc)
-            continue
-        growth[i] = res.leading.real
-        count[i] = res.n_unstable
+    _warn_identity_mass(problem, branch)
+    columns = stability_columns(branch, params_fixed, _point_spectrum(problem, branch, kx=kx, kz=kz, n_eigs=1,
+                                                                      dense_max=dense_max, sigma=None),
+                                n_eigs=1, tol=tol, what=f"stability at kx={kx:g}")
+    if columns is None:  # the first Ctrl-C/SIGTERM: no columns rather than a wait for the whole pass
+        return {}
+    _, n_unstable, eigs = columns
     suffix = f"_kx{kx:g}" + (f"_kz{kz:g}" if kz != 0.0 else "")
-    return {"growth_rate" + suffix: growth, "n_unstable" + suffix: count}
+    return {"growth_rate" + suffix: eigs[:, 0].real.copy(),
+            "n_unstable" + suffix: np.where(n_unstable >= 0, n_unstable, np.nan)}
 
 
 def _crossing_counts(points: list[Any]) -> list[int] | None:

@@ -20,6 +20,15 @@ product) and what to record::
     max_steps = 400
     stability = false
     resolution_tol = "off"                 # or a number > 0 (default: the core's 3e-5)
+    tol = 1e-6                             # adaptive scenes: as trace --tol (also max_grid,
+                                           # special_tol, solve_check = false)
+
+A task resolves its accuracy as ``contin trace`` does (:meth:`contin.scene.Scene.accuracy_overrides`):
+an adaptive scene without ``grid`` runs adaptively at ``tol`` (default: the scene's ``default_tol``),
+``grid`` alone fixes the grid.  After the run it gets the stability pass ``trace`` runs
+(:func:`contin.scene.stability_after_run`; ``stability = false`` switches it off), so a task
+file holds the branches and stability columns of ``contin trace`` with the same settings; the
+pass's ``note:``/``warning:`` lines are among the task's notes.
 
 Design (style notes B4): one task = one scene run at one grid point.  Tasks are pure, picklable,
 top-level calls (:func:`run_task`: scene name + full parameters + options in, compact result
@@ -66,7 +75,7 @@ from contin.atomic import OutputLock, publish
 from contin.jsonout import dumps as json_dumps
 from contin.jsonout import to_jsonable
 from contin.options import check_resolution_tol, resolution_override
-from contin.scene import ENGINES, Scene, SceneError, SceneRequest, get_scene
+from contin.scene import ENGINES, Scene, SceneError, SceneRequest, get_scene, stability_after_run
 
 __all__ = [
     "SweepError",
@@ -102,7 +111,15 @@ OPTION_TYPES: dict[str, tuple[type, ...]] = {
     "kx": (list,),
     "resolution_tol": (int, float, str),  # a tolerance > 0, or "off" (the CLI's --resolution-tol)
     "engine": (str,),  # SceneRequest.engine: auto (default), numpy or numba
+    # adaptive resolution, as `contin trace --tol --max-grid --special-tol --no-solve-check`
+    # (Scene.accuracy_overrides; adaptive scenes only)
+    "tol": (int, float),
+    "max_grid": (int,),
+    "special_tol": (int, float),
+    "solve_check": (bool,),
 }
+#: How the accuracy settings are called in a sweep file (Scene.accuracy_overrides messages).
+_ACCURACY_NAMES = {k: f"option {k!r}" for k in ("tol", "max_grid", "special_tol", "solve_check", "grid")}
 _SECTIONS = {"sweep": {"scene", "record", "description"}, "fixed": None, "grid": None, "options": set(OPTION_TYPES)}
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -149,14 +166,15 @@ class SweepSpec:
     def n_tasks(self) -> int:
         return math.prod(len(v) for v in self.grid.values())
 
-    def tasks(self) -> list[Task]:
-        """The cartesian product of the grid, with stable keys."""
+    def tasks(self, settings: Mapping[str, Any] | None = None) -> list[Task]:
+        """The cartesian product of the grid, with stable keys (``settings``: the scene's
+        :func:`task_settings`, part of the keys)."""
         names = list(self.grid)
         out = []
         for i, values in enumerate(itertools.product(*(self.grid[n] for n in names))):
             swept = dict(zip(names, values, strict=True))
             params = {**self.fixed, **swept}
-            out.append(Task(i, task_key(self.scene, params, self.options), swept, params))
+            out.append(Task(i, task_key(self.scene, params, self.options, settings=settings), swept, params))
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -277,6 +295,13 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
                              f"got {options['resolution_tol']!r}") from None
     if "engine" in options and options["engine"] not in ENGINES:
         raise SweepError(f"option 'engine'{where} must be one of {', '.join(ENGINES)}, got {options['engine']!r}")
+    for key in ("tol", "special_tol"):
+        if key in options and not 0 < options[key] < 1:
+            raise SweepError(f"option {key!r}{where} must be a relative error in (0, 1), got {options[key]}")
+    from contin.limits import MIN_MAX_GRID
+
+    if "max_grid" in options and options["max_grid"] < MIN_MAX_GRID:
+        raise SweepError(f"option 'max_grid'{where} must be >= {MIN_MAX_GRID}, got {options['max_grid']}")
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
@@ -286,7 +311,7 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
         raise SweepError(f"option 'ds_max'{where} must be a finite number > 0, got {options['ds_max']}")
     from contin.limits import MAX_ABS_KX, MAX_GRID, MAX_STEPS, MAX_TRACE_KX  # the command line's limits
 
-    for key, most in (("grid", MAX_GRID), ("max_steps", MAX_STEPS)):
+    for key, most in (("grid", MAX_GRID), ("max_steps", MAX_STEPS), ("max_grid", MAX_GRID)):
         if key in options and options[key] > most:
             raise SweepError(f"option {key!r}{where} must be at most {most}, got {options[key]}")
     kx = options.get("kx", [])
@@ -329,7 +354,33 @@ def check_spec(spec: SweepSpec) -> Scene:
             if name not in scene.defaults:
                 raise SweepError(f"scene {spec.scene!r} has no parameter {name!r}{_where(spec.source)}; "
                                  f"its parameters: {', '.join(scene.defaults)}")
+    try:
+        accuracy_overrides(scene, spec.options)
+    except SceneError as exc:
+        raise SweepError(f"{exc}{_where(spec.source)}") from None
     return scene
+
+
+def accuracy_overrides(scene: Scene, options: Mapping[str, Any]) -> dict[str, Any]:
+    """The adaptive-resolution overrides of a task of ``scene`` with the sweep's ``options``:
+    those of ``contin trace`` with the same ``grid``/``tol``/``max_grid``/``special_tol``/
+    ``solve_check`` (:meth:`contin.scene.Scene.accuracy_overrides`, SceneError if they do not fit
+    the scene)."""
+    return scene.accuracy_overrides(grid=options.get("grid"), tol=options.get("tol"), max_grid=options.get("max_grid"),
+                                    special_tol=options.get("special_tol"),
+                                    solve_check=options.get("solve_check", True) is not False, names=_ACCURACY_NAMES)
+
+
+def task_settings(scene: Scene, options: Mapping[str, Any]) -> dict[str, Any]:
+    """What a task of ``scene`` computes with beyond its ``[options]`` table, for its key: the
+    resolved accuracy (:func:`accuracy_overrides`), when there is one.  Empty otherwise, so the
+    keys of fixed-grid sweeps are those of earlier versions; a task of an adaptive scene without
+    ``grid`` has another key than the one an earlier version computed on the scene's fixed
+    default grid, so such a task file is not reused in a sweep of adaptive tasks.  (The stability
+    pass after the run is not part of the key: a task file from before it is reused as it is,
+    without the columns the scene did not compute itself.)"""
+    accuracy = accuracy_overrides(scene, options)
+    return {"accuracy": accuracy} if accuracy else {}
 
 
 def _canonical(value: Any) -> Any:
@@ -345,12 +396,16 @@ def _canonical(value: Any) -> Any:
     return to_jsonable(value)
 
 
-def task_key(scene: str, params: Mapping[str, Any], options: Mapping[str, Any], version: str | None = None) -> str:
-    """Stable hash of (scene, parameters, options, contin version): 20 hex digits (SHA-256)."""
+def task_key(scene: str, params: Mapping[str, Any], options: Mapping[str, Any], version: str | None = None,
+             settings: Mapping[str, Any] | None = None) -> str:
+    """Stable hash of (scene, parameters, options, contin version, and the task's
+    :func:`task_settings` when there are any): 20 hex digits (SHA-256)."""
     if version is None:
         from contin import __version__ as version
-    text = json.dumps({"scene": scene, "params": _canonical(params), "options": _canonical(options),
-                       "contin": version}, sort_keys=True, allow_nan=False, separators=(",", ":"))
+    doc = {"scene": scene, "params": _canonical(params), "options": _canonical(options), "contin": version}
+    if settings:
+        doc["settings"] = _canonical(settings)
+    text = json.dumps(doc, sort_keys=True, allow_nan=False, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -362,15 +417,20 @@ def _resolution_tol(options: Mapping[str, Any]) -> float | None:
     return None if value == "off" else check_resolution_tol(value)
 
 
-def _request(params: Mapping[str, Any], options: Mapping[str, Any], scene_stability: bool = True) -> SceneRequest:
-    """The scene request of one task; no stability pass on a scene without a linear-stability
-    operator (``Scene.stability`` False), whatever the sweep's ``stability`` option."""
+def _request(params: Mapping[str, Any], options: Mapping[str, Any], scene: Scene) -> SceneRequest:
+    """The scene request of one task, as ``contin trace`` builds it for the same settings: the
+    step overrides, ``resolution_tol``, the accuracy of :func:`accuracy_overrides`; no stability
+    pass on a scene without a linear-stability operator (``Scene.stability`` False), whatever
+    the sweep's ``stability`` option."""
     overrides = {k: options[k] for k in ("max_steps", "ds", "ds_max") if k in options}
+    if "resolution_tol" in options:  # (scenes read it from the overrides too: gravity's fold seeds)
+        overrides["resolution_tol"] = _resolution_tol(options)
+    overrides.update(accuracy_overrides(scene, options))
     return SceneRequest(
         params=dict(params),
         method=options.get("method"),
         grid=options.get("grid"),
-        stability=bool(options.get("stability", True)) and scene_stability,
+        stability=bool(options.get("stability", True)) and scene.stability,
         kx=tuple(float(k) for k in options.get("kx", ())),
         overrides=overrides,
         engine=options.get("engine", "auto"),
@@ -413,6 +473,7 @@ def run_task(scene_name: str, params: Mapping[str, Any], options: Mapping[str, A
     ``seconds``.  Never raises for a failing scene: bad parameters and crashes are results.
     When ``path`` is given the task also writes its HDF5 file there (:func:`_write_task_file`).
     """
+    from contin.hopfscan import number_new_points
     from contin.jsonout import branch_summary
 
     t0 = time.perf_counter()
@@ -423,8 +484,14 @@ def run_task(scene_name: str, params: Mapping[str, Any], options: Mapping[str, A
     try:
         with _quiet_scene_loading():
             scene = get_scene(scene_name)
+        base["key"] = key = task_key(scene_name, params, options, settings=task_settings(scene, options))
         with resolution_override(_resolution_tol(options)) if "resolution_tol" in options else contextlib.nullcontext():
-            result = scene.run(_request(params, options, scene_stability=scene.stability))
+            request = _request(params, options, scene)
+            result = scene.run(request)
+            if options.get("stability", True):  # the pass `contin trace` runs after the scene's run
+                stability_after_run(scene, request, result, lambda line: result.notes.append(line.removeprefix("note: ")),
+                                    kx_name="option kx")
+            number_new_points(result.branches)  # HB points a stability pass located (as trace numbers them)
     except (SceneError, ValueError) as exc:
         base.update(status="error", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     except Exception as exc:  # noqa: BLE001 -- a crashing task is a result, never the end of a sweep
@@ -697,7 +764,7 @@ def run_sweep(
     SceneError, SweepError
         For an unknown scene or parameter, before any task runs.
     """
-    check_spec(spec)
+    scene = check_spec(spec)
     if jobs is not None and jobs < 1:
         raise SweepError(f"jobs must be >= 1, got {jobs}")
     out = Path(outdir).resolve()
@@ -710,7 +777,8 @@ def run_sweep(
     # and race it for the summary (tasks were lost with raw FileNotFoundError/BlockingIOError).
     lock = OutputLock(out, directory=True).acquire()
     try:
-        return _run_sweep_locked(spec, out, taskdir, executor, jobs, progress, retry_failed)
+        return _run_sweep_locked(spec, out, taskdir, executor, jobs, progress, retry_failed,
+                                 task_settings(scene, spec.options))
     finally:
         lock.release()
 
@@ -761,7 +829,8 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _run_sweep_locked(spec: SweepSpec, out: Path, taskdir: Path, executor: Executor | None, jobs: int | None,
-                      progress: Callable[[str], None] | None, retry_failed: bool) -> SweepSummary:
+                      progress: Callable[[str], None] | None, retry_failed: bool,
+                      settings: Mapping[str, Any]) -> SweepSummary:
     for stale in itertools.chain(taskdir.glob("*.h5.part"), taskdir.glob("*.tmp")):
         stale.unlink(missing_ok=True)  # left by a killed task; the single parent owns the directory (locked)
 
@@ -769,7 +838,7 @@ def _run_sweep_locked(spec: SweepSpec, out: Path, taskdir: Path, executor: Execu
         if progress is not None:
             progress(line)
 
-    tasks = spec.tasks()
+    tasks = spec.tasks(settings)
     records: dict[int, TaskRecord] = {}
     todo: list[Task] = []
     for task in tasks:
@@ -864,7 +933,8 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
     ``summary.h5`` layout::
 
         /                 attrs: format='contin-sweep', format_version, contin_version, scene,
-                                 sweep (JSON of the sweep file), counts (JSON), created_utc
+                                 sweep (JSON of the sweep file), counts (JSON), created_utc,
+                                 libraries (JSON: versions of the numerical stack)
         /tasks/           one row per grid point, in grid order:
             key, status, reason, file (text); cached (bool); seconds (float)
             params/<name> swept parameter values
@@ -878,6 +948,7 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
     import numpy as np
 
     from contin import __version__
+    from contin.io import library_versions
 
     s = summary
     text = h5py.string_dtype()
@@ -895,6 +966,7 @@ def write_summary(summary: SweepSummary) -> tuple[Path, Path]:
             a["format"] = SUMMARY_FORMAT
             a["format_version"] = SUMMARY_FORMAT_VERSION
             a["contin_version"] = __version__
+            a["libraries"] = json.dumps(library_versions())
             a["scene"] = s.spec.scene
             a["sweep"] = json_dumps(s.spec.to_dict())
             a["counts"] = json.dumps(s.counts())

@@ -11,7 +11,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -25,6 +24,7 @@ FIXTURE_ENV = {**os.environ, "CONTIN_SCENES": "cli_fixture_scenes:SCENES",
 
 
 from tests.cli_sweep import one_error, real_scenes, run  # noqa: E402,F401  (real_scenes: autouse)
+from tests.signals import signalled  # noqa: E402
 
 
 def _branches(path: Path) -> list:
@@ -35,21 +35,8 @@ def _branches(path: Path) -> list:
 
 
 def _signalled(args: list[str], sig: int, ready, after: float) -> tuple[int, str]:
-    """(exit code, stderr) of ``contin ARGS`` (fixture scenes) sent ``sig`` once ``ready()`` holds
-    and ``after`` seconds more (SIGINT reset to its default in the child, as in test_fault_injection)."""
-    proc = subprocess.Popen([sys.executable, "-m", "contin", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=FIXTURE_ENV, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        t0 = time.monotonic()
-        while not ready():
-            assert time.monotonic() - t0 < 60 and proc.poll() is None, "the run ended before it was ready"
-            time.sleep(0.05)
-        time.sleep(after)
-        proc.send_signal(sig)
-        _, stderr = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    return proc.returncode, stderr
+    """:func:`tests.signals.signalled` on the fixture scenes."""
+    return signalled(args, sig, ready, env=FIXTURE_ENV, after=after)
 
 
 @pytest.mark.parametrize("sig, code, reason, stopped", [(signal.SIGINT, 130, "interrupted (Ctrl-C)", "interrupted"),
@@ -259,10 +246,11 @@ def test_sigterm_during_continue_keeps_the_curve_computed_so_far(tmp_path):
                             lambda: (tmp_path / ".curve.h5.lock").exists(), after=1.5)
     errors = [ln for ln in stderr.splitlines() if ln.startswith("Error: ")]
     assert rc == 143 and errors == ["Error: terminated by SIGTERM"], stderr
-    assert f"note: the curve computed before SIGTERM (" in stderr and f"is saved in {out}" in stderr
-    (curve,), _ = io.load(out)
+    assert "note: the curve computed before SIGTERM (" in stderr and f"is saved in {out}" in stderr
+    (curve,), meta = io.load(out)
     assert curve.status == "MX" and "terminated by SIGTERM: the branch ends at its last point" in curve.message
     assert len(curve) > 10
+    assert meta["complete"] is False and meta["stopped"] == "terminated by SIGTERM"  # (qa18: complete=True)
 
 
 def test_ctrl_c_in_the_stability_pass_after_the_run_keeps_every_traced_branch(tmp_path):

@@ -30,6 +30,7 @@ from click.testing import CliRunner
 from contin import io
 from contin.atomic import OutputLock
 from contin.cli import main
+from tests.signals import signalled as _signalled
 
 HERE = Path(__file__).parent
 ENV = {**os.environ, "CONTIN_SCENES": "cli_fixture_scenes:SCENES,sweep_fixture_scenes:SCENES",
@@ -53,19 +54,8 @@ def popen(*args: str, **env) -> subprocess.Popen:
 
 
 def signalled(args: list[str], sig: int, ready, what: str, after: float = 0.0) -> tuple[int, str]:
-    """(exit code, stderr) of ``contin ARGS`` sent ``sig`` once ``ready()`` holds (and ``after``
-    seconds more).  SIGINT is reset to its default in the child: a shell without job control
-    starts background jobs with it ignored, and Python then never raises KeyboardInterrupt."""
-    proc = subprocess.Popen([sys.executable, "-m", "contin", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=ENV, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        wait_for(ready, what=what)
-        time.sleep(after)
-        proc.send_signal(sig)
-        _, stderr = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    return proc.returncode, stderr
+    """:func:`tests.signals.signalled` on the toy and sweep fixture scenes."""
+    return _signalled(args, sig, ready, env=ENV, what=what, after=after)
 
 
 def one_error(code: int, stderr: str, expect: str, exit_code: int = 1) -> str:
@@ -217,9 +207,15 @@ def test_ctrl_c_during_continue_keeps_the_curve_computed_so_far(tmp_path):
                              after=1.5)
     one_error(code, stderr, "Error: interrupted (Ctrl-C)", exit_code=130)
     assert f"is saved in {out}" in stderr
-    (curve,), _ = io.load(out)
+    (curve,), meta = io.load(out)
     assert curve.status == "MX" and "interrupted (Ctrl-C)" in curve.message
     assert len(curve) > 10
+    # a partial curve is marked as trace marks a stopped run (qa18: it was complete=True, and `contin
+    # info` showed a finished curve); info names the command that computes it again (it has no --resume)
+    assert meta["complete"] is False and meta["stopped"] == "interrupted"
+    shown = run("info", str(out)).stdout
+    assert "(incomplete: the curve was interrupted; `contin continue` computes it again from LP1)" in shown
+    assert "--resume" not in shown
     lam, a = curve.params["lam"], curve.params["a"]
     assert np.allclose(lam * (1 + a), 3.51383071912516, rtol=1e-8)  # every saved point on the fold curve
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import sys
@@ -288,3 +289,34 @@ def test_broken_profile_function_does_not_lose_the_run(tmp_path, caplog):
     branches, meta = io.load(tmp_path / "r.h5")
     assert len(branches) == 3 and meta["profiles"] == {} and meta["complete"]
     assert "profile bug" in caplog.text
+
+
+def test_write_of_a_stopped_result_is_incomplete_with_its_reason(tmp_path):
+    """``io.write(..., stopped=REASON)``: a partial result (``contin continue`` cut short by Ctrl-C)
+    is published with complete=False and the reason, as a run's writer leaves a stopped run; the
+    branches are the same as in a complete write, and no lock is left behind."""
+    branches = rich_branches()
+    done, part = tmp_path / "done.h5", tmp_path / "part.h5"
+    io.write(done, branches, scene="toy")
+    io.write(part, branches, scene="toy", stopped="interrupted")
+    (b_done, m_done), (b_part, m_part) = io.load(done), io.load(part)
+    assert m_done["complete"] is True and m_done["stopped"] == ""
+    assert m_part["complete"] is False and m_part["stopped"] == "interrupted"
+    for a, b in zip(b_done, b_part, strict=True):
+        assert_same_branch(a, b)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["done.h5", "part.h5"]
+
+
+def test_files_record_the_library_versions(tmp_path):
+    """Bitwise reproduction of a file needs the same numpy/scipy (numba) builds: the file says which."""
+    import platform
+
+    import scipy
+
+    io.write(tmp_path / "run.h5", rich_branches(), scene="toy", parameters={"a": 2.5})
+    with h5py.File(tmp_path / "run.h5", "r") as f:
+        libs = json.loads(f.attrs["libraries"])
+    assert libs["numpy"] == np.__version__ and libs["scipy"] == scipy.__version__
+    assert libs["python"] == platform.python_version() and libs["h5py"] == h5py.__version__
+    _, meta = io.load(tmp_path / "run.h5")
+    assert meta["libraries"] == libs

@@ -259,3 +259,65 @@ def test_audit_keeps_the_tracers_lines_in_the_file(tmp_path):
     branch.audit.append("n_unstable changes 0 -> 1 between points 3 and 4 (b = 1 .. 2) with no BP/LP in between")
     messages = audit(branch)
     assert branch.audit == kept + messages
+
+
+def test_stability_columns_is_the_one_per_point_loop(caplog):
+    """contin.stability.stability_columns with a caller's eigenproblem (the gPCF operator's
+    way, problems.couette.pitchfork): the Hopf oscillator's eigenvalues lam +- i in closed form,
+    the count relative to max(1, |omega|), a point whose eigenproblem fails or whose state was not
+    saved left unknown (-1, nan) with one log line, only the given error types caught, and a stop
+    request returning None; stability_pass and growth_columns give the same columns."""
+    from contin.cancel import request_stop, stop_on_sigint
+    from contin.stability import growth_columns, stability_columns
+
+    lam = np.array([-0.5, -1e-9, 1e-6, 0.25, 0.5])
+    br = _branch(lam, np.zeros((5, 2)))
+    seen = []
+
+    def spectrum(i, u, p):
+        seen.append((i, p))
+        if i == 3:
+            raise np.linalg.LinAlgError("singular")
+        w = np.array([p["lam"] + 1j, p["lam"] - 1j])  # Hopf: lam +- i, |omega| = sqrt(1 + lam^2)
+        return w
+
+    with caplog.at_level("WARNING", logger="contin"):
+        stable, n_unstable, eigs = stability_columns(br, {"lam": 99.0, "c": 2.0}, spectrum, n_eigs=3, tol=1e-8,
+                                                     what="my pass")
+    assert [i for i, _ in seen] == list(range(5))
+    assert all(p == {"lam": lam[i], "c": 2.0} for i, p in seen)  # the branch's column overrides the fixed value
+    # 1e-6 > 1e-8 sqrt(1 + 1e-12): unstable; -1e-9 is not
+    np.testing.assert_array_equal(n_unstable, [0, 0, 2, -1, 2])
+    np.testing.assert_array_equal(stable, [True, True, False, False, False])
+    np.testing.assert_array_equal(eigs[[0, 1, 2, 4], 0], lam[[0, 1, 2, 4]] + 1j)
+    np.testing.assert_array_equal(eigs[[0, 1, 2, 4], 1], lam[[0, 1, 2, 4]] - 1j)
+    assert np.isnan(eigs[:, 2]).all() and np.isnan(eigs[3]).all()
+    assert [r.getMessage() for r in caplog.records] == [f"my pass failed at point 3 of branch {br.id}: singular"]
+
+    def other_error(i, u, p):
+        raise ValueError("not an eigenproblem failure")
+
+    with pytest.raises(ValueError, match="not an eigenproblem failure"):
+        stability_columns(br, None, other_error)
+    stable, n_unstable, eigs = stability_columns(br, None, other_error, errors=(ValueError,))
+    assert (n_unstable == -1).all() and not stable.any() and np.isnan(eigs).all()
+
+    # a state not saved (save_every > 1): unknown, its eigenproblem not asked
+    sparse_states = _branch(lam, np.zeros((5, 2)))
+    sparse_states.states = sparse_states.states[::2]
+    sparse_states.state_index = np.array([0, 2, 4])
+    seen.clear()
+    _, n_unstable, _ = stability_columns(sparse_states, None, spectrum)
+    assert [i for i, _ in seen] == [0, 2, 4] and list(n_unstable) == [0, -1, 2, -1, 2]
+
+    # the generic passes are this loop on operator_pair's spectrum
+    stability_pass(Hopf(), br, n_eigs=3)
+    np.testing.assert_array_equal(br.n_unstable, [0, 0, 2, 2, 2])
+    np.testing.assert_allclose(br.eigenvalues[:, :2], np.c_[lam + 1j, lam - 1j], atol=1e-15)
+    cols = growth_columns(Hopf(), br, kx=0.0)
+    assert set(cols) == {"growth_rate_kx0", "n_unstable_kx0"}
+    np.testing.assert_allclose(cols["growth_rate_kx0"], lam, atol=1e-15)
+    np.testing.assert_array_equal(cols["n_unstable_kx0"], [0, 0, 2, 2, 2])
+    with stop_on_sigint():
+        request_stop()
+        assert stability_columns(br, None, spectrum) is None

@@ -240,9 +240,13 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         if own_grid is not None:
             notes.append(f"on the fixed grid {own_grid} of {point.name} (the run's start grid is "
                          f"{meta.get('discretization', {}).get('intervals', '?')})")
+        from contin.cancel import STOPPED
+
+        # a curve a stop request cut short is a partial result, marked as trace marks a stopped run
+        # (it was written complete=True: `contin info` showed it as finished; qa18)
         io.write(output, [curve], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=options,
-                 notes=notes, extra=extra,
+                 notes=notes, extra=extra, stopped=STOPPED[stop.reason] if interrupted else "",
                  diagram_x=first, diagram_y=meta.get("diagram_y") or "phi")
     if as_json:
         doc_extra: dict[str, Any] = {"from": point.name, "branch": branch.id, "free": [first, second]}

@@ -18,6 +18,8 @@ def info_command(file: str, as_json: bool) -> None:
     branches, meta = io.load(file)
     prov = {k: meta[k] for k in ("format_version", "contin_version", "git_commit", "created_utc", "command",
                                  "complete")}
+    if meta.get("libraries"):  # files written before session 18 do not record them
+        prov["libraries"] = ", ".join(f"{k} {v}" for k, v in meta["libraries"].items())
     if as_json:
         echo_json(run_document(scene=meta["scene"], parameters=meta["parameters"],
                                discretization=meta["discretization"], branches=branches,
@@ -34,6 +36,9 @@ def info_command(file: str, as_json: bool) -> None:
         stopped = meta.get("stopped", "")
         if stopped.startswith("failed"):  # an error, not an interrupt: --resume would fail the same way
             click.echo(f"                (incomplete: the run {stopped})")
+        elif isinstance(meta.get("extra"), dict) and "free" in meta["extra"]:  # a `contin continue` curve (no --resume)
+            click.echo(f"                (incomplete: the curve was {stopped or 'interrupted'}; `contin continue` "
+                       f"computes it again from {meta['extra'].get('from', 'its point')})")
         elif isinstance(meta.get("extra"), dict) and "depth" in meta["extra"]:  # --depth refuses --resume
             click.echo(f"                (incomplete: the run was {stopped or 'interrupted'}; a --depth run is started "
                        f"again from scratch)")

@@ -185,45 +185,6 @@ def _resume_settings(resume: str, stored: Any, given: dict[str, Any]) -> None:
                  f"reused as they are, so resume with the same settings (or start a new run)")
 
 
-def _stability_after_run(sc: Any, request: Any, result: Any, progress: Progress, quiet: bool) -> None:
-    """The stability pass the scene left undone, through ``sc.problem_factory``.
-
-    Nothing for a scene with ``stability=False`` (one ``note:`` line unless quiet).  Branches
-    the scene left without stability columns get :meth:`SceneRequest.run_stability`
-    (k_x = k_z = 0, audit, and the extra ``--kx`` columns); a scene that computed stability
-    itself is trusted with the extra wavenumbers too.  Fold curves and other multi-parameter
-    branches are skipped (their states are not states of the problem).  Failures become
-    warnings: the traced branches are never lost to a stability problem.
-    """
-    def missing(b: Any) -> bool:
-        return len(b.free) == 1 and len(b) > 0 and b.n_unstable is None
-
-    if not sc.stability:  # no linear-stability operator (Scene.stability): a pass would be doubtful
-        if not quiet:
-            echo_err(f"note: scene {sc.name!r} has no linear-stability operator; branches are stored without stability")
-        return
-    todo = [b for b in result.branches if missing(b)]
-    if not todo:
-        return
-    if sc.problem_factory is None:
-        if not quiet and any(b.n_unstable is None for b in todo):
-            echo_err(f"note: scene {sc.name!r} computed no stability and has no problem_factory; "
-                     "branches are stored without stability")
-        return
-    try:
-        problem = sc.problem_factory(result.parameters, result.discretization)
-    except Exception as exc:  # noqa: BLE001 -- report, keep the branches
-        echo_err(f"warning: stability skipped: cannot rebuild the problem ({error_line(exc)})")
-        return
-    for b in todo:
-        progress.status(f"stability of branch {b.id} ({len(b)} points)")
-        try:
-            request.run_stability(problem, b, result.parameters)
-        except Exception as exc:  # noqa: BLE001
-            echo_err(f"warning: stability of branch {b.id} failed: {error_line(exc)}")
-    progress.done()
-
-
 def _stopped(writer: Any, exc: BaseException, *, can_resume: bool = True) -> None:
     """Record why the run stopped in the published file, say where the work is, drop the lock.
 
@@ -231,13 +192,13 @@ def _stopped(writer: Any, exc: BaseException, *, can_resume: bool = True) -> Non
     input found late (ValueError, LookupError) would fail the same way again, so no --resume is
     suggested for it.  ``contin info`` says "failed: ...", not "interrupted", for any error.
     """
-    from contin.cancel import is_stopped_branch, stopped_by
+    from contin.cancel import CTRL_C, SIGTERM, STOPPED, is_stopped_branch, stopped_by
 
     interrupted = isinstance(exc, KeyboardInterrupt)
     # bad input would fail the same way again; a --depth run cannot be resumed (its note suggested
     # --resume, which --depth refuses: qa16)
     resumable = can_resume and not isinstance(exc, ValueError | LookupError)
-    why = ("terminated by SIGTERM" if isinstance(exc, Terminated) else "interrupted" if interrupted
+    why = (STOPPED[SIGTERM] if isinstance(exc, Terminated) else STOPPED[CTRL_C] if interrupted
            else f"failed: {error_line(exc)}")
     try:
         if writer.publishes or any(len(b) > 0 for b in writer.branches):
@@ -439,21 +400,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             return explore(start(request), request, depth=depth, max_branches=max_branches)
 
         sc = dataclasses.replace(sc, run=run_diagram, adaptive=False)
-    if (tol is not None or max_grid is not None or special_tol is not None or no_solve_check) and not sc.adaptive:
-        fail(f"scene {scene!r} has no adaptive resolution (--tol, --max-grid, --special-tol, --no-solve-check); "
-             "choose its grid with --grid")
-    if special_tol is not None and grid is not None and tol is None:
-        fail("--special-tol needs adaptive resolution: drop --grid or add --tol")
-    if sc.adaptive and (tol is not None or grid is None):
-        overrides["tol"] = tol if tol is not None else sc.default_tol
-        if no_solve_check:
-            overrides["solve_check"] = False
-        if special_tol is not None:
-            overrides["special_tol"] = special_tol
-        if max_grid is not None:
-            if grid is not None and grid > max_grid:
-                fail(f"--grid {grid} exceeds --max-grid {max_grid}")
-            overrides["max_grid"] = max_grid
+    # the scene's resolution settings, as every sweep task of it gets them (Scene.accuracy_overrides)
+    overrides.update(sc.accuracy_overrides(grid=grid, tol=tol, max_grid=max_grid, special_tol=special_tol,
+                                           solve_check=not no_solve_check))
 
     completed: dict[str, Any] = {}
     if resume is not None:
@@ -565,22 +514,13 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     try:
         progress.done()
         if not no_stability:
-            _stability_after_run(sc, request, result, progress, quiet)
+            def say(line: str) -> None:
+                progress.done()
+                if not (quiet and line.startswith("note: ")):
+                    echo_err(line)
+
+            scene_mod.stability_after_run(sc, request, result, say)
         progress.close()
-        missing_kx = [f"{k:g}" for k in kx_values if k != 0 and not no_stability
-                      and not any(f"growth_rate_kx{k:g}" in b.observables for b in result.branches)]
-        if missing_kx:  # never a silent no-op: the README promises a column per --kx value
-            if request.kx_unavailable:  # it said "computed no stability" of a scene whose k_x = 0 pass ran
-                why = (f"scene {scene!r} has no wavenumber: its problem has no eigenproblem(u, p, kx, kz), so only "
-                       f"k_x = 0 exists (that stability was computed)")
-            elif not sc.stability:
-                why = f"scene {scene!r} has no linear-stability operator (no stability was computed)"
-            elif sc.problem_factory is None and not any(b.n_unstable is not None for b in result.branches):
-                why = (f"scene {scene!r} computed no stability (it has no problem_factory to rebuild its problem "
-                       f"for a stability pass)")
-            else:
-                why = f"scene {scene!r} computed no stability"
-            echo_err(f"warning: --kx {','.join(missing_kx)} ignored: {why}; no growth_rate_kx column was stored")
 
         if step_overrides and not request.resolved_options:
             echo_err(f"warning: scene {scene!r} does not apply --ds/--ds-max/--max-steps/--uz/--stop-at/--bp-eigs; they were ignored")

@@ -77,7 +77,7 @@ from contin.jumps import retrace_on_jumps as _retrace_on_jumps
 from contin.options import ContinuationOptions, NewtonOptions
 from contin.overlap import is_invariant
 from contin.overlap import mirror_branch as _mirror_branch
-from contin.stability import audit, count_unstable, eigenvalues
+from contin.stability import audit, eigenvalues, stability_columns
 from problems.couette.closures import coefficients, critical_gap_factor, packing_limit
 from problems.couette.model import CouetteProblem, rebuilt_engine
 
@@ -654,30 +654,18 @@ def finite_eigenvalues(A: Any, B: Any) -> np.ndarray:
     return eigenvalues(A, B)
 
 
-def _stability_columns(op: Any, branch: Branch, params: Mapping[str, float], kx: float,
+def _stability_columns(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float,
                        n_eigs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(stable, n_unstable, eigenvalues) of every stored point; None when a stop request
-    (``contin.cancel.stop_requested``, the first Ctrl-C/SIGTERM) ended the loop between points."""
-    from contin.cancel import stop_requested
+    """(stable, n_unstable, eigenvalues) of every stored point by the generic per-point loop
+    (``contin.stability.stability_columns``: stop requests, unknown points, the columns) with
+    gPCF's eigenproblem: :meth:`StabilityOperator.spectrum` at k_x, each point on its own grid
+    (adaptive runs); None when a stop request ended the loop."""
 
-    s = len(branch)
-    stable = np.zeros(s, dtype=bool)
-    n_unstable = np.full(s, -1, dtype=np.int64)
-    eigs = np.full((s, n_eigs), np.nan + 0j)
-    for i in range(s):
-        if stop_requested():  # the first Ctrl-C waited for the whole pass (35 s on a gravity branch, qa17)
-            return None
-        p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
-        op_i = op if branch.grid is None else type(op)(point_problem(op.problem, branch, i))  # its own grid
-        try:
-            w = op_i.spectrum(branch.state(i), p, kx=kx)
-        except (np.linalg.LinAlgError, ValueError) as exc:
-            log.warning("stability failed at point %d of branch %s: %s", i, branch.id, exc)
-            continue
-        n_unstable[i] = count_unstable(w, STABILITY_TOL)
-        stable[i] = n_unstable[i] == 0
-        eigs[i, : min(n_eigs, w.size)] = w[:n_eigs]
-    return stable, n_unstable, eigs
+    def spectrum(i: int, x: Array, p: dict[str, float]) -> np.ndarray:
+        return StabilityOperator(point_problem(problem, branch, i)).spectrum(x, p, kx=kx)
+
+    return stability_columns(branch, params, spectrum, n_eigs=n_eigs, tol=STABILITY_TOL,
+                             errors=(np.linalg.LinAlgError, ValueError))
 
 
 @limited()  # small dense eigenproblems: one BLAS thread (contin.blas)
@@ -691,7 +679,7 @@ def stability(problem: CouetteProblem, branch: Branch, params: Mapping[str, floa
     ``branch.audit`` after the continuation's own entries.
     """
     before = list(branch.audit)
-    columns = _stability_columns(StabilityOperator(problem), branch, params, 0.0, n_eigs)
+    columns = _stability_columns(problem, branch, params, 0.0, n_eigs)
     if columns is None:  # stopped: the branch stays without stability (a --resume computes it)
         return []
     branch.stable, branch.n_unstable, branch.eigenvalues = columns
@@ -710,7 +698,7 @@ def audit_branch(branch: Branch) -> list[str]:
 def growth_rates(problem: CouetteProblem, branch: Branch, params: Mapping[str, float], kx: float) -> dict[str, list] | None:
     """max Re omega and the unstable count at wavenumber k_x (k_z = 0) at every stored point
     (None when a stop request ended the loop)."""
-    columns = _stability_columns(StabilityOperator(problem), branch, params, kx, 1)
+    columns = _stability_columns(problem, branch, params, kx, 1)
     if columns is None:
         return None
     _, counts, eigs = columns

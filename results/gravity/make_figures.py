@@ -39,6 +39,9 @@ STYLE = {"primary": "k", "isola": "tab:red", "floating-plug": "tab:blue", "botto
 def _summary(b) -> dict:
     """Numbers of one branch for the panel JSON files (what results/README.md quotes)."""
     H = b.params["H"]
+    if len(b) == 0:  # a branch that could not start (its message says why): listed, nothing to draw
+        return {"id": b.id, "kind": b.kind, "closed": False, "status": b.status, "message": b.message,
+                "H": [], "phi": [], "folds": []}
     return {"id": b.id, "kind": b.kind, "closed": bool(b.closed), "status": b.status, "message": b.message,
             "H": [float(H.min()), float(H.max())],
             "phi": [float(b.observables["phi"].min()), float(b.observables["phi"].max())],
@@ -71,6 +74,10 @@ def panels(nu: float, frs: list[float], name: str, H_max: float = 70.0, N: int =
         else:
             d = discover(pb, pb.params({"nu": nu, "e": 0.8, "Fr": fr}), st, g0_branches=g0, base=base)
             for b in d.branches:
+                if len(b) == 0:  # could not start (in the JSON with its reason); KeyError 'phi' before
+                    print(f"warning: nu = {nu:g}, Fr = {fr:g}: branch {b.id} could not start: {b.message}",
+                          file=sys.stderr)
+                    continue
                 ax.plot(b.params["H"], b.observables["phi"], "-", color=STYLE[b.kind], lw=1, label=b.kind)
                 for lp in b.fold_points:
                     ax.plot(lp.params["H"], lp.order_parameter, "o", color=STYLE[b.kind], ms=3)

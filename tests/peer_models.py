@@ -1,0 +1,124 @@
+"""Peer problems: equilibria of AUTO-07p's demos and BifurcationKit's tutorials, written from their
+published equations through the public API (``contin.from_functions``), each with its exact
+Jacobian for the independent references of tests/test_peer_*.py (the core never sees it: it
+builds its own by grouped differences from F alone, as a user's problem would).
+
+- AUTO ``enz`` (demos/enz/enz.f90; two cells, one substrate, Doedel's tutorial):
+  F1 = (s0 - s1) + (s2 - s1) - rho R(s1),  F2 = (s0 + mu - s2) + (s1 - s2) - rho R(s2),
+  R(s) = s / (1 + s + kappa s^2); PAR = (s0, mu, rho, kappa) = (0, 0, 100, 1), u = 0.  For mu = 0
+  the cells may be swapped (s1 <-> s2): on the symmetric branch s1 = s2 = s, s0 = s + rho R(s),
+  J has the eigenvalues -1 - rho R'(s) (symmetric: folds) and -3 - rho R'(s) (antisymmetric:
+  symmetry-breaking pitchforks).
+- AUTO ``pp2`` (demos/pp2/pp2.f90; fish and sharks with a harvesting quota):
+  F1 = r x (1 - x) - x y - q (1 - e^{-c x}),  F2 = -y + e x y; PAR = (q, r, c, e) = (0, 3, 5, 3).
+  The trivial branch x = y = 0 has a BP at q = r / c; the shark-free branch y = 0 a BP at x = 1/e
+  and a fold; the coexistence branch x = 1/e, y = r (1 - x) - q (1 - e^{-c x}) / x a Hopf point
+  where dF1/dx = 0.
+- AUTO ``abc`` (demos/abc/abc.f90; A -> B -> C in a CSTR, Doedel & Heinemann 1983):
+  F1 = -x1 + D (1 - x1) E,  F2 = -x2 + D E (1 - x1 - s x2),
+  F3 = -x3 - beta x3 + D B E (1 - x1 + alpha s x2),  E = e^{x3};
+  PAR = (D, alpha, beta, B, s) = (0, 1, 1.55, 8, 0.04), u = 0.
+- BifurcationKit's neural mass tutorial (Tsodyks-Markram rate model, tutorials/ode/tutorialsBasic1,
+  after Cortes et al. 2013): tau E' = -E + g(J u x E + E0), x' = (1 - x)/tau_D - u x E,
+  u' = (U0 - u)/tau_F + U0 (1 - u) E, g(y) = alpha log(1 + e^{y/alpha}); (alpha, tau, J, E0,
+  tau_D, U0, tau_F) = (1.5, 0.013, 3.07, -2, 0.2, 0.3, 1.5), continued in E0 within [-4, -0.9]
+  and its Hopf curve in (E0, alpha).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import contin
+
+ENZ = dict(s0=0.0, mu=0.0, rho=100.0, kappa=1.0)
+PP2 = dict(q=0.0, r=3.0, c=5.0, e=3.0)
+ABC = dict(D=0.0, alpha=1.0, beta=1.55, B=8.0, s=0.04)
+
+
+def enz_rate(s, kappa):
+    return s / (1 + s + kappa * s * s)
+
+
+def enz_rate_ds(s, kappa):
+    return (1 - kappa * s * s) / (1 + s + kappa * s * s) ** 2
+
+
+def enz_F(u, p):
+    s1, s2 = u
+    rho, kappa = p["rho"], p["kappa"]
+    return np.array([(p["s0"] - s1) + (s2 - s1) - rho * enz_rate(s1, kappa),
+                     (p["s0"] + p["mu"] - s2) + (s1 - s2) - rho * enz_rate(s2, kappa)])
+
+
+def enz_J(u, p):
+    d = [-2 - p["rho"] * enz_rate_ds(s, p["kappa"]) for s in u]
+    return np.array([[d[0], 1.0], [1.0, d[1]]])
+
+
+def enz():
+    """The demo as a user writes it: F, the start point and the swap of the two cells."""
+    return contin.from_functions(enz_F, np.zeros(2), ENZ, mass_matrix=np.eye(2), symmetry=lambda u: u[::-1].copy())
+
+
+def pp2_F(u, p):
+    x, y = u
+    return np.array([p["r"] * x * (1 - x) - x * y - p["q"] * (1 - np.exp(-p["c"] * x)), -y + p["e"] * x * y])
+
+
+def pp2_J(u, p):
+    x, y = u
+    return np.array([[p["r"] * (1 - 2 * x) - y - p["q"] * p["c"] * np.exp(-p["c"] * x), -x],
+                     [p["e"] * y, -1 + p["e"] * x]])
+
+
+def pp2():
+    return contin.from_functions(pp2_F, np.zeros(2), PP2, mass_matrix=np.eye(2))
+
+
+def abc_F(u, p):
+    x1, x2, x3 = u
+    e, d = np.exp(x3), p["D"]
+    return np.array([-x1 + d * (1 - x1) * e,
+                     -x2 + d * e * (1 - x1 - p["s"] * x2),
+                     -x3 - p["beta"] * x3 + d * p["B"] * e * (1 - x1 + p["alpha"] * p["s"] * x2)])
+
+
+def abc_J(u, p):
+    x1, x2, x3 = u
+    e, d, s, b, al = np.exp(x3), p["D"], p["s"], p["B"], p["alpha"]
+    return np.array([[-1 - d * e, 0.0, d * (1 - x1) * e],
+                     [-d * e, -1 - d * e * s, d * e * (1 - x1 - s * x2)],
+                     [-d * b * e, d * b * e * al * s, -1 - p["beta"] + d * b * e * (1 - x1 + al * s * x2)]])
+
+
+def abc():
+    return contin.from_functions(abc_F, np.zeros(3), ABC, mass_matrix=np.eye(3))
+
+
+TM = dict(alpha=1.5, tau=0.013, J=3.07, E0=-2.0, tauD=0.2, U0=0.3, tauF=1.5)
+TM_GUESS = (0.238616, 0.982747, 0.367876)  # the tutorial's z0 (an equilibrium at E0 = -2 to 1e-6)
+
+
+def tm_F(z, p):
+    e, x, u = z
+    s = p["J"] * u * x * e + p["E0"]
+    return np.array([(-e + p["alpha"] * np.log(1 + np.exp(s / p["alpha"]))) / p["tau"],
+                     (1 - x) / p["tauD"] - u * x * e,
+                     (p["U0"] - u) / p["tauF"] + p["U0"] * (1 - u) * e])
+
+
+def tm_J(z, p):
+    e, x, u = z
+    j, tau = p["J"], p["tau"]
+    sig = 1 / (1 + np.exp(-(j * u * x * e + p["E0"]) / p["alpha"]))  # g'
+    return np.array([[(-1 + sig * j * u * x) / tau, sig * j * u * e / tau, sig * j * x * e / tau],
+                     [-u * x, -1 / p["tauD"] - u * e, -x * e],
+                     [p["U0"] * (1 - u), 0 * e, -1 / p["tauF"] - p["U0"] * e]])
+
+
+def tm(z0):
+    """The tutorial's problem; the complex step (method='cs'): its rows scale with 1/tau = 77, and
+    central differences leave the augmented Hopf system a residual floor of ~1e-9, above
+    the corrector's 1e-10 (the Hopf curve's first point did not converge)."""
+    return contin.from_functions(tm_F, z0, TM, mass_matrix=np.eye(3), method="cs")

@@ -1,0 +1,371 @@
+"""Peer problems (equilibria) against the general core: AUTO-07p's demos ``enz``, ``pp2`` and
+``abc`` (tests/peer_models.py), defined through ``contin.from_functions`` as a user would, traced
+with ``contin.continuation.trace`` or the diagram automaton.
+
+Every special point is checked for type, position and count (none missed, none spurious) and
+the stability counts at every point, against references computed here independently: closed
+forms where the demo has them (enz's symmetric branch, pp2's BPs and Hopf point), otherwise a
+scipy solve of the defining system with the exact Jacobian of peer_models (F = 0 with det J = 0
+for LP, with the Routh-Hurwitz condition a1 a2 = a3, a2 > 0 for a Hopf point of a 3-D system),
+and numpy's eigenvalues of the exact Jacobian for the stability counts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq, fsolve
+
+import peer_models as pm
+from contin.bpdetect import Spectrum, crossings
+from contin.branch import relabel
+from contin.continuation import switch, trace
+from contin.diagram import DiagramSettings, bifurcation_diagram
+from contin.options import ContinuationOptions, StepOptions
+from contin.stability import stability_pass
+
+
+def assert_stability(problem, jac, branch, params, parameter):
+    """``stability_pass``'s n_unstable at every point of ``branch`` against the eigenvalues of the
+    exact Jacobian with Re > 0; a point where one has |Re| < 1e-7 (a branch starting on its BP)
+    has no definite count and is skipped (at most two per branch)."""
+    stability_pass(problem, branch, params)
+    ours, ref = [], []
+    for i in range(len(branch)):
+        p = dict(params, **{parameter: branch.params[parameter][i]})
+        mu = np.linalg.eigvals(jac(branch.states[i], p))
+        if np.min(np.abs(mu.real)) > 1e-7:
+            ours.append(int(branch.n_unstable[i]))
+            ref.append(int(np.sum(mu.real > 0)))
+    assert len(ref) >= len(branch) - 2 and ours == ref, branch.id
+
+
+def solve(defining, guess):
+    z, _, ok, msg = fsolve(defining, np.asarray(guess, float), xtol=1e-14, full_output=True)
+    assert ok == 1 or np.max(np.abs(defining(z))) < 1e-11, msg
+    return z
+
+
+def fold_reference(F, jac, params, parameter, point):
+    """(state, parameter) solving F = 0, det J = 0 from a special point's position."""
+    n = point.state.size
+
+    def defining(z):
+        p = dict(params, **{parameter: z[n]})
+        return np.append(F(z[:n], p), np.linalg.det(jac(z[:n], p)))
+
+    return solve(defining, np.append(point.state, point.params[parameter]))
+
+
+# --------------------------------------------------------------------------------------------
+# the eigenvalue-count detector: a real pair swapping magnitudes is no crossing (enz)
+
+
+def test_a_real_pair_swapping_magnitudes_across_the_disc_rim_is_no_crossing():
+    """One eigenvalue leaving the disc while another enters kept the counts inside equal, so a
+    cut between them was taken for a rim nothing crossed: +-1.417 swapping magnitudes (enz's
+    asymmetric branch) counted as one crossing, a spurious BP "not located (eigenvalue count
+    only)".  A cut must lie farther than the eigenvalues moved (||J_b - J_a||) from them."""
+    a = Spectrum(np.array([1.4168, -1.4172], dtype=complex), math.inf)
+    b = Spectrum(np.array([-1.4170, 1.4175], dtype=complex), math.inf)
+    assert crossings(a, b, 12, moved=1e-3)[:2] == (0, True)
+    # a real crossing still counts, with or without a separating gap
+    c = Spectrum(np.array([-1e-3, 5.0], dtype=complex), math.inf)
+    d = Spectrum(np.array([2e-3, 5.01], dtype=complex), math.inf)
+    assert crossings(c, d, 12, moved=4e-3)[:2] == (1, True)
+
+
+# --------------------------------------------------------------------------------------------
+# AUTO demo enz
+
+
+def enz_symmetric_references(kind):
+    """s of the symmetric folds (rho R'(s) = -1) or pitchforks (rho R'(s) = -3), kappa = 1:
+    the real positive roots of c (1 + s + s^2)^2 + rho (1 - s^2) = 0."""
+    c, rho = {"LP": 1.0, "BP": 3.0}[kind], pm.ENZ["rho"]
+    poly = c * np.polymul([1, 1, 1], [1, 1, 1]) + np.array([0, 0, -rho, 0, rho])
+    roots = np.roots(poly)
+    s = np.sort(roots[(abs(roots.imag) < 1e-12) & (roots.real > 0)].real)
+    return s, s + rho * pm.enz_rate(s, 1.0)
+
+
+def test_auto_enz_symmetric_branch_folds_and_pitchforks():
+    """The symmetric branch from s0 = 0: two folds and two symmetry-breaking pitchforks at their
+    closed forms (1e-9), nothing else (before the disc-rim fix two spurious BPs "not located
+    (eigenvalue count only)" where rho R' = -2, i.e. J's eigenvalues are +-1); stability counts
+    of the exact Jacobian at every point."""
+    pb = pm.enz()
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500)
+    br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)
+    relabel([br])
+    assert br.status == "EP" and br.params["s0"][-1] == 40.0
+    inner = [s for s in br.special_points if s.type != "EP"]
+    assert [s.type for s in inner] == ["LP", "BP", "BP", "LP"], [(s.name, s.note) for s in inner]
+    s_lp, s0_lp = enz_symmetric_references("LP")
+    s_bp, s0_bp = enz_symmetric_references("BP")
+    assert len(s_lp) == len(s_bp) == 2
+    for sp, s, s0 in zip(inner, [s_lp[0], s_bp[0], s_bp[1], s_lp[1]], [s0_lp[0], s0_bp[0], s0_bp[1], s0_lp[1]]):
+        assert sp.converged and sp.params["s0"] == pytest.approx(s0, rel=1e-9, abs=0), sp.name
+        assert np.allclose(sp.state, s, rtol=1e-7), sp.name
+    assert all(("symmetry-breaking" in s.note and "kernel dimension 1" in s.note) for s in inner if s.type == "BP")
+    assert_stability(pb, pm.enz_J, br, pm.ENZ, "s0")
+
+
+def test_auto_enz_asymmetric_branch_folds():
+    """The branch switched at the first pitchfork (s1 != s2) up to its second fold: the two
+    folds solve F = 0, det J = 0 (1e-9), the branch keeps s1 - s2 of one sign, and the two
+    switched directions are each other's mirror image (the cells swapped)."""
+    pb = pm.enz()
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500)
+    br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)
+    relabel([br])
+    kids = switch(pb, br, br.branch_points[0], ContinuationOptions(
+        step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500, stop_at=("LP2",)))
+    assert len(kids) == 2
+    folds = []
+    for kid in kids:
+        relabel([kid])
+        assert [s.type for s in kid.special_points] == ["LP", "LP", "EP"], [(s.name, s.note) for s in kid.special_points]
+        a = kid.states[1:, 0] - kid.states[1:, 1]
+        assert np.all(a > 0) or np.all(a < 0)
+        for lp in kid.fold_points:
+            z = fold_reference(pm.enz_F, pm.enz_J, pm.ENZ, "s0", lp)
+            assert lp.params["s0"] == pytest.approx(z[2], rel=1e-9, abs=0)
+            assert np.allclose(lp.state, z[:2], rtol=1e-7)
+            assert abs(z[0] - z[1]) > 1.0  # an asymmetric fold, not the symmetric one
+        folds.append([(lp.params["s0"], *lp.state) for lp in kid.fold_points])
+    (one, two) = folds
+    assert np.allclose(np.array(one)[:, [0, 2, 1]], np.array(two), rtol=1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="open: the core does not pass through a pitchfork along the branch "
+                   "that bifurcates there (tangent ill-determined next to the BP; see README, peer problems)")
+def test_auto_enz_asymmetric_branch_passes_the_second_pitchfork():
+    """The asymmetric branch of enz joins the symmetric one at its second pitchfork (s0 =
+    22.1816): traced on, it should report that BP and continue as the mirror half, with no other
+    special points there.  Today it reports no BP or an unlocated one, a cloud of LPs at the
+    pitchfork's parameter and then jumps onto the symmetric branch (its fold at s0 = 18.887)."""
+    pb = pm.enz()
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500)
+    br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)
+    relabel([br])
+    s_bp, s0_bp = enz_symmetric_references("BP")
+    for kid in switch(pb, br, br.branch_points[0], opts):
+        near = [s for s in kid.special_points if abs(s.params["s0"] - s0_bp[1]) < 1e-3]
+        assert [s.type for s in near] == ["BP"] and near[0].converged
+        assert not any(abs(s.params["s0"] - s0_bp[1] + 3.29) < 0.01 for s in kid.fold_points)
+
+
+# --------------------------------------------------------------------------------------------
+# AUTO demo pp2
+
+
+def test_auto_pp2_diagram_bps_fold_hopf_and_stability():
+    """The automatic diagram from the trivial state (depth 3, quota in [0, 1]; AUTO's UZSTOP
+    fish = -0.25 as an event): BP at q = r/c on x = y = 0, on the shark-free branch the BP at
+    x = 1/e, q = r x (1 - x) / (1 - e^{-c x}) and its fold (the maximum of that q(x)), on the
+    coexistence branch x = 1/e the Hopf point where dF1/dx = 0 (linear in q), omega = sqrt(y_H);
+    each within 1e-8, nothing else; stability counts of every branch from the exact Jacobian."""
+    pb = pm.pp2()
+    r, c, e = pm.PP2["r"], pm.PP2["c"], pm.PP2["e"]
+    opts = ContinuationOptions(step=StepOptions(ds=0.02, ds_max=0.06), bounds={"q": (0.0, 1.0)}, max_steps=300,
+                               events={"fish=-0.25": lambda u, p: u[0] + 0.25}, stop_at=("UZ1",))
+    d = bifurcation_diagram(pb, np.zeros(2), pm.PP2, "q", opts, DiagramSettings(depth=3))
+    x_s = 1 / e
+    q_x = lambda x: r * x * (1 - x) / (1 - math.exp(-c * x))  # noqa: E731 -- the shark-free branch
+    # Hopf on x = 1/e: dF1/dx = r (1 - 2x) - y - q c e^{-cx} = 0 with y = r (1 - x) - q (1 - e^{-cx}) / x
+    ex = math.exp(-c * x_s)
+    q_h = (r * (1 - 2 * x_s) - r * (1 - x_s)) / (c * ex - (1 - ex) / x_s)
+    y_h = r * (1 - x_s) - q_h * (1 - ex) / x_s
+    x_lp = brentq(lambda x: (q_x(x + 1e-7) - q_x(x - 1e-7)), 0.2, 0.8, xtol=1e-14)
+    expected = {("BP", r / c), ("BP", q_x(x_s)), ("LP", q_x(x_lp)), ("HB", q_h)}
+    found = [(s.type, s.params["q"], s) for b in d.branches for s in b.special_points if s.type in ("BP", "LP", "HB")]
+    # each point once per branch through it: the BPs are seen from both branches that cross there
+    for kind, q in expected:
+        hits = [s for t, v, s in found if t == kind and abs(v - q) <= 1e-8 * max(1, q)]
+        assert hits and all(s.converged for s in hits), (kind, q, [(t, v) for t, v, _ in found])
+    assert all(any(t == k and abs(v - q) <= 1e-8 for k, q in expected) for t, v, _ in found), found
+    (hb,) = [s for t, _, s in found if t == "HB"]
+    assert np.allclose(hb.state, [x_s, y_h], rtol=1e-8)
+    assert hb.data["omega"] == pytest.approx(math.sqrt(y_h), rel=1e-8)
+    for b in d.branches:
+        assert_stability(pb, pm.pp2_J, b, pm.PP2, "q")
+
+
+# --------------------------------------------------------------------------------------------
+# AUTO demo abc
+
+
+def test_from_functions_pattern_keeps_couplings_a_start_parameter_switches_off():
+    """abc starts at D = 0, where J is diagonal: the pattern detected there (parameters not
+    perturbed) dropped every D-dependent entry, Newton converged linearly with that Jacobian and
+    the run found none of abc's Hopf points.  Now the Jacobian at D = 0.2 is the exact one."""
+    pb = pm.abc()
+    u, p = np.array([0.6, 0.55, 1.9]), dict(pm.ABC, D=0.2)
+    exact = pm.abc_J(u, p)
+    assert np.max(np.abs(pb.jacobian(u, p).toarray() - exact)) < 1e-7 * np.max(np.abs(exact))
+
+
+def hopf_reference_3d(F, jac, params, parameter, point):
+    """(state, parameter) solving F = 0, a1 a2 - a3 = 0 (Routh-Hurwitz; a_k the coefficients of
+    det(lambda - J)), and omega = sqrt(a2)."""
+    n = point.state.size
+
+    def coefficients(z):
+        a = jac(z[:n], dict(params, **{parameter: z[n]}))
+        a1 = -np.trace(a)
+        a2 = sum(np.linalg.det(a[np.ix_([i, j], [i, j])]) for i in range(3) for j in range(i + 1, 3))
+        return a1, a2, -np.linalg.det(a)
+
+    def defining(z):
+        a1, a2, a3 = coefficients(z)
+        return np.append(F(z[:n], dict(params, **{parameter: z[n]})), a1 * a2 - a3)
+
+    z = solve(defining, np.append(point.state, point.params[parameter]))
+    a1, a2, a3 = coefficients(z)
+    assert a2 > 0
+    return z, math.sqrt(a2)
+
+
+def test_auto_abc_hopf_points_and_stability():
+    """abc continued in D from 0 to 0.4 (AUTO's c.abc.1, UZSTOP D = 0.4): four Hopf points at the
+    Routh-Hurwitz solution (1e-9 in D, omega 1e-7), as many as a1 a2 - a3 of the exact J changes
+    sign along the branch; det J keeps its sign (no fold); stability counts at every point."""
+    pb = pm.abc()
+    opts = ContinuationOptions(step=StepOptions(ds=0.02, ds_max=0.1), bounds={"D": (0.0, 0.4)}, max_steps=500)
+    br = trace(pb, np.zeros(3), pm.ABC, "D", opts)
+    relabel([br])
+    assert br.status == "EP" and br.params["D"][-1] == 0.4
+    assert [s.type for s in br.special_points] == ["HB"] * 4 + ["EP"], [(s.name, s.note) for s in br.special_points]
+    hurwitz, dets = [], []
+    for i in range(len(br)):
+        a = pm.abc_J(br.states[i], dict(pm.ABC, D=br.params["D"][i]))
+        a2 = sum(np.linalg.det(a[np.ix_([k, m], [k, m])]) for k in range(3) for m in range(k + 1, 3))
+        hurwitz.append(-np.trace(a) * a2 + np.linalg.det(a))
+        dets.append(np.linalg.det(a))
+    assert np.count_nonzero(np.diff(np.sign(hurwitz))) == 4
+    assert np.all(np.sign(dets) == np.sign(dets[0]))
+    for hb in br.points("HB"):
+        z, omega = hopf_reference_3d(pm.abc_F, pm.abc_J, pm.ABC, "D", hb)
+        assert hb.converged and hb.params["D"] == pytest.approx(z[3], rel=1e-9, abs=0)
+        assert np.allclose(hb.state, z[:3], rtol=1e-7)
+        assert hb.data["omega"] == pytest.approx(omega, rel=1e-7)
+    assert_stability(pb, pm.abc_J, br, pm.ABC, "D")
+
+
+# --------------------------------------------------------------------------------------------
+# BifurcationKit's neural mass tutorial (Tsodyks-Markram)
+
+
+def hurwitz(a):
+    """(a1, a2, a3) of det(lambda I - A) = lambda^3 + a1 lambda^2 + a2 lambda + a3."""
+    a2 = sum(np.linalg.det(a[np.ix_([i, j], [i, j])]) for i in range(3) for j in range(i + 1, 3))
+    return -np.trace(a), a2, -np.linalg.det(a)
+
+
+def first_lyapunov(jac, z, p, h=1e-4):
+    """Kuznetsov's l1 (eq. 3.20; q^H q = 1, p^H q = 1) at a Hopf point, with B = the complex-step
+    directional derivative of the exact Jacobian and C = central differences of that B (the core
+    uses central differences of its own difference Jacobian)."""
+
+    def d_jac(x, v):  # dJ/dx along a real direction v, exact to rounding
+        return np.imag(jac(x + 1j * 1e-30 * v, p)) / 1e-30
+
+    def b(q, r, x=z):
+        return (d_jac(x, r.real) + 1j * d_jac(x, r.imag)) @ q
+
+    def c(q, r, s):
+        def along(v):
+            return (b(q, r, z + h * v) - b(q, r, z - h * v)) / (2 * h)
+        return along(s.real) + 1j * along(s.imag)
+
+    a = jac(z, p).astype(float)
+    mu, right = np.linalg.eig(a)
+    k = int(np.argmax(mu.imag))
+    omega, q = mu[k].imag, right[:, k] / np.linalg.norm(right[:, k])
+    mu_l, left = np.linalg.eig(a.T)
+    pl = left[:, int(np.argmin(np.abs(mu_l - np.conj(mu[k]))))]
+    pl = pl / np.conj(np.vdot(pl, q))
+    qb = np.conj(q)
+    total = (np.vdot(pl, c(q, q, qb)) - 2 * np.vdot(pl, b(q, np.linalg.solve(a, b(q, qb))))
+             + np.vdot(pl, b(qb, np.linalg.solve(2j * omega * np.eye(3) - a, b(q, q)))))
+    return float(total.real / (2 * omega))
+
+
+def tm_branch():
+    z0 = fsolve(pm.tm_F, pm.TM_GUESS, args=(pm.TM,), xtol=1e-14)
+    pb = pm.tm(z0)
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.1), bounds={"E0": (-4.0, -0.9)}, max_steps=500)
+    from contin.continuation import trace_both
+
+    br = trace_both(pb, z0, pm.TM, "E0", opts)
+    relabel([br])
+    return pb, br
+
+
+def test_bifurcationkit_neural_mass_folds_hopf_points_and_stability():
+    """The tutorial's branch in E0 within [-4, -0.9] (both sides of E0 = -2): two folds (F = 0,
+    det J = 0) and two Hopf points (F = 0, a1 a2 = a3, a2 > 0; omega = sqrt(a2)) at the scipy
+    solutions (1e-9), their l1 sign that of the independent Kuznetsov l1 (both subcritical, as
+    the tutorial's), nothing else; stability counts at every point."""
+    pb, br = tm_branch()
+    inner = [s for s in br.special_points if s.type != "EP"]
+    assert sorted(s.type for s in inner) == ["HB", "HB", "LP", "LP"], [(s.name, s.note) for s in inner]
+    for lp in br.fold_points:
+        z = fold_reference(pm.tm_F, pm.tm_J, pm.TM, "E0", lp)
+        assert lp.converged and lp.params["E0"] == pytest.approx(z[3], rel=1e-9, abs=0)
+        assert np.allclose(lp.state, z[:3], rtol=1e-7)
+    for hb in br.points("HB"):
+        z, omega = hopf_reference_3d(pm.tm_F, pm.tm_J, pm.TM, "E0", hb)
+        assert hb.converged and hb.params["E0"] == pytest.approx(z[3], rel=1e-9, abs=0)
+        assert hb.data["omega"] == pytest.approx(omega, rel=1e-7)
+        l1 = first_lyapunov(pm.tm_J, z[:3], dict(pm.TM, E0=z[3]))
+        assert l1 > 0 and hb.data["l1"] == pytest.approx(l1, rel=1e-4)
+    assert_stability(pb, pm.tm_J, br, pm.TM, "E0")
+
+
+def test_bifurcationkit_neural_mass_hopf_curve_zero_hopf_and_generalized_hopf():
+    """The Hopf curve of the first HB in (E0, alpha), alpha within [1, 2.3]: its zero-Hopf point
+    solves F = 0, det J = 0, tr J = 0 (eigenvalues 0, +-i omega) and its generalized Hopf point
+    F = 0, a1 a2 = a3, l1 = 0 (l1 independent, above), both to 1e-8; the two LPs are extrema of
+    E0 among their neighbours; every point of the curve solves F = 0 and a1 a2 = a3."""
+    from contin.hopfcurve import trace_hopf_curve
+
+    pb, br = tm_branch()
+    hb = min(br.points("HB"), key=lambda s: s.params["E0"])
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.5), bounds={"E0": (-4.0, -0.9), "alpha": (1.0, 2.3)},
+                               max_steps=500)
+    curve = trace_hopf_curve(pb, hb, "alpha", opts, parameter="E0")
+    relabel([curve])
+    kinds = [s.type for s in curve.special_points]
+    assert sorted(kinds) == ["EP", "EP", "GH", "LP", "LP", "ZH"], [(s.name, s.note) for s in curve.special_points]
+    n = 3
+    for i in range(len(curve)):
+        p = dict(pm.TM, E0=curve.params["E0"][i], alpha=curve.params["alpha"][i])
+        a1, a2, a3 = hurwitz(pm.tm_J(curve.states[i][:n], p))
+        assert abs(a1 * a2 - a3) < 1e-7 * a2 * abs(a1) + 1e-9 and np.max(np.abs(pm.tm_F(curve.states[i][:n], p))) < 1e-8
+    for lp in curve.fold_points:
+        near = curve.params["E0"][max(lp.index - 2, 0):lp.index + 3]
+        assert lp.params["E0"] >= near.max() - 1e-12 or lp.params["E0"] <= near.min() + 1e-12
+    (zh,) = curve.points("ZH")
+
+    def zero_hopf(z):
+        p = dict(pm.TM, E0=z[3], alpha=z[4])
+        a = pm.tm_J(z[:3], p)
+        return np.concatenate([pm.tm_F(z[:3], p), [np.linalg.det(a), np.trace(a)]])
+
+    z = solve(zero_hopf, np.concatenate([zh.state[:n], [zh.params["E0"], zh.params["alpha"]]]))
+    assert zh.params["E0"] == pytest.approx(z[3], rel=1e-8) and zh.params["alpha"] == pytest.approx(z[4], rel=1e-8)
+    (gh,) = curve.points("GH")
+
+    def bautin(z):
+        p = dict(pm.TM, E0=z[3], alpha=z[4])
+        a1, a2, a3 = hurwitz(pm.tm_J(z[:3], p))
+        return np.concatenate([pm.tm_F(z[:3], p), [(a1 * a2 - a3) / a2, first_lyapunov(pm.tm_J, z[:3], p)]])
+
+    z, _, ok, msg = fsolve(bautin, np.concatenate([gh.state[:n], [gh.params["E0"], gh.params["alpha"]]]),
+                           xtol=1e-13, full_output=True)
+    assert np.max(np.abs(bautin(z)[:3])) < 1e-9, msg
+    assert gh.params["E0"] == pytest.approx(z[3], rel=1e-8) and gh.params["alpha"] == pytest.approx(z[4], rel=1e-8)
