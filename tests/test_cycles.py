@@ -626,3 +626,25 @@ def test_cli_period_doubled_orbits_from_pd(tmp_path, monkeypatch):
     assert math.isclose(doubled.observables["period"][0], 2 * pd.data["period"], rel_tol=1e-3)
     r = _cli("continue", run, "--from", "EP2", "--cycles")
     assert r.exit_code == 1 and "--cycles starts at a Hopf point (HB) or a period doubling (PD)" in r.output
+
+
+def test_ctrl_c_keeps_the_orbits_computed_so_far(ab_file, tmp_path):
+    """The first Ctrl-C ends the orbits at the last one computed: the file holds them, marked
+    incomplete ('interrupted'), then one Error line and exit 130 (as continue does for curves)."""
+    import os
+    import signal
+
+    from contin import io
+    from tests.signals import signalled
+
+    out = tmp_path / "cyc.h5"
+    code, stderr = signalled(["continue", str(ab_file), "--from", "HB1", "--cycles", "--ds", "1e-4", "--ds-max", "1e-4",
+                              "--max-steps", "100000", "-o", str(out)], signal.SIGINT,
+                             lambda: (tmp_path / ".cyc.h5.lock").exists(), env=os.environ,
+                             what="the output lock (computing starts)", after=2.0)
+    errors = [line for line in stderr.splitlines() if line.startswith("Error:")]
+    assert code == 130 and errors == ["Error: interrupted (Ctrl-C)"], stderr
+    assert f"are saved in {out}" in stderr
+    (br,), meta = io.load(out)
+    assert meta["complete"] is False and meta["stopped"] == "interrupted"
+    assert br.kind == "periodic-orbits" and len(br) > 3 and "interrupted" in br.message

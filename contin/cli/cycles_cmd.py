@@ -88,9 +88,13 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         notes = [summary + f" in {file}"]
         if own_grid is not None:
             notes.append(f"on the fixed grid {own_grid} of {point.name}")
+        from contin.cancel import STOPPED
+
+        # orbits a stop request cut short are a partial result, marked as continue marks its curves
         io.write(output, [cycles], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=dataclasses.replace(options, save_every=1),
-                 notes=notes, extra=extra, diagram_x=first, diagram_y="amplitude")
+                 notes=notes, extra=extra, stopped=STOPPED[stop.reason] if interrupted else "",
+                 diagram_x=first, diagram_y="amplitude")
     if as_json:
         from contin.jsonout import run_document
 
@@ -123,6 +127,9 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         from contin.cli._runctl import EXIT_TERMINATED
 
         term = stop.reason == SIGTERM
+        if output is not None:
+            echo_err(f"note: the orbits computed before {'SIGTERM' if term else 'Ctrl-C'} ({len(cycles)} points) "
+                     f"are saved in {output}")
         echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
         raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
     if cycles.status == "MX":
