@@ -260,7 +260,7 @@ class Collocation:
         nodes, period = m.split(x)
         _, _, L, D = m.tables
         ug = m.at_gauss(nodes).reshape(-1, n)
-        jacs = np.array([_dense(self.problem.jacobian(v, p)) for v in ug]).reshape(m.ntst, m.ncol, n, n)
+        jacs = np.array([dense_matrix(self.problem.jacobian(v, p)) for v in ug]).reshape(m.ntst, m.ncol, n, n)
         mass = np.eye(n) if self.mass is None else self.mass
         return (D[None, :, :, None, None] * mass[None, None, None]
                 - (m.h[:, None, None, None, None] * period) * L[None, :, :, None, None] * jacs[:, :, None])
@@ -289,5 +289,6 @@ class Collocation:
         return np.concatenate([(-(m.h[:, None, None] * period) * fp).ravel(), [0.0]])
 
 
-def _dense(a: object) -> Array:
+def dense_matrix(a: object) -> Array:
+    """A scipy.sparse matrix or array-like as a dense float array (problems may give either)."""
     return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)

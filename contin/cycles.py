@@ -53,7 +53,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contin.branch import Branch, SpecialPoint
-from contin.collocation import NCOL, NTST, Collocation, Mesh
+from contin.collocation import NCOL, NTST, Collocation, Mesh, dense_matrix
 from contin.floquet import FLOQUET_DOUBTFUL, FloquetTest, Multipliers, ShrinkTest, multipliers
 from contin.options import ContinuationOptions
 from contin.problem import Array, has, inner_product_weights
@@ -243,10 +243,6 @@ class HopfStart:
     mass: Array | None
 
 
-def _dense(a: Any) -> Array:
-    return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
-
-
 def hopf_start(problem: Any, point: SpecialPoint, parameter: str) -> HopfStart:
     """The Hopf data of ``point`` (an HB) for cycles in ``parameter`` (module docstring)."""
     from contin.hopf import hopf_vectors, pencil
@@ -265,16 +261,16 @@ def hopf_start(problem: Any, point: SpecialPoint, parameter: str) -> HopfStart:
         raise ValueError(f"{point.name} has no pair of eigenvalues +-i omega (omega = {omega}): not a Hopf point")
     q, pvec = hopf_vectors(jac, mass, omega, weights=inner_product_weights(problem, u, q_params))
     # Re lambda'(p) along the equilibrium branch: p^H (dJ/dp + J_u[u_p]) q with u_p = -J^{-1} F_p
-    jd = _dense(jac)
+    jd = dense_matrix(jac)
     up = np.linalg.solve(jd, -problem.dresidual_dp(u, q_params, parameter))
     h = 1e-6 * max(1.0, abs(q_params[parameter]))
     hu = h / max(1.0, float(np.max(np.abs(up))))
     plus, minus = dict(q_params), dict(q_params)
     plus[parameter] += hu
     minus[parameter] -= hu
-    dj = (_dense(problem.jacobian(u + hu * up, plus)) - _dense(problem.jacobian(u - hu * up, minus))) / (2 * hu)
+    dj = (dense_matrix(problem.jacobian(u + hu * up, plus)) - dense_matrix(problem.jacobian(u - hu * up, minus))) / (2 * hu)
     dlambda = float(np.vdot(pvec, dj @ q).real)
-    mass_const = None if not has(problem, "mass_matrix") else _dense(mass)
+    mass_const = None if not has(problem, "mass_matrix") else dense_matrix(mass)
     return HopfStart(u, q_params, omega, q, dlambda, float(point.data.get("l1", math.nan)), mass_const)
 
 

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import SpecialPoint
+from contin.hopf import _to_segment
 from contin.pointtests import Crossing
 from contin.problem import Array
 
@@ -203,9 +204,7 @@ class FloquetTest:
                 if v.size == 0:
                     return math.nan
                 # the multiplier nearest the segment [a, b] (as the Hopf test tracks its eigenvalue)
-                d = b - a
-                t = np.clip(((v - a) * np.conj(d)).real / abs(d) ** 2, 0.0, 1.0) if d != 0 else 0.0
-                return float(abs(v[int(np.argmin(np.abs(v - (a + t * d))))]) - 1.0)
+                return float(abs(v[int(np.argmin(_to_segment(v, a, b)))]) - 1.0)
 
             out.append(("", g))
         return out
