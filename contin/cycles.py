@@ -24,6 +24,9 @@ kept too long lets the phase condition degenerate as the orbit changes shape) an
 adapted to it (``contin.collocation.Mesh.adapted``; AUTO's IAD).  A stored orbit is the row
 [node values, T, interior mesh points] (:func:`orbit_of`).
 
+Period doubling: :func:`continue_doubled` starts the branch of period-doubled orbits at a PD of a
+cycle branch (:func:`period_doubled_start`: the orbit twice plus the multiplier -1's eigenfunction).
+
 End at a Hopf point: where the orbits shrink to an equilibrium (their signed amplitude along the
 reference changes sign: ``contin.floquet.ShrinkTest``) the branch ends (HB, then EP one step past
 it); the HB is solved from the equilibrium's Hopf system, since the cycle system is singular at

@@ -59,6 +59,9 @@ def test_stuart_landau_branch_radius_period_multiplier():
     assert br.stable.all() and not br.n_unstable.any()
     l2 = br.observables["l2norm"]
     np.testing.assert_allclose(l2, np.sqrt(mu), rtol=1e-7)  # |u| = sqrt(mu) all along the orbit
+    mesh, nodes, period = orbit_of(br.state(-1), 2)
+    t, u = CycleProblem(StuartLandau(), mesh, nodes).orbit(mesh.pack(nodes, period), samples=50)
+    assert t.shape == (50,) and np.allclose(np.hypot(u[:, 0], u[:, 1]), math.sqrt(mu[-1]), rtol=1e-6)
 
 
 def test_start_follows_the_normal_form():
