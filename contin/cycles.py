@@ -115,14 +115,20 @@ def default_amplitude(u_h: Array) -> float:
     return 1e-2 * max(1.0, float(np.max(np.abs(u_h), initial=0.0)))
 
 
+def check_dynamics(problem: Any) -> None:
+    """ValueError for a problem whose dynamics is not M u' = F(u, p) with J = dF/du (its own
+    ``eigenproblem``): its orbits are not those of the collocated F."""
+    if has(problem, "eigenproblem"):
+        raise ValueError("periodic orbits need the dynamics M u' = F(u, p); this problem defines its own "
+                         "eigenproblem (its linearization is not the Jacobian of F), which cycles do not support")
+
+
 class CycleProblem:
     """The periodic BVP of ``problem`` on ``mesh`` as a contin Problem (module docstring)."""
 
     def __init__(self, problem: Any, mesh: Mesh, reference: Array, mass: Array | None = None,
                  floquet_tol: float | None = FLOQUET_DOUBTFUL) -> None:
-        if has(problem, "eigenproblem"):
-            raise ValueError("periodic orbits need the dynamics M u' = F(u, p); this problem defines its own "
-                             "eigenproblem (its linearization is not the Jacobian of F), which cycles do not support")
+        check_dynamics(problem)
         self.problem = problem
         self.mesh = mesh
         self.colloc = Collocation(problem, mesh, reference, mass)
@@ -252,6 +258,7 @@ def hopf_start(problem: Any, point: SpecialPoint, parameter: str) -> HopfStart:
 
     if point.type != "HB":
         raise ValueError(f"periodic orbits start at a Hopf point (HB), not at {point.name} ({point.type})")
+    check_dynamics(problem)  # before the eigenvectors: an eigenproblem's pencil is not (J, M)
     u = np.asarray(point.state, dtype=float)
     q_params = dict(point.params)
     jac, mass = pencil(problem, u, q_params)

@@ -554,6 +554,9 @@ def test_api_refuses_a_start_that_is_no_hopf_point():
 
     with pytest.raises(ValueError, match="defines its own eigenproblem"):
         CycleProblem(Pencil(), Mesh(2), np.zeros((Mesh(2).nodes, 2)))
+    hb = sl_hopf()
+    with pytest.raises(ValueError, match="defines its own eigenproblem"):  # before its (failing) pencil
+        continue_cycles(Pencil(), hb, "mu")
 
 
 def test_cli_cycles_json(ab_file, tmp_path):
