@@ -19,6 +19,10 @@ file keeps every point's grid.  Every point also passes the two-grid check of it
 that misses REL there is recomputed on a finer grid); ``--no-solve-check`` switches it off.  Fold curves only (LP, and a BP that NAME unfolds): for Hopf and
 BP curves --tol is an error.  Without --tol nothing changes: the fixed grid of the file and the
 run's guard.
+
+``--cycles`` (no ``--free``): from an HB the periodic orbits born there, from a PD of a file of
+orbits the period-doubled ones, in the branch's parameter (``contin.cli.cycles_cmd``,
+``contin.cycles``).
 """
 
 from __future__ import annotations
@@ -71,7 +75,8 @@ def _refuse_own_input(file: str, output: str) -> None:
 @main.command("continue")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--from", "label", required=True, metavar="LABEL", help="Special point to start from (LP1, BP2, ...).")
-@click.option("--free", "second", default=None, metavar="NAME", help="Second free parameter (required without --cycles).")
+@click.option("--free", "second", default=None, metavar="NAME",
+              help="Second free parameter (required without --cycles).")
 @click.option("--branch", "branch_id", default=None, metavar="ID", help="Branch of the point (when the label is not unique).")
 @click.option("--bounds", multiple=True, metavar="NAME=LO:HI",
               help="Bounds of either parameter (repeatable) [default: the run's bounds of the first].")
@@ -92,7 +97,8 @@ def _refuse_own_input(file: str, output: str) -> None:
                    "check of its augmented solve (AdaptOptions.solve_check = False; faster, but points next to a "
                    "fold can miss REL).")
 @click.option("--cycles", is_flag=True, default=False,
-              help="From an HB: the branch of periodic orbits born there, in the branch's parameter (no --free).")
+              help="From an HB: the periodic orbits born there, in the branch's parameter (no --free); from a "
+                   "PD of a file of orbits: the period-doubled orbits.")
 @click.option("--ntst", type=click.IntRange(min=2, max=10_000), default=None, metavar="N",
               help="With --cycles: mesh intervals of the orbits [default: 20].")
 @click.option("--ncol", type=click.IntRange(min=1, max=7), default=None, metavar="M",
@@ -150,7 +156,8 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
              f"(type {point.type})")
     from contin.twoparam import continuable_types
 
-    if point.type not in continuable_types() and not doubling:  # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
+    # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
+    if point.type not in continuable_types() and not doubling:
         fail(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two parameters, "
              f"not {point.type}")
     from contin.twoparam import on_curve_message
