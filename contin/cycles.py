@@ -281,6 +281,13 @@ def hopf_start(problem: Any, point: SpecialPoint, parameter: str) -> HopfStart:
     dj = (dense_matrix(problem.jacobian(u + hu * up, plus)) - dense_matrix(problem.jacobian(u - hu * up, minus))) / (2 * hu)
     dlambda = float(np.vdot(pvec, dj @ q).real)
     mass_const = None if not has(problem, "mass_matrix") else dense_matrix(mass)
+    if mass_const is not None:
+        # M is taken constant: a state- or parameter-dependent one would give wrong orbits silently
+        shifted = u + 0.1 * np.random.default_rng(1).standard_normal(u.size) * max(1.0, float(np.max(np.abs(u))))
+        other = dense_matrix(problem.mass_matrix(shifted, plus))
+        if not np.allclose(other, mass_const, rtol=1e-12, atol=1e-14 * max(1.0, float(np.max(np.abs(mass_const))))):
+            raise ValueError("periodic orbits need a constant mass matrix M (M u' = T F); this problem's "
+                             "mass_matrix(u, p) changes with u or the parameter")
     return HopfStart(u, q_params, omega, q, dlambda, float(point.data.get("l1", math.nan)), mass_const)
 
 

@@ -654,3 +654,16 @@ def test_ctrl_c_keeps_the_orbits_computed_so_far(ab_file, tmp_path):
     (br,), meta = io.load(out)
     assert meta["complete"] is False and meta["stopped"] == "interrupted"
     assert br.kind == "periodic-orbits" and len(br) > 3 and "interrupted" in br.message
+
+
+def test_state_dependent_mass_matrix_is_refused():
+    """M is taken constant (its value at the Hopf point): an M(u) would give wrong orbits silently."""
+    import scipy.sparse as sp
+
+    class Varying(_SlowLandau):
+        def mass_matrix(self, u, p):
+            return sp.diags([2.5 + u[0] ** 2, 2.5])
+
+    hb = _hopf_of(_SlowLandau(), np.zeros(2), {"mu": -0.3, "w": W}, "mu", (-1, 1))
+    with pytest.raises(ValueError, match="constant mass matrix"):
+        continue_cycles(Varying(), hb, "mu")
