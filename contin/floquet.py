@@ -31,6 +31,11 @@ Point tests (``contin.pointtests``) located by the tracer like folds: PD, a real
 through -1 (g = |mu| - 1 of the real negative multiplier tracked across the step), and NS, a
 complex pair through the unit circle (g = |mu| - 1 of the pair's member with Im mu > 0).  LPC,
 the fold of cycles, is the tracer's own LP test on the cycle system (``contin.cycles``).
+Limitation: a PD is a real negative multiplier tracked from one point to the next, so a complex
+pair that turns real and has a member leave through -1 within one step is not seen.  AUTO's product
+prod (|mu| - 1) over the real negative multipliers would see it, but it was tried and flips sign
+on the rounding-level multipliers (+-1e-17) of strongly stable orbits and where a real pair passes
+through a tiny complex pair (six spurious PDs on Roessler's period-doubled branch).
 """
 
 from __future__ import annotations
