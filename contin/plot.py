@@ -48,6 +48,10 @@ MARKERS: dict[str, tuple[str, str]] = {
     "HH": ("h", "tab:red"),
     "MX": ("X", "tab:red"),
     "EP": ("|", "grey"),
+    # periodic orbits (contin.cycles): fold, period doubling, torus (AUTO's LP, PD, TR of IPS = 2)
+    "LPC": ("o", "black"),
+    "PD": ("d", "tab:blue"),
+    "NS": ("p", "tab:green"),
 }
 STABLE_STYLE = "-"
 UNSTABLE_STYLE = "--"
@@ -103,7 +107,7 @@ def plot_branch(
     ax: Axes | None = None,
     *,
     label: str | None = None,
-    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "GH", "ZH", "HH", "MX"),
+    special: Iterable[str] | None = ("BP", "LP", "HB", "UZ", "XT", "CP", "BT", "GH", "ZH", "HH", "MX", "LPC", "PD", "NS"),
     annotate: bool = True,
     **line_kw: Any,
 ) -> list[Any]:
@@ -130,7 +134,7 @@ def plot_branch(
     join: dict[int, tuple[float, float]] = {}  # boundary index -> located point splitting it
     for _, b, _ in runs[:-1]:
         for sp in branch.special_points:
-            if sp.index == b and sp.type in ("BP", "HB", "LP", "BT"):
+            if sp.index == b and sp.type in ("BP", "HB", "LP", "BT", "LPC", "PD", "NS"):
                 px, py = _point_value(branch, sp, x), _point_value(branch, sp, y)
                 if np.isfinite(px) and np.isfinite(py):
                     join[b] = (px, py)

@@ -188,3 +188,22 @@ def test_hopf_curve_neutral_saddle_part_is_dotted(tmp_path):
     saddle = lines[f"branch-{curve.id}-neutral-saddle"].get_xydata()
     assert np.isclose(saddle[:, 0], bt.params["D"]).any()  # the two parts meet at the located BT
     plt.close(fig)
+
+
+def test_cycle_points_are_marked_and_split_the_stability_runs():
+    """LPC, PD and NS (contin.cycles) get markers and labels like LP/HB (they were drawn as nothing:
+    an orbit file's diagram showed its HB and not its fold of cycles), and a located LPC joins the
+    stable and unstable runs it separates."""
+    b = toy_branches()[0]
+    b.stable = b.params["lam"] < -0.1
+    b.special_points = [SpecialPoint("LPC", 3, {"lam": -0.1, "a": 1.0}, 0.5, np.zeros(3), label=1),
+                        SpecialPoint("PD", 6, {"lam": 0.2, "a": 1.0}, 0.7, np.zeros(3), label=2),
+                        SpecialPoint("NS", 7, {"lam": 0.3, "a": 1.0}, 0.8, np.zeros(3), label=3)]
+    ax = new_ax()
+    plot.plot_branch(b, "lam", "phi", ax)
+    marks = {ln.get_gid(): ln for ln in ax.get_lines() if (ln.get_gid() or "").startswith("sp-")}
+    assert {g: (m.get_marker(), m.get_color()) for g, m in marks.items()} == {
+        "sp-LPC1": ("o", "black"), "sp-PD2": ("d", "tab:blue"), "sp-NS3": ("p", "tab:green")}
+    assert {t.get_text() for t in ax.texts} == {"LPC1", "PD2", "NS3"}
+    solid, dashed = lines_of(ax)
+    assert (solid.get_xdata()[-1], solid.get_ydata()[-1]) == (-0.1, 0.5) == (dashed.get_xdata()[0], dashed.get_ydata()[0])
