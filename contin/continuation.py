@@ -76,6 +76,10 @@ BP_VANISH = 1e-3
 OFF_SEGMENT = 0.5
 SAME_POINT = 1e-3
 
+#: _on_the_bound locates a zero beyond a bound only where the secant of its test function puts it
+#: within this fraction of the step (a zero on the bound: ~1e-8; even g ~ s^(1/10) gives < 0.1).
+NEAR_BOUND = 0.25
+
 
 #: Appended to a failure at the first point: a wrong Jacobian is the usual cause.
 JACOBIAN_HINT = "; check the Jacobian with contin.problem.check_jacobian"
@@ -181,7 +185,8 @@ class _Tracer:
                 out.append(("BP", "", lambda v: v.bp))
         return out
 
-    def detect(self, a: _Point, b: _Point, index: int) -> tuple[list[SpecialPoint], list[Unconfirmed]]:
+    def detect(self, a: _Point, b: _Point, index: int,
+               near: float | None = None) -> tuple[list[SpecialPoint], list[Unconfirmed]]:
         """Special points in the step from a to b (b is not yet appended; a is point ``index``),
         and the BPs among them that their location does not confirm (point, reason, audit
         line): a sign change of a BP test function without a BP, where the step may have
@@ -192,6 +197,9 @@ class _Tracer:
         A user zero of the continuation parameter crossed twice in one step (the step turned at
         a fold: p - value has the same sign at both ends) is located on both sides of the
         located LP; if the fold was not located, the audit says such zeros may have been skipped.
+
+        ``near`` (a fraction of the step): locate only the zeros that the secant of the (detrended)
+        test function puts within that fraction of the step from a (:func:`_on_the_bound`).
         """
         found: list[tuple[float, SpecialPoint]] = []
         unconfirmed: list[Unconfirmed] = []
@@ -224,6 +232,8 @@ class _Tracer:
             lo = lo if lo is not None else (0.0, a)
             hi = hi if hi is not None else (s_of_b(), b)
             sa, sb = Sample(lo[0], g_of(lo[1].tests, lo[0]), lo[1]), Sample(hi[0], g_of(hi[1].tests, hi[0]), hi[1])
+            if near is not None and abs(sa.g) > near * abs(sa.g - sb.g):
+                return  # the secant's zero lies beyond the fraction ``near`` of the step
             tol = det.locate_tol * max(1.0, abs(b.x[-1]))
             if det.locate and point_test is None and self.pre_locate is not None:
                 # Refine before locating rather than locating on a grid that does not resolve
@@ -1144,12 +1154,18 @@ def _on_the_bound(tracer: _Tracer, landed: _Point, stepped: _Point, bound: float
     between the landed point and the step beyond the bound (``stepped``) that are located within
     the location tolerance of the bound belong to the branch (point ``index``'s step).  `contin
     continue F --from LP2 --free b --bounds a=-0.7777777777777778:2` (ZH at a = -7/9) reported no
-    ZH, a bound 1e-12 further did (qa17)."""
+    ZH, a bound 1e-12 further did (qa17).
+
+    Only the zeros that the secant of their (detrended) test function puts within
+    :data:`NEAR_BOUND` of the step beyond the bound are located: one at the bound has its test
+    value ~ tol / step of the change across the step (~1e-8), and a zero farther out was located
+    only to be dropped (an HB beyond the bound cost its location and its l1, a GH its l2: ~1500
+    Jacobians)."""
     if not (stepped.tests.extra.keys() == landed.tests.extra.keys()):
         return []
     saved = tracer._gaps, tracer._gap_point  # detect() resets the step's detection-gap lines
     try:
-        found, _ = tracer.detect(landed, stepped, index)
+        found, _ = tracer.detect(landed, stepped, index, near=NEAR_BOUND)
     except _RefineFirst:
         # a zero beyond the bound that adaptive resolution would refine before locating: past the
         # bound the branch is over, so no grid is changed for it (it escaped trace: Allen-Cahn fd2
