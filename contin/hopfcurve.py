@@ -174,6 +174,10 @@ def trace_hopf_curve(
     for direction in ((1, -1) if both else (1,)):
         half = trace(curve, start_vector, dict(point.params), parameter, opts, direction=direction, **meta)
         halves.append(_cut_at_bound(half, curve, second, lo, hi) if bounded else half)
+        if halves[-1].closed:
+            # a closed curve is whole after one half (as in trace_augmented): the other half went
+            # round it again, every special point twice (AUTO's pp3: 6 ZH/LP/GH reported as 12)
+            break
     raw = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
     return _no_gh_at_zero_hopf(as_hopf_curve(raw, curve))
 
@@ -258,6 +262,7 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float,
         status="EP",
         message=f"reached bound {second}={p2:g}",
         state_index=state_index,
+        closed=False,  # the raw half may have closed beyond the bound (CO's Hopf curve past k = 1)
     )
     return cut
 
@@ -289,7 +294,7 @@ def _stop_outside(branch: Branch, second: str, lo: float, hi: float, j: int) -> 
                        state=cut.states[last].copy(), tangent=cut.tangents[last].copy(),
                        note=f"reached bound {second}={at:g}")
     return replace(cut, special_points=[sp_ for sp_ in cut.special_points if sp_.type not in ("EP", "MX")] + [end],
-                   status="EP", message=f"reached bound {second}={at:g}")
+                   status="EP", message=f"reached bound {second}={at:g}", closed=False)
 
 
 #: a located point this close to a bound (relative to max(1, |bound|)) is on it: ten times the
