@@ -80,6 +80,10 @@ SAME_POINT = 1e-3
 #: within this fraction of the step (a zero on the bound: ~1e-8; even g ~ s^(1/10) gives < 0.1).
 NEAR_BOUND = 0.25
 
+#: A located point whose test value's error puts its zero farther than this (relative to
+#: max(1, |p|)) from the located parameter gets a note and a warning (:func:`position_doubt`).
+POSITION_DOUBT = 1e-8
+
 
 #: Appended to a failure at the first point: a wrong Jacobian is the usual cause.
 JACOBIAN_HINT = "; check the Jacobian with contin.problem.check_jacobian"
@@ -299,6 +303,9 @@ class _Tracer:
             )
             if point_test is not None:
                 sp = point_test.finish(sys, sp, best.x)
+                if converged and hasattr(point_test, "value_error"):
+                    sp = position_doubt(sp, point_test.value_error(sys, best.x), sa, sb, sys.parameter,
+                                        float(b.x[-1] - a.x[-1]))
             log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
             found.append((s_best, sp))
             if why is not None:
@@ -1131,6 +1138,29 @@ def trace(
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
     return tracer.build(parameter, status, message, closed, n, **meta)
+
+
+def position_doubt(sp: SpecialPoint, error: float, sa: Sample[Any], sb: Sample[Any], parameter: str,
+                   span: float) -> SpecialPoint:
+    """``sp`` with a note and a warning when its position is uncertain beyond
+    :data:`POSITION_DOUBT` max(1, |p|) (what the tests promise; below it the note would flag
+    every GH of a complex-step Jacobian, ~1e-9, for nothing): the test
+    value's estimated error ``error`` over its change across the step (samples ``sa``, ``sb``),
+    times the step's parameter ``span``, is the parameter interval in which the zero may lie
+    (``data['position_error']``).  A point test whose value comes from difference quotients
+    (l1 at a GH) can have its zero located to the tolerance within its own noise: AUTO's pp3 with
+    a difference Jacobian had both GHs 1e-6 (relative) off, marked converged, silently."""
+    change = abs(sb.g - sa.g)
+    if not (math.isfinite(error) and change > 0):
+        return sp
+    uncertain = error / change * abs(span)
+    p = float(sp.params[parameter])
+    if uncertain <= POSITION_DOUBT * max(1.0, abs(p)):
+        return sp
+    msg = (f"position uncertain to +-{uncertain:.1e} in {parameter} (the test value's difference error "
+           f"{error:.1e}; an exact or complex-step Jacobian lowers it)")
+    log.warning("%s at %s=%.10g: %s", sp.type, parameter, p, msg)
+    return replace(sp, note=f"{sp.note}; {msg}" if sp.note else msg, data={**sp.data, "position_error": uncertain})
 
 
 def _detect_checked(tracer: _Tracer, step: int, cur: _Point, new: _Point, stepped: _Point, direction: Array,

@@ -23,6 +23,9 @@ builds its own by grouped differences from F alone, as a user's problem would).
   u' = (U0 - u)/tau_F + U0 (1 - u) E, g(y) = alpha log(1 + e^{y/alpha}); (alpha, tau, J, E0,
   tau_D, U0, tau_F) = (1.5, 0.013, 3.07, -2, 0.2, 0.3, 1.5), continued in E0 within [-4, -0.9]
   and its Hopf curve in (E0, alpha).
+- AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
+  - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
+  and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
 """
 
 from __future__ import annotations
@@ -122,3 +125,27 @@ def tm(z0):
     central differences leave the augmented Hopf system a residual floor of ~1e-9, above
     the corrector's 1e-10 (the Hopf curve's first point did not converge)."""
     return contin.from_functions(tm_F, z0, TM, mass_matrix=np.eye(3), method="cs")
+
+
+PP3 = dict(p1=0.0, p2=0.25, p3=0.5, p4=4.0, p5=3.0, p6=5.0)
+
+
+def pp3_F(u, p):
+    """AUTO ``pp3`` (demos/pp3/pp3.f90; a predator-prey food chain with harvesting of the middle
+    species): start (1, 0, 0), PAR(1..6) = (0, 0.25, 0.5, 4, 3, 5)."""
+    x, y, z = u
+    return np.array([x * (1 - x) - p["p4"] * x * y,
+                     -p["p2"] * y + p["p4"] * x * y - p["p5"] * y * z - p["p1"] * (1 - np.exp(-p["p6"] * y)),
+                     -p["p3"] * z + p["p5"] * y * z])
+
+
+def pp3_J(u, p):
+    x, y, z = u
+    return np.array([[1 - 2 * x - p["p4"] * y, -p["p4"] * x, 0 * x],
+                     [p["p4"] * y, -p["p2"] + p["p4"] * x - p["p5"] * z - p["p1"] * p["p6"] * np.exp(-p["p6"] * y),
+                      -p["p5"] * y],
+                     [0 * x, p["p5"] * z, -p["p3"] + p["p5"] * y]])
+
+
+def pp3():
+    return contin.from_functions(pp3_F, np.array([1.0, 0.0, 0.0]), PP3, mass_matrix=np.eye(3))

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, fsolve
 
+import contin
 import peer_models as pm
 from contin.bpdetect import Spectrum, crossings
 from contin.branch import relabel
@@ -369,3 +370,151 @@ def test_bifurcationkit_neural_mass_hopf_curve_zero_hopf_and_generalized_hopf():
                            xtol=1e-13, full_output=True)
     assert np.max(np.abs(bautin(z)[:3])) < 1e-9, msg
     assert gh.params["E0"] == pytest.approx(z[3], rel=1e-8) and gh.params["alpha"] == pytest.approx(z[4], rel=1e-8)
+
+
+# --------------------------------------------------------------------------------------------
+# AUTO demo pp3
+
+
+def pp3_diagram():
+    pb = pm.pp3()
+    norm = lambda u, p: float(np.linalg.norm(u)) - 1.2  # noqa: E731 -- AUTO's UZSTOP on PAR(9) = |u|
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.02), bounds={"p1": (0.0, 1.0)}, max_steps=400,
+                               events={"norm=1.2": norm}, stop_at=("UZ1",))
+    return pb, bifurcation_diagram(pb, np.array([1.0, 0.0, 0.0]), pm.PP3, "p1", opts,
+                                   DiagramSettings(depth=3, start_direction=1))
+
+
+def pp3_three_species(p1, q=pm.PP3):
+    """The coexistence state: x = 1 - p4 p3 / p5, y = p3 / p5, z from F2 (linear in p1)."""
+    y = q["p3"] / q["p5"]
+    x = 1 - q["p4"] * y
+    return np.array([x, y, (q["p4"] * x - q["p2"] - p1 * (1 - math.exp(-q["p6"] * y)) / y) / q["p5"]])
+
+
+def test_auto_pp3_diagram_in_p1():
+    """AUTO's pp3 run (p1 within [0, 1], MXBF: switching at the BPs; UZSTOP |u| = 1.2): the BP
+    where the predator-free state (1, 0, 0) loses stability, p1 = (p4 - p2)/p6; on the z = 0
+    branch (y = (1 - x)/p4, p1 = y (p4 x - p2)/(1 - e^{-p6 y})) its two Hopf points (tr of the
+    (x, y) block = 0, brentq in x), the BP where z appears (y = p3/p5) and the stop at |u| = 1.2
+    (a quadratic); on the three-species branch (x, y fixed, z linear in p1) one Hopf point on
+    each side (a1 a2 = a3, brentq in p1); each within 1e-8, nothing else; stability counts."""
+    pb, d = pp3_diagram()
+    q = pm.PP3
+    y_of = lambda x: (1 - x) / q["p4"]  # noqa: E731
+    p1_of = lambda x: y_of(x) * (q["p4"] * x - q["p2"]) / (1 - math.exp(-q["p6"] * y_of(x)))  # noqa: E731
+
+    def block_trace(x):
+        a = pm.pp3_J(np.array([x, y_of(x), 0.0]), dict(q, p1=p1_of(x)))
+        return a[0, 0] + a[1, 1]
+
+    xs = np.linspace(0.01, 0.99, 99)
+    tr = [block_trace(x) for x in xs]
+    hb_z0 = [p1_of(brentq(block_trace, xs[i], xs[i + 1], xtol=1e-15)) for i in range(98) if tr[i] * tr[i + 1] < 0]
+    assert len(hb_z0) == 2
+
+    def hurwitz_gap(p1):
+        a1, a2, a3 = hurwitz(pm.pp3_J(pp3_three_species(p1), dict(q, p1=p1)))
+        return a1 * a2 - a3
+
+    grid = np.linspace(0.0, 1.0, 201)
+    h = [hurwitz_gap(p) for p in grid]
+    hb_3 = [brentq(hurwitz_gap, grid[i], grid[i + 1], xtol=1e-15) for i in range(200) if h[i] * h[i + 1] < 0]
+    assert len(hb_3) == 2
+    x_uz = np.roots([1 + 1 / q["p4"] ** 2, -2 / q["p4"] ** 2, 1 / q["p4"] ** 2 - 1.44])
+    x_uz = float(x_uz[x_uz > 1].real[0])  # the branch with y < 0 (x > 1) reaches |u| = 1.2
+    expected = [("BP", (q["p4"] - q["p2"]) / q["p6"]), ("BP", p1_of(1 - q["p4"] * q["p3"] / q["p5"])),
+                ("UZ", p1_of(x_uz))] + [("HB", p) for p in hb_z0 + hb_3]
+    found = [(s.type, s.params["p1"], s) for b in d.branches for s in b.special_points if s.type != "EP"]
+    assert sorted(t for t, _, _ in found) == sorted(t for t, _ in expected), [(t, v) for t, v, _ in found]
+    for kind, p1 in expected:
+        (hit,) = [s for t, v, s in found if t == kind and abs(v - p1) <= 1e-8]
+        assert hit.converged
+    for b in d.branches:
+        assert_stability(pb, pm.pp3_J, b, q, "p1")
+
+
+def pp3_hopf_locus(method):
+    """The Hopf curve in (p1, p4) from the first Hopf point of the three-species branch, the
+    problem's Jacobian by central differences ('fd') or the complex step ('cs')."""
+    from contin.hopfcurve import trace_hopf_curve
+
+    _, d = pp3_diagram()
+    pb = contin.from_functions(pm.pp3_F, np.array([1.0, 0.0, 0.0]), pm.PP3, mass_matrix=np.eye(3), method=method)
+    hbs = sorted((s for b in d.branches if b.id.count("BP") == 2 for s in b.points("HB")), key=lambda s: s.params["p1"])
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"p1": (0.0, 1.0), "p4": (2.0, 6.0)},
+                               max_steps=1000)
+    curve = trace_hopf_curve(pb, hbs[0], "p4", opts, parameter="p1")
+    relabel([curve])
+    return hbs, curve
+
+
+def pp3_zero_hopf(z):
+    p = dict(pm.PP3, p1=z[3], p4=z[4])
+    a = pm.pp3_J(z[:3], p)
+    return np.concatenate([pm.pp3_F(z[:3], p), [np.linalg.det(a), np.trace(a)]])
+
+
+def pp3_bautin(z):
+    p = dict(pm.PP3, p1=z[3], p4=z[4])
+    a1, a2, a3 = hurwitz(pm.pp3_J(z[:3], p))
+    return np.concatenate([pm.pp3_F(z[:3], p), [(a1 * a2 - a3) / a2, first_lyapunov(pm.pp3_J, z[:3], p)]])
+
+
+def reference_at(defining, s):
+    """The scipy solution of a codim-2 point's defining system (x, y, z, p1, p4) from its position."""
+    z, _, ok, msg = fsolve(defining, np.concatenate([s.state[:3], [s.params["p1"], s.params["p4"]]]),
+                           xtol=1e-13, full_output=True)
+    assert np.max(np.abs(defining(z)[:3])) < 1e-10, msg
+    return z
+
+
+def test_auto_pp3_hopf_locus_is_one_closed_curve():
+    """AUTO's locus of Hopf points in (p1, p4) from the three-species branch (complex-step
+    Jacobian): a closed curve, traced once (both halves went round it: every special point
+    twice, session 18); it passes p4 = 4 at the two Hopf points of the one-parameter branch; its
+    two ZH solve F = 0, det J = 0, tr J = 0 and its two GH F = 0, a1 a2 = a3, l1 = 0 (l1
+    independent), to 1e-8, with no doubt in their notes; the two LPs are extrema of p1; every
+    point solves F = 0, a1 a2 = a3."""
+    hbs, curve = pp3_hopf_locus("cs")
+    q = pm.PP3
+    assert curve.closed
+    assert sorted(s.type for s in curve.special_points) == ["EP", "GH", "GH", "LP", "LP", "ZH", "ZH"], \
+        [(s.name, s.params) for s in curve.special_points]
+    for i in range(len(curve)):
+        p = dict(q, p1=curve.params["p1"][i], p4=curve.params["p4"][i])
+        a1, a2, a3 = hurwitz(pm.pp3_J(curve.states[i][:3], p))
+        assert abs(a1 * a2 - a3) < 1e-8 and a2 > 0 and np.max(np.abs(pm.pp3_F(curve.states[i][:3], p))) < 1e-9
+    p4 = curve.params["p4"]
+    cross = [i for i in range(len(curve) - 1) if (p4[i] - 4) * (p4[i + 1] - 4) <= 0]
+    assert len(cross) == 2
+    for i in cross:  # the curve's p1 at p4 = 4, linearly between the points: within the step's curvature
+        w = (4 - p4[i]) / (p4[i + 1] - p4[i])
+        p1 = (1 - w) * curve.params["p1"][i] + w * curve.params["p1"][i + 1]
+        assert min(abs(p1 - hb.params["p1"]) for hb in hbs) < 1e-3
+    for lp in curve.fold_points:
+        near = curve.params["p1"][max(lp.index - 2, 0):lp.index + 3]
+        assert lp.params["p1"] >= near.max() - 1e-12 or lp.params["p1"] <= near.min() + 1e-12
+    for kind, defining in (("ZH", pp3_zero_hopf), ("GH", pp3_bautin)):
+        points = curve.points(kind)
+        assert len(points) == 2
+        for s in points:
+            z = reference_at(defining, s)
+            assert s.params["p1"] == pytest.approx(z[3], rel=1e-8) and s.params["p4"] == pytest.approx(z[4], rel=1e-8), \
+                (kind, s.params, z[3:])
+            assert "uncertain" not in s.note and "position_error" not in s.data
+
+
+def test_a_gh_located_within_the_noise_of_its_l1_says_so():
+    """The same locus with central-difference Jacobians (from_functions' default): l1 by
+    differences of a difference Jacobian has an error ~2e-5, and the GHs were located 7e-8 and
+    3.6e-8 off in p1 (1e-6 relative), marked converged, silently.  Now each says its position is
+    uncertain (note, warning, data['position_error']), and the true position lies within a few
+    times that estimate."""
+    _, curve = pp3_hopf_locus("fd")
+    gh = curve.points("GH")
+    assert len(gh) == 2
+    for s in gh:
+        z = reference_at(pp3_bautin, s)
+        assert "position uncertain" in s.note and s.data["position_error"] > 1e-8 * max(1, abs(s.params["p1"]))
+        assert abs(s.params["p1"] - z[3]) < 3 * s.data["position_error"]
