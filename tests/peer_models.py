@@ -26,6 +26,10 @@ builds its own by grouped differences from F alone, as a user's problem would).
 - AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
   - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
   and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
+- BifurcationKit's ``chan`` example (examples/chan.jl; Chan's temperature problem): n = 101 points,
+  x_1 = x_n = beta, (x_{i-1} - 2 x_i + x_{i+1}) (n - 1)^2 + alpha N(x_i) = 0 inside,
+  N(x) = 1 + (x + a x^2) / (1 + beta x^2), a = 0.5; (alpha, beta) = (3.3, 0.01), its folds in alpha
+  and the fold curve in (alpha, beta).
 """
 
 from __future__ import annotations
@@ -149,3 +153,46 @@ def pp3_J(u, p):
 
 def pp3():
     return contin.from_functions(pp3_F, np.array([1.0, 0.0, 0.0]), PP3, mass_matrix=np.eye(3))
+
+
+CHAN = dict(alpha=3.3, beta=0.01)
+CHAN_N = 101
+
+
+def chan_N(x, b, a=0.5):
+    return 1 + (x + a * x * x) / (1 + b * x * x)
+
+
+def chan_F(x, p):
+    n = x.size
+    f = np.empty_like(x)
+    f[0], f[-1] = x[0] - p["beta"], x[-1] - p["beta"]
+    f[1:-1] = (x[:-2] - 2 * x[1:-1] + x[2:]) * (n - 1) ** 2 + p["alpha"] * chan_N(x[1:-1], p["beta"])
+    return f
+
+
+def chan_J(x, p, a=0.5):
+    n, b = x.size, p["beta"]
+    xi = x[1:-1]
+    jac = np.zeros((n, n))
+    jac[0, 0] = jac[-1, -1] = 1.0
+    k = np.arange(1, n - 1)
+    jac[k, k - 1] = jac[k, k + 1] = (n - 1) ** 2
+    jac[k, k] = -2 * (n - 1) ** 2 + p["alpha"] * (1 - b * xi**2 + 2 * a * xi) / (1 + b * xi**2) ** 2
+    return jac
+
+
+def chan_start():
+    """The example's guess (i - 1)(n - i)/n^2 + 0.1 (1-based i), solved at (3.3, 0.01)."""
+    from scipy.optimize import fsolve
+
+    i = np.arange(1, CHAN_N + 1)
+    return fsolve(chan_F, (i - 1) * (CHAN_N - i) / CHAN_N**2 + 0.1, args=(CHAN,), fprime=lambda x, p: chan_J(x, p),
+                  xtol=1e-13)
+
+
+def chan(u0):
+    """The example's problem; the complex step (method='cs'): its interior rows scale with
+    (n - 1)^2 = 1e4, and the fold curve's system (second derivatives of F by differences of J)
+    with central differences stops at its first point (residual 6e-8 > 1e-10)."""
+    return contin.from_functions(chan_F, u0, CHAN, method="cs")

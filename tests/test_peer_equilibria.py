@@ -43,9 +43,16 @@ def assert_stability(problem, jac, branch, params, parameter):
     assert len(ref) >= len(branch) - 2 and ours == ref, branch.id
 
 
-def solve(defining, guess):
-    z, _, ok, msg = fsolve(defining, np.asarray(guess, float), xtol=1e-14, full_output=True)
-    assert ok == 1 or np.max(np.abs(defining(z))) < 1e-11, msg
+def moved(guess):
+    guess = np.asarray(guess, float)
+    return guess * (1 + 1e-6 * np.cos(np.arange(guess.size) + 0.5)) + 1e-8
+
+
+def solve(defining, guess, tol=1e-11):
+    """fsolve from ``guess`` moved by ~1e-6 (relative): the core's point is only a start, the
+    reference is what scipy converges to (to ``tol``)."""
+    z, _, ok, msg = fsolve(defining, moved(guess), xtol=1e-14, full_output=True)
+    assert ok == 1 or np.max(np.abs(defining(z))) < tol, msg
     return z
 
 
@@ -366,9 +373,9 @@ def test_bifurcationkit_neural_mass_hopf_curve_zero_hopf_and_generalized_hopf():
         a1, a2, a3 = hurwitz(pm.tm_J(z[:3], p))
         return np.concatenate([pm.tm_F(z[:3], p), [(a1 * a2 - a3) / a2, first_lyapunov(pm.tm_J, z[:3], p)]])
 
-    z, _, ok, msg = fsolve(bautin, np.concatenate([gh.state[:n], [gh.params["E0"], gh.params["alpha"]]]),
+    z, _, ok, msg = fsolve(bautin, moved(np.concatenate([gh.state[:n], [gh.params["E0"], gh.params["alpha"]]])),
                            xtol=1e-13, full_output=True)
-    assert np.max(np.abs(bautin(z)[:3])) < 1e-9, msg
+    assert np.max(np.abs(bautin(z))) < 1e-9, msg
     assert gh.params["E0"] == pytest.approx(z[3], rel=1e-8) and gh.params["alpha"] == pytest.approx(z[4], rel=1e-8)
 
 
@@ -463,9 +470,9 @@ def pp3_bautin(z):
 
 def reference_at(defining, s):
     """The scipy solution of a codim-2 point's defining system (x, y, z, p1, p4) from its position."""
-    z, _, ok, msg = fsolve(defining, np.concatenate([s.state[:3], [s.params["p1"], s.params["p4"]]]),
+    z, _, ok, msg = fsolve(defining, moved(np.concatenate([s.state[:3], [s.params["p1"], s.params["p4"]]])),
                            xtol=1e-13, full_output=True)
-    assert np.max(np.abs(defining(z)[:3])) < 1e-10, msg
+    assert np.max(np.abs(defining(z))) < 1e-10, msg
     return z
 
 
@@ -518,3 +525,53 @@ def test_a_gh_located_within_the_noise_of_its_l1_says_so():
         z = reference_at(pp3_bautin, s)
         assert "position uncertain" in s.note and s.data["position_error"] > 1e-8 * max(1, abs(s.params["p1"]))
         assert abs(s.params["p1"] - z[3]) < 3 * s.data["position_error"]
+
+
+# --------------------------------------------------------------------------------------------
+# BifurcationKit's chan example (a 1-D BVP, 101 points)
+
+
+def chan_fold_reference(p, lp, free):
+    """(x, v, value of ``free``): F = 0, J v = 0, |v| = 1 by fsolve with the exact Jacobian's
+    null vector as the guess for v, the other parameter fixed in ``p``."""
+    n = pm.CHAN_N
+    x0 = lp.state[:n]
+    v0 = np.linalg.svd(pm.chan_J(x0, dict(p, **{free: lp.params[free]})))[2][-1]
+
+    def defining(z):
+        q = dict(p, **{free: z[-1]})
+        return np.concatenate([pm.chan_F(z[:n], q), pm.chan_J(z[:n], q) @ z[n:2 * n], [z[n:2 * n] @ z[n:2 * n] - 1]])
+
+    return solve(defining, np.concatenate([x0, v0, [lp.params[free]]]), tol=1e-9)  # rows of size (n - 1)^2 = 1e4
+
+
+def test_bifurcationkit_chan_folds_and_fold_curve():
+    """The example's branch in alpha up to 4.25 (101 unknowns; the pattern detected by
+    from_functions is tridiagonal, 3 column groups): its two folds solve F = 0, J v = 0, |v| = 1
+    (1e-9); nothing else.  The fold curve of the first in (alpha, beta), alpha <= 4.1, beta >= 0:
+    its ends on beta = 0 and on alpha = 4.1 are folds of the problem at those values (the same
+    defining system with beta, resp. alpha, fixed), 1e-8."""
+    u0 = pm.chan_start()
+    pb = pm.chan(u0)
+    assert pb.groups.max() + 1 == 3
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.5), bounds={"alpha": (0.0, 4.25)}, max_steps=150)
+    br = trace(pb, u0, pm.CHAN, "alpha", opts)
+    relabel([br])
+    assert [s.type for s in br.special_points] == ["LP", "LP", "EP"], [(s.name, s.note) for s in br.special_points]
+    for lp in br.fold_points:
+        z = chan_fold_reference(pm.CHAN, lp, "alpha")
+        assert lp.converged and lp.params["alpha"] == pytest.approx(z[-1], rel=1e-9, abs=0)
+        assert np.allclose(lp.state, z[:pm.CHAN_N], rtol=1e-7, atol=1e-9)
+    from contin.foldcurve import trace_fold_curve
+
+    o2 = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"alpha": (0.0, 4.1), "beta": (0.0, 0.5)},
+                             max_steps=1300)
+    curve = trace_fold_curve(pb, br.fold_points[0], "beta", o2, parameter="alpha")
+    ends = curve.points("EP")
+    assert sorted(e.note for e in ends) == ["reached bound alpha=4.1", "reached bound beta=0"]
+    assert [s.type for s in curve.special_points if s.type != "EP"] == []
+    for end in ends:
+        fixed, free = ("beta", "alpha") if "beta" in end.note else ("alpha", "beta")
+        # the point on the curve, as the one-parameter problem's fold in the other parameter
+        z = chan_fold_reference(dict(pm.CHAN, **{fixed: end.params[fixed]}), end, free)
+        assert end.params[free] == pytest.approx(z[-1], rel=1e-8, abs=1e-10), (end.note, end.params, z[-1])
