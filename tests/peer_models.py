@@ -26,6 +26,7 @@ builds its own by grouped differences from F alone, as a user's problem would).
 - AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
   - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
   and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
+- pacopy's Bratu1d (:func:`pacopy_bratu`).
 - BifurcationKit's ``chan`` example (examples/chan.jl; Chan's temperature problem): n = 101 points,
   x_1 = x_n = beta, (x_{i-1} - 2 x_i + x_{i+1}) (n - 1)^2 + alpha N(x_i) = 0 inside,
   N(x) = 1 + (x + a x^2) / (1 + beta x^2), a = 0.5; (alpha, beta) = (3.3, 0.01), its folds in alpha
@@ -196,3 +197,31 @@ def chan(u0):
     (n - 1)^2 = 1e4, and the fold curve's system (second derivatives of F by differences of J)
     with central differences stops at its first point (residual 6e-8 > 1e-10)."""
     return contin.from_functions(chan_F, u0, CHAN, method="cs")
+
+
+def pacopy_bratu(n=51):
+    """pacopy's Bratu1d (test/test_bratu1d.py): -u'' = lambda e^u on [0, 1] by second differences on
+    n points (rows 0 and n-1: u = 0), its exact sparse Jacobian and dF/dlambda, and the trapezoid
+    weights H of its inner product; start u = 0, lambda = 0."""
+    import scipy.sparse as sp
+
+    h = 1.0 / (n - 1)
+    a = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n), format="lil") / h**2
+    a[0, :2], a[n - 1, n - 2:] = [[1.0, 0.0]], [[0.0, 1.0]]
+    a = sp.csr_matrix(a)
+    inner = np.ones(n)
+    inner[0] = inner[-1] = 0.0  # boundary rows of F are u itself, not the equation
+
+    def F(u, p):
+        return a @ u - inner * p["lmbda"] * np.exp(u)
+
+    def jac(u, p):
+        return a - sp.diags(inner * p["lmbda"] * np.exp(u))
+
+    def dF_dp(u, p, name):
+        return -inner * np.exp(u)
+
+    weights = np.full(n, h)
+    weights[0] = weights[-1] = h / 2
+    return contin.from_functions(F, np.zeros(n), {"lmbda": 0.0}, jacobian=jac, dF_dp=dF_dp, debug=True,
+                                 inner_product_weights=weights), F, jac

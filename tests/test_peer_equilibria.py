@@ -575,3 +575,34 @@ def test_bifurcationkit_chan_folds_and_fold_curve():
         # the point on the curve, as the one-parameter problem's fold in the other parameter
         z = chan_fold_reference(dict(pm.CHAN, **{fixed: end.params[fixed]}), end, free)
         assert end.params[free] == pytest.approx(z[-1], rel=1e-8, abs=1e-10), (end.note, end.params, z[-1])
+
+
+# --------------------------------------------------------------------------------------------
+# pacopy's Bratu1d
+
+
+def test_pacopy_bratu1d_fold_and_its_grid_convergence():
+    """pacopy's 1-D Bratu problem (51 points, exact Jacobian given, checked once in debug mode):
+    the one fold of the branch from u = 0 solves F = 0, J v = 0, |v| = 1 (1e-10); on 51, 101, 201
+    points the folds converge at second order (observed 2.0002) to the continuum
+    lambda* = 3.513830719125162 (Gelfand), Richardson-extrapolated within 1e-8 (1.4e-9)."""
+    folds = []
+    for n in (51, 101, 201):
+        pb, F, jac = pm.pacopy_bratu(n)
+        opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.5), bounds={"lmbda": (0.0, 4.0)}, max_steps=200,
+                                   stop_at=("LP1",))
+        br = trace(pb, np.zeros(n), {"lmbda": 0.0}, "lmbda", opts)
+        (lp,) = br.fold_points
+        if n == 51:
+            v0 = np.linalg.svd(jac(lp.state, lp.params).toarray())[2][-1]
+
+            def defining(z):
+                p = {"lmbda": z[-1]}
+                return np.concatenate([F(z[:n], p), jac(z[:n], p) @ z[n:2 * n], [z[n:2 * n] @ z[n:2 * n] - 1]])
+
+            z = solve(defining, np.concatenate([lp.state, v0, [lp.params["lmbda"]]]), tol=1e-9)
+            assert lp.converged and lp.params["lmbda"] == pytest.approx(z[-1], rel=1e-10, abs=0)
+        folds.append(lp.params["lmbda"])
+    d1, d2 = folds[0] - folds[1], folds[1] - folds[2]
+    assert math.log2(d1 / d2) == pytest.approx(2.0, abs=0.01)
+    assert folds[2] - d2 / 3 == pytest.approx(3.513830719125162, abs=1e-8)  # Richardson, h halved
