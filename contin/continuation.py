@@ -94,8 +94,18 @@ _NOT_THE_JACOBIAN = ("initial guess is inadmissible", "residual is not finite at
                      "the residual or Jacobian raised")
 
 
-def _jacobian_hint(reason: str) -> str:
-    return "" if reason.startswith(_NOT_THE_JACOBIAN) else JACOBIAN_HINT
+#: Added to the hint for a curve (fold, Hopf: an augmented system with the user's ``problem``
+#: inside) of a from_functions problem with difference Jacobians: BifurcationKit's chan (rows
+#: ~1e4) stopped at its fold curve's first point with a residual of 6e-8 and the hint alone.
+DIFFERENCES_HINT = ("; this curve's system differentiates J again, which central differences "
+                    "(from_functions' default) give to ~1e-5: use method='cs' or an exact jacobian")
+
+
+def _jacobian_hint(reason: str, problem: Any = None) -> str:
+    if reason.startswith(_NOT_THE_JACOBIAN):
+        return ""
+    inner = getattr(problem, "problem", None)
+    return JACOBIAN_HINT + (DIFFERENCES_HINT if getattr(inner, "central_differences", False) is True else "")
 
 
 #: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
@@ -698,7 +708,7 @@ def trace(
     tracer.audit.extend(grid_lines)
     tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
-        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{_jacobian_hint(start.message)}"
+        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{_jacobian_hint(start.message, problem)}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
         say(msg)
         return tracer.build(parameter, "MX", msg, False, n, **meta)
@@ -913,7 +923,7 @@ def trace(
                 status = "MX"
                 message = f"step failed at {parameter}={cur.x[-1]:.10g} with ds at ds_min={sopt.ds_min:g}: {reason}"
                 if len(tracer.points) == 1:  # not one step from the start: most often a wrong Jacobian
-                    message += _jacobian_hint(reason)
+                    message += _jacobian_hint(reason, problem)
                 break
             ds = reduced_step(ds, sopt)
             continue

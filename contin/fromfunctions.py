@@ -142,6 +142,13 @@ class FunctionProblem:
             w = inner_product_weights
             self.inner_product_weights = w if callable(w) else (lambda u, p, _w=np.asarray(w, float): _w)
 
+    @property
+    def central_differences(self) -> bool:
+        """Whether J comes from central differences (method 'fd', no exact ``jacobian``): accurate
+        to ~1e-10 relative, so a system that differentiates J again (fold and Hopf curves) has a
+        residual floor ~1e-5 |J| its corrector may not get below."""
+        return self._exact is None and self.method == "fd"
+
     def initial(self) -> Array:
         """The u0 given to :func:`from_functions`."""
         return self.u0.copy()

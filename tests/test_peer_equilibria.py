@@ -606,3 +606,21 @@ def test_pacopy_bratu1d_fold_and_its_grid_convergence():
     d1, d2 = folds[0] - folds[1], folds[1] - folds[2]
     assert math.log2(d1 / d2) == pytest.approx(2.0, abs=0.01)
     assert folds[2] - d2 / 3 == pytest.approx(3.513830719125162, abs=1e-8)  # Richardson, h halved
+
+
+def test_a_curve_of_a_difference_jacobian_that_cannot_start_says_what_to_do():
+    """chan with from_functions' central differences: its fold curve stops at the first point
+    (the augmented system's residual floor 6e-8 is above the corrector's 1e-10); the message now
+    says why and what helps (method='cs' or an exact Jacobian), not only "check the Jacobian"."""
+    from contin.foldcurve import trace_fold_curve
+
+    u0 = pm.chan_start()
+    pb = contin.from_functions(pm.chan_F, u0, pm.CHAN)
+    assert pb.central_differences and not pm.chan(u0).central_differences
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.5), bounds={"alpha": (0.0, 4.25)}, max_steps=150)
+    br = trace(pb, u0, pm.CHAN, "alpha", opts)
+    relabel([br])
+    o2 = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.05), bounds={"alpha": (0.0, 4.1), "beta": (0.0, 0.5)},
+                             max_steps=50)
+    curve = trace_fold_curve(pb, br.fold_points[0], "beta", o2, parameter="alpha")
+    assert curve.status == "MX" and "method='cs' or an exact jacobian" in curve.message
