@@ -167,9 +167,9 @@ def trace_hopf_curve(
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
     bounded = math.isfinite(lo) or math.isfinite(hi)
-    if bounded:
-        opts = replace(opts, events={**opts.events, **_second_bound_event(curve, second, lo, hi)})
-    meta = dict(branch_id=branch_id, kind="hopf-curve", parent=point.name)
+    ends = _second_bound_event(curve, second, lo, hi) if bounded else {}
+    opts = replace(opts, events={**opts.events, **ends}) if bounded else opts
+    meta = dict(branch_id=branch_id, kind="hopf-curve", parent=point.name, stop_events=tuple(ends))
     halves = []
     for direction in ((1, -1) if both else (1,)):
         half = trace(curve, start_vector, dict(point.params), parameter, opts, direction=direction, **meta)
@@ -318,7 +318,8 @@ def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:
 
 def _second_bound_event(curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> dict[str, Any]:
     """Events that vanish on the (finite) bounds of the second parameter (p2 is part of the state,
-    so the tracer's bound landing does not see it): the run stops at the located crossing.
+    so the tracer's bound landing does not see it): the run stops at the located crossing
+    (``trace(..., stop_events=...)``) and is cut there (:func:`_cut_at_bound`).
     ``index``: p2's place in the state (default: the Hopf-curve state's).  One event per bound:
     the former min(p2 - lo, hi - p2) is 0 at a start on one bound, so a first step across the
     other bound showed no sign change (`contin continue pf.h5 --from BP1 --free nu --bounds

@@ -624,3 +624,61 @@ def test_a_curve_of_a_difference_jacobian_that_cannot_start_says_what_to_do():
                              max_steps=50)
     curve = trace_fold_curve(pb, br.fold_points[0], "beta", o2, parameter="alpha")
     assert curve.status == "MX" and "method='cs' or an exact jacobian" in curve.message
+
+
+def abc_null_vectors(a, c):
+    """Right and left null vectors of the (nearly) singular 3x3 J from its SVD, oriented by c
+    (c . q > 0, c . p > 0) so that they are smooth functions of (x, D, B) near a fold."""
+    u_, _, vt = np.linalg.svd(a)
+    q, p = vt[-1], u_[:, -1]
+    return (q if q @ c > 0 else -q), (p if p @ c > 0 else -p)
+
+
+def test_auto_abc_fold_curve_bogdanov_takens_and_three_cusps(monkeypatch):
+    """abc at B = 10 has two folds in D; the fold curve of the first in (D, B), B within [7, 12]:
+    one Bogdanov-Takens point (F = 0, det J = 0 and a2 = 0: a double zero eigenvalue) and three
+    cusps (F = 0, det J = 0, p . B(q, q) = 0 with B(q, q) = d/de J(x + e q) q by the complex step
+    of the exact Jacobian), each also an extremum of both D and B (LP and XT there); 1e-8.  Each
+    half ends at its bound of B: 312 corrections for the 59 points (each half ran on beyond the
+    bound to max_steps, 2254 corrections, and was cut afterwards)."""
+    import contin.continuation as cc
+    from contin.foldcurve import trace_fold_curve
+
+    q0 = dict(pm.ABC, B=10.0)
+    pb = contin.from_functions(pm.abc_F, np.zeros(3), q0, mass_matrix=np.eye(3), method="cs")
+    br = trace(pb, np.zeros(3), q0, "D", ContinuationOptions(step=StepOptions(ds=0.02, ds_max=0.1),
+                                                             bounds={"D": (0.0, 0.4)}, max_steps=500))
+    relabel([br])
+    assert [s.type for s in br.special_points] == ["LP", "LP", "HB", "EP"]
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.1), bounds={"D": (0.0, 0.4), "B": (7.0, 12.0)},
+                               max_steps=1000)
+    corrections = []
+    real = cc._Tracer.correct_at
+    monkeypatch.setattr(cc._Tracer, "correct_at", lambda self, *a, **k: corrections.append(1) or real(self, *a, **k))
+    curve = trace_fold_curve(pb, br.fold_points[0], "B", opts, parameter="D")
+    relabel([curve])
+    assert len(corrections) < 400 and len(curve) < 80
+    inner = [s for s in curve.special_points if s.type != "EP"]
+    assert sorted(s.type for s in inner) == ["BT"] + ["CP"] * 3 + ["LP"] * 3 + ["XT"] * 3, [(s.name, s.params) for s in inner]
+    c = np.ones(3)
+
+    def bogdanov_takens(z):
+        p = dict(pm.ABC, D=z[3], B=z[4])
+        _, a2, a3 = hurwitz(pm.abc_J(z[:3], p))
+        return np.concatenate([pm.abc_F(z[:3], p), [a3, a2]])
+
+    def cusp(z):
+        p = dict(pm.ABC, D=z[3], B=z[4])
+        a = pm.abc_J(z[:3], p)
+        q, left = abc_null_vectors(a, c)
+        bqq = np.imag(pm.abc_J(z[:3] + 1e-30j * q, p)) / 1e-30 @ q
+        return np.concatenate([pm.abc_F(z[:3], p), [np.linalg.det(a), left @ bqq]])
+
+    for kind, defining in (("BT", bogdanov_takens), ("CP", cusp)):
+        for s in curve.points(kind):
+            z = solve(defining, np.concatenate([s.state[:3], [s.params["D"], s.params["B"]]]))
+            assert s.converged and s.params["D"] == pytest.approx(z[3], rel=1e-8) \
+                and s.params["B"] == pytest.approx(z[4], rel=1e-8), (kind, s.params, z[3:])
+            if kind == "CP":  # the extrema of D and B at the cusp
+                for other in ("LP", "XT"):
+                    assert min(abs(o.params["D"] - z[3]) for o in curve.points(other)) < 1e-8
