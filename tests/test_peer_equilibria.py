@@ -149,7 +149,8 @@ def test_auto_enz_asymmetric_branch_folds():
 
 
 @pytest.mark.xfail(strict=True, reason="open: the core does not pass through a pitchfork along the branch "
-                   "that bifurcates there (tangent ill-determined next to the BP; see README, peer problems)")
+                   "that bifurcates there (a point's tangent comes from the factorization before the last "
+                   "Newton update, which next to a BP rotates it; see README, peer problems)")
 def test_auto_enz_asymmetric_branch_passes_the_second_pitchfork():
     """The asymmetric branch of enz joins the symmetric one at its second pitchfork (s0 =
     22.1816): traced on, it should report that BP and continue as the mirror half, with no other
