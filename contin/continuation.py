@@ -76,6 +76,14 @@ BP_VANISH = 1e-3
 OFF_SEGMENT = 0.5
 SAME_POINT = 1e-3
 
+#: _on_the_bound locates a zero beyond a bound only where the secant of its test function puts it
+#: within this fraction of the step (a zero on the bound: ~1e-8; even g ~ s^(1/10) gives < 0.1).
+NEAR_BOUND = 0.25
+
+#: A located point whose test value's error puts its zero farther than this (relative to
+#: max(1, |p|)) from the located parameter gets a note and a warning (:func:`position_doubt`).
+POSITION_DOUBT = 1e-8
+
 
 #: Appended to a failure at the first point: a wrong Jacobian is the usual cause.
 JACOBIAN_HINT = "; check the Jacobian with contin.problem.check_jacobian"
@@ -86,8 +94,18 @@ _NOT_THE_JACOBIAN = ("initial guess is inadmissible", "residual is not finite at
                      "the residual or Jacobian raised")
 
 
-def _jacobian_hint(reason: str) -> str:
-    return "" if reason.startswith(_NOT_THE_JACOBIAN) else JACOBIAN_HINT
+#: Added to the hint for a curve (fold, Hopf: an augmented system with the user's ``problem``
+#: inside) of a from_functions problem with difference Jacobians: BifurcationKit's chan (rows
+#: ~1e4) stopped at its fold curve's first point with a residual of 6e-8 and the hint alone.
+DIFFERENCES_HINT = ("; this curve's system differentiates J again, which central differences "
+                    "(from_functions' default) give to ~1e-5: use method='cs' or an exact jacobian")
+
+
+def _jacobian_hint(reason: str, problem: Any = None) -> str:
+    if reason.startswith(_NOT_THE_JACOBIAN):
+        return ""
+    inner = getattr(problem, "problem", None)
+    return JACOBIAN_HINT + (DIFFERENCES_HINT if getattr(inner, "central_differences", False) is True else "")
 
 
 #: A BP that its location does not confirm: (point, reason, audit line); see _Tracer.detect.
@@ -181,7 +199,8 @@ class _Tracer:
                 out.append(("BP", "", lambda v: v.bp))
         return out
 
-    def detect(self, a: _Point, b: _Point, index: int) -> tuple[list[SpecialPoint], list[Unconfirmed]]:
+    def detect(self, a: _Point, b: _Point, index: int,
+               near: float | None = None) -> tuple[list[SpecialPoint], list[Unconfirmed]]:
         """Special points in the step from a to b (b is not yet appended; a is point ``index``),
         and the BPs among them that their location does not confirm (point, reason, audit
         line): a sign change of a BP test function without a BP, where the step may have
@@ -192,6 +211,9 @@ class _Tracer:
         A user zero of the continuation parameter crossed twice in one step (the step turned at
         a fold: p - value has the same sign at both ends) is located on both sides of the
         located LP; if the fold was not located, the audit says such zeros may have been skipped.
+
+        ``near`` (a fraction of the step): locate only the zeros that the secant of the (detrended)
+        test function puts within that fraction of the step from a (:func:`_on_the_bound`).
         """
         found: list[tuple[float, SpecialPoint]] = []
         unconfirmed: list[Unconfirmed] = []
@@ -224,6 +246,8 @@ class _Tracer:
             lo = lo if lo is not None else (0.0, a)
             hi = hi if hi is not None else (s_of_b(), b)
             sa, sb = Sample(lo[0], g_of(lo[1].tests, lo[0]), lo[1]), Sample(hi[0], g_of(hi[1].tests, hi[0]), hi[1])
+            if near is not None and abs(sa.g) > near * abs(sa.g - sb.g):
+                return  # the secant's zero lies beyond the fraction ``near`` of the step
             tol = det.locate_tol * max(1.0, abs(b.x[-1]))
             if det.locate and point_test is None and self.pre_locate is not None:
                 # Refine before locating rather than locating on a grid that does not resolve
@@ -289,6 +313,9 @@ class _Tracer:
             )
             if point_test is not None:
                 sp = point_test.finish(sys, sp, best.x)
+                if converged and hasattr(point_test, "value_error"):
+                    sp = position_doubt(sp, point_test.value_error(sys, best.x), sa, sb, sys.parameter,
+                                        float(b.x[-1] - a.x[-1]))
             log.info("%s at %s=%.12g (%s)", kind, sys.parameter, best.x[-1], "converged" if converged else "not converged")
             found.append((s_best, sp))
             if why is not None:
@@ -587,6 +614,7 @@ def trace(
     parent: str = "",
     symmetric: bool | None = None,
     progress: Callable[[str], None] | None = None,
+    stop_events: tuple[str, ...] = (),
 ) -> Branch:
     """Trace one branch of F(u, p) = 0 in ``parameter`` by pseudo-arclength continuation.
 
@@ -617,6 +645,11 @@ def trace(
         Treat the branch as S-invariant (None: decide from the start state).
     progress : callable, optional
         Receives short status lines.
+    stop_events : names of ``options.events``
+        The run ends (EP) after the step in which one of them is located: the bounds of the
+        second parameter of two-parameter curves (``contin.hopfcurve._second_bound_event``),
+        whose callers cut the branch there (the halves ran on to max_steps beyond the bound:
+        AUTO's abc fold curve, 59 points kept of ~2100 corrected, 9.4 s).
 
     Returns
     -------
@@ -681,7 +714,7 @@ def trace(
     tracer.audit.extend(grid_lines)
     tracer.point_tests = point_tests(problem, system, options, n)
     if not start.converged:
-        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{_jacobian_hint(start.message)}"
+        msg = f"Newton failed at the start point {parameter}={p0:g}: {start.message}{_jacobian_hint(start.message, problem)}"
         tracer.special.append(tracer.end_point("MX", msg, x=system.pack(u0, p0)))
         say(msg)
         return tracer.build(parameter, "MX", msg, False, n, **meta)
@@ -896,7 +929,7 @@ def trace(
                 status = "MX"
                 message = f"step failed at {parameter}={cur.x[-1]:.10g} with ds at ds_min={sopt.ds_min:g}: {reason}"
                 if len(tracer.points) == 1:  # not one step from the start: most often a wrong Jacobian
-                    message += _jacobian_hint(reason)
+                    message += _jacobian_hint(reason, problem)
                 break
             ds = reduced_step(ds, sopt)
             continue
@@ -1083,6 +1116,10 @@ def trace(
         if reached is not None:
             message = f"stopped after {reached} (stop_at)"
             break
+        event = next((sp.note for sp in found if sp.type == "UZ" and sp.note in stop_events), None)
+        if event is not None:
+            message = f"stopped at event {event}"
+            break
         if steps % 20 == 0:
             say(f"branch {branch_id}: step {steps}, {parameter}={new.x[-1]:.6g}, ds={ds:.3g}")
         ds = next_step(ds, corr.iterations, sopt)
@@ -1110,7 +1147,8 @@ def trace(
                     start_pb, start_u = finer_pb, np.asarray(entry[0].transfer(start_u, finer_pb), dtype=float)
                 again = replace(options, adapt=replace(options.adapt, min_grid=size))
                 retraced = trace(start_pb, start_u, params, parameter, again, direction=direction,
-                                 branch_id=branch_id, kind=kind, parent=parent, symmetric=symmetric, progress=progress)
+                                 branch_id=branch_id, kind=kind, parent=parent, symmetric=symmetric, progress=progress,
+                                 stop_events=stop_events)
                 retraced.audit.insert(0, f"retraced with min_grid {size} (AdaptOptions.min_grid was "
                                          f"{options.adapt.min_grid}): {line}")
                 return retraced
@@ -1121,6 +1159,29 @@ def trace(
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
     return tracer.build(parameter, status, message, closed, n, **meta)
+
+
+def position_doubt(sp: SpecialPoint, error: float, sa: Sample[Any], sb: Sample[Any], parameter: str,
+                   span: float) -> SpecialPoint:
+    """``sp`` with a note and a warning when its position is uncertain beyond
+    :data:`POSITION_DOUBT` max(1, |p|) (what the tests promise; below it the note would flag
+    every GH of a complex-step Jacobian, ~1e-9, for nothing): the test
+    value's estimated error ``error`` over its change across the step (samples ``sa``, ``sb``),
+    times the step's parameter ``span``, is the parameter interval in which the zero may lie
+    (``data['position_error']``).  A point test whose value comes from difference quotients
+    (l1 at a GH) can have its zero located to the tolerance within its own noise: AUTO's pp3 with
+    a difference Jacobian had both GHs 1e-6 (relative) off, marked converged, silently."""
+    change = abs(sb.g - sa.g)
+    if not (math.isfinite(error) and change > 0):
+        return sp
+    uncertain = error / change * abs(span)
+    p = float(sp.params[parameter])
+    if uncertain <= POSITION_DOUBT * max(1.0, abs(p)):
+        return sp
+    msg = (f"position uncertain to +-{uncertain:.1e} in {parameter} (the test value's difference error "
+           f"{error:.1e}; an exact or complex-step Jacobian lowers it)")
+    log.warning("%s at %s=%.10g: %s", sp.type, parameter, p, msg)
+    return replace(sp, note=f"{sp.note}; {msg}" if sp.note else msg, data={**sp.data, "position_error": uncertain})
 
 
 def _detect_checked(tracer: _Tracer, step: int, cur: _Point, new: _Point, stepped: _Point, direction: Array,
@@ -1144,12 +1205,18 @@ def _on_the_bound(tracer: _Tracer, landed: _Point, stepped: _Point, bound: float
     between the landed point and the step beyond the bound (``stepped``) that are located within
     the location tolerance of the bound belong to the branch (point ``index``'s step).  `contin
     continue F --from LP2 --free b --bounds a=-0.7777777777777778:2` (ZH at a = -7/9) reported no
-    ZH, a bound 1e-12 further did (qa17)."""
+    ZH, a bound 1e-12 further did (qa17).
+
+    Only the zeros that the secant of their (detrended) test function puts within
+    :data:`NEAR_BOUND` of the step beyond the bound are located: one at the bound has its test
+    value ~ tol / step of the change across the step (~1e-8), and a zero farther out was located
+    only to be dropped (an HB beyond the bound cost its location and its l1, a GH its l2: ~1500
+    Jacobians)."""
     if not (stepped.tests.extra.keys() == landed.tests.extra.keys()):
         return []
     saved = tracer._gaps, tracer._gap_point  # detect() resets the step's detection-gap lines
     try:
-        found, _ = tracer.detect(landed, stepped, index)
+        found, _ = tracer.detect(landed, stepped, index, near=NEAR_BOUND)
     except _RefineFirst:
         # a zero beyond the bound that adaptive resolution would refine before locating: past the
         # bound the branch is over, so no grid is changed for it (it escaped trace: Allen-Cahn fd2

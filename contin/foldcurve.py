@@ -615,10 +615,11 @@ def _trace_half(augmented: Any, start: Array, point: SpecialPoint, second: str, 
     def run(aug: Any, x0: Array, params: Mapping[str, float], o: ContinuationOptions, d: int,
             t: Array | None) -> Branch:
         idx = len(x0) - 1 if regrid is not None else index
+        ends = _second_bound_event(aug, second, lo, hi, index=idx) if bounded else {}
         if bounded:
-            o = replace(o, events={**o.events, **_second_bound_event(aug, second, lo, hi, index=idx)})
+            o = replace(o, events={**o.events, **ends})
         seg = trace(aug, x0, dict(params), parameter, o, direction=d, tangent=t, branch_id=branch_id, kind=kind,
-                    parent=f"{point.name}")
+                    parent=f"{point.name}", stop_events=tuple(ends))
         seg = _cut_at_bound(seg, aug, second, lo, hi, index=idx) if bounded else seg
         if regrid is not None:
             size = int(aug.grid_size)

@@ -66,9 +66,10 @@ def detect_sparsity(F: Residual, u0: Array, params: Params, *, step: float = FD_
     n = u0.size
     shift = 1e-3 * (1.0 + np.abs(u0)) * np.cos(np.arange(n) + 0.3)
     moved = {k: v + 1e-3 * (1.0 + abs(v)) * math.cos(i + 0.7) for i, (k, v) in enumerate(params.items())}
-    try:
-        usable = bool(np.all(np.isfinite(np.asarray(F(u0 + shift, moved), float))))
-    except (ArithmeticError, ValueError):
+    try:  # a probe: whatever F raises at parameters the user never gave, the pattern falls back to params
+        with np.errstate(all="ignore"):
+            usable = bool(np.all(np.isfinite(np.asarray(F(u0 + shift, moved), float))))
+    except Exception:
         usable = False
     rows, cols = [], []
     for base, p in ((u0, params), (u0 + shift, moved if usable else params)):
@@ -140,6 +141,13 @@ class FunctionProblem:
         if inner_product_weights is not None:
             w = inner_product_weights
             self.inner_product_weights = w if callable(w) else (lambda u, p, _w=np.asarray(w, float): _w)
+
+    @property
+    def central_differences(self) -> bool:
+        """Whether J comes from central differences (method 'fd', no exact ``jacobian``): accurate
+        to ~1e-10 relative, so a system that differentiates J again (fold and Hopf curves) has a
+        residual floor ~1e-5 |J| its corrector may not get below."""
+        return self._exact is None and self.method == "fd"
 
     def initial(self) -> Array:
         """The u0 given to :func:`from_functions`."""

@@ -167,13 +167,17 @@ def trace_hopf_curve(
     opts = replace(options, detection=replace(options.detection, detect_branch_points=False, detect_hopf=False),
                    bounds={k: v for k, v in options.bounds.items() if k != second})
     bounded = math.isfinite(lo) or math.isfinite(hi)
-    if bounded:
-        opts = replace(opts, events={**opts.events, **_second_bound_event(curve, second, lo, hi)})
-    meta = dict(branch_id=branch_id, kind="hopf-curve", parent=point.name)
+    ends = _second_bound_event(curve, second, lo, hi) if bounded else {}
+    opts = replace(opts, events={**opts.events, **ends}) if bounded else opts
+    meta = dict(branch_id=branch_id, kind="hopf-curve", parent=point.name, stop_events=tuple(ends))
     halves = []
     for direction in ((1, -1) if both else (1,)):
         half = trace(curve, start_vector, dict(point.params), parameter, opts, direction=direction, **meta)
         halves.append(_cut_at_bound(half, curve, second, lo, hi) if bounded else half)
+        if halves[-1].closed:
+            # a closed curve is whole after one half (as in trace_augmented): the other half went
+            # round it again, every special point twice (AUTO's pp3: 6 ZH/LP/GH reported as 12)
+            break
     raw = halves[0] if len(halves) == 1 else join(halves[1], halves[0])
     return _no_gh_at_zero_hopf(as_hopf_curve(raw, curve))
 
@@ -258,6 +262,7 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float,
         status="EP",
         message=f"reached bound {second}={p2:g}",
         state_index=state_index,
+        closed=False,  # the raw half may have closed beyond the bound (CO's Hopf curve past k = 1)
     )
     return cut
 
@@ -289,7 +294,7 @@ def _stop_outside(branch: Branch, second: str, lo: float, hi: float, j: int) -> 
                        state=cut.states[last].copy(), tangent=cut.tangents[last].copy(),
                        note=f"reached bound {second}={at:g}")
     return replace(cut, special_points=[sp_ for sp_ in cut.special_points if sp_.type not in ("EP", "MX")] + [end],
-                   status="EP", message=f"reached bound {second}={at:g}")
+                   status="EP", message=f"reached bound {second}={at:g}", closed=False)
 
 
 #: a located point this close to a bound (relative to max(1, |bound|)) is on it: ten times the
@@ -313,7 +318,8 @@ def _before(branch: Branch, s: SpecialPoint, uz: SpecialPoint) -> bool:
 
 def _second_bound_event(curve: Any, second: str, lo: float, hi: float, index: int | None = None) -> dict[str, Any]:
     """Events that vanish on the (finite) bounds of the second parameter (p2 is part of the state,
-    so the tracer's bound landing does not see it): the run stops at the located crossing.
+    so the tracer's bound landing does not see it): the run stops at the located crossing
+    (``trace(..., stop_events=...)``) and is cut there (:func:`_cut_at_bound`).
     ``index``: p2's place in the state (default: the Hopf-curve state's).  One event per bound:
     the former min(p2 - lo, hi - p2) is 0 at a start on one bound, so a first step across the
     other bound showed no sign change (`contin continue pf.h5 --from BP1 --free nu --bounds

@@ -277,6 +277,23 @@ class LyapunovTest:
             return []
         return [("generalized Hopf (l1 = 0)", _l1_or_nan)]
 
+    def value_error(self, system: Any, x: Array) -> float:
+        """|l1(m) - l1(2 m)| at x (m the curve's step multiplier): the error of the test value
+        that located a GH (:func:`contin.hopf.two_step_estimate`).  From a difference Jacobian
+        (``from_functions``' default) it is ~1e-5: AUTO's pp3 had its GHs 1e-6 off, 'converged'."""
+        from contin.hopf import first_lyapunov, two_step_estimate
+
+        u, _, _, kappa, q = self.curve.split(x[:-1], system.params_at(x[-1]))
+        if not kappa > 0:
+            return math.nan
+        m = self.step_scale(u, q, math.sqrt(kappa))
+        estimate = two_step_estimate(lambda k: first_lyapunov(self.curve.problem, np.asarray(u, float), q,
+                                                              math.sqrt(kappa), step_scale=k))
+        try:
+            return estimate(m)[1]
+        except (np.linalg.LinAlgError, RuntimeError, ValueError):
+            return math.nan
+
     def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
         """l1 (~0), omega, kappa and the second Lyapunov coefficient l2 of the GH
         (:func:`contin.codim2tests.second_lyapunov_estimate`; NaN where it cannot be computed,

@@ -37,3 +37,9 @@ class PointTest(Protocol):
     def crossings(self, va: Any, vb: Any) -> list[Crossing]: ...
 
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint: ...
+
+    # Optional: ``value_error(system, x) -> float``, an estimate of the absolute error of the
+    # crossing's test value at x (a value from difference quotients: l1 at a GH).  The tracer
+    # turns it into the located point's position uncertainty (error / the value's change across
+    # the step, times the step's parameter span) and says so where that exceeds the location
+    # tolerance (``contin.continuation.position_doubt``).

@@ -23,6 +23,14 @@ builds its own by grouped differences from F alone, as a user's problem would).
   u' = (U0 - u)/tau_F + U0 (1 - u) E, g(y) = alpha log(1 + e^{y/alpha}); (alpha, tau, J, E0,
   tau_D, U0, tau_F) = (1.5, 0.013, 3.07, -2, 0.2, 0.3, 1.5), continued in E0 within [-4, -0.9]
   and its Hopf curve in (E0, alpha).
+- AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
+  - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
+  and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
+- pacopy's Bratu1d (:func:`pacopy_bratu`).
+- BifurcationKit's ``chan`` example (examples/chan.jl; Chan's temperature problem): n = 101 points,
+  x_1 = x_n = beta, (x_{i-1} - 2 x_i + x_{i+1}) (n - 1)^2 + alpha N(x_i) = 0 inside,
+  N(x) = 1 + (x + a x^2) / (1 + beta x^2), a = 0.5; (alpha, beta) = (3.3, 0.01), its folds in alpha
+  and the fold curve in (alpha, beta).
 """
 
 from __future__ import annotations
@@ -122,3 +130,98 @@ def tm(z0):
     central differences leave the augmented Hopf system a residual floor of ~1e-9, above
     the corrector's 1e-10 (the Hopf curve's first point did not converge)."""
     return contin.from_functions(tm_F, z0, TM, mass_matrix=np.eye(3), method="cs")
+
+
+PP3 = dict(p1=0.0, p2=0.25, p3=0.5, p4=4.0, p5=3.0, p6=5.0)
+
+
+def pp3_F(u, p):
+    """AUTO ``pp3`` (demos/pp3/pp3.f90; a predator-prey food chain with harvesting of the middle
+    species): start (1, 0, 0), PAR(1..6) = (0, 0.25, 0.5, 4, 3, 5)."""
+    x, y, z = u
+    return np.array([x * (1 - x) - p["p4"] * x * y,
+                     -p["p2"] * y + p["p4"] * x * y - p["p5"] * y * z - p["p1"] * (1 - np.exp(-p["p6"] * y)),
+                     -p["p3"] * z + p["p5"] * y * z])
+
+
+def pp3_J(u, p):
+    x, y, z = u
+    return np.array([[1 - 2 * x - p["p4"] * y, -p["p4"] * x, 0 * x],
+                     [p["p4"] * y, -p["p2"] + p["p4"] * x - p["p5"] * z - p["p1"] * p["p6"] * np.exp(-p["p6"] * y),
+                      -p["p5"] * y],
+                     [0 * x, p["p5"] * z, -p["p3"] + p["p5"] * y]])
+
+
+def pp3():
+    return contin.from_functions(pp3_F, np.array([1.0, 0.0, 0.0]), PP3, mass_matrix=np.eye(3))
+
+
+CHAN = dict(alpha=3.3, beta=0.01)
+CHAN_N = 101
+
+
+def chan_N(x, b, a=0.5):
+    return 1 + (x + a * x * x) / (1 + b * x * x)
+
+
+def chan_F(x, p):
+    n = x.size
+    f = np.empty_like(x)
+    f[0], f[-1] = x[0] - p["beta"], x[-1] - p["beta"]
+    f[1:-1] = (x[:-2] - 2 * x[1:-1] + x[2:]) * (n - 1) ** 2 + p["alpha"] * chan_N(x[1:-1], p["beta"])
+    return f
+
+
+def chan_J(x, p, a=0.5):
+    n, b = x.size, p["beta"]
+    xi = x[1:-1]
+    jac = np.zeros((n, n))
+    jac[0, 0] = jac[-1, -1] = 1.0
+    k = np.arange(1, n - 1)
+    jac[k, k - 1] = jac[k, k + 1] = (n - 1) ** 2
+    jac[k, k] = -2 * (n - 1) ** 2 + p["alpha"] * (1 - b * xi**2 + 2 * a * xi) / (1 + b * xi**2) ** 2
+    return jac
+
+
+def chan_start():
+    """The example's guess (i - 1)(n - i)/n^2 + 0.1 (1-based i), solved at (3.3, 0.01)."""
+    from scipy.optimize import fsolve
+
+    i = np.arange(1, CHAN_N + 1)
+    return fsolve(chan_F, (i - 1) * (CHAN_N - i) / CHAN_N**2 + 0.1, args=(CHAN,), fprime=lambda x, p: chan_J(x, p),
+                  xtol=1e-13)
+
+
+def chan(u0):
+    """The example's problem; the complex step (method='cs'): its interior rows scale with
+    (n - 1)^2 = 1e4, and the fold curve's system (second derivatives of F by differences of J)
+    with central differences stops at its first point (residual 6e-8 > 1e-10)."""
+    return contin.from_functions(chan_F, u0, CHAN, method="cs")
+
+
+def pacopy_bratu(n=51):
+    """pacopy's Bratu1d (test/test_bratu1d.py): -u'' = lambda e^u on [0, 1] by second differences on
+    n points (rows 0 and n-1: u = 0), its exact sparse Jacobian and dF/dlambda, and the trapezoid
+    weights H of its inner product; start u = 0, lambda = 0."""
+    import scipy.sparse as sp
+
+    h = 1.0 / (n - 1)
+    a = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n), format="lil") / h**2
+    a[0, :2], a[n - 1, n - 2:] = [[1.0, 0.0]], [[0.0, 1.0]]
+    a = sp.csr_matrix(a)
+    inner = np.ones(n)
+    inner[0] = inner[-1] = 0.0  # boundary rows of F are u itself, not the equation
+
+    def F(u, p):
+        return a @ u - inner * p["lmbda"] * np.exp(u)
+
+    def jac(u, p):
+        return a - sp.diags(inner * p["lmbda"] * np.exp(u))
+
+    def dF_dp(u, p, name):
+        return -inner * np.exp(u)
+
+    weights = np.full(n, h)
+    weights[0] = weights[-1] = h / 2
+    return contin.from_functions(F, np.zeros(n), {"lmbda": 0.0}, jacobian=jac, dF_dp=dF_dp, debug=True,
+                                 inner_product_weights=weights), F, jac

@@ -120,3 +120,22 @@ def test_sign_change_is_the_one_comparison():
     for bad in (nan, inf, None, (nan, 1.0), (1.0, nan)):
         assert sign_change(bad, 1.0) is None and sign_change(-1.0, bad) is None
         assert _sign_changed(bad, -1.0) is False
+
+
+def test_a_stop_event_ends_the_run_after_its_zero():
+    """trace(..., stop_events=(name,)): the run ends with EP right after the step in which that
+    event's zero is located (the bounds of a two-parameter curve's second parameter use it),
+    other events do not stop it."""
+    from problems.demo import Lorenz as DemoLorenz  # with its closed-form equilibrium
+
+    p = {"sigma": 10.0, "beta": 8 / 3, "rho": 10.0}
+    events = {"x=5": lambda u, q: u[0] - 5.0, "x=7": lambda u, q: u[0] - 7.0}
+    opts = ContinuationOptions(step=StepOptions(ds=0.5, ds_max=1.0), bounds={"rho": (1.5, 40.0)}, events=events)
+    br = trace(DemoLorenz(), DemoLorenz.equilibrium(p), p, "rho", opts, stop_events=("x=7",))
+    assert br.status == "EP" and br.message == "stopped at event x=7"
+    assert [s.note for s in br.special_points if s.type == "UZ"] == ["x=5", "x=7"]
+    # x = sqrt(beta (rho - 1)) = 7 at rho = 1 + 49 / beta; the run ends within one step beyond it
+    assert br.points("UZ")[1].params["rho"] == pytest.approx(1 + 49 / (8 / 3), rel=1e-10)
+    assert br.params["rho"][-1] - (1 + 49 / (8 / 3)) < 1.0 + 1e-9
+    full = trace(DemoLorenz(), DemoLorenz.equilibrium(p), p, "rho", opts)
+    assert full.params["rho"][-1] == 40.0

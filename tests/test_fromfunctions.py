@@ -237,3 +237,22 @@ def test_bad_inputs_are_one_sentence_naming_them():
         contin.from_functions(F, np.zeros(n), {})
     with pytest.raises(ValueError, match=r"returned complex values \(complex128\); F must be real"):
         contin.from_functions(lambda u, p: F(u, p) + 1j * u, np.zeros(n), {"lam": 0.0})
+
+
+def test_pattern_probe_at_parameters_f_refuses_falls_back():
+    """The sparsity pattern is also probed at perturbed parameters; an F that raises or returns
+    NaN there (a parameter used as a log's argument at its boundary value) gets the pattern of
+    the given parameters, with no error."""
+    def F(u, p):
+        if p["a"] != 1.0:
+            raise KeyError("only a = 1")
+        return np.array([u[0] - u[1], u[1] + p["a"]])
+
+    pb = contin.from_functions(F, np.zeros(2), {"a": 1.0})
+    assert (pb.pattern.toarray() != 0).tolist() == [[True, True], [False, True]]
+
+    def G(u, p):
+        return np.array([u[0] * np.log(p["b"]), u[1] + u[0] * np.sqrt(-p["b"] + 1.0)])
+
+    pb = contin.from_functions(G, np.ones(2), {"b": 1.0})
+    assert (pb.pattern.toarray() != 0).tolist() == [[False, False], [False, True]]

@@ -241,3 +241,32 @@ def test_hopf_detection_is_on_by_default_for_large_n_with_a_mass_matrix():
     hb = br.points("HB")
     assert [sp.params["l"] for sp in hb] == pytest.approx(ref, rel=1e-10)
     assert all(sp.converged for sp in hb)
+
+
+@pytest.mark.parametrize("hi", [24.0, 470 / 19])
+def test_beyond_a_bound_only_a_zero_on_the_bound_is_located(monkeypatch, hi):
+    """Lorenz traced up to rho = hi with long steps: the last step ends at rho = 24.98, past the
+    HB at 470/19.  On the bound 24 the HB, 0.74 beyond it (0.76 of the step), is not located at
+    all (it was located, its l1 computed, and dropped: contin.continuation.NEAR_BOUND); a bound
+    on the HB itself still reports it there (to 1e-12)."""
+    import contin.continuation as cc
+    from problems.demo import Lorenz as DemoLorenz
+
+    brackets = []
+    real = cc.locate_zero
+
+    def spy(evaluate, sa, sb, **kw):
+        brackets.append((float(sa.point.x[-1]), float(sb.point.x[-1])))
+        return real(evaluate, sa, sb, **kw)
+
+    monkeypatch.setattr(cc, "locate_zero", spy)
+    p = {"sigma": 10.0, "beta": 8 / 3, "rho": 10.0}
+    br = trace(DemoLorenz(), DemoLorenz.equilibrium(p), p, "rho",
+               ContinuationOptions(step=StepOptions(ds=0.5, ds_max=4.0), bounds={"rho": (1.5, hi)}))
+    assert br.params["rho"][-1] == hi
+    if hi == 24.0:
+        assert not br.points("HB") and brackets == []
+    else:
+        (hb,) = br.points("HB")
+        assert hb.params["rho"] == pytest.approx(470 / 19, rel=1e-12) and hb.converged
+        assert len(brackets) == 1 and brackets[0][0] == hi

@@ -195,3 +195,16 @@ def test_hopf_curve_from_a_start_outside_the_bounds_of_the_second_parameter_is_r
     opts = ContinuationOptions(step=StepOptions(ds=0.05, ds_max=0.1), bounds={"b2": (-0.5, 1.0)}, max_steps=200)
     with pytest.raises(ValueError, match="start value b2=.* lies outside its bounds"):
         trace_hopf_curve(BTNormalForm(), hb, "b2", opts, parameter="b1")
+
+
+def test_a_half_cut_at_a_bound_is_not_closed(co_branch):
+    """CO's Hopf curve from its first HB, one direction, k within [0, 1]: the raw half runs on past
+    k = 1 and closes there; cut at the bound it ends EP on it and is not a closed curve (it was
+    marked closed, and trace_hopf_curve, which stops after a closed half, lost the other half and
+    both GHs)."""
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.02), bounds={"q2": (0.5, 2.2), "k": (0.0, 1.0)},
+                               max_steps=600)
+    half = trace_hopf_curve(CO(), co_branch.points("HB")[0], "k", opts, parameter="q2", both=False)
+    assert half.message == "reached bound k=1" and not half.closed
+    whole = trace_hopf_curve(CO(), co_branch.points("HB")[0], "k", opts, parameter="q2")
+    assert len(whole.points("GH")) == 2 and not whole.closed
