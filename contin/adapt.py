@@ -72,6 +72,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.cancel import stop_requested
 from contin.options import AdaptOptions
 from contin.problem import Array, has
 
@@ -1295,7 +1296,9 @@ def retrace_finer(problem: Any, compute: Any, opts: AdaptOptions = AdaptOptions(
     sizes = [int(problem.grid_size)]
     while True:
         branches = list(compute(problem))
-        if not any(under_resolved_stop(b) for b in branches):
+        if not any(under_resolved_stop(b) for b in branches) or stop_requested():
+            # after a Ctrl-C/SIGTERM (contin.cancel) a retrace would stop at its first point and
+            # replace what was traced: the branches are kept as they are (partial, MX)
             return problem, branches, sizes
         n_new = finer(problem, None, None, opts)
         if n_new is None:
