@@ -71,11 +71,12 @@ def run_phase(request: SceneRequest) -> SceneResult:
     # no --grid: a fold curve the resolution guard stops is retraced on finer grids (the
     # dense plugs at large H need more points than the start); --grid fixes the grid
     refine = None if request.grid else AdaptOptions(max_grid=int(request.overrides.get("max_grid") or 512))
+    # each fold curve is stored as it is finished (they were passed on only at the end: a run
+    # killed after 35 s of fold0 kept nothing), and --resume reuses the finished ones (it traced
+    # them all again; a curve a Ctrl-C cut short is not among them); qa18
     d = phase_diagram(pb, params, H_range=(s["H_min"], s["H_max"]), Fr_start=s["Fr_start"], max_steps=max_steps,
-                      progress=request.report, refine=refine)
-    relabel(d.curves)
-    for c in d.curves:
-        request.finished(c)
+                      progress=request.report, refine=refine, done=request.completed, on_curve=request.finished)
+    relabel(d.curves)  # (the final labels: the CLI stores the result's branches at the end)
     notes = [f"fold curve {c.id} ended with MX: {c.message}" for c in d.curves if c.status == "MX"]
     notes.append(f"smallest Fr with a floating-plug state: {d.fr_min_floating_plug:.6g}")
     notes += [f"{r['event']} of fold pairs on {r['curve']} at H = {r['H']:.6g}, Fr = {r['Fr']:.6g}" for r in d.extrema]
