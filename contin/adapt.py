@@ -996,7 +996,9 @@ class Adaptor:
         order = -float(slope)
         if not 0 < order <= SLOW_ORDER:
             return None
-        need = math.exp((float(icpt) - math.log(self.opts.tol)) / order)
+        # (a tol far below rounding, e.g. 1e-300, overflowed exp: "math range error", exit 1; qa18)
+        log_need = (float(icpt) - math.log(self.opts.tol)) / order
+        need = math.exp(log_need) if log_need < 700 else math.inf
         cur = tracer.points[-1]
         last = self.error(sys, cur.x)
         fit = ", ".join(f"{e:.2g} on {m}" for m, e in zip(sizes[1:], errors[1:]))
