@@ -47,3 +47,32 @@ def test_gravity_phase_stores_each_fold_curve_and_resume_reuses_it(tmp_path, mon
     # each curve passes through its pitchfork (cusp at G = 0): H_n^c = n pi psi, so H_3^c = 3 H_1^c
     (cp0,), (cp1,) = fold0.points("CP"), fold1.points("CP")
     assert cp1.params["H"] == pytest.approx(3 * cp0.params["H"], rel=1e-6)
+
+
+# ----------------------------------------------------------------------------- continue
+@pytest.fixture(scope="module")
+def stretched(tmp_path_factory):
+    """A stretched-Bratu run on cheb 32 with its fold LP1 (lam* = 3.51383...; fold curve lam = lam*/(1 + a))."""
+    path = tmp_path_factory.mktemp("sb") / "sb.h5"
+    res = run(["trace", "stretched-bratu", "--grid", "32", "--no-stability", "-q", "-o", str(path)])
+    assert res.exit_code in (0, 3), res.stderr
+    return path
+
+
+LAM_STAR = 3.51383071912516  # Bratu's fold (Jacobsen & Schmitt 2002)
+
+
+def test_a_long_first_step_across_a_bound_is_shortened_not_taken_for_the_bound(stretched, tmp_path):
+    """`contin continue sb.h5 --from LP1 --free a --ds 10`: the first step backward crossed the bound
+    lam = 0 and landing on it failed, so the half ended at its start point 'reached bound lam=0
+    (landing on it failed ...)', EP, exit 0 -- at lam = 3.5, nowhere near it.  Now a failed landing
+    shortens the step (contin.continuation.trace): the curve reaches the a bound, on the fold curve."""
+    out = tmp_path / "c.h5"
+    res = run(["continue", str(stretched), "--from", "LP1", "--free", "a", "--ds", "10", "--bounds", "a=-0.5:3",
+               "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (curve,), _ = io.load(out)
+    lam, a = curve.params["lam"], curve.params["a"]
+    assert "landing on it failed" not in curve.message
+    assert a.max() == 3.0 and lam.max() == 4.0  # both ends on a bound: a = 3 backward, lam = 4 forward
+    assert np.allclose(lam * (1 + a), LAM_STAR, rtol=1e-8)
