@@ -114,6 +114,8 @@ def test_grid_is_the_cartesian_product_with_stable_keys(tmp_path):
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"stability": 1}}, "'stability' must be of type bool"),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"resolution_tol": "of"}}, "must be a number > 0 or \"off\""),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"resolution_tol": -1e-5}}, "must be a number > 0 or \"off\""),
+    # a negative ds was accepted and its sign dropped (the scene chooses the direction); trace refuses it (qa18)
+    ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"ds": -1}}, "option 'ds' must be a finite number > 0"),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"engine": "fortran"}},
      "option 'engine' must be one of auto, numpy, numba, got 'fortran'"),
 ])
