@@ -76,3 +76,16 @@ def test_a_long_first_step_across_a_bound_is_shortened_not_taken_for_the_bound(s
     assert "landing on it failed" not in curve.message
     assert a.max() == 3.0 and lam.max() == 4.0  # both ends on a bound: a = 3 backward, lam = 4 forward
     assert np.allclose(lam * (1 + a), LAM_STAR, rtol=1e-8)
+
+
+def test_trace_resume_refuses_a_continue_curve_and_leaves_it_alone(stretched, tmp_path):
+    """`contin trace stretched-bratu --resume CURVE.h5` (CURVE from `contin continue`): the curve was
+    taken for a finished branch, the scene's run traced and written over the file, the curve
+    dropped -- lost, exit 0.  Now it is one Error line and the file is untouched."""
+    curve = tmp_path / "curve.h5"
+    assert run(["continue", str(stretched), "--from", "LP1", "--free", "a", "--max-steps", "5", "-o",
+                str(curve)]).exit_code == 0
+    before = curve.read_bytes()
+    line = one_error(run(["trace", "stretched-bratu", "--resume", str(curve), "-q"]))
+    assert "holds a two-parameter curve of `contin continue` (from LP1)" in line
+    assert curve.read_bytes() == before

@@ -205,6 +205,15 @@ def fail(message: str) -> NoReturn:
     raise click.ClickException(message)
 
 
+def continued_from(meta: Mapping[str, Any]) -> str | None:
+    """The label a ``contin continue`` curve file was continued from (its ``extra["from"]``, written
+    with ``extra["free"]``), or None for the file of a ``contin trace`` run."""
+    extra = meta.get("extra")
+    if isinstance(extra, Mapping) and "free" in extra:
+        return str(extra.get("from", "its point"))
+    return None
+
+
 def parse_value(text: str) -> Any:
     """A ``-s name=value`` value: a float (``inf`` allowed), else the string itself."""
     t = text.strip()

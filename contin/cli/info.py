@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from contin.cli._base import branches_table, echo_json, fmt, main, special_points_table
+from contin.cli._base import branches_table, continued_from, echo_json, fmt, main, special_points_table
 
 
 @main.command("info")
@@ -34,9 +34,9 @@ def info_command(file: str, as_json: bool) -> None:
         stopped = meta.get("stopped", "")
         if stopped.startswith("failed"):  # an error, not an interrupt: --resume would fail the same way
             click.echo(f"                (incomplete: the run {stopped})")
-        elif isinstance(meta.get("extra"), dict) and "free" in meta["extra"]:  # a `contin continue` curve (no --resume)
+        elif continued_from(meta) is not None:  # a `contin continue` curve (no --resume)
             click.echo(f"                (incomplete: the curve was {stopped or 'interrupted'}; `contin continue` "
-                       f"computes it again from {meta['extra'].get('from', 'its point')})")
+                       f"computes it again from {continued_from(meta)})")
         elif isinstance(meta.get("extra"), dict) and "depth" in meta["extra"]:  # --depth refuses --resume
             click.echo(f"                (incomplete: the run was {stopped or 'interrupted'}; a --depth run is started "
                        f"again from scratch)")

@@ -10,6 +10,7 @@ import click
 
 from contin.cli._base import (
     EXIT_INCOMPLETE,
+    continued_from,
     echo_err,
     echo_json,
     engine_option,
@@ -458,6 +459,11 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     completed: dict[str, Any] = {}
     if resume is not None:
         old, meta = io.load(resume)
+        if continued_from(meta) is not None:
+            # its curve was taken for a finished branch and dropped from the file the run then
+            # wrote over it: the curve lost, exit 0 (qa18)
+            fail(f"{resume!r} holds a two-parameter curve of `contin continue` (from {continued_from(meta)}), not a "
+                 f"run of `contin trace`; --resume continues a trace run (give another -o to keep the curve)")
         if meta["scene"] and meta["scene"] != scene:
             fail(f"{resume!r} holds a run of scene {meta['scene']!r}, not {scene!r}")
         for name, value in params.items():
