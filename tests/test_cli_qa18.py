@@ -6,6 +6,8 @@ Each test names the command that misbehaved before its fix.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -89,3 +91,24 @@ def test_trace_resume_refuses_a_continue_curve_and_leaves_it_alone(stretched, tm
     line = one_error(run(["trace", "stretched-bratu", "--resume", str(curve), "-q"]))
     assert "holds a two-parameter curve of `contin continue` (from LP1)" in line
     assert curve.read_bytes() == before
+
+
+# ----------------------------------------------------------------------------- stability
+PITCHFORK = Path(__file__).parents[1] / "results" / "pitchfork.h5"
+
+
+def test_stability_at_a_label_finds_its_branch(tmp_path):
+    """`contin stability pitchfork.h5 --point BP2` (a file of 7 branches): 'holds 7 branches; choose
+    one with --branch', though the label names one point of one branch.  Now the label selects its
+    branch; an index still needs --branch."""
+    import json
+
+    res = run(["stability", str(PITCHFORK), "--point", "BP2", "--kx", "0", "--json"])
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(res.stdout)
+    (base, *_), _ = io.load(PITCHFORK)
+    (bp1,) = [sp for sp in base.special_points if sp.name == "BP1"]
+    # the state of BP2 of the base branch: H_2^c = 2 pi psi = 2 H_1^c
+    assert doc["branch"] == base.id and doc["point"] == "BP2"
+    assert doc["params"]["H"] == pytest.approx(2 * bp1.params["H"], rel=1e-6)
+    assert "choose one with --branch" in one_error(run(["stability", str(PITCHFORK), "--point", "3", "--kx", "0"]))
