@@ -112,3 +112,26 @@ def test_stability_at_a_label_finds_its_branch(tmp_path):
     assert doc["branch"] == base.id and doc["point"] == "BP2"
     assert doc["params"]["H"] == pytest.approx(2 * bp1.params["H"], rel=1e-6)
     assert "choose one with --branch" in one_error(run(["stability", str(PITCHFORK), "--point", "3", "--kx", "0"]))
+
+
+# ----------------------------------------------------------------------------- incomplete files
+@pytest.mark.parametrize("command", [["diagram", "{f}", "-o", "{d}/d.png"], ["export", "{f}", "--auto", "x", "-d", "{d}"]])
+def test_a_diagram_or_export_of_an_unfinished_run_says_so(tmp_path, command):
+    """`contin diagram F` / `contin export F` of a run stopped after some of its branches drew and
+    exported them as if they were the run, with no word of it (exit 0).  Now a warning line names
+    the file as incomplete and why; a finished file gets none."""
+    import h5py
+
+    done = tmp_path / "done.h5"
+    assert run(["trace", "allen-cahn", "-q", "-o", str(done)]).exit_code == 0
+    part = tmp_path / "part.h5"
+    part.write_bytes(done.read_bytes())
+    with h5py.File(part, "r+") as f:  # what an interrupted run leaves (contin.cli.trace._stopped)
+        f.attrs["complete"] = False
+        f.attrs["stopped"] = "terminated by SIGTERM"
+    for path, warned in ((done, False), (part, True)):
+        res = run([a.format(f=path, d=tmp_path) for a in command])
+        assert res.exit_code == 0, res.stderr
+        warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("warning:")]
+        assert warnings == ([f"warning: {path} is incomplete (its run was terminated by SIGTERM): it holds only the "
+                             "branches computed before that"] if warned else []), res.stderr
