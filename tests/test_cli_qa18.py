@@ -135,3 +135,16 @@ def test_a_diagram_or_export_of_an_unfinished_run_says_so(tmp_path, command):
         warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("warning:")]
         assert warnings == ([f"warning: {path} is incomplete (its run was terminated by SIGTERM): it holds only the "
                              "branches computed before that"] if warned else []), res.stderr
+
+
+# ----------------------------------------------------------------------------- verify
+def test_verify_with_no_point_checked_prints_no_nan(tmp_path):
+    """`contin verify F --max-grid 2` (below the file's grid): no point can be checked; the table's
+    max error column said 'nan' beside FAIL.  Now '-', exit 4, the reason on the 'inaccurate' line."""
+    f = tmp_path / "b.h5"
+    assert run(["trace", "bratu", "-q", "-o", str(f)]).exit_code == 0
+    res = run(["verify", str(f), "--max-grid", "2"])
+    assert res.exit_code == 4
+    assert "nan" not in res.stdout.lower() and "nan" not in res.stderr.lower(), res.stdout
+    (row,) = [ln.split() for ln in res.stdout.splitlines() if ln.startswith("0 ")]
+    assert row[3] == "-" and row[-1] == "FAIL"
