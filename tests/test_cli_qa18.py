@@ -148,3 +148,23 @@ def test_verify_with_no_point_checked_prints_no_nan(tmp_path):
     assert "nan" not in res.stdout.lower() and "nan" not in res.stderr.lower(), res.stdout
     (row,) = [ln.split() for ln in res.stdout.splitlines() if ln.startswith("0 ")]
     assert row[3] == "-" and row[-1] == "FAIL"
+
+
+# ----------------------------------------------------------------------------- closed stderr
+def test_a_run_with_stderr_closed_writes_its_file(tmp_path):
+    """`contin trace bratu -o F 2>&-` (stderr closed: sys.stderr is None): the first message raised
+    AttributeError, click's report of it raised again, and the run ended with exit 120 and no F.
+    Now messages go nowhere and the run is as with stderr open: exit 0, F written (LP1 at lam*)."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "b.h5"
+    env = {k: v for k, v in os.environ.items() if k != "CONTIN_SCENES"}
+    proc = subprocess.run([sys.executable, "-m", "contin", "trace", "bratu", "-o", str(out)], env=env,
+                          stdout=subprocess.PIPE, preexec_fn=lambda: os.close(2), timeout=120)
+    assert proc.returncode == 0
+    (branch,), meta = io.load(out)
+    assert meta["complete"] is True
+    (lp,) = branch.points("LP")
+    assert lp.params["lam"] == pytest.approx(3.513830719125162, rel=1e-9)  # Bratu's fold lam*

@@ -104,12 +104,15 @@ class _SinkOnBrokenPipe:
     Progress, notes and tables go to stderr; with ``contin trace ... 2>&1 | head -1`` the second
     progress line raised BrokenPipeError, which ended the run (exit 1, 'incomplete: the run failed:
     Broken pipe', 2 of 7 branches traced).  A reader that stopped reading is no reason to stop
-    computing: the output file and the exit code still report the run.
+    computing: the output file and the exit code still report the run.  A stderr closed before the
+    start (``2>&-``: ``sys.stderr`` is None) is a reader gone from the start: the first message
+    raised AttributeError, then click's report of it, and the run ended with exit 120 and no
+    file (qa18).
     """
 
     def __init__(self, stream: Any) -> None:
         self._stream = stream
-        self._gone = False
+        self._gone = stream is None
 
     def write(self, text: str) -> int:
         if not self._gone:
@@ -125,6 +128,9 @@ class _SinkOnBrokenPipe:
                 self._stream.flush()
             except BrokenPipeError:
                 self._gone = True
+
+    def isatty(self) -> bool:
+        return self._stream is not None and bool(self._stream.isatty())
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)
