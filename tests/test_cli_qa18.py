@@ -168,3 +168,14 @@ def test_a_run_with_stderr_closed_writes_its_file(tmp_path):
     assert meta["complete"] is True
     (lp,) = branch.points("LP")
     assert lp.params["lam"] == pytest.approx(3.513830719125162, rel=1e-9)  # Bratu's fold lam*
+
+
+# ----------------------------------------------------------------------------- gravity-unfolding
+@pytest.mark.parametrize("G, expect", [("1e-7,1e-7", "G lists the value 1e-07 twice"),
+                                       ("1e-200", "G = 1e-200 is outside 1e-100 <= G <= 1"),
+                                       ("1e300", "G = 1e+300 is outside 1e-100 <= G <= 1")])
+def test_gravity_unfolding_refuses_repeated_and_far_gravities(G, expect):
+    """`contin trace gravity-unfolding -s G=1e-7,1e-7` traced and stored each branch at that G twice
+    under the same ids (exit 0); G = 1e-200 ended 'arithmetic failure (ZeroDivisionError)', 1e300
+    '(OverflowError)' (the G-homotopy weighs the arclength by 1/G^2).  Now one clear line each."""
+    assert expect in one_error(run(["trace", "gravity-unfolding", "-s", f"G={G}", "--grid", "12", "-q"]))

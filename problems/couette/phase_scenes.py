@@ -36,6 +36,8 @@ PHASE_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50
 PHASE_GRID = 32
 UNFOLDING_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "G": "3e-8,1e-7,3e-7,1e-6", "window": 0.3}
 UNFOLDING_GRID = 32
+#: the gravities gravity-unfolding accepts (its G-homotopy weighs the arclength by 1/G^2)
+G_RANGE = (1e-100, 1.0)
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str, skip: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -123,6 +125,15 @@ def _gravities(text: Any) -> list[float]:
         raise SceneError(f"G must be a comma-separated list of numbers, got {text!r}") from None
     if not values or not all(math.isfinite(g) and g > 0 for g in values):
         raise SceneError(f"G needs positive finite gravities G = Fr^-2 (G = 0 is added by itself), got {text!r}")
+    # the G-homotopy's arclength weight 1/G^2 must be a finite number: G = 1e-200 ended 'arithmetic
+    # failure (ZeroDivisionError)', G = 1e300 'OverflowError' (qa18); the unfolding is about small G
+    far = [g for g in values if not G_RANGE[0] <= g <= G_RANGE[1]]
+    if far:
+        raise SceneError(f"G = {far[0]:g} is outside {G_RANGE[0]:g} <= G <= {G_RANGE[1]:g} (small gravities "
+                         f"G = Fr^-2, Fr >= 1, near the gravity-free pitchfork)")
+    twice = next((g for i, g in enumerate(values) if g in values[:i]), None)
+    if twice is not None:  # each G's branches were traced and stored twice, under the same ids (qa18)
+        raise SceneError(f"G lists the value {twice:g} twice, got {text!r}")
     return values
 
 
