@@ -179,3 +179,35 @@ def test_gravity_unfolding_refuses_repeated_and_far_gravities(G, expect):
     under the same ids (exit 0); G = 1e-200 ended 'arithmetic failure (ZeroDivisionError)', 1e300
     '(OverflowError)' (the G-homotopy weighs the arclength by 1/G^2).  Now one clear line each."""
     assert expect in one_error(run(["trace", "gravity-unfolding", "-s", f"G={G}", "--grid", "12", "-q"]))
+
+
+# ----------------------------------------------------------------------------- results that are not branches
+def test_ctrl_c_keeps_what_a_scene_without_branches_finished(tmp_path, monkeypatch):
+    """`contin trace disks-criticality -o F` + Ctrl-C after the first restitution coefficient: the
+    scene stops at the next e (qa17) but its results are notes and extra, not branches, so nothing
+    was written -- the finished e lost.  Now F holds them, marked interrupted (exit 130)."""
+    import problems.disks.criticality as crit
+    from contin.cancel import request_stop
+
+    original = crit.tricritical
+
+    def ctrl_c_after_the_first_e(*args, **kwargs):
+        out = original(*args, **kwargs)
+        request_stop()  # the Ctrl-C arrives once e = 0.8 is done
+        return out
+
+    monkeypatch.setattr(crit, "tricritical", ctrl_c_after_the_first_e)
+    out = tmp_path / "dc.h5"
+    res = run(["trace", "disks-criticality", "-s", "e_list=0.8,0.9", "-s", "nu_min=0.5", "-s", "nu_max=0.6", "-s",
+               "dnu=0.1", "-s", "fold_checks=0", "-o", str(out)])
+    assert res.exit_code == 130, res.stderr
+    branches, meta = io.load(out)
+    assert branches == [] and meta["complete"] is False and meta["stopped"] == "interrupted"
+    assert list(meta["extra"]["curves"]) == ["0.8"]  # e = 0.9 was not started
+    # the kept result is e = 0.8's: its threshold density solved here from the closure (cs, the scene's defaults)
+    from problems.disks.closures import DiskClosure
+    from problems.disks.model import DEFAULTS
+
+    nu_th = crit.threshold_density({**DEFAULTS, "phi_inf": 0.9, "phi_f": 0.7, "m_f": 0.01, "e": 0.8}, DiskClosure(G="cs"))
+    assert meta["extra"]["curves"]["0.8"]["threshold"] == pytest.approx(nu_th, rel=1e-12)
+    assert any(f"e = 0.8: threshold nu_th = {nu_th:.6f}" in n for n in meta["notes"])

@@ -556,6 +556,14 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             if stop_requested():  # a scene that passed no branch to on_branch after the stop
                 if writer is not None:
                     writer.set_branches(result.branches)
+                    if result.notes or result.extra:
+                        # what the scene finished before the stop, also where its results are notes and
+                        # extra, not branches (disks-criticality: the e values done; no file was written
+                        # at all, qa18); published here, marked stopped by abort()
+                        writer.update(parameters=result.parameters, discretization=result.discretization,
+                                      notes=list(result.notes),
+                                      extra={**result.extra, **({} if depth is None else {"depth": depth})})
+                        writer.publish()
                 stop_now()
     except BaseException as exc:
         if stop is not None and stop.requested and not isinstance(exc, KeyboardInterrupt):
