@@ -181,6 +181,12 @@ def test_gravity_unfolding_refuses_repeated_and_far_gravities(G, expect):
     assert expect in one_error(run(["trace", "gravity-unfolding", "-s", f"G={G}", "--grid", "12", "-q"]))
 
 
+def test_disks_criticality_refuses_a_repeated_restitution_coefficient():
+    """`contin trace disks-criticality -s e_list=0.8,0.8` computed e = 0.8 twice (the second over the
+    first in extra.curves, two notes), exit 0."""
+    assert "lists e = 0.8 twice" in one_error(run(["trace", "disks-criticality", "-s", "e_list=0.8,0.8", "-q"]))
+
+
 # ----------------------------------------------------------------------------- results that are not branches
 def test_ctrl_c_keeps_what_a_scene_without_branches_finished(tmp_path, monkeypatch):
     """`contin trace disks-criticality -o F` + Ctrl-C after the first restitution coefficient: the
