@@ -217,3 +217,20 @@ def test_ctrl_c_keeps_what_a_scene_without_branches_finished(tmp_path, monkeypat
     nu_th = crit.threshold_density({**DEFAULTS, "phi_inf": 0.9, "phi_f": 0.7, "m_f": 0.01, "e": 0.8}, DiskClosure(G="cs"))
     assert meta["extra"]["curves"]["0.8"]["threshold"] == pytest.approx(nu_th, rel=1e-12)
     assert any(f"e = 0.8: threshold nu_th = {nu_th:.6f}" in n for n in meta["notes"])
+
+
+def test_info_json_says_why_a_run_stopped(tmp_path):
+    """`contin info F --json` of an interrupted run said "complete": false but not why (the text
+    says 'incomplete: the run was terminated by SIGTERM'); its provenance now holds "stopped"."""
+    import json
+
+    import h5py
+
+    f = tmp_path / "b.h5"
+    assert run(["trace", "bratu", "-q", "-o", str(f)]).exit_code == 0
+    assert json.loads(run(["info", str(f), "--json"]).stdout)["provenance"]["stopped"] == ""
+    with h5py.File(f, "r+") as h:
+        h.attrs["complete"] = False
+        h.attrs["stopped"] = "terminated by SIGTERM"
+    prov = json.loads(run(["info", str(f), "--json"]).stdout)["provenance"]
+    assert prov["complete"] is False and prov["stopped"] == "terminated by SIGTERM"

@@ -19,9 +19,12 @@ def info_command(file: str, as_json: bool) -> None:
     prov = {k: meta[k] for k in ("format_version", "contin_version", "git_commit", "created_utc", "command",
                                  "complete")}
     if as_json:
+        # why an incomplete run stopped ('interrupted', 'terminated by SIGTERM', 'failed: ...'; '' when
+        # complete): the text says it, the JSON said only complete: false (qa18)
         echo_json(run_document(scene=meta["scene"], parameters=meta["parameters"],
                                discretization=meta["discretization"], branches=branches,
-                               notes=meta["notes"], extra=meta["extra"], provenance=prov,
+                               notes=meta["notes"], extra=meta["extra"],
+                               provenance={**prov, "stopped": str(meta.get("stopped") or "")},
                                options=meta["options"], audit={b.id: list(b.audit) for b in branches}))
         return
     click.echo(f"file:           {file}")
