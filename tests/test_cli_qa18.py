@@ -234,3 +234,17 @@ def test_info_json_says_why_a_run_stopped(tmp_path):
         h.attrs["stopped"] = "terminated by SIGTERM"
     prov = json.loads(run(["info", str(f), "--json"]).stdout)["provenance"]
     assert prov["complete"] is False and prov["stopped"] == "terminated by SIGTERM"
+
+
+# ----------------------------------------------------------------------------- locks
+def test_a_fifo_where_the_lock_file_goes_is_one_clear_line(tmp_path):
+    """A FIFO at `.F.lock` (a stray mkfifo): `contin trace bratu -o F` said only 'Error: Invalid
+    argument' (ftruncate of the FIFO).  Now it names the lock file and what to do; no F, the FIFO kept."""
+    import os
+    import stat
+
+    lock = tmp_path / ".b.h5.lock"
+    os.mkfifo(lock)
+    line = one_error(run(["trace", "bratu", "-q", "-o", str(tmp_path / "b.h5")]))
+    assert f"the lock file '{lock}' is not a regular file" in line and "remove it" in line
+    assert not (tmp_path / "b.h5").exists() and stat.S_ISFIFO(os.lstat(lock).st_mode)
