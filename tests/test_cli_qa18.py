@@ -248,3 +248,29 @@ def test_a_fifo_where_the_lock_file_goes_is_one_clear_line(tmp_path):
     line = one_error(run(["trace", "bratu", "-q", "-o", str(tmp_path / "b.h5")]))
     assert f"the lock file '{lock}' is not a regular file" in line and "remove it" in line
     assert not (tmp_path / "b.h5").exists() and stat.S_ISFIFO(os.lstat(lock).st_mode)
+
+
+# ----------------------------------------------------------------------------- second-parameter bounds
+def test_a_hopf_curve_that_leaves_through_the_bound_it_starts_on_ends_there(tmp_path):
+    """`contin continue ab.h5 --from HB1 --free B --bounds B=14:20` (B = 14 at HB1, on the lower
+    bound): the half leaving through B = 14 shows no sign change there, went down to B = 10.5 (its
+    GH at B = 11.02 and LP at B = 11.25 stored, below the bound) and was cut only where it came back
+    up through B = 14, exit 0.  Now it ends at its first point beyond the bound (here its start), and
+    every stored point is a Hopf point of the CSTR with 14 <= B <= 20 (tr J = 0, det J > 0)."""
+    from contin.restart import rebuild_problem
+
+    src, out = tmp_path / "ab.h5", tmp_path / "hb.h5"
+    assert run(["trace", "ab", "-q", "-o", str(src)]).exit_code == 0
+    res = run(["continue", str(src), "--from", "HB1", "--free", "B", "--bounds", "B=14:20", "-o", str(out)])
+    assert res.exit_code == 0, res.stderr
+    (curve,), meta = io.load(out)
+    B = curve.params["B"]
+    assert B.min() >= 14.0 - 1e-9 and B.max() == pytest.approx(20.0, abs=1e-9)
+    assert not curve.points("GH") and not curve.points("LP")
+    problem = rebuild_problem({**meta, "path": str(src)})
+    for i in range(len(curve)):
+        p = {**meta["parameters"], **{k: float(v[i]) for k, v in curve.params.items()}}
+        jac = problem.jacobian(curve.states[i, :2], p)  # the CSTR's two unknowns lead the augmented state
+        jac = np.asarray(jac.todense() if hasattr(jac, "todense") else jac)
+        assert jac.shape == (2, 2)
+        assert abs(np.trace(jac)) < 1e-8 * np.abs(jac).max() and np.linalg.det(jac) > 0
