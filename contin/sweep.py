@@ -587,6 +587,13 @@ class SweepSummary:
         extra = record.extra
         return {r[6:]: extra.get(r[6:]) for r in self.spec.record if r.startswith("extra.")}
 
+    def missing_extra(self) -> list[str]:
+        """The ``extra.NAME`` entries of ``record`` that no task which ran (ok or MX) has in its
+        extra results: a misspelled or unknown name, recorded as null in every task."""
+        ran = [r for r in self.records if r.status in ("ok", "MX")]
+        names = [r[6:] for r in self.spec.record if r.startswith("extra.")]
+        return [n for n in names if ran and not any(n in r.extra for r in ran)]
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON document written to ``summary.json`` (strict JSON)."""
         tasks = []
