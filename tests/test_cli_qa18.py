@@ -274,3 +274,17 @@ def test_a_hopf_curve_that_leaves_through_the_bound_it_starts_on_ends_there(tmp_
         jac = np.asarray(jac.todense() if hasattr(jac, "todense") else jac)
         assert jac.shape == (2, 2)
         assert abs(np.trace(jac)) < 1e-8 * np.abs(jac).max() and np.linalg.det(jac) > 0
+
+
+# ----------------------------------------------------------------------------- accuracy
+def test_the_accuracy_table_shows_no_nan():
+    """`contin accuracy bratu --grids 8,16`: the table's rel.error of the reference run and the order
+    of each first grid read 'nan' (allen-cahn: 15 cells).  Now '-'; the numbers are unchanged: fd2's
+    order between N = 8 and 16 is 2 (its truncation error), to 0.1."""
+    res = run(["accuracy", "bratu", "--grids", "8,16", "--methods", "cheb,fd2"])
+    assert res.exit_code == 0, res.stderr
+    assert "nan" not in res.stderr
+    rows = [ln.split() for ln in res.stderr.splitlines() if ln.startswith("0/LP1 ")]
+    by = {(r[1], r[2]): r for r in rows}
+    assert by[("cheb", "16")][4:6] == ["-", "-"]  # the reference: no error, no order
+    assert by[("fd2", "8")][5] == "-" and float(by[("fd2", "16")][5]) == pytest.approx(2.0, abs=0.1)

@@ -164,8 +164,15 @@ def _show(report: Any, written: list[Any]) -> None:
     """The tables of ``report`` and the files written, on stderr."""
     from contin.accuracy import recommend
 
-    rows = [(r.key, r.method, r.grid, fmt(r.value, 13), fmt(r.error, 2), fmt(r.order, 3), f"{r.cpu:.3f}",
-             f"{r.wall:.3f}", r.newton_iterations, fmt(r.peak_memory_mb, 3)) for r in report.rows]
+    import math
+
+    def cell(v: float, digits: int) -> str:
+        """'-' where a value is undefined (the reference's own error, the order of a first grid, memory
+        not measured): the table said 'nan' there (qa18); the CSV and JSON keep NaN / null."""
+        return "-" if isinstance(v, float) and math.isnan(v) else fmt(v, digits)
+
+    rows = [(r.key, r.method, r.grid, cell(r.value, 13), cell(r.error, 2), cell(r.order, 3), f"{r.cpu:.3f}",
+             f"{r.wall:.3f}", r.newton_iterations, cell(r.peak_memory_mb, 3)) for r in report.rows]
     echo_err(table(rows, ("key point", "method", "N", "value", "rel.error", "order", "cpu s", "wall s",
                           "newton", "peak MB")))
     echo_err(f"reference: {report.reference_from}")
