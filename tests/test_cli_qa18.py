@@ -288,3 +288,29 @@ def test_the_accuracy_table_shows_no_nan():
     by = {(r[1], r[2]): r for r in rows}
     assert by[("cheb", "16")][4:6] == ["-", "-"]  # the reference: no error, no order
     assert by[("fd2", "8")][5] == "-" and float(by[("fd2", "16")][5]) == pytest.approx(2.0, abs=0.1)
+
+
+def test_the_accuracy_heartbeat_names_the_run_in_progress(monkeypatch):
+    """With stderr not a terminal, `contin accuracy` prints a heartbeat; it said 'running: started'
+    throughout (the run lines did not reach it).  Now it repeats the run in progress."""
+    import time
+
+    import contin.accuracy as acc
+
+    real = acc.run_accuracy
+
+    def slow(*args, progress=None, **kwargs):
+        def paced(message):
+            progress(message)
+            time.sleep(0.3)  # a few heartbeats per run
+
+        return real(*args, progress=paced, **kwargs)
+
+    monkeypatch.setattr(acc, "run_accuracy", slow)
+    monkeypatch.setenv("CONTIN_PROGRESS_SECONDS", "0.05")
+    res = run(["accuracy", "bratu", "--grids", "8,16", "--methods", "cheb"])
+    assert res.exit_code == 0, res.stderr
+    beats = [ln.split("] ", 1)[1] for ln in res.stderr.splitlines() if "] running: " in ln]
+    named = [i for i, b in enumerate(beats) if b != "running: started"]
+    assert named, beats  # ('started' only before the first run begins)
+    assert set(beats[named[0]:]) <= {"running: bratu: cheb N=8", "running: bratu: cheb N=16"}, beats

@@ -106,10 +106,15 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
 
     # a line per run, and a heartbeat when stderr is not a terminal (long jobs show life in logs)
     progress = Progress(enabled=not quiet)
+
+    def running(message: str) -> None:
+        progress.line(f"running {message}")
+        progress.note(message)  # the heartbeat repeats it (it said 'running: started' all along; qa18)
+
     try:
         with guard:
             report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
-                                  progress=None if quiet else (lambda m: progress.line(f"running {m}")),
+                                  progress=None if quiet else running,
                                   tols=tol_list, repeats=repeats)
     except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM lost every finished run (qa17): keep them, marked
         progress.close()
