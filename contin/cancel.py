@@ -8,7 +8,8 @@ Only a command that can save a partial branch installs it (:func:`stop_on_sigint
 asks :func:`stop_requested` once per step (``contin.continuation.trace``), which costs a module
 global read, and marks the branch MX with :func:`stop_reason` (``"interrupted (Ctrl-C)"`` or
 ``"terminated by SIGTERM"``).  :func:`is_stopped_branch` tells such a partial branch from a
-finished one (``contin trace --resume`` retraces it).
+finished one (``contin trace --resume`` retraces it).  Inside :func:`deferred` (locating the special
+points of a result already traced) the request waits until the block ends.
 """
 
 from __future__ import annotations
