@@ -314,3 +314,30 @@ def test_the_accuracy_heartbeat_names_the_run_in_progress(monkeypatch):
     named = [i for i, b in enumerate(beats) if b != "running: started"]
     assert named, beats  # ('started' only before the first run begins)
     assert set(beats[named[0]:]) <= {"running: bratu: cheb N=8", "running: bratu: cheb N=16"}, beats
+
+
+# ----------------------------------------------------------------------------- branches handed over together
+def test_a_stop_keeps_every_branch_a_scene_hands_over_at_its_end(tmp_path, monkeypatch):
+    """`contin trace gravity -o F` + Ctrl-C: the scene traces all its branches (problems.couette.
+    gravity.discover), then hands them over in one loop; the first one handed over after the stop
+    raised the interrupt, so F kept that one only and lost the others finished before the Ctrl-C.
+    Now the branches handed over are stored up to the one the stop cut short (and that one)."""
+    from types import SimpleNamespace
+
+    import problems.couette.gravity_scenes as gs
+    from contin.cancel import CTRL_C, ENDS_AT_LAST_POINT, request_stop
+    from tests.cli_fixture_scenes import toy_branches
+
+    def discover(pb, params, settings, progress=None):
+        done = toy_branches(1.0, 3)
+        done[2].status, done[2].message = "MX", CTRL_C + ENDS_AT_LAST_POINT  # the branch in progress
+        request_stop()  # the Ctrl-C came while branch 2 was traced
+        return SimpleNamespace(branches=done)
+
+    monkeypatch.setattr(gs, "discover", discover)
+    out = tmp_path / "g.h5"
+    res = run(["trace", "gravity", "--grid", "16", "--no-stability", "-o", str(out)])
+    assert res.exit_code == 130, res.stderr
+    kept, meta = io.load(out)
+    assert meta["stopped"] == "interrupted" and [len(b) for b in kept] == [len(b) for b in toy_branches(1.0, 3)]
+    assert [b.status for b in kept] == ["EP", "EP", "MX"]
