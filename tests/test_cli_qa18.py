@@ -135,6 +135,10 @@ def test_a_diagram_or_export_of_an_unfinished_run_says_so(tmp_path, command):
         warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("warning:")]
         assert warnings == ([f"warning: {path} is incomplete (its run was terminated by SIGTERM): it holds only the "
                              "branches computed before that"] if warned else []), res.stderr
+    with h5py.File(part, "r+") as f:  # a checkpoint of a run still going (or SIGKILLed): no reason recorded
+        f.attrs["stopped"] = ""
+    res = run([a.format(f=part, d=tmp_path) for a in command])
+    assert f"warning: {part} is incomplete (its run was still running, or killed)" in res.stderr
 
 
 # ----------------------------------------------------------------------------- verify

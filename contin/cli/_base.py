@@ -222,12 +222,13 @@ def continued_from(meta: Mapping[str, Any]) -> str | None:
 
 def warn_if_incomplete(file: str, meta: Mapping[str, Any]) -> None:
     """A ``warning:`` line when ``file`` holds an unfinished run (``complete=False``: interrupted,
-    killed or failed) or a curve cut short: what a command draws, exports or fits from it is only
+    killed, failed or still running) or a curve cut short: what a command draws, exports or fits from it is only
     what was computed before the stop (a diagram of a run stopped after 1 of 7 branches looked
     finished, exit 0; qa18)."""
     if meta.get("complete", True):
         return
-    stopped = str(meta.get("stopped") or "") or "interrupted or killed"
+    # no reason recorded: a checkpoint of a run still going, or of one killed (SIGKILL, power loss)
+    stopped = str(meta.get("stopped") or "") or "still running, or killed"
     what = ("its curve ends where it stopped" if continued_from(meta) is not None
             else "it holds only the branches computed before that")
     echo_err(f"warning: {file} is incomplete (its run was {stopped}): {what}")
