@@ -72,6 +72,7 @@ from typing import Any
 
 import numpy as np
 
+from contin.cancel import stop_requested
 from contin.options import AdaptOptions
 from contin.problem import Array, has
 
@@ -995,7 +996,9 @@ class Adaptor:
         order = -float(slope)
         if not 0 < order <= SLOW_ORDER:
             return None
-        need = math.exp((float(icpt) - math.log(self.opts.tol)) / order)
+        # (a tol far below rounding, e.g. 1e-300, overflowed exp: "math range error", exit 1; qa18)
+        log_need = (float(icpt) - math.log(self.opts.tol)) / order
+        need = math.exp(log_need) if log_need < 700 else math.inf
         cur = tracer.points[-1]
         last = self.error(sys, cur.x)
         fit = ", ".join(f"{e:.2g} on {m}" for m, e in zip(sizes[1:], errors[1:]))
@@ -1295,7 +1298,9 @@ def retrace_finer(problem: Any, compute: Any, opts: AdaptOptions = AdaptOptions(
     sizes = [int(problem.grid_size)]
     while True:
         branches = list(compute(problem))
-        if not any(under_resolved_stop(b) for b in branches):
+        if not any(under_resolved_stop(b) for b in branches) or stop_requested():
+            # after a Ctrl-C/SIGTERM (contin.cancel) a retrace would stop at its first point and
+            # replace what was traced: the branches are kept as they are (partial, MX)
             return problem, branches, sizes
         n_new = finer(problem, None, None, opts)
         if n_new is None:

@@ -139,6 +139,10 @@ class OutputLock:
                     raise OSError(exc.errno, disk_full_message(self.target, exc)) from None
                 raise OSError(exc.errno, f"cannot create the lock file {str(self.lockfile)!r}: "
                                          f"{exc.strerror or exc}") from None
+            if not stat.S_ISREG(os.fstat(fd).st_mode):  # a FIFO or device there: 'Error: Invalid argument' (qa18)
+                os.close(fd)
+                raise OSError(errno.EINVAL, f"the lock file {str(self.lockfile)!r} is not a regular file (a FIFO, "
+                                            "socket or device); remove it") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:

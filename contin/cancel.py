@@ -8,7 +8,8 @@ Only a command that can save a partial branch installs it (:func:`stop_on_sigint
 asks :func:`stop_requested` once per step (``contin.continuation.trace``), which costs a module
 global read, and marks the branch MX with :func:`stop_reason` (``"interrupted (Ctrl-C)"`` or
 ``"terminated by SIGTERM"``).  :func:`is_stopped_branch` tells such a partial branch from a
-finished one (``contin trace --resume`` retraces it).
+finished one (``contin trace --resume`` retraces it).  Inside :func:`deferred` (locating the special
+points of a result already traced) the request waits until the block ends.
 """
 
 from __future__ import annotations
@@ -29,11 +30,29 @@ STOPPED = {CTRL_C: "interrupted", SIGTERM: "terminated by SIGTERM"}
 ENDS_AT_LAST_POINT = ": the branch ends at its last point"
 
 _reason: str | None = None
+_deferred = 0  # depth of nested deferred() blocks
 
 
 def stop_requested() -> bool:
-    """Whether a stop was asked for (by the first Ctrl-C or SIGTERM inside :func:`stop_on_sigint`)."""
-    return _reason is not None
+    """Whether a stop was asked for (by the first Ctrl-C or SIGTERM inside :func:`stop_on_sigint`);
+    False inside :func:`deferred` (the request is seen after it)."""
+    return _reason is not None and not _deferred
+
+
+@contextmanager
+def deferred() -> Iterator[None]:
+    """Within the block a stop request is not seen by the tracer (:func:`stop_requested` is False);
+    it is kept and seen after the block.  For the short computations that finish a result already
+    traced -- locating its special points with a local trace -- which a stop request would cut to
+    nothing: a fold curve that had reached its bounds lost the XT points not yet located and was
+    stored as finished (EP), so ``--resume`` kept it without them (qa18).  A second signal still
+    interrupts at once (the handlers look at the request itself)."""
+    global _deferred
+    _deferred += 1
+    try:
+        yield
+    finally:
+        _deferred -= 1
 
 
 def stop_reason() -> str:

@@ -1004,6 +1004,17 @@ def trace(
             x_pred[-1] = bound
             land = correct(system, x_pred, e_p, options.newton)
             if not land.converged or system.admissible(land.x) is not None:
+                if ds > sopt.ds_min * (1 + 1e-12):
+                    # a long step across the bound (it may have jumped to another sheet): a shorter
+                    # one lands, or steps on.  `continue sb.h5 --from LP1 --free a --ds 10` ended at
+                    # its start point "reached bound lam=0 (landing on it failed ...)", EP, exit 0,
+                    # lam = 3.5 far from the bound (qa18)
+                    if len(tracer.audit) < MAX_AUDIT:
+                        tracer.audit.append(f"step {steps}: {parameter}={p_cur:.10g} ds={ds:.3g} rejected: landing on "
+                                            f"the bound {parameter}={bound:g} failed ({land.message})")
+                    ds = reduced_step(ds, sopt)
+                    steps -= 1
+                    continue
                 message = f"reached bound {parameter}={bound:g} (landing on it failed: {land.message}; stopped before it)"
                 break
             coarse = _under_resolved(problem, system, land.x, resolution_tol)

@@ -39,6 +39,7 @@ import scipy.sparse as sp
 
 from contin.adapt import PARAM_SCALE_FLOOR
 from contin.branch import Branch, SpecialPoint, relabel
+from contin.cancel import deferred
 from contin.continuation import trace, trace_both
 from contin.extended import l2_norm
 from contin.hopf import hopf_test
@@ -277,7 +278,8 @@ def _extrema(branch: Branch, fold: FoldProblem, options: ContinuationOptions) ->
     t = _second_column(branch, tangents=True)
     out = []
     for i in np.nonzero(np.sign(t[:-1]) * np.sign(t[1:]) < 0)[0]:
-        point = _locate_extremum(fold, branch, int(i), options)
+        with deferred():  # each located in full: a Ctrl-C here dropped it from a curve stored as finished
+            point = _locate_extremum(fold, branch, int(i), options)
         if point is not None:
             out.append(point)
     return out

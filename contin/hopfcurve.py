@@ -214,13 +214,18 @@ def _cut_at_bound(branch: Branch, curve: Any, second: str, lo: float, hi: float,
     from contin.options import NewtonOptions
 
     tag = f"bound of {second}"
+    j = 3 * curve.n + 1 if index is None else index  # p2's place in the state
     hits = [s for s in branch.special_points if s.type == "UZ" and s.note.startswith(tag)]
-    if not hits:
-        return _stop_outside(branch, second, lo, hi, 3 * curve.n + 1 if index is None else index)
+    first_out = _first_outside(branch, j, lo, hi)
+    if not hits or (first_out is not None and first_out <= min(s.index for s in hits)):
+        # no located crossing, or points beyond a bound stored before the first one: a half that
+        # starts on a bound and leaves through it (no sign change there) and crosses back later.
+        # `continue ab.h5 --from HB1 --free B --bounds B=14:20` (B = 14 at HB1) stored the Hopf curve
+        # down to B = 10.5, GH and LP below the bound, cut only where it came back to B = 14 (qa18)
+        return _stop_outside(branch, second, lo, hi, j)
     uz = min(hits, key=lambda s: s.index)
     i = uz.index
     n_keep = i + 1
-    j = 3 * curve.n + 1 if index is None else index  # p2's place in the state
     system = ExtendedSystem(curve, {**uz.params}, branch.parameter)
     x = system.pack(uz.state, uz.params[branch.parameter])
     bound = lo if abs(x[j] - lo) <= abs(x[j] - hi) else hi
@@ -276,14 +281,10 @@ def _stop_outside(branch: Branch, second: str, lo: float, hi: float, j: int) -> 
     to 5, exit 0 (qa15)."""
     from contin.overlap import slice_branch
 
-    if branch.state_index is not None or len(branch) == 0:
+    k = _first_outside(branch, j, lo, hi)
+    if k is None:
         return branch
     p2 = branch.states[:, j]
-    slack = 1e-9 * max(1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0)
-    outside = np.flatnonzero((p2 < lo - slack) | (p2 > hi + slack))
-    if outside.size == 0:
-        return branch
-    k = int(outside[0])
     if k == 0:  # the start itself lies outside: the callers refuse that before tracing
         raise ValueError(f"start value {second}={p2[0]:g} lies outside its bounds ({lo:g}, {hi:g})")
     cut = slice_branch(branch, 0, k - 1)
@@ -295,6 +296,17 @@ def _stop_outside(branch: Branch, second: str, lo: float, hi: float, j: int) -> 
                        note=f"reached bound {second}={at:g}")
     return replace(cut, special_points=[sp_ for sp_ in cut.special_points if sp_.type not in ("EP", "MX")] + [end],
                    status="EP", message=f"reached bound {second}={at:g}", closed=False)
+
+
+def _first_outside(branch: Branch, j: int, lo: float, hi: float) -> int | None:
+    """Index of the first stored point whose second parameter (state entry ``j``) lies beyond
+    [lo, hi] (by more than 1e-9 relative), or None (also for a branch that stores every k-th state)."""
+    if branch.state_index is not None or len(branch) == 0:
+        return None
+    p2 = branch.states[:, j]
+    slack = 1e-9 * max(1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0)
+    outside = np.flatnonzero((p2 < lo - slack) | (p2 > hi + slack))
+    return int(outside[0]) if outside.size else None
 
 
 #: a located point this close to a bound (relative to max(1, |bound|)) is on it: ten times the

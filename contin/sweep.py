@@ -305,8 +305,11 @@ def parse_sweep(doc: Mapping[str, Any], source: str = "") -> SweepSpec:
     for key in ("grid", "max_steps"):
         if key in options and options[key] < 1:
             raise SweepError(f"option {key!r}{where} must be >= 1, got {options[key]}")
-    if "ds" in options and not (options["ds"] != 0 and math.isfinite(options["ds"])):
-        raise SweepError(f"option 'ds'{where} must be a finite non-zero number, got {options['ds']}")
+    # (ds > 0 as for `contin trace --ds`: a negative ds was accepted and its sign silently dropped,
+    # the branch traced the scene's way; qa18)
+    if "ds" in options and not (options["ds"] > 0 and math.isfinite(options["ds"])):
+        raise SweepError(f"option 'ds'{where} must be a finite number > 0 (the first step's length; the scene "
+                         f"chooses the direction), got {options['ds']}")
     if "ds_max" in options and not (options["ds_max"] > 0 and math.isfinite(options["ds_max"])):
         raise SweepError(f"option 'ds_max'{where} must be a finite number > 0, got {options['ds_max']}")
     from contin.limits import MAX_ABS_KX, MAX_GRID, MAX_STEPS, MAX_TRACE_KX  # the command line's limits
@@ -650,6 +653,13 @@ class SweepSummary:
             return record.extra
         extra = record.extra
         return {r[6:]: extra.get(r[6:]) for r in self.spec.record if r.startswith("extra.")}
+
+    def missing_extra(self) -> list[str]:
+        """The ``extra.NAME`` entries of ``record`` that no task which ran (ok or MX) has in its
+        extra results: a misspelled or unknown name, recorded as null in every task."""
+        ran = [r for r in self.records if r.status in ("ok", "MX")]
+        names = [r[6:] for r in self.spec.record if r.startswith("extra.")]
+        return [n for n in names if ran and not any(n in r.extra for r in ran)]
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document written to ``summary.json`` (strict JSON)."""

@@ -75,3 +75,24 @@ def test_other_stops_are_not_retraced():
     assert sizes == calls == [16]
     assert not under_resolved_stop(Stop("MX", "no convergence")) and under_resolved_stop(Stop("MX", "under-resolved at H = 1"))
     assert not under_resolved_stop(Stop("EP", "under-resolved"))
+
+
+def test_no_retrace_after_a_stop_request():
+    """A Ctrl-C (contin.cancel) while a computation ran: one half stopped under-resolved, the other
+    by the stop.  Retracing on a finer grid would stop at its first point and replace the branch
+    traced so far (qa18: the fold curve of `contin trace gravity-phase` lost that way); the
+    branches are returned as they are."""
+    from contin.cancel import request_stop, stop_on_sigint
+
+    calls: list[int] = []
+
+    def compute(pb: Grid) -> list[Stop]:
+        calls.append(pb.grid_size)
+        request_stop()  # the Ctrl-C came during this run
+        return [Stop("MX", "backward: under-resolved at H = 40; forward: interrupted (Ctrl-C): the branch ends at "
+                           "its last point")]
+
+    with stop_on_sigint() as stop:
+        pb, branches, sizes = retrace_finer(Grid(8), compute, AdaptOptions())
+    assert stop.requested and sizes == calls == [8] and pb.grid_size == 8
+    assert "under-resolved" in branches[0].message  # (what would have been retraced without the stop)

@@ -137,3 +137,33 @@ def test_fold_problem_without_the_hook_forwards_nothing():
     p = {"lam": 0.5, "alpha": 0.0, "beta": BETA}
     assert guarded.under_resolved(np.array([0.4, 1.0, 0.05]), p, 1e-5) is None
     assert guarded.under_resolved(np.array([0.9, 1.0, 0.05]), p, 1e-5) == "toy tail 0.000398 > 1e-05 (at alpha = 0.05)"
+
+
+def test_a_stop_request_after_the_curve_is_traced_keeps_every_extremum(monkeypatch):
+    """A Ctrl-C that came after both halves of a fold curve were traced, while its extrema of the
+    second parameter were located: the locating traces stopped at once, so the XT points not yet
+    located were dropped from a curve stored as finished (EP; `contin trace gravity-phase` lost
+    fold0's second XT that way, and --resume keeps a finished curve as it is; qa18).  They are
+    located in full (contin.cancel.deferred) and the request is still reported afterwards."""
+    import contin.foldcurve as fc_mod
+    from contin.cancel import request_stop, stop_on_sigint
+
+    prob = ImperfectPitchfork()
+    branch = trace(prob, np.array([1.4]), {"lam": 2.0, "alpha": 0.1, "beta": BETA}, "lam",
+                   ContinuationOptions(step=StepOptions(ds=-0.02, ds_max=0.05), bounds={"lam": (-1, 3)}, max_steps=400))
+    (lp,) = branch.fold_points
+    locate = fc_mod._locate_extremum
+
+    def ctrl_c_first(*args, **kwargs):
+        request_stop()  # the signal arrives once the curve's steps are done
+        return locate(*args, **kwargs)
+
+    monkeypatch.setattr(fc_mod, "_locate_extremum", ctrl_c_first)
+    opts = ContinuationOptions(step=StepOptions(ds=0.01, ds_max=0.02), bounds={"lam": (-0.5, 3), "alpha": (-1, 1)},
+                               max_steps=500)
+    with stop_on_sigint() as stop:
+        curve = trace_fold_curve(prob, lp, "alpha", opts, parameter="lam")
+    assert stop.requested
+    xt = sorted(curve.points("XT"), key=lambda s: s.params["lam"])
+    # both extrema of alpha = 2x^3 + beta x^2: the cusp (x = -beta/3) and the origin (x = 0)
+    assert [round(s.params["alpha"], 9) for s in xt] == [round(BETA**3 / 27, 9), 0.0]

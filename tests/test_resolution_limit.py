@@ -175,3 +175,19 @@ def test_fast_error_and_rounding_estimates_equal_the_resolution_object(method, n
         assert estimated_error(pb, x, p) == r.error and pb.error_estimate(x, p) == r.error
         assert estimated_rounding(pb, x, p) == r.rounding and pb.rounding_error(x, p) == r.rounding
         assert chebyshev_tail_sum(np.abs(r.coefficients))[0] <= r.tails[r.field]
+
+
+
+def test_a_tol_far_below_rounding_ends_at_the_resolution_limit_not_in_an_overflow():
+    """`contin trace bratu --tol 1e-300`: the grid the fitted N^-p line needs for tol overflowed
+    exp() ('arithmetic failure (OverflowError: math range error)', exit 1, the run lost; qa18).  On
+    max_grid the estimate sits at rounding level and barely falls: the branch ends EP at the
+    resolution limit, the grid it needs named as infinite, every stored point within rounding."""
+    from problems.demo import Bratu
+
+    pb = Bratu("cheb", 32)
+    o = ContinuationOptions(bounds={"lam": (0.0, 4.0)}, max_steps=60, step=StepOptions(ds=0.05, ds_max=0.25),
+                            adapt=AdaptOptions(tol=1e-300, max_grid=512))
+    b = trace(pb, pb.initial(), {"lam": 0.0}, "lam", o)
+    assert b.status == "EP" and b.message.startswith("resolution limit at lam = "), b.message
+    assert "tol needs N ~ inf > max_grid 512" in b.message

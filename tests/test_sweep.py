@@ -114,6 +114,8 @@ def test_grid_is_the_cartesian_product_with_stable_keys(tmp_path):
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"stability": 1}}, "'stability' must be of type bool"),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"resolution_tol": "of"}}, "must be a number > 0 or \"off\""),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"resolution_tol": -1e-5}}, "must be a number > 0 or \"off\""),
+    # a negative ds was accepted and its sign dropped (the scene chooses the direction); trace refuses it (qa18)
+    ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"ds": -1}}, "option 'ds' must be a finite number > 0"),
     ({"sweep": {"scene": "s"}, "grid": {"a": [1]}, "options": {"engine": "fortran"}},
      "option 'engine' must be one of auto, numpy, numba, got 'fortran'"),
 ])
@@ -399,3 +401,21 @@ def test_jobs_above_the_usable_cpus_are_capped_with_a_note(tmp_path, scenes, mon
     # the library caps as well (no note: it has no terminal)
     run_sweep(_spec(grid={"a": [-1.0, 0.5, 3.0]}), tmp_path / "lib", jobs=1000)
     assert sizes == [2, 2]
+
+
+def test_a_recorded_extra_name_no_task_has_is_a_warning(tmp_path, scenes):
+    """`record = ["extra.fold_lamm"]` (a typo of fold_lam): every task recorded null for it and the
+    sweep said nothing (exit 0).  Now one warning line names it; a name the tasks have gets none."""
+    from contin.cli import main
+
+    toml = _write(tmp_path / "s.toml", SWEEP_TOML.replace('"extra.fold_lam"]', '"extra.fold_lam", "extra.fold_lamm"]')
+                  .replace("7.0]", "2.0]").replace('fail = ["none", "mx", "crash"]', 'fail = ["none"]'))
+    res = CliRunner().invoke(main, ["sweep", str(toml), "-o", str(tmp_path / "out"), "-j", "1", "-q", "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert [ln for ln in res.stderr.splitlines() if ln.startswith("warning:")] == [
+        "warning: record = extra.fold_lamm: no task's extra results hold 'fold_lamm' (null in every task); the "
+        "scene's extra names are in any task file (contin info --json)"]
+    doc = json.loads(res.stdout)
+    # fold_lam is recorded: the fixture's fold lies at lam = a
+    assert [(t["extra"]["fold_lam"], t["extra"]["fold_lamm"]) for t in doc["tasks"]] == [(-1.0, None), (0.5, None),
+                                                                                         (2.0, None)]

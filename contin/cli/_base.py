@@ -104,12 +104,15 @@ class _SinkOnBrokenPipe:
     Progress, notes and tables go to stderr; with ``contin trace ... 2>&1 | head -1`` the second
     progress line raised BrokenPipeError, which ended the run (exit 1, 'incomplete: the run failed:
     Broken pipe', 2 of 7 branches traced).  A reader that stopped reading is no reason to stop
-    computing: the output file and the exit code still report the run.
+    computing: the output file and the exit code still report the run.  A stderr closed before the
+    start (``2>&-``: ``sys.stderr`` is None) is a reader gone from the start: the first message
+    raised AttributeError, then click's report of it, and the run ended with exit 120 and no
+    file (qa18).
     """
 
     def __init__(self, stream: Any) -> None:
         self._stream = stream
-        self._gone = False
+        self._gone = stream is None
 
     def write(self, text: str) -> int:
         if not self._gone:
@@ -125,6 +128,9 @@ class _SinkOnBrokenPipe:
                 self._stream.flush()
             except BrokenPipeError:
                 self._gone = True
+
+    def isatty(self) -> bool:
+        return self._stream is not None and bool(self._stream.isatty())
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)
@@ -203,6 +209,29 @@ def _one_line_warnings(debug: bool) -> None:
 
 def fail(message: str) -> NoReturn:
     raise click.ClickException(message)
+
+
+def continued_from(meta: Mapping[str, Any]) -> str | None:
+    """The label a ``contin continue`` curve file was continued from (its ``extra["from"]``, written
+    with ``extra["free"]``), or None for the file of a ``contin trace`` run."""
+    extra = meta.get("extra")
+    if isinstance(extra, Mapping) and "free" in extra:
+        return str(extra.get("from", "its point"))
+    return None
+
+
+def warn_if_incomplete(file: str, meta: Mapping[str, Any]) -> None:
+    """A ``warning:`` line when ``file`` holds an unfinished run (``complete=False``: interrupted,
+    killed, failed or still running) or a curve cut short: what a command draws, exports or fits from it is only
+    what was computed before the stop (a diagram of a run stopped after 1 of 7 branches looked
+    finished, exit 0; qa18)."""
+    if meta.get("complete", True):
+        return
+    # no reason recorded: a checkpoint of a run still going, or of one killed (SIGKILL, power loss)
+    stopped = str(meta.get("stopped") or "") or "still running, or killed"
+    what = ("its curve ends where it stopped" if continued_from(meta) is not None
+            else "it holds only the branches computed before that")
+    echo_err(f"warning: {file} is incomplete (its run was {stopped}): {what}")
 
 
 def parse_value(text: str) -> Any:

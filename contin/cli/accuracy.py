@@ -106,10 +106,15 @@ def accuracy_command(scene: str, settings: tuple[str, ...], methods: str, grids:
 
     # a line per run, and a heartbeat when stderr is not a terminal (long jobs show life in logs)
     progress = Progress(enabled=not quiet)
+
+    def running(message: str) -> None:
+        progress.line(f"running {message}")
+        progress.note(message)  # the heartbeat repeats it (it said 'running: started' all along; qa18)
+
     try:
         with guard:
             report = run_accuracy(sc, params, method_list, grid_list, memory=not no_memory, engine=engine,
-                                  progress=None if quiet else (lambda m: progress.line(f"running {m}")),
+                                  progress=None if quiet else running,
                                   tols=tol_list, repeats=repeats)
     except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM lost every finished run (qa17): keep them, marked
         progress.close()
@@ -164,8 +169,15 @@ def _show(report: Any, written: list[Any]) -> None:
     """The tables of ``report`` and the files written, on stderr."""
     from contin.accuracy import recommend
 
-    rows = [(r.key, r.method, r.grid, fmt(r.value, 13), fmt(r.error, 2), fmt(r.order, 3), f"{r.cpu:.3f}",
-             f"{r.wall:.3f}", r.newton_iterations, fmt(r.peak_memory_mb, 3)) for r in report.rows]
+    import math
+
+    def cell(v: float, digits: int) -> str:
+        """'-' where a value is undefined (the reference's own error, the order of a first grid, memory
+        not measured): the table said 'nan' there (qa18); the CSV and JSON keep NaN / null."""
+        return "-" if isinstance(v, float) and math.isnan(v) else fmt(v, digits)
+
+    rows = [(r.key, r.method, r.grid, cell(r.value, 13), cell(r.error, 2), cell(r.order, 3), f"{r.cpu:.3f}",
+             f"{r.wall:.3f}", r.newton_iterations, cell(r.peak_memory_mb, 3)) for r in report.rows]
     echo_err(table(rows, ("key point", "method", "N", "value", "rel.error", "order", "cpu s", "wall s",
                           "newton", "peak MB")))
     echo_err(f"reference: {report.reference_from}")

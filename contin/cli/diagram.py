@@ -6,7 +6,7 @@ from collections import Counter
 
 import click
 
-from contin.cli._base import echo_err, fail, main
+from contin.cli._base import echo_err, fail, main, warn_if_incomplete
 
 
 @main.command("diagram")
@@ -25,6 +25,7 @@ def diagram_command(file: str, x: str | None, y: str | None, branch_ids: tuple[s
     x, y = check_nonempty(x, "-x"), check_nonempty(y, "-y")  # "" fell back to the default axis silently
     io.check_writable(output)
     branches, meta = io.load(file)
+    warn_if_incomplete(file, meta)
     if branch_ids:
         known = [b.id for b in branches]
         missing = [i for i in branch_ids if i not in known]

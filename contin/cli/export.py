@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from contin.cli._base import echo_err, fail, main
+from contin.cli._base import echo_err, fail, main, warn_if_incomplete
 
 #: largest AUTO PAR index --par accepts (every s-block holds NPAR = the largest index values)
 MAX_PAR = 1000
@@ -50,7 +50,8 @@ def export_command(file: str, name: str, directory: str, par: str | None) -> Non
     indices = parse_par(par)
     if not Path(directory).is_dir():
         fail(f"--dir {directory}: no such directory")
-    branches, _ = io.load(file)
+    branches, meta = io.load(file)
+    warn_if_incomplete(file, meta)
     try:
         b_path, s_path, notes = write_auto(branches, name, directory, indices)
     except ValueError as exc:

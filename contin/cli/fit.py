@@ -14,7 +14,7 @@ import math
 
 import click
 
-from contin.cli._base import echo_err, echo_json, fail, fmt, main, table
+from contin.cli._base import echo_err, echo_json, fail, fmt, main, table, warn_if_incomplete
 
 
 def _positive(name: str, value: float) -> None:
@@ -53,7 +53,9 @@ def fit_command(file: str, label: str, branch_id: str | None, imperfection: str 
     branches, meta = io.load(file)
     branch, bp = find_point(branches, label, branch_id, repr(file))
     if bp.type != "BP":
-        fail(f"{bp.name} of {file} is a {bp.type}; `contin fit` needs a branch point")
+        fail(f"{bp.name} of {file} is {'an' if bp.type[0] in 'AEFHILMNORSX' else 'a'} {bp.type}; `contin fit` needs a "
+             "branch point")
+    warn_if_incomplete(file, meta)  # the branches near the BP may be missing
     parameter = branch.parameter
     hints = dict((meta.get("extra") or {}).get("normal_form") or {})
     imperfection = imperfection or hints.get("imperfection") or guess_imperfection(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from contin.cli._base import branches_table, echo_json, fmt, main, special_points_table
+from contin.cli._base import branches_table, continued_from, echo_json, fmt, main, special_points_table
 
 
 @main.command("info")
@@ -21,9 +21,12 @@ def info_command(file: str, as_json: bool) -> None:
     if meta.get("libraries"):  # files written before session 18 do not record them
         prov["libraries"] = ", ".join(f"{k} {v}" for k, v in meta["libraries"].items())
     if as_json:
+        # why an incomplete run stopped ('interrupted', 'terminated by SIGTERM', 'failed: ...'; '' when
+        # complete): the text says it, the JSON said only complete: false (qa18)
         echo_json(run_document(scene=meta["scene"], parameters=meta["parameters"],
                                discretization=meta["discretization"], branches=branches,
-                               notes=meta["notes"], extra=meta["extra"], provenance=prov,
+                               notes=meta["notes"], extra=meta["extra"],
+                               provenance={**prov, "stopped": str(meta.get("stopped") or "")},
                                options=meta["options"], audit={b.id: list(b.audit) for b in branches}))
         return
     click.echo(f"file:           {file}")
@@ -36,9 +39,9 @@ def info_command(file: str, as_json: bool) -> None:
         stopped = meta.get("stopped", "")
         if stopped.startswith("failed"):  # an error, not an interrupt: --resume would fail the same way
             click.echo(f"                (incomplete: the run {stopped})")
-        elif isinstance(meta.get("extra"), dict) and "free" in meta["extra"]:  # a `contin continue` curve (no --resume)
+        elif continued_from(meta) is not None:  # a `contin continue` curve (no --resume)
             click.echo(f"                (incomplete: the curve was {stopped or 'interrupted'}; `contin continue` "
-                       f"computes it again from {meta['extra'].get('from', 'its point')})")
+                       f"computes it again from {continued_from(meta)})")
         elif isinstance(meta.get("extra"), dict) and "depth" in meta["extra"]:  # --depth refuses --resume
             click.echo(f"                (incomplete: the run was {stopped or 'interrupted'}; a --depth run is started "
                        f"again from scratch)")

@@ -85,6 +85,15 @@ def _numeric(values: dict[str, Any]) -> dict[str, float]:
             if isinstance(v, int | float) and not isinstance(v, bool)}
 
 
+def _is_index(point: str) -> bool:
+    """Whether ``--point`` gives an index (an integer, e.g. 12 or -1) rather than a label."""
+    try:
+        int(point)
+    except ValueError:
+        return False
+    return True
+
+
 def resolve_point(branch: Any, point: str, fixed: dict[str, float], file: str) -> tuple[Any, dict[str, float], int | str]:
     """(state, parameters, point) of ``point``: an index (returned as int, normalised to
     0..S-1) or a special-point label (returned as its name, e.g. 'LP1')."""
@@ -249,6 +258,15 @@ def stability_command(file: str, branch_id: str | None, point: str | None, at: s
     ids = [b.id for b in branches]
     if not branches:  # it said "holds 0 branches; choose one with --branch (none)" (qa15)
         fail(f"{file} holds no branches")
+    if branch_id is None and len(branches) != 1 and point is not None and not _is_index(point):
+        # a label names its branch (labels are unique in a run file): `--point BP2` of a run with
+        # several branches asked for --branch all the same (qa18); an ambiguous label still does
+        from contin.restart import find_point
+
+        try:
+            branch_id = find_point(branches, point, None, file)[0].id
+        except ValueError as exc:
+            fail(str(exc))
     if branch_id is None:
         if len(branches) != 1:
             fail(f"{file} holds {len(branches)} branches; choose one with --branch ({', '.join(ids) or 'none'})")

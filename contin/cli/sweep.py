@@ -63,6 +63,9 @@ def sweep_command(sweep_file: str, outdir: str, jobs: int | None, scheduler: str
         beat.close()
     c = summary.counts()
     failed = c["MX"] + c["error"] + c["lost"]
+    for name in summary.missing_extra():  # it was null in every task, without a word (qa18)
+        echo_err(f"warning: record = extra.{name}: no task's extra results hold {name!r} (null in every task); "
+                 f"the scene's extra names are in any task file (contin info --json)")
     if not quiet:
         parts = [f"{c[s]} {s}" for s in ("ok", "MX", "error", "lost") if c[s] or s == "ok"]
         echo_err(f"sweep: {c['tasks']} tasks ({', '.join(parts)}; {c['cached']} from earlier runs) "

@@ -10,6 +10,7 @@ import click
 
 from contin.cli._base import (
     EXIT_INCOMPLETE,
+    continued_from,
     echo_err,
     echo_json,
     engine_option,
@@ -407,6 +408,11 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
     completed: dict[str, Any] = {}
     if resume is not None:
         old, meta = io.load(resume)
+        if continued_from(meta) is not None:
+            # its curve was taken for a finished branch and dropped from the file the run then
+            # wrote over it: the curve lost, exit 0 (qa18)
+            fail(f"{resume!r} holds a two-parameter curve of `contin continue` (from {continued_from(meta)}), not a "
+                 f"run of `contin trace`; --resume continues a trace run (give another -o to keep the curve)")
         if meta["scene"] and meta["scene"] != scene:
             fail(f"{resume!r} holds a run of scene {meta['scene']!r}, not {scene!r}")
         for name, value in params.items():
@@ -466,13 +472,27 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                              extra={} if depth is None else {"depth": depth})  # (contin info of a stopped --depth run)
     progress = Progress(enabled=not quiet)
 
+    handed_after_stop = []  # a finished branch was handed over after the stop request
+
     def on_branch(branch: Any) -> None:
         if writer is not None:
             writer.add_branch(branch)
         progress.line(f"branch {branch.id} ({branch.kind}{', from ' + branch.parent if branch.parent else ''}): "
                       f"{len(branch)} points, {branch.status} {branch.message}".rstrip())
-        if stop_requested():  # the first Ctrl-C/SIGTERM ended this branch (or came after it): stop the run here
+        if stop_requested():
+            # The run stops at the branch the first Ctrl-C/SIGTERM cut short, or at the scene's next
+            # progress report after a finished branch (status_or_stop): a scene that hands its
+            # branches over together at its end (gravity: discover, then one loop) lost every one
+            # after the first (qa18), while a scene that hands each over as it finishes still stops
+            # before its next branch.
+            if is_stopped_branch(branch):
+                stop_now()
+            handed_after_stop.append(branch.id)
+
+    def status_or_stop(message: str) -> None:
+        if handed_after_stop and stop_requested():
             stop_now()
+        progress.status(message)
 
     def stop_now() -> None:
         raise Terminated() if stop_reason() == SIGTERM else KeyboardInterrupt()
@@ -489,7 +509,7 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
 
     request = scene_mod.SceneRequest(
         params=params, method=method, grid=grid, stability=not no_stability and sc.stability, kx=kx_values,
-        completed=completed, on_branch=on_branch, progress=progress.status, overrides=overrides, engine=engine)
+        completed=completed, on_branch=on_branch, progress=status_or_stop, overrides=overrides, engine=engine)
     stop = None
     try:
         # The first Ctrl-C or SIGTERM ends the branch in progress at its last point (contin.cancel);
@@ -499,6 +519,14 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
             if stop_requested():  # a scene that passed no branch to on_branch after the stop
                 if writer is not None:
                     writer.set_branches(result.branches)
+                    if result.notes or result.extra:
+                        # what the scene finished before the stop, also where its results are notes and
+                        # extra, not branches (disks-criticality: the e values done; no file was written
+                        # at all, qa18); published here, marked stopped by abort()
+                        writer.update(parameters=result.parameters, discretization=result.discretization,
+                                      notes=list(result.notes),
+                                      extra={**result.extra, **({} if depth is None else {"depth": depth})})
+                        writer.publish()
                 stop_now()
     except BaseException as exc:
         if stop is not None and stop.requested and not isinstance(exc, KeyboardInterrupt):

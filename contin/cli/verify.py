@@ -108,7 +108,9 @@ def verify_command(file: str, branch_id: str | None, factor: float, tol: float |
                   "estimate": p.estimate, "error": p.error, "observable_error": p.observable_error}
                  for p in r.points]} for r in results]})
     else:
-        rows = [(r.branch, len(r.points), len(r.checked), fmt(r.max_error, 3), len(r.exceeding), len(r.unchecked),
+        # no point checked: '-' (the column said 'nan' beside FAIL; qa18)
+        rows = [(r.branch, len(r.points), len(r.checked), fmt(r.max_error, 3) if r.checked else "-", len(r.exceeding),
+                 len(r.unchecked),
                  len(r.singular), "ok" if r.ok else "FAIL") for r in results]
         click.echo(f"{file}: stored points re-solved on {fmt(factor, 3)}x finer grids, tol {fmt(tol, 3)}")
         click.echo(table(rows, ("branch", "points", "checked", "max error", "> tol", "unchecked", "singular", "")))

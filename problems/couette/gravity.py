@@ -574,7 +574,9 @@ class PhaseDiagram:
 def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], base: Branch, kids: Sequence[Branch],
                           *, H_range: tuple[float, float] = (1.0, 50.0), Fr_start: float = 2000.0,
                           max_steps: int = 300, progress: Callable[[str], None] | None = None,
-                          refine: AdaptOptions | None = None, choose_grid: bool = False) -> list[Branch]:
+                          refine: AdaptOptions | None = None, choose_grid: bool = False,
+                          done: Mapping[str, Branch] | None = None,
+                          on_curve: Callable[[Branch], None] | None = None) -> list[Branch]:
     """Fold curves in (H, G) through the imperfect symmetry-breaking pitchforks of ``base``
     (gravity-free uniform shear with its banded branches ``kids``, :func:`gravity_free_branches`).
 
@@ -601,11 +603,19 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
     (:class:`contin.foldcurve.SegmentRegrid`: the part before the stop keeps its grid, each
     direction from the seed refines on its own; the curve's ``grid`` column holds each point's
     grid and its audit the grid changes).
+
+    ``done`` (by curve id, e.g. ``contin trace --resume``'s finished branches): a pitchfork whose
+    curve 'fold<k>' is there is not traced again; ``on_curve`` is called with each curve as it is
+    finished (the CLI stores it at once: a run stopped or killed later keeps it).
     """
     say = progress or (lambda m: None)
     bps = [bp for bp in base.branch_points if "symmetry-breaking" in bp.note and H_range[0] < bp.params["H"] < H_range[1]]
     curves: list[Branch] = []
+    done = done or {}
     for k, bp in enumerate(bps):
+        if f"fold{k}" in done:  # finished in an earlier run (--resume): reused, as every scene does
+            curves.append(done[f"fold{k}"])
+            continue
         # each pitchfork's fold curve on the grid that resolves it (the dense plugs at large H
         # need more points than the gravity-free branches it starts from): retraced on finer
         # grids while the resolution guard stops it (contin.adapt.retrace_finer)
@@ -629,6 +639,9 @@ def pitchfork_fold_curves(problem: CouetteProblem, params: Mapping[str, float], 
                 c.audit.append(f"fold curve retraced on grids {', '.join(map(str, sizes))}: under-resolved on the "
                                f"coarser ones")
         curves += found
+        for c in found:
+            if on_curve is not None:
+                on_curve(c)
     if not bps and kids:
         # below the threshold density: the folds of the gravity-free banded branch (no BP)
         for c in fold_curves(problem, kids[:1], bounds={"H": H_range}, max_steps=max_steps):
@@ -746,18 +759,22 @@ def _bp_fold_curves(problem: CouetteProblem, source: CouetteProblem, params: Map
 
 def phase_diagram(problem: CouetteProblem, params: Mapping[str, float], *, H_range: tuple[float, float] = (1.0, 50.0),
                   Fr_start: float = 2000.0, max_steps: int = 300,
-                  progress: Callable[[str], None] | None = None, refine: AdaptOptions | None = None) -> PhaseDiagram:
+                  progress: Callable[[str], None] | None = None, refine: AdaptOptions | None = None,
+                  done: Mapping[str, Branch] | None = None,
+                  on_curve: Callable[[Branch], None] | None = None) -> PhaseDiagram:
     """Fold curves in (H, G) through the imperfect pitchforks (symmetry-breaking BPs of uniform
     shear inside ``H_range``, :func:`pitchfork_fold_curves`) and their G-extrema.
 
     Extrema whose state the grid does not resolve (:func:`resolved`; e.g. the N = 32 pairs at
     H ~ 40.5-40.9, Fr = 926/1036 and 565/570, Phi = 0.62-0.63, that are absent at N = 48 and
-    64) are left out of ``extrema`` and listed in ``unresolved``.
+    64) are left out of ``extrema`` and listed in ``unresolved``.  ``done`` and ``on_curve``: as for
+    :func:`pitchfork_fold_curves`.
     """
     settings = GravitySettings(H_range=H_range, modes=3)
     base, kids = gravity_free_branches(problem, {**params, "G": 0.0}, settings, progress)
     curves = pitchfork_fold_curves(problem, params, base, kids, H_range=H_range, Fr_start=Fr_start,
-                                   max_steps=max_steps, progress=progress, refine=refine)
+                                   max_steps=max_steps, progress=progress, refine=refine, done=done,
+                                   on_curve=on_curve)
     # each curve's extrema checked on the grid it was traced on (pitchfork_fold_curves)
     ext = [r for c in curves for r in extrema([c], problem=problem if c.grid is None else on_grid(problem, c.grid_at(0)))]
     ok = [r for r in ext if r["resolved"]]

@@ -36,6 +36,8 @@ PHASE_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50
 PHASE_GRID = 32
 UNFOLDING_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "G": "3e-8,1e-7,3e-7,1e-6", "window": 0.3}
 UNFOLDING_GRID = 32
+#: the gravities gravity-unfolding accepts (its G-homotopy weighs the arclength by 1/G^2)
+G_RANGE = (1e-100, 1.0)
 
 
 def _numbers(request: SceneRequest, defaults: Mapping[str, Any], scene: str, skip: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -71,11 +73,12 @@ def run_phase(request: SceneRequest) -> SceneResult:
     # no --grid: a fold curve the resolution guard stops is retraced on finer grids (the
     # dense plugs at large H need more points than the start); --grid fixes the grid
     refine = None if request.grid else AdaptOptions(max_grid=int(request.overrides.get("max_grid") or 512))
+    # each fold curve is stored as it is finished (they were passed on only at the end: a run
+    # killed after 35 s of fold0 kept nothing), and --resume reuses the finished ones (it traced
+    # them all again; a curve a Ctrl-C cut short is not among them); qa18
     d = phase_diagram(pb, params, H_range=(s["H_min"], s["H_max"]), Fr_start=s["Fr_start"], max_steps=max_steps,
-                      progress=request.report, refine=refine)
-    relabel(d.curves)
-    for c in d.curves:
-        request.finished(c)
+                      progress=request.report, refine=refine, done=request.completed, on_curve=request.finished)
+    relabel(d.curves)  # (the final labels: the CLI stores the result's branches at the end)
     notes = [f"fold curve {c.id} ended with MX: {c.message}" for c in d.curves if c.status == "MX"]
     notes.append(f"smallest Fr with a floating-plug state: {d.fr_min_floating_plug:.6g}")
     notes += [f"{r['event']} of fold pairs on {r['curve']} at H = {r['H']:.6g}, Fr = {r['Fr']:.6g}" for r in d.extrema]
@@ -122,6 +125,15 @@ def _gravities(text: Any) -> list[float]:
         raise SceneError(f"G must be a comma-separated list of numbers, got {text!r}") from None
     if not values or not all(math.isfinite(g) and g > 0 for g in values):
         raise SceneError(f"G needs positive finite gravities G = Fr^-2 (G = 0 is added by itself), got {text!r}")
+    # the G-homotopy's arclength weight 1/G^2 must be a finite number: G = 1e-200 ended 'arithmetic
+    # failure (ZeroDivisionError)', G = 1e300 'OverflowError' (qa18); the unfolding is about small G
+    far = [g for g in values if not G_RANGE[0] <= g <= G_RANGE[1]]
+    if far:
+        raise SceneError(f"G = {far[0]:g} is outside {G_RANGE[0]:g} <= G <= {G_RANGE[1]:g} (small gravities "
+                         f"G = Fr^-2, Fr >= 1, near the gravity-free pitchfork)")
+    twice = next((g for i, g in enumerate(values) if g in values[:i]), None)
+    if twice is not None:  # each G's branches were traced and stored twice, under the same ids (qa18)
+        raise SceneError(f"G lists the value {twice:g} twice, got {text!r}")
     return values
 
 

@@ -206,6 +206,9 @@ def run_criticality(request: SceneRequest) -> SceneResult:
         raise SceneError(f"parameter e_list must be numbers separated by commas, got {e_text!r}") from None
     if not es or any(not 0 < e < 1 for e in es):
         raise SceneError(f"parameter e_list = {e_text!r}: every e must lie in (0, 1)")
+    twice = next((e for i, e in enumerate(es) if e in es[:i]), None)
+    if twice is not None:  # computed twice, the second result over the first (qa18)
+        raise SceneError(f"parameter e_list = {e_text!r} lists e = {twice:g} twice")
     if s["corr"] not in G_MODELS:
         raise SceneError(f"parameter corr = {s['corr']!r} is not a pair correlation; choose one of {', '.join(G_MODELS)}")
     if not 0 < s["nu_min"] < s["nu_max"] < s["phi_inf"] or not s["dnu"] > 0:
