@@ -160,3 +160,27 @@ class Progress:
             self._thread.join(timeout=1.0)
             self._thread = None
         self._clear()
+
+
+def end_of_curve_run(what: str, points: int, output: str | None, interrupted: bool, stop: object,
+                     status: str, message: str) -> None:
+    """The common end of a `contin continue` run (a curve, or orbits): after a Ctrl-C/SIGTERM the
+    note where the points went and the one Error line with exit 130/143; after MX a warning and
+    exit 3; otherwise nothing.  ``what`` names the result ("the curve", "the orbits")."""
+    if interrupted:
+        from contin.cancel import SIGTERM
+        from contin.cli._base import EXIT_INTERRUPTED, echo_err
+
+        term = getattr(stop, "reason", None) == SIGTERM
+        if output is not None:
+            verb = "are" if what.endswith("s") else "is"
+            echo_err(f"note: {what} computed before {'SIGTERM' if term else 'Ctrl-C'} ({points} points) "
+                     f"{verb} saved in {output}")
+        echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
+        raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
+    if status == "MX":
+        from contin.cli._base import EXIT_INCOMPLETE, echo_err
+
+        mx = "the branch of periodic orbits" if what == "the orbits" else what
+        echo_err(f"warning: {mx} ended with MX: {message}")
+        raise click.exceptions.Exit(EXIT_INCOMPLETE)

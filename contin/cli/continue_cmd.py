@@ -271,22 +271,9 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
     echo_err(special_points_table([curve]))
     if output is not None:
         echo_err(f"wrote {output}")
-    if interrupted:
-        from contin.cancel import SIGTERM
-        from contin.cli._base import EXIT_INTERRUPTED
-        from contin.cli._runctl import EXIT_TERMINATED
+    from contin.cli._runctl import end_of_curve_run
 
-        term = stop.reason == SIGTERM
-        if output is not None:
-            echo_err(f"note: the curve computed before {'SIGTERM' if term else 'Ctrl-C'} ({len(curve)} points) "
-                     f"is saved in {output}")
-        echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
-        raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
-    if curve.status == "MX":
-        from contin.cli._base import EXIT_INCOMPLETE
-
-        echo_err(f"warning: the curve ended with MX: {curve.message}")
-        raise click.exceptions.Exit(EXIT_INCOMPLETE)
+    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message)
 
 
 def _grid_sizes(curve: Any) -> list[int]:

@@ -12,7 +12,6 @@ import dataclasses
 import math
 from typing import Any
 
-import click
 
 from contin.cli._base import echo_err, echo_json, fail, fmt, special_points_table
 
@@ -121,19 +120,6 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
             echo_err(line)
     if output is not None:
         echo_err(f"wrote {output}")
-    if interrupted:
-        from contin.cancel import SIGTERM
-        from contin.cli._base import EXIT_INTERRUPTED
-        from contin.cli._runctl import EXIT_TERMINATED
+    from contin.cli._runctl import end_of_curve_run
 
-        term = stop.reason == SIGTERM
-        if output is not None:
-            echo_err(f"note: the orbits computed before {'SIGTERM' if term else 'Ctrl-C'} ({len(cycles)} points) "
-                     f"are saved in {output}")
-        echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
-        raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
-    if cycles.status == "MX":
-        from contin.cli._base import EXIT_INCOMPLETE
-
-        echo_err(f"warning: the branch of periodic orbits ended with MX: {cycles.message}")
-        raise click.exceptions.Exit(EXIT_INCOMPLETE)
+    end_of_curve_run("the orbits", len(cycles), output, interrupted, stop, cycles.status, cycles.message)
