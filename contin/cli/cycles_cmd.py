@@ -12,7 +12,6 @@ import dataclasses
 import math
 from typing import Any
 
-
 from contin.cli._base import echo_err, echo_json, fail, fmt, special_points_table
 
 
