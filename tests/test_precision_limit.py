@@ -118,20 +118,24 @@ def _nu_error(pb, x, X):
 
 @pytest.mark.slow
 def test_nu063_plug_two_grid_check_ends_where_its_error_stops_falling(tmp_path):
-    """The default run (two-grid check on): the n = 1 band ends EP at H = 87.0361 on cheb 80, where
-    the check's error does not fall with refinement (4.5e-5 against cheb 160, 1.7e-4 on cheb 128
-    against 256), before the rounding estimate's limit at H = 91.4; exit 0, every stored point of
-    n1.1 passed its check.  The check's fine residual is gPCF's ``precise_residual`` there (without
-    it: H = 85.97, the fine grids' double rounding); what remains is the rounding of the coarse
-    (double) solve itself, which grows with the grid as well."""
+    """The default run (two-grid check on): the n = 1 band ends EP on cheb 80 where the check's error
+    does not fall with refinement, before the rounding estimate's limit at H = 91.4 and beyond
+    H = 85.97, where it ended without the fine residual of gPCF's ``precise_residual`` (the fine
+    grids' double rounding); exit 0, every stored point of n1.1 passed its check.  What remains is
+    the rounding of the coarse (double) solve itself, which grows with the grid as well.  Where that
+    rounding floor first exceeds tol is decided by last bits: H = 87.0361 (4.5e-5 against cheb 160,
+    1.7e-4 on cheb 128 against 256) under the earlier numpy/scipy stack, 88.3553 under numpy 2.4.6
+    / scipy 1.17.1 (the test asked for 87.0361 to 1e-4 and failed there for no defect)."""
     out = tmp_path / "p.h5"
     r = CliRunner().invoke(main, ["trace", "pitchfork", "-s", "nu=0.63", "-s", "e=0.8", "-s", "modes=1",
                                   "-s", "H_max=100", "--no-stability", "-q", "-o", str(out)], catch_exceptions=False)
     assert r.exit_code == 0, r.output
     branches, _ = io.load(out)
     band = next(b for b in branches if b.id == "n1.1")
-    assert band.status == "EP" and band.message.startswith("precision limit at H = 87.0361: the two-grid error")
-    assert band.grid[-1] == 80 and band.params["H"][-1] == pytest.approx(87.0361, abs=1e-4)
+    end = band.params["H"][-1]
+    assert band.status == "EP" and band.message.startswith(f"precision limit at H = {end:.6g}: the two-grid error "
+                                                           "of the solve does not fall with refinement")
+    assert band.grid[-1] == 80 and 85.97 < end < 91.4
 
 
 def test_nu063_plug_ends_at_the_precision_limit(tmp_path):
