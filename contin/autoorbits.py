@@ -75,17 +75,16 @@ def periodic_section(position: int, branch: Branch, index: Mapping[str, int], np
     icp = [index[free[0]], PERIOD_PAR]
     n_max = max(0, min(n, MAX_LINE_VALUES - len(icp)))
     columns = [(4, f"PAR({icp[0]})"), (4, "L2-NORM")] + [(4, f"MAX U({j + 1})") for j in range(n_max)] + [(5, "PERIOD")]
-    ntst = None
-    b_lines: list[str] = []
+    # NTST from the first orbit (every orbit of a branch has it; their mesh points differ)
+    ntst = orbit_of(rows[0].state, n, None, ncol)[0].ntst if rows and rows[0].state is not None else int(
+        (cycles or {}).get("ntst", 0))
+    b_lines = b_header(n, icp, index, npar, ips=PERIODIC_IPS, mesh=(ntst, ncol))
+    b_lines.append("   0    PT  TY  LAB " + "".join((" " * (k - 1) + c).ljust(19) for k, c in columns))
     s_lines: list[str] = []
     notes: list[str] = []
     for pt, row in enumerate(rows, start=1):
         assert row.state is not None
-        mesh, nodes, period = orbit_of(row.state, n, None, ncol)
-        if ntst is None:
-            ntst = mesh.ntst
-            b_lines += b_header(n, icp, index, npar, ips=PERIODIC_IPS, mesh=(ntst, ncol))
-            b_lines.append("   0    PT  TY  LAB " + "".join((" " * (k - 1) + c).ljust(19) for k, c in columns))
+        mesh, nodes, period = orbit_of(row.state, n, ntst, ncol)
         ty, lab = 0, 0
         if row.point is not None:
             kind = row.point.type

@@ -196,3 +196,19 @@ def test_orbit_export_refuses_par_11_and_a_file_without_its_mesh(orbits, tmp_pat
     # the orbits' own n and NCOL: a wrong NCOL does not fit the stored rows
     with pytest.raises(ValueError, match="a stored orbit of n = 2, NTST = .*, NCOL = 3"):
         write_auto(branches, "x", tmp_path, cycles={"n": 2, "ncol": 3})
+
+
+def test_type_codes_of_orbit_points(orbits, tmp_path):
+    """AUTO's ODE codes (parseB.type_translation_dict): LP 5, BP 6, PD 7, TR 8, HB 3, UZ -4;
+    a type AUTO has none for is written as UZ and named in the notes."""
+    import dataclasses
+
+    (br,), meta = io.load(orbits / "cyc.h5")
+    lpc = br.points("LPC")[0]
+    codes = {"LPC": 5, "BP": 6, "PD": 7, "NS": 8, "HB": 3, "UZ": -4, "XT": -4}
+    br.special_points = [dataclasses.replace(lpc, type=t, label=k + 1) for k, t in enumerate(codes)]
+    _, _, notes = write_auto([br], "t", tmp_path, cycles=meta["extra"]["cycles"])
+    _, _, rows = read_b(tmp_path / "b.t")
+    assert [(r[2], r[3]) for r in rows if r[2]] == [(c, k + 1) for k, c in enumerate(codes.values())]
+    assert [(b["ITP"], b["LAB"]) for b in read_s(tmp_path / "s.t")] == [(c, k + 1) for k, c in enumerate(codes.values())]
+    assert notes == ["XT7 (XT) written as UZ: AUTO has no code for XT of periodic orbits"]
