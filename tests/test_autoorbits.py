@@ -212,3 +212,61 @@ def test_type_codes_of_orbit_points(orbits, tmp_path):
     assert [(r[2], r[3]) for r in rows if r[2]] == [(c, k + 1) for k, c in enumerate(codes.values())]
     assert [(b["ITP"], b["LAB"]) for b in read_s(tmp_path / "s.t")] == [(c, k + 1) for k, c in enumerate(codes.values())]
     assert notes == ["XT7 (XT) written as UZ: AUTO has no code for XT of periodic orbits"]
+
+
+class StuartLandauPlus:
+    """Stuart-Landau (x, y) with 6 decaying components z_k' = -k z_k: n = 8, so an s-file row
+    t, u_1..u_8 takes two lines and the b-file has MAX U(1..5) only.  Its orbits: the circle
+    of radius sqrt(mu) in (x, y), z = 0, period 2 pi / w."""
+
+    parameter_names = ("mu", "w")
+    decay = np.arange(1.0, 7.0)
+
+    def residual(self, u, p):
+        x, y = u[:2]
+        r2 = x * x + y * y
+        return np.concatenate([[p["mu"] * x - p["w"] * y - x * r2, p["w"] * x + p["mu"] * y - y * r2],
+                               -self.decay * u[2:]])
+
+    def jacobian(self, u, p):
+        x, y = u[:2]
+        mu, w = p["mu"], p["w"]
+        j = np.diag(np.concatenate([[0.0, 0.0], -self.decay]))
+        j[:2, :2] = [[mu - 3 * x * x - y * y, -w - 2 * x * y], [w - 2 * x * y, mu - x * x - 3 * y * y]]
+        return j
+
+    def dresidual_dp(self, u, p, name):
+        x, y = u[:2]
+        return np.concatenate([[x, y] if name == "mu" else [-y, x], np.zeros(6)])
+
+
+def test_eight_components_wrap_rows_and_keep_five_max_columns(tmp_path):
+    """Against the closed form: L2-NORM sqrt(mu) (|u| is constant: AUTO's quadrature is exact),
+    PERIOD 2 pi / w, MAX U(1), MAX U(2) within the mesh's sampling of the circle (nodes 2 pi / 80
+    apart: 1 - cos(pi / 80) < 1e-3), MAX U(3..5) = 0; s-file rows of 8 components on two lines."""
+    from contin.continuation import trace
+    from contin.cycles import continue_cycles
+    from contin.options import ContinuationOptions
+
+    problem = StuartLandauPlus()
+    steady = trace(problem, np.zeros(8), {"mu": -0.3, "w": 2.0}, "mu", ContinuationOptions(bounds={"mu": (-1, 1)}))
+    (hb,) = steady.points("HB")
+    br = continue_cycles(problem, hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.25)}, max_steps=40))
+    assert br.status == "EP" and br.points("EP")
+    write_auto([br], "sl", tmp_path, cycles={"n": 8, "ncol": 4})
+    _, names, rows = read_b(tmp_path / "b.sl")
+    assert [n.strip() for n in names] == ["PAR(1)", "L2-NORM"] + [f"MAX U({j})" for j in range(1, 6)] + ["PERIOD"]
+    values = np.array([r[4] for r in rows])
+    mu = values[:, 0]
+    np.testing.assert_allclose(values[:, 1], np.sqrt(mu), rtol=1e-7)
+    np.testing.assert_allclose(values[:, -1], math.pi, rtol=1e-9)
+    assert np.all(values[:, 2:4] <= np.sqrt(mu)[:, None] * (1 + 1e-7))
+    assert np.all(values[:, 2:4] >= np.sqrt(mu)[:, None] * (1 - 1e-3))
+    assert np.all(np.abs(values[:, 4:7]) < 1e-12)
+    (block,) = read_s(tmp_path / "s.sl")
+    assert (block["NDIM"], block["NAR"], block["ITP"], block["par"][0], block["par"][1]) == (8, 9, 9, 0.25, 2.0)
+    assert block["u"].shape == (81, 8) and block["udot"].shape == (81, 8)
+    np.testing.assert_allclose(np.hypot(block["u"][:, 0], block["u"][:, 1]), 0.5, rtol=1e-7)
+    assert np.all(np.abs(block["u"][:, 2:]) < 1e-12)
+    lines = (tmp_path / "s.sl").read_text().splitlines()
+    assert len(lines[1]) == 4 + 7 * 19 and len(lines[2]) == 4 + 2 * 19  # t, u1..u6 | u7, u8
