@@ -99,6 +99,7 @@ def test_at_a_stored_value_draws_that_orbit_and_between_two_interpolates(orbits,
     (["--point", "HB7"], "no point 'HB7'"),
     (["--at", "D=0.3"], "no branch of orbits in"),
     (["--at", "X=1"], "no parameter 'X'"),
+    (["--at", "B=14"], "B is constant along the orbits of"),
     (["--at", "D=0.163", "--names", "u3"], "no component 'u3'; the orbits have u1..u2"),
     (["--at", "D=0.163", "--branch", "7"], "no branch '7'"),
 ])

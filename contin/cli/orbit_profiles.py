@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from contin.cli._base import echo_err, fail
 
 #: components drawn by default (an orbit of a discretized PDE has many)
@@ -48,6 +50,12 @@ def draw_orbits(file: str, branches: list[Any], meta: dict[str, Any], name: str,
     else:
         if not any(name in b.params for b in branches):
             fail(f"no parameter {name!r} in {file}; its orbits vary {branches[0].parameter}")
+        varying = [b for b in branches if name in b.params and len(b) and float(np.ptp(b.params[name])) > 0]
+        if not varying:  # every orbit "is at" the value: one of them would be drawn as the orbit there
+            b = next(b for b in branches if name in b.params)
+            fail(f"{name} is constant along the orbits of {file} ({name} = {float(b.params[name][0]):g}): --at "
+                 f"needs the parameter they vary, e.g. --at {b.parameter}=...")
+        branches = varying
         found = orbit_at(branches, name, value, n, ncol)
         if not found:
             fail(f"no branch of orbits in {file} reaches {name}={value:g}")
