@@ -4,16 +4,21 @@ The orbit is a stored row (``contin.cycles.orbit_of``: node values, T, mesh) at 
 (``--point LPC1``: exact) or where the branch's parameter takes a value (``--at D=0.2``): a special
 point located there (exact), else the first step that brackets the value, the two orbits
 interpolated linearly, (1 - w) u_i + w u_{i+1} and (1 - w) T_i + w T_{i+1}, the second carried
-onto the first one's mesh (as ``contin profiles`` interpolates equilibrium profiles; consecutive
-orbits share their phase through the integral phase condition, so the interpolation is
-O(step^2)).  The orbit is sampled on its collocation polynomials, ``refine`` points per node
+onto the first one's mesh (consecutive orbits share their phase through the integral phase
+condition), then, given the ``problem``, corrected by Newton on the collocation system at the
+value (:class:`contin.cycles.CycleProblem`, square at a fixed parameter: node values and T for
+the collocation equations and the phase condition against the orbit u_i): an interpolated orbit
+is off by O(step^2) (demo ab, 40 steps: closure errors 1e-4 of the amplitude, 2e-3 along the
+orbit), the corrected one is an orbit of the ODE (closure 1e-8).  The orbit is sampled on its collocation polynomials, ``refine`` points per node
 interval (the nodes among them), t from 0 to T with u(T) = u(0).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -21,7 +26,7 @@ from contin.branch import Branch, first_crossing
 from contin.collocation import Mesh
 from contin.problem import Array
 
-__all__ = ["OrbitProfile", "orbit_at", "orbit_at_point", "sample"]
+__all__ = ["OrbitProfile", "corrected", "orbit_at", "orbit_at_point", "sample"]
 
 #: samples per node interval of a drawn orbit
 REFINE = 4
@@ -64,9 +69,28 @@ def orbit_at_point(branches: Sequence[Branch], label: str, n: int, ncol: int,
     return _profile(branch, f"at {sp.name}", np.asarray(sp.state, float), dict(sp.params), n, ncol)
 
 
-def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: int) -> list[OrbitProfile]:
+def corrected(problem: Any, orbit: OrbitProfile, reference: Array) -> OrbitProfile:
+    """``orbit`` corrected by Newton on the collocation system at its parameters (phase
+    reference: node values on its mesh); ValueError when Newton does not converge."""
+    from contin.collocation import dense_matrix
+    from contin.cycles import CycleProblem
+    from contin.newton import newton
+    from contin.problem import has
+
+    mass = dense_matrix(problem.mass_matrix(orbit.nodes[0], orbit.params)) if has(problem, "mass_matrix") else None
+    cp = CycleProblem(problem, orbit.mesh, reference, mass)
+    res = newton(cp, orbit.mesh.pack(orbit.nodes, orbit.period), orbit.params)
+    if not res.converged:
+        raise ValueError(f"Newton on the collocation system did not converge: {res.message}")
+    nodes, period = orbit.mesh.split(res.u)
+    return dataclasses.replace(orbit, nodes=nodes, period=period)
+
+
+def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: int,
+             problem: Any = None) -> list[OrbitProfile]:
     """The orbit of each branch where parameter ``name`` equals ``value`` (module docstring);
-    branches that do not reach it are left out."""
+    branches that do not reach it are left out.  An interpolated orbit is corrected by Newton
+    when ``problem`` is given; if that fails it is kept, and its ``how`` says so."""
     from contin.cycles import orbit_of
 
     out = []
@@ -93,11 +117,16 @@ def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: 
                 params = {k: (1 - w) * float(v[i]) + w * float(v[j]) for k, v in b.params.items()}
                 how = f"interpolated between points {i} and {j}"
             found = OrbitProfile(b, how, params, mesh, nodes, period)
+            if w != 0.0 and problem is not None:
+                try:
+                    found = dataclasses.replace(corrected(problem, found, orbit_of(b.state(i), n, None, ncol)[1]),
+                                                how=f"{how}, corrected by Newton at {name}={value:g}")
+                except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                    found = dataclasses.replace(found, how=f"{how} (not corrected: {exc})")
         else:
             continue
         if count > 1 and not found.how.startswith("at LPC"):  # past a fold the branch reaches the value again
-            found = OrbitProfile(b, f"{found.how} (the first of {count} crossings of {name}={value:g} along the "
-                                    "branch; the others are not drawn)", found.params, found.mesh, found.nodes,
-                                 found.period)
+            found = dataclasses.replace(found, how=f"{found.how} (the first of {count} crossings of {name}={value:g} "
+                                                   "along the branch; the others are not drawn)")
         out.append(found)
     return out

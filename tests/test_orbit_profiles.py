@@ -4,13 +4,17 @@ period, t from 0 to T, and its phase portrait."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from scipy.integrate import solve_ivp
 
 from contin import io
 from contin.cli import main
 from contin.cycles import orbit_of
+from contin.orbitprofile import orbit_at
 
 
 def run(*args):
@@ -76,16 +80,31 @@ def test_at_a_stored_value_draws_that_orbit_and_between_two_interpolates(orbits,
     assert r.exit_code == 0, r.output
     check_orbit(drawn, "0 at stored point 5", br.state(5))
     assert "crossings" not in r.output  # D = d[5] is not reached again past the LPC (30 steps)
-    # halfway (in D) between points 5 and 6: the period halfway between theirs
+    # halfway (in D) between points 5 and 6: the two orbits interpolated, then corrected by Newton
+    # at that D: an orbit of the ODE (AUTO's demo ab, written out here), which scipy's integration
+    # from the drawn u(0) over the drawn T closes and follows; the interpolation alone is off by
+    # 5e-5 (closure) and 2e-3 (along the orbit)
     mid = 0.5 * (d[5] + d[6])
     drawn.clear()
-    r = run("profiles", orbits / "cyc.h5", "--at", f"D={mid!r}", "--names", "u2", "-o", tmp_path / "m.png")
+    r = run("profiles", orbits / "cyc.h5", "--at", f"D={mid!r}", "-o", tmp_path / "m.png")
     assert r.exit_code == 0, r.output
-    (key,) = drawn
-    assert key == "0 interpolated between points 5 and 6:u2"
+    key = "0 interpolated between points 5 and 6, corrected by Newton at D=" + f"{mid:g}"
+    t, u1, u2 = drawn[key + ":u1"][:, 0], drawn[key + ":u1"][:, 1], drawn[key + ":u2"][:, 1]
+
+    def ab(_, v, dd=mid, b=14.0, beta=3.0):
+        h = dd * (1 - v[0]) * math.exp(v[1])
+        return [-v[0] + h, -v[1] + b * h - beta * v[1]]
+
+    sol = solve_ivp(ab, (0, t[-1]), [u1[0], u2[0]], t_eval=t, rtol=1e-11, atol=1e-12)
+    scale = max(np.max(np.abs(u1)), np.max(np.abs(u2)))
+    assert np.max(np.abs(sol.y[:, -1] - [u1[0], u2[0]])) < 1e-8 * scale
+    assert np.max(np.abs(sol.y - [u1, u2])) < 1e-6 * scale
+    # without the problem (a file whose scene cannot be rebuilt): the interpolation, T with it
+    (plain,) = orbit_at([br], "D", mid, 2, 4)
     periods = br.observables["period"]
-    assert drawn[key][-1, 0] == pytest.approx(0.5 * (periods[5] + periods[6]), rel=1e-12)
-    assert drawn[key][-1, 1] == pytest.approx(drawn[key][0, 1], rel=1e-13)
+    assert plain.how == "interpolated between points 5 and 6"
+    assert plain.period == pytest.approx(0.5 * (periods[5] + periods[6]), rel=1e-12)
+    assert abs(plain.period - t[-1]) > 1e-6 * t[-1]  # the correction moved it
     # a value between the LPC and the last point is reached before and after the fold: said so
     lpc = br.points("LPC")[0].params["D"]
     assert lpc < d[-1] < d[0]

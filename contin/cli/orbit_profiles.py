@@ -56,7 +56,14 @@ def draw_orbits(file: str, branches: list[Any], meta: dict[str, Any], name: str,
             fail(f"{name} is constant along the orbits of {file} ({name} = {float(b.params[name][0]):g}): --at "
                  f"needs the parameter they vary, e.g. --at {b.parameter}=...")
         branches = varying
-        found = orbit_at(branches, name, value, n, ncol)
+        from contin.restart import rebuild_problem
+
+        try:  # to correct an interpolated orbit at the value
+            problem = rebuild_problem({**meta, "path": file})
+        except ValueError as exc:
+            problem = None
+            echo_err(f"note: an orbit between two stored ones is drawn interpolated, not corrected ({exc})")
+        found = orbit_at(branches, name, value, n, ncol, problem)
         if not found:
             fail(f"no branch of orbits in {file} reaches {name}={value:g}")
     wanted = components(names, n)
