@@ -34,7 +34,8 @@ REFINE = 4
 
 @dataclass(frozen=True)
 class OrbitProfile:
-    """One orbit to draw: its branch, how it was found, its parameters, mesh, node values, T."""
+    """One orbit to draw: its branch, how it was found, its parameters, mesh, node values, T;
+    ``doubt``: why it is not an orbit of the ODE (an interpolation Newton did not correct), else ''."""
 
     branch: Branch
     how: str
@@ -42,6 +43,7 @@ class OrbitProfile:
     mesh: Mesh
     nodes: Array
     period: float
+    doubt: str = ""
 
 
 def sample(mesh: Mesh, nodes: Array, period: float, refine: int = REFINE) -> tuple[Array, Array]:
@@ -90,7 +92,7 @@ def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: 
              problem: Any = None) -> list[OrbitProfile]:
     """The orbit of each branch where parameter ``name`` equals ``value`` (module docstring);
     branches that do not reach it are left out.  An interpolated orbit is corrected by Newton
-    when ``problem`` is given; if that fails it is kept, and its ``how`` says so."""
+    when ``problem`` is given; if that fails it is kept, and its ``doubt`` says so."""
     from contin.cycles import orbit_of
 
     out = []
@@ -122,7 +124,8 @@ def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: 
                     found = dataclasses.replace(corrected(problem, found, orbit_of(b.state(i), n, None, ncol)[1]),
                                                 how=f"{how}, corrected by Newton at {name}={value:g}")
                 except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                    found = dataclasses.replace(found, how=f"{how} (not corrected: {exc})")
+                    found = dataclasses.replace(found, doubt=f"the orbit interpolated between points {i} and {j} "
+                                                             f"was not corrected at {name}={value:g}: {exc}")
         else:
             continue
         if count > 1 and not found.how.startswith("at LPC"):  # past a fold the branch reaches the value again

@@ -132,3 +132,20 @@ def test_bad_input_is_one_error_line(orbits, tmp_path, args, says):
 def test_point_on_a_file_of_equilibria_is_refused(orbits, tmp_path):
     r = run("profiles", orbits / "ab.h5", "--point", "HB1", "-o", tmp_path / "x.png")
     assert r.exit_code == 1 and "holds none (use --at NAME=VALUE)" in r.output.splitlines()[-1]
+
+
+def test_an_orbit_newton_does_not_correct_is_drawn_with_a_warning(orbits, tmp_path, monkeypatch):
+    import contin.orbitprofile
+
+    def fails(*args, **kwargs):
+        raise ValueError("Newton on the collocation system did not converge: (test)")
+
+    monkeypatch.setattr(contin.orbitprofile, "corrected", fails)
+    (br,), _ = io.load(orbits / "cyc.h5")
+    mid = 0.5 * float(br.params["D"][5] + br.params["D"][6])
+    r = run("profiles", orbits / "cyc.h5", "--at", f"D={mid!r}", "-o", tmp_path / "m.png")
+    assert r.exit_code == 0, r.output
+    warnings = [ln for ln in r.output.splitlines() if ln.startswith("warning:")]
+    assert warnings == [f"warning: branch 0: the orbit interpolated between points 5 and 6 was not corrected at "
+                        f"D={mid:g}: Newton on the collocation system did not converge: (test); it is drawn as "
+                        "interpolated"]

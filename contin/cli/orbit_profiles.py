@@ -74,6 +74,8 @@ def draw_orbits(file: str, branches: list[Any], meta: dict[str, Any], name: str,
     for f in found:
         p = ", ".join(f"{k} = {v:.10g}" for k, v in f.params.items() if k == f.branch.parameter)
         echo_err(f"branch {f.branch.id}: {f.how}, {p}, period T = {f.period:.10g}")
+        if f.doubt:
+            echo_err(f"warning: branch {f.branch.id}: {f.doubt}; it is drawn as interpolated")
     if names is None and n > DEFAULT_COMPONENTS:
         echo_err(f"note: u1..u{DEFAULT_COMPONENTS} of {n} components drawn (choose others with --names)")
     echo_err(f"wrote {output}")
