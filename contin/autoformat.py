@@ -26,6 +26,9 @@ s.NAME, one block per labelled point with a state (AUTO's algebraic layout, IPS 
     parameters.  Points of fold and Hopf curves are written with their base state u only (their
     augmented vectors are contin's, not AUTO's extended systems).
 
+Branches of periodic orbits are written as AUTO's periodic solutions (IPS = 2, with their
+collocation mesh): :mod:`contin.autoorbits`.
+
 Type codes (AUTO-07p's ``type_translation_dict``): BP 1, LP 2, HB 3, UZ -4, EP 9, MX -9, CP -2,
 BT -1, ZH -3, GH -32.  AUTO has none for contin's XT (extremum of the second parameter) and HH
 (double Hopf): they are written as UZ (-4) and listed in the returned notes.
@@ -36,13 +39,13 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from contin.branch import Branch, SpecialPoint, base_state_size
+from contin.autofields import PERIOD_PAR, Row, b_header, branch_rows, check_finite, e19
+from contin.branch import Branch, base_state_size
 
 __all__ = ["TYPE_CODES", "base_size", "e19", "write_auto"]
 
@@ -54,74 +57,6 @@ AS_USER_POINT = ("XT", "HH")
 MAX_U_COLUMNS = 6
 #: PAR values a block of s.NAME holds at least (AUTO-07p writes 11 for NPAR <= 11)
 MIN_NPAR = 11
-#: the index of AUTO's period parameter
-PERIOD_PAR = 11
-
-
-def e19(x: float) -> str:
-    """AUTO's 19-character float (``AUTOutil.format19_10E3``): %19.10E with a 3-digit exponent."""
-    s = "%19.10E" % x
-    if s[-4] == "E":
-        s = s[1:-2] + "0" + s[-2:]
-    return s
-
-
-@dataclass(frozen=True)
-class _Row:
-    params: dict[str, float]
-    state: np.ndarray | None
-    stable: bool | None
-    phi: float
-    point: SpecialPoint | None = None
-
-
-def _rows(branch: Branch, n_base: int | None) -> list[_Row]:
-    """The branch's stored points with its special points attached or inserted (module docstring)."""
-    names = list(branch.params)
-    first = branch.parameter
-    rows = []
-    for i in range(len(branch)):
-        try:
-            state = branch.state(i)
-        except KeyError:  # save_every dropped it
-            state = None
-        if state is not None and n_base is not None:
-            state = state[:n_base]
-        stable = None if branch.stable is None else bool(branch.stable[i])
-        phi = float(branch.observables["phi"][i]) if "phi" in branch.observables else math.nan
-        rows.append(_Row({k: float(branch.params[k][i]) for k in names}, state, stable, phi))
-    inserted: dict[int, list[_Row]] = {}
-    for sp in sorted(branch.special_points, key=lambda s: (s.index, s.label)):
-        value = sp.params.get(first, math.nan)
-        own = None
-        for j in (sp.index, sp.index + 1):
-            if 0 <= j < len(rows) and rows[j].point is None and _same(rows[j].params.get(first), value):
-                own = j
-                break
-        if own is not None:
-            r = rows[own]
-            rows[own] = _Row(r.params, r.state if sp.state is None else _base(sp.state, n_base), r.stable, r.phi, sp)
-        else:
-            stable = rows[min(sp.index, len(rows) - 1)].stable if rows else None
-            params = {k: float(sp.params.get(k, math.nan)) for k in names}
-            phi = float(sp.order_parameter)
-            inserted.setdefault(sp.index, []).append(_Row(params, _base(sp.state, n_base), stable, phi, sp))
-    out: list[_Row] = []
-    for i, r in enumerate(rows):
-        out.append(r)
-        out.extend(inserted.get(i, []))
-    return out
-
-
-def _same(a: float | None, b: float) -> bool:
-    return a is not None and (a == b or abs(a - b) <= 1e-13 * max(1.0, abs(b)))
-
-
-def _base(state: Any, n_base: int | None) -> np.ndarray | None:
-    if state is None:
-        return None
-    state = np.asarray(state, float)
-    return state if n_base is None else state[:n_base]
 
 
 def base_size(branch: Branch) -> int | None:
@@ -147,12 +82,15 @@ def _par_index(names: Sequence[str], par: Mapping[str, int] | None) -> dict[str,
 
 
 def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLike[str] = ".",
-               par: Mapping[str, int] | None = None) -> tuple[Path, Path, list[str]]:
+               par: Mapping[str, int] | None = None, cycles: Mapping[str, Any] | None = None
+               ) -> tuple[Path, Path, list[str]]:
     """Write ``branches`` as AUTO-07p's b.NAME and s.NAME in ``directory`` (atomically, each).
 
     ``par``: contin parameter name -> AUTO PAR index (default: the order of the stored
     parameters, PAR(1), PAR(2), ...; give the equation file's indices to restart AUTO from
-    s.NAME).  Returns the two paths and notes (types written as UZ).  ValueError for a branch
+    s.NAME).  ``cycles``: the run's ``extra['cycles']`` entry (n, NCOL of its orbits), needed
+    for branches of periodic orbits, written as AUTO's periodic solutions (``contin.autoorbits``).
+    Returns the two paths and notes (types written as UZ).  ValueError for a branch
     with non-finite parameters or states (AUTO's files cannot hold them) or a bad name.
     """
     from contin.atomic import check_target, publish, write_bytes
@@ -170,14 +108,19 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     for position, branch in enumerate(branches, start=1):
         if list(branch.params) != names:
             raise ValueError(f"branch {branch.id} has other parameters than branch {branches[0].id}")
-        if branch.kind == "periodic-orbits":  # it wrote the orbits as NDIM = n NTST NCOL + 1 steady states
-            raise ValueError(f"branch {branch.id} holds periodic orbits, which AUTO stores as IPS = 2 solutions with "
-                             "their mesh; that format is not written (export the steady branches)")
+        if branch.kind == "periodic-orbits":  # AUTO's IPS = 2 layout, with the orbits' mesh
+            from contin.autoorbits import periodic_section
+
+            b_part, s_part, more = periodic_section(position, branch, index, npar, cycles)
+            b_lines += b_part
+            s_lines += s_part
+            notes += more
+            continue
         n_base = base_size(branch)
-        rows = _rows(branch, n_base)
+        rows = branch_rows(branch, n_base)
         # an observable NaN everywhere is "not computed" (the reader allows it): no column, not an error
         with_phi = "phi" in branch.observables and not bool(np.all(np.isnan(branch.observables["phi"])))
-        _check_finite(branch, rows, with_phi)
+        check_finite(branch, rows, with_phi)
         free = [k for k in branch.free]
         icp = [index[k] for k in free]
         sizes = {r.state.size for r in rows if r.state is not None}
@@ -187,7 +130,7 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
         columns = [f"PAR({icp[0]})"] + (["L2-NORM"] if with_state else []) + [f"U({j + 1})" for j in range(u_columns)]
         columns += [f"PAR({i})" for i in icp[1:]] + (["phi"] if with_phi else [])
         ndim = max(sizes) if sizes else 0
-        b_lines += _b_header(ndim, icp, index, npar)
+        b_lines += b_header(ndim, icp, index, npar)
         b_lines.append("   0    PT  TY  LAB" + "".join(("    " + c).ljust(19) for c in columns))
         for pt, row in enumerate(rows, start=1):
             ty, lab = 0, 0
@@ -220,30 +163,7 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     return b_path, s_path, notes
 
 
-def _check_finite(branch: Branch, rows: list[_Row], with_phi: bool) -> None:
-    for k, r in enumerate(rows):
-        bad = [name for name, v in r.params.items() if not math.isfinite(v)]
-        if bad or (r.state is not None and not np.all(np.isfinite(r.state))) or (with_phi and not math.isfinite(r.phi)):
-            what = f"parameter {bad[0]}" if bad else "state" if r.state is not None and not np.all(np.isfinite(r.state)) else "order parameter"
-            raise ValueError(f"branch {branch.id}: the {what} of point {k + 1} is not finite; AUTO's files cannot hold it")
-
-
-def _b_header(ndim: int, icp: list[int], index: Mapping[str, int], npar: int) -> list[str]:
-    bounds = "  -1.7976+308  1.7976+308 -1.7976+308  1.7976+308"  # RL0 RL1 A0 A1: no bounds, as AUTO writes them
-    names = ", ".join(f"{i}: {k!r}" for k, i in sorted(index.items(), key=lambda kv: kv[1]))
-    isw = 2 if len(icp) > 1 else 1
-    return [
-        "   0" + bounds,
-        "   0   NDIM=%4d   IPS =%4d   IRS =%4d   ILP =%4d" % (ndim, 1, 0, 1),
-        "   0   ISW =%4d   NPAR=%4d" % (isw, npar),
-        "   0   User-specified parameter:    " + "".join("%7d" % i for i in icp),
-        "   0   Active continuation parameter:" + "".join("%7d" % i for i in icp),
-        f"   0   parnames = {{{names}}}",
-        "   0",
-    ]
-
-
-def _s_block(br: int, pt: int, ty: int, lab: int, row: _Row, branch: Branch, icp: list[int],
+def _s_block(br: int, pt: int, ty: int, lab: int, row: Row, branch: Branch, icp: list[int],
              index: Mapping[str, int], npar: int, n_base: int | None) -> list[str]:
     """One labelled solution in AUTO's algebraic layout (parseS.write)."""
     assert row.state is not None and row.point is not None

@@ -29,6 +29,7 @@ __all__ = [
     "plot_diagram",
     "plot_eigenfunction",
     "plot_growth_rate",
+    "plot_orbits",
     "plot_profiles",
     "save_figure",
     "stability_runs",
@@ -316,6 +317,40 @@ def plot_eigenfunction(
         ax.set_xlabel("y")
         ax.set_title(f"{name} (perturbation)", fontsize=9)
     axes[0].legend(fontsize=7, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_orbits(
+    orbits: Sequence[tuple[str, np.ndarray, np.ndarray]],
+    components: Sequence[int],
+    *,
+    title: str | None = None,
+) -> Figure:
+    """Periodic orbits ``(label, t, u)`` (t in [0, T], u of shape (len(t), n)): u_i(t) of the
+    chosen components over one period, and with two components or more the phase portrait
+    (u_a, u_b) of the first two.  Line gids: ``"{label}:u{i}"`` and ``"{label}:phase"`` (i from 1)."""
+    if not orbits or not components:
+        raise ValueError("no orbit or no component to plot")
+    phase = len(components) >= 2
+    fig = Figure(figsize=(7.5 if phase else 4.0, 3.0))
+    axes = fig.subplots(1, 2 if phase else 1, squeeze=False)[0]
+    for label, t, u in orbits:
+        for i in components:
+            axes[0].plot(t, u[:, i], label=f"{label}: u{i + 1}" if len(orbits) > 1 else f"u{i + 1}",
+                         gid=f"{label}:u{i + 1}")
+        if phase:
+            a, b = components[0], components[1]
+            axes[1].plot(u[:, a], u[:, b], label=label, gid=f"{label}:phase")
+    axes[0].set_xlabel("t (one period)")
+    axes[0].legend(fontsize=7, frameon=False)
+    if phase:
+        axes[1].set_xlabel(f"u{components[0] + 1}")
+        axes[1].set_ylabel(f"u{components[1] + 1}")
+        if len(orbits) > 1:
+            axes[1].legend(fontsize=7, frameon=False)
     if title:
         fig.suptitle(title, fontsize=8)
     fig.tight_layout()

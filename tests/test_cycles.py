@@ -435,14 +435,12 @@ def test_cli_cycles_bad_input(ab_file, args, says):
 
 
 def test_cli_cycles_file_refused_by_steady_state_commands(ab_file, tmp_path):
-    """stability and export --auto read a branch's states as steady states: for orbits they said
-    'too many values to unpack' and wrote an AUTO file with NDIM = 161 steady 'states' (exit 0)."""
+    """stability reads a branch's states as steady states: for orbits it said 'too many values to
+    unpack'.  (export --auto writes orbits in AUTO's periodic layout: tests/test_autoorbits.py.)"""
     out = tmp_path / "cyc.h5"
     assert _cli("continue", ab_file, "--from", "HB1", "--cycles", "--max-steps", "3", "-o", out).exit_code == 0
     r = _cli("stability", out, "--point", "1")
     assert r.exit_code == 1 and "holds periodic orbits" in r.output.splitlines()[-1]
-    r = _cli("export", out, "--auto", "orb", "-d", tmp_path)
-    assert r.exit_code == 1 and "holds periodic orbits" in r.output and not (tmp_path / "b.orb").exists()
 
 
 def test_segments_with_a_new_phase_reference_join_into_one_branch():

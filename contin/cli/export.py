@@ -53,7 +53,8 @@ def export_command(file: str, name: str, directory: str, par: str | None) -> Non
     branches, meta = io.load(file)
     warn_if_incomplete(file, meta)
     try:
-        b_path, s_path, notes = write_auto(branches, name, directory, indices)
+        b_path, s_path, notes = write_auto(branches, name, directory, indices,
+                                             cycles=(meta.get("extra") or {}).get("cycles"))
     except ValueError as exc:
         fail(str(exc))
     for note in notes:

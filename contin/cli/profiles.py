@@ -9,15 +9,20 @@ from contin.cli._base import echo_err, fail, main, parse_settings
 
 @main.command("profiles")
 @click.argument("file", type=click.Path(exists=True, dir_okay=False))
-@click.option("--at", "at", required=True, metavar="NAME=VALUE", help="Parameter value, e.g. H=25.")
+@click.option("--at", "at", default=None, metavar="NAME=VALUE", help="Parameter value, e.g. H=25.")
+@click.option("--point", "point", default=None, metavar="LABEL",
+              help="A labelled point, e.g. LPC1 (files of periodic orbits).")
 @click.option("--branch", "branch_ids", multiple=True, metavar="ID", help="Only these branches (repeatable).")
-@click.option("--names", default=None, metavar="LIST", help="Profiles to draw, e.g. nu,u,T [default: all].")
+@click.option("--names", default=None, metavar="LIST",
+              help="Profiles to draw, e.g. nu,u,T; of orbits the components, e.g. u1,u3 [default: all].")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Figure file.")
-def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str | None, output: str) -> None:
+def profiles_command(file: str, at: str | None, point: str | None, branch_ids: tuple[str, ...], names: str | None,
+                     output: str) -> None:
     """Plot the stored profiles (against y) of each branch at NAME=VALUE.
 
     Exact at a special point located there (e.g. a UZ point), else interpolated linearly
-    between the two stored profiles that bracket the value.
+    between the two stored profiles that bracket the value.  Of a file of periodic orbits: the
+    orbit u_i(t) over one period and its phase portrait (u1, u2), at NAME=VALUE or at --point.
     """
     from contin import io
 
@@ -25,12 +30,24 @@ def profiles_command(file: str, at: str, branch_ids: tuple[str, ...], names: str
 
     from contin.cli._runctl import check_nonempty
 
-    ((name, value),) = parse_settings([at], "'--at'").items()
-    if not isinstance(value, float) or not math.isfinite(value):  # H=inf drew other points, exit 0
-        raise click.BadParameter(f"{at!r} needs a finite numeric value", param_hint="'--at'")
+    if (at is None) == (point is None):
+        fail("give either --at NAME=VALUE or --point LABEL")
+    name, value = "", math.nan
+    if at is not None:
+        ((name, value),) = parse_settings([at], "'--at'").items()
+        if not isinstance(value, float) or not math.isfinite(value):  # H=inf drew other points, exit 0
+            raise click.BadParameter(f"{at!r} needs a finite numeric value", param_hint="'--at'")
     names = check_nonempty(names, "--names")
+    point = check_nonempty(point, "--point")
     io.check_writable(output)
     branches, meta = io.load(file)
+    if any(b.kind == "periodic-orbits" for b in branches):
+        from contin.cli.orbit_profiles import draw_orbits
+
+        draw_orbits(file, branches, meta, name, value, point, branch_ids, names, output)
+        return
+    if point is not None:
+        fail(f"--point draws an orbit of a file of periodic orbits; {file} holds none (use --at NAME=VALUE)")
     if meta["y"] is None or not meta["profiles"]:
         if not meta["complete"] and not str(meta.get("stopped", "")).startswith("failed"):
             # an interrupted run is saved before its profiles are written (at the run's end): it said
