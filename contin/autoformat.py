@@ -152,7 +152,7 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
             values += [row.phi] if with_phi else []
             b_lines.append(line + "".join(e19(v) for v in values))
             if row.point is not None and row.state is not None:
-                s_lines += _s_block(position, pt if not row.stable else -pt, ty, lab, row, branch, icp, index, npar, n_base)
+                s_lines += _s_block(position, pt, ty, lab, row, branch, icp, index, npar, n_base)  # PT unsigned in s (AUTO's WRTSP8)
     b_text = "\n".join(b_lines) + "\n"
     s_text = "\n".join(s_lines) + "\n" if s_lines else ""
     directory = Path(directory)

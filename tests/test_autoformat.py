@@ -154,3 +154,17 @@ def test_special_points_between_stored_points_are_rows_of_their_own(ab_run):
         assert row[4][0] == float(e19(sp.params["D"]))
         assert row[4][2] == float(e19(sp.state[0])) and row[4][3] == float(e19(sp.state[1]))
     assert json.dumps(e19(1e-5)) == json.dumps("  1.0000000000E-005")  # AUTO's 3-digit exponent
+
+
+def test_s_file_point_numbers_are_unsigned_as_autos(ab_run):
+    """AUTO writes PT signed in the b-file (negative = stable) and unsigned in the s-file header
+    (ae.f90 WRTSP8; its own s.ab: PT 1 for the b-file's -1 at LAB 1).  contin wrote the b-file's
+    sign into the s-file too (results/s.ab had PT -25)."""
+    _, b_rows = read_b(ab_run / "b.ab")
+    pt_of = {lab: pt for (_, pt, _, lab, _) in b_rows if lab > 0}
+    blocks = read_s(ab_run / "s.ab")
+    assert blocks and all(b["head"][1] == abs(pt_of[b["head"][3]]) > 0 for b in blocks)
+    assert any(pt_of[b["head"][3]] < 0 for b in blocks)  # a stable labelled point is among them
+    _, auto_b = read_b(DATA / "b.ab")
+    auto_pt = {lab: pt for (_, pt, _, lab, _) in auto_b if lab > 0}
+    assert all(b["head"][1] == abs(auto_pt[b["head"][3]]) for b in read_s(DATA / "s.ab"))
