@@ -40,10 +40,11 @@ LEAVES = 1e-3
 
 
 def _span(branch: Branch, idx: list[int]) -> float:
-    """Max-norm distance (state and parameter) from the first to the last of the points ``idx``."""
-    a, b = idx[0], idx[-1]
-    return float(max(np.max(np.abs(branch.state(b) - branch.state(a))),
-                     abs(branch.parameter_values[b] - branch.parameter_values[a])))
+    """Max-norm distance (state and parameter) from the first to the last of the points ``idx``
+    (the parameter alone when their states lie on different grids)."""
+    a, b = branch.state(idx[0]), branch.state(idx[-1])
+    dp = abs(branch.parameter_values[idx[-1]] - branch.parameter_values[idx[0]])
+    return float(max(np.max(np.abs(b - a)), dp)) if a.size == b.size else float(dp)
 
 
 def _stored(branch: Branch) -> list[int]:
@@ -51,13 +52,20 @@ def _stored(branch: Branch) -> list[int]:
     return list(range(len(branch))) if branch.state_index is None else [int(i) for i in branch.state_index]
 
 
-def _points(branch: Branch, idx: list[int]) -> np.ndarray | None:
-    """Rows (state, parameter) of the stored points ``idx``; None when their sizes differ."""
-    states = [branch.state(i) for i in idx]
-    if len({s.size for s in states}) > 1:
-        return None
-    p = branch.parameter_values[idx]
-    return np.column_stack([np.array(states), p])
+def _groups(branch: Branch) -> dict[int, tuple[list[int], np.ndarray, np.ndarray]]:
+    """Per state size (grid of an adaptive run): the stored points' indices, their rows (state,
+    parameter) and their reach, twice the larger of the steps to their neighbours (max norm)."""
+    by_size: dict[int, list[int]] = {}
+    for i in _stored(branch):
+        by_size.setdefault(branch.state(i).size, []).append(i)
+    out = {}
+    for m, idx in by_size.items():
+        if len(idx) < 2:
+            continue
+        rows = np.column_stack([np.array([branch.state(i) for i in idx]), branch.parameter_values[idx]])
+        step = np.max(np.abs(np.diff(rows, axis=0)), axis=1)
+        out[m] = (idx, rows, 2.0 * np.maximum(np.append(step, step[-1]), np.insert(step, 0, step[0])))
+    return out
 
 
 def on_parent(problem: Any, parent: Branch, branch: Branch, params: Mapping[str, float], *, start: int = 1,
@@ -69,24 +77,19 @@ def on_parent(problem: Any, parent: Branch, branch: Branch, params: Mapping[str,
     ``problem`` at point i's parameters, started from point j's state, converges to within
     ``tol max(1, |u_i|)`` of u_i.  ``run`` consecutive such points reaching farther than
     ``LEAVES max(1, |u|)`` from the first of them make the answer: that first point and its
-    parameter.  Points whose size differs from the parent's (adaptive grids)
-    are not compared.
+    parameter.  Points of an adaptive run are compared with the parent's points on the same
+    grid (same state size) only.
     """
-    pidx = _stored(parent)
-    rows = _points(parent, pidx) if len(pidx) >= 2 else None
-    if rows is None:
-        return None
-    step = np.max(np.abs(np.diff(rows, axis=0)), axis=1)
-    reach = 2.0 * np.maximum(np.concatenate([step, step[-1:]]), np.concatenate([step[:1], step]))
+    groups = _groups(parent)
     par, streak = branch.parameter, []
     for i in _stored(branch):
         if i < start:
             continue
         u = branch.state(i)
         hit = False
-        if u.size == rows.shape[1] - 1:
-            x = np.append(u, branch.parameter_values[i])
-            d = np.max(np.abs(rows - x), axis=1)
+        if u.size in groups:
+            pidx, rows, reach = groups[u.size]
+            d = np.max(np.abs(rows - np.append(u, branch.parameter_values[i])), axis=1)
             j = int(np.argmin(d))
             if d[j] <= reach[j]:
                 p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}

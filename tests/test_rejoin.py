@@ -95,3 +95,22 @@ def test_the_command_line_shows_the_rejoined_line_as_a_warning():
     jumped.audit = [on_parent(pb, base, jumped, P)]
     assert doubtful_points(jumped) == jumped.audit
     assert not any(m.startswith(REJOINED) for m in doubtful_points(kids[0]))
+
+
+def test_a_parent_with_points_on_several_grids_is_compared_on_the_matching_grid():
+    """An adaptive parent stores states of several sizes (``Branch.sizes``); the spliced branch's
+    points are compared with the parent's points of their own size, and still flagged (before,
+    a parent with mixed sizes was not compared at all)."""
+    from contin.branch import pad_rows
+
+    pb, base, kids = traced(3.0)
+    jumped, i = spliced(kids[0], base)
+    other = np.flatnonzero(base.parameter_values < 1.0)[:3]  # a stretch on another "grid"
+    rows = [np.append(base.state(k), 0.0) if k in other else base.state(k) for k in range(len(base))]
+    sizes = np.array([r.size for r in rows])
+    mixed = dataclasses.replace(base, states=pad_rows(rows), sizes=sizes,
+                                tangents=pad_rows([np.append(base.tangents[k], 0.0) if k in other else base.tangents[k]
+                                                   for k in range(len(base))]))
+    assert len(set(mixed.state(k).size for k in range(len(mixed)))) == 2
+    msg = on_parent(pb, mixed, jumped, P)
+    assert msg is not None and i <= int(msg.split("from point ")[1].split()[0]) <= i + 1
