@@ -44,6 +44,7 @@ from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
 from contin.cancel import ENDS_AT_LAST_POINT, stop_reason, stop_requested
 from contin.closure import closing_distance, landed
+from contin.cloud import special_cloud
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
@@ -1170,7 +1171,12 @@ def trace(
     note = message
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
-    return tracer.build(parameter, status, message, closed, n, **meta)
+    built = tracer.build(parameter, status, message, closed, n, **meta)
+    cloud = special_cloud(built)
+    if cloud is not None:  # exit EP with three LPs for one fold was a silent wrong answer
+        log.warning("branch %s: %s", branch_id, cloud)
+        built.audit = [*built.audit, cloud]
+    return built
 
 
 def position_doubt(sp: SpecialPoint, error: float, sa: Sample[Any], sb: Sample[Any], parameter: str,

@@ -26,6 +26,7 @@ from contin.branch import relabel
 from contin.continuation import switch, trace
 from contin.diagram import DiagramSettings, bifurcation_diagram
 from contin.options import ContinuationOptions, StepOptions
+from contin.cloud import CLOUD
 from contin.rejoin import REJOINED
 from contin.stability import stability_pass
 
@@ -162,7 +163,11 @@ def test_auto_enz_asymmetric_branch_turning_onto_the_symmetric_one_says_so():
     br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)
     relabel([br])
     _, s0_bp = enz_symmetric_references("BP")
-    for kid in switch(pb, br, br.branch_points[0], opts):
+    kids = switch(pb, br, br.branch_points[0], opts)
+    # the half that crawls across the pitchfork lists LP, BP, LP there: a cloud (contin.cloud)
+    (cloud,) = [m for k in kids for m in k.audit if m.startswith(CLOUD)]
+    assert float(cloud.split("s0 = ")[1].split(":")[0]) == pytest.approx(s0_bp[1], abs=1e-6), cloud
+    for kid in kids:
         (line,) = [m for m in kid.audit if m.startswith(REJOINED)]
         i = int(line.split("from point ")[1].split()[0])
         assert kid.parameter_values[i] == pytest.approx(s0_bp[1], abs=1e-6), line
