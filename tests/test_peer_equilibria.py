@@ -188,7 +188,8 @@ def test_auto_enz_asymmetric_branch_passes_the_second_pitchfork():
     """The asymmetric branch of enz joins the symmetric one at its second pitchfork (s0 =
     22.1816): traced on, it should report that BP and continue as the mirror half, with no other
     special points there.  Today it reports no BP or an unlocated one, a cloud of LPs at the
-    pitchfork's parameter and then jumps onto the symmetric branch (its fold at s0 = 18.887)."""
+    pitchfork's parameter and then jumps onto the symmetric branch (its fold at s0 = 18.887);
+    both are now said (the test above)."""
     pb = pm.enz()
     opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500)
     br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)
