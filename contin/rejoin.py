@@ -81,10 +81,12 @@ def on_parent(problem: Any, parent: Branch, branch: Branch, params: Mapping[str,
     grid (same state size) only.
     """
     groups = _groups(parent)
-    par, streak = branch.parameter, []
+    par, streak, prev = branch.parameter, [], -1
     for i in _stored(branch):
         if i < start:
             continue
+        # consecutive among the stored points (save_every > 1 stores every k-th state)
+        last, prev = prev, i
         u = branch.state(i)
         hit = False
         if u.size in groups:
@@ -95,7 +97,7 @@ def on_parent(problem: Any, parent: Branch, branch: Branch, params: Mapping[str,
                 p = {**params, **{k: float(v[i]) for k, v in branch.params.items()}}
                 res = newton(point_problem(problem, parent, pidx[j]), parent.state(pidx[j]), p)
                 hit = res.converged and float(np.max(np.abs(res.u - u))) <= tol * max(1.0, float(np.max(np.abs(u))))
-        streak = [*streak, i] if hit and (not streak or streak[-1] == i - 1) else ([i] if hit else [])
+        streak = [*streak, i] if hit and (not streak or streak[-1] == last) else ([i] if hit else [])
         if len(streak) >= run and _span(branch, streak) > LEAVES * max(1.0, float(np.max(np.abs(u)))):
             return (f"{REJOINED} {parent.id} from point {streak[0]} ({par} = {branch.parameter_values[streak[0]]:.10g}) "
                     f"on: a step landed on the parent branch and the points after it are the parent's, not "

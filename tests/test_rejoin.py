@@ -114,3 +114,15 @@ def test_a_parent_with_points_on_several_grids_is_compared_on_the_matching_grid(
     assert len(set(mixed.state(k).size for k in range(len(mixed)))) == 2
     msg = on_parent(pb, mixed, jumped, P)
     assert msg is not None and i <= int(msg.split("from point ")[1].split()[0]) <= i + 1
+
+
+def test_a_branch_storing_every_other_state_is_still_checked():
+    """With save_every = 2 (``state_index``) the stored points are consecutive among themselves:
+    the spliced branch with every other state kept is still flagged at its junction (before, a
+    streak needed indices i, i + 1 and never grew)."""
+    pb, base, kids = traced(3.0)
+    jumped, i = spliced(kids[0], base)
+    keep = np.unique(np.append(np.arange(0, len(jumped), 2), len(jumped) - 1))
+    sparse = dataclasses.replace(jumped, states=jumped.states[keep], state_index=keep)
+    msg = on_parent(pb, base, sparse, P)
+    assert msg is not None and i <= int(msg.split("from point ")[1].split()[0]) <= i + 2
