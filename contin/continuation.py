@@ -44,6 +44,7 @@ from contin.bpdetect import EigenCounter, bp_eigen_count, kernel_dimension
 from contin.branch import MAX_AUDIT, Branch, SpecialPoint, pad_rows, relabel
 from contin.cancel import ENDS_AT_LAST_POINT, stop_reason, stop_requested
 from contin.closure import closing_distance, landed
+from contin.cloud import special_cloud
 from contin.corrector import Correction, correct
 from contin.extended import ExtendedSystem
 from contin.linalg import factorize_bordered
@@ -55,6 +56,7 @@ from contin.pointtests import PointTest
 from contin.pointtestset import point_tests
 from contin.predictor import secant, tangent
 from contin.problem import Array, has, require_protocol
+from contin.rejoin import on_parent
 from contin.stepsize import angle, next_step, reduced_step
 from contin.switching import departures, first_step_options, prepend
 from contin.testfunctions import Antisymmetric, TestValues, bp_value, detrended, sign_change
@@ -1169,7 +1171,12 @@ def trace(
     note = message
     tracer.special.append(tracer.end_point(mark, note))
     say(f"branch {branch_id}: {status}: {message}")
-    return tracer.build(parameter, status, message, closed, n, **meta)
+    built = tracer.build(parameter, status, message, closed, n, **meta)
+    cloud = special_cloud(built)
+    if cloud is not None:  # exit EP with three LPs for one fold was a silent wrong answer
+        log.warning("branch %s: %s", branch_id, cloud)
+        built.audit = [*built.audit, cloud]
+    return built
 
 
 def position_doubt(sp: SpecialPoint, error: float, sa: Sample[Any], sb: Sample[Any], parameter: str,
@@ -1486,7 +1493,14 @@ def switch(
                     kind="bifurcated", parent=parent, symmetric=None if nd else symmetric)
         if nd:
             new.audit.insert(0, f"switched at {point.name} (kernel dimension {dim}) along the reduced root {dep.note}")
-        out.append(prepend(system, new, dep.x0, dep.tangent))
+        new = prepend(system, new, dep.x0, dep.tangent)
+        # a step onto the parent (a BP passed by turning onto it) leaves the branch stored with
+        # status EP and the parent's points: said as an audit line, a warning on the command line
+        rejoined = on_parent(problem, branch, new, system.params_at(dep.start[-1]))
+        if rejoined is not None:
+            log.warning("branch %s %s", new.id, rejoined)
+            new.audit = [*new.audit, rejoined]
+        out.append(new)
     if not out:  # never an empty list without a reason
         where = f"{point.name} ({param} = {point.params[param]:.10g}" + (f", kernel dimension {dim})" if nd else ")")
         raise ValueError(f"switching at {where} found no new branch: "

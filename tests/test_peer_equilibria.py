@@ -13,6 +13,7 @@ and numpy's eigenvalues of the exact Jacobian for the stability counts.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,6 +26,8 @@ from contin.branch import relabel
 from contin.continuation import switch, trace
 from contin.diagram import DiagramSettings, bifurcation_diagram
 from contin.options import ContinuationOptions, StepOptions
+from contin.cloud import CLOUD
+from contin.rejoin import REJOINED
 from contin.stability import stability_pass
 
 
@@ -148,6 +151,36 @@ def test_auto_enz_asymmetric_branch_folds():
     assert np.allclose(np.array(one)[:, [0, 2, 1]], np.array(two), rtol=1e-9)
 
 
+def test_auto_enz_asymmetric_branch_turning_onto_the_symmetric_one_says_so():
+    """Today the asymmetric branch does not pass the second pitchfork (the xfail below): both
+    halves turn onto the symmetric branch there and were stored on along it with exit EP and no
+    warning.  Each must now carry the audit line (contin.rejoin) naming the pitchfork's s0
+    (closed form, 1e-6), with the points before it asymmetric and those after it symmetric
+    (s1 = s2 to 1e-5, the parent's); the diagram's switched branches carry it too, and halves stopped
+    at their second fold (before the pitchfork) do not."""
+    pb = pm.enz()
+    opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500)
+    br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)
+    relabel([br])
+    _, s0_bp = enz_symmetric_references("BP")
+    kids = switch(pb, br, br.branch_points[0], opts)
+    # the half that crawls across the pitchfork lists LP, BP, LP there: a cloud (contin.cloud)
+    (cloud,) = [m for k in kids for m in k.audit if m.startswith(CLOUD)]
+    assert float(cloud.split("s0 = ")[1].split(":")[0]) == pytest.approx(s0_bp[1], abs=1e-6), cloud
+    for kid in kids:
+        (line,) = [m for m in kid.audit if m.startswith(REJOINED)]
+        i = int(line.split("from point ")[1].split()[0])
+        assert kid.parameter_values[i] == pytest.approx(s0_bp[1], abs=1e-6), line
+        gap = np.abs(kid.states[:, 0] - kid.states[:, 1])
+        # on the parent within contin.rejoin's tol 1e-6 max(1, |u|), |u| = 4.4 there: s1 - s2 < 1e-5
+        assert np.all(gap[i:] < 1e-5) and np.ptp(kid.parameter_values[i:]) > 10 and np.max(gap[:i]) > 1
+    short = replace(opts, stop_at=("LP2",))
+    assert not any(m.startswith(REJOINED) for k in switch(pb, br, br.branch_points[0], short) for m in k.audit)
+    d = bifurcation_diagram(pb, np.zeros(2), pm.ENZ, "s0", opts, DiagramSettings(depth=2))
+    kids = [b for b in d.branches if b.kind == "bifurcated"]
+    assert len(kids) == 2 and all(any(m.startswith(REJOINED) for m in b.audit) for b in kids)
+
+
 @pytest.mark.xfail(strict=True, reason="open: the core does not pass through a pitchfork along the branch "
                    "that bifurcates there (a point's tangent comes from the factorization before the last "
                    "Newton update, which next to a BP rotates it; see README, peer problems)")
@@ -155,7 +188,8 @@ def test_auto_enz_asymmetric_branch_passes_the_second_pitchfork():
     """The asymmetric branch of enz joins the symmetric one at its second pitchfork (s0 =
     22.1816): traced on, it should report that BP and continue as the mirror half, with no other
     special points there.  Today it reports no BP or an unlocated one, a cloud of LPs at the
-    pitchfork's parameter and then jumps onto the symmetric branch (its fold at s0 = 18.887)."""
+    pitchfork's parameter and then jumps onto the symmetric branch (its fold at s0 = 18.887);
+    both are now said (the test above)."""
     pb = pm.enz()
     opts = ContinuationOptions(step=StepOptions(ds=0.1, ds_max=0.25), bounds={"s0": (0.0, 40.0)}, max_steps=500)
     br = trace(pb, np.zeros(2), pm.ENZ, "s0", opts)

@@ -241,12 +241,16 @@ def doubtful_points(branch: Any) -> list[str]:
     """The audit lines of points stored although their two-grid check exceeded tol
     (``contin.continuation.ACCEPTED_ABOVE_TOL``), of steps across which a special point may have
     been missed (``DETECTION_GAP``: a test function not finite, a user zero next to a fold not
-    located) and of FD branches whose check grid's test functions disagree with the located points
-    (``MISSED_SPECIAL``): the terminal shows them as warnings, also with ``-q``."""
+    located), of FD branches whose check grid's test functions disagree with the located points
+    (``MISSED_SPECIAL``), of switched branches that run along their parent
+    (``contin.rejoin.REJOINED``) and of clouds of special points (``contin.cloud.CLOUD``): the terminal shows them as warnings, also with ``-q``."""
     from contin.continuation import ACCEPTED_ABOVE_TOL, DETECTION_GAP, MISSED_SPECIAL
+    from contin.cloud import CLOUD
+    from contin.rejoin import REJOINED
 
     return [m for m in branch.audit
-            if (m.startswith("step ") and (ACCEPTED_ABOVE_TOL in m or DETECTION_GAP in m)) or m.startswith(MISSED_SPECIAL)]
+            if (m.startswith("step ") and (ACCEPTED_ABOVE_TOL in m or DETECTION_GAP in m))
+            or m.startswith((MISSED_SPECIAL, REJOINED, CLOUD))]
 
 
 #: The note of a located special point whose measured position missed special_tol after every
