@@ -151,6 +151,11 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
     doubling = cycles and point.type == "PD" and branch.kind == "periodic-orbits"  # the period-doubled orbits
+    if branch.kind == "periodic-orbits" and not doubling:  # 'too many values to unpack' from the orbit's state
+        fail(f"{point.name} is on branch {branch.id} of periodic orbits: from such a file only a PD continues "
+             "(--from PDk --cycles: the period-doubled orbits); curves of LPC, PD or NS in two parameters are not "
+             "implemented, and an HB there is where the orbits end on an equilibrium: continue from the Hopf "
+             "point of the steady branch the orbits came from")
     if cycles and point.type != "HB" and not doubling:
         fail(f"--cycles starts at a Hopf point (HB) or a period doubling (PD) of orbits; {point.name} is neither "
              f"(type {point.type})")

@@ -73,7 +73,12 @@ def verify_command(file: str, branch_id: str | None, factor: float, tol: float |
         if len(branches[0].free) != 1:
             fail(f"branch {branch_id} of {file} has free parameters {', '.join(branches[0].free)}: "
                  "only one-parameter branches can be re-solved at fixed parameters")
-    todo = [b for b in branches if len(b.free) == 1 and len(b) > 0]
+    orbits = [b.id for b in branches if b.kind == "periodic-orbits"]
+    if orbits and len(orbits) == len(branches):  # it blamed the equilibrium's missing grid hooks
+        fail(f"branch {orbits[0]} of {file} holds periodic orbits: contin verify re-solves steady states on a "
+             "finer grid; an orbit's accuracy is its flow_error and floquet_error (contin info), and a finer "
+             "mesh is contin continue --cycles --ntst")
+    todo = [b for b in branches if len(b.free) == 1 and len(b) > 0 and b.kind != "periodic-orbits"]
     if not todo:
         fail(f"{file} has no one-parameter branch with stored points to verify")
     problem = _problem_of(meta, file)
