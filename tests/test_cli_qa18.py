@@ -174,6 +174,35 @@ def test_a_run_with_stderr_closed_writes_its_file(tmp_path):
     assert lp.params["lam"] == pytest.approx(3.513830719125162, rel=1e-9)  # Bratu's fold lam*
 
 
+def _reader_gone_run(args: list[str], tmp_path):
+    """``contin ARGS`` with stdout a pipe whose reader has gone before the first write (the
+    parent's read end is closed at once): what ``| head -1`` does to the rest, deterministically."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "CONTIN_SCENES"}
+    p = subprocess.Popen([sys.executable, "-m", "contin", *args], env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, cwd=tmp_path)
+    p.stdout.close()
+    err = p.stderr.read()
+    p.wait(timeout=120)
+    return subprocess.CompletedProcess(p.args, p.returncode, b"", err)
+
+
+@pytest.mark.parametrize("args", [["scenes"], ["trace", "bratu", "--json", "-q", "-o", "b.h5"]])
+def test_a_reader_of_stdout_that_has_gone_is_no_error(args, tmp_path):
+    """`contin scenes | head -1` and `contin info F | head` ended `Error: Broken pipe`, exit 1: a
+    reader that took what it wanted is no failure.  Now stdout becomes a sink: exit 0, nothing on
+    stderr ('Exception ignored ... BrokenPipeError' neither: the descriptor goes to /dev/null), and a
+    trace still writes its file."""
+    proc = _reader_gone_run(args, tmp_path)
+    assert proc.returncode == 0 and proc.stderr == b"", proc.stderr
+    if "trace" in args:
+        (branch,), meta = io.load(tmp_path / "b.h5")
+        assert meta["complete"] is True and branch.points("LP")[0].params["lam"] == pytest.approx(3.513830719125162, rel=1e-9)
+
+
 # ----------------------------------------------------------------------------- gravity-unfolding
 @pytest.mark.parametrize("G, expect", [("1e-7,1e-7", "G lists the value 1e-07 twice"),
                                        ("1e-200", "G = 1e-200 is outside 1e-100 <= G <= 1"),

@@ -99,7 +99,12 @@ ContinGroup.command_class = ContinCommand  # every @main.command()
 
 
 class _SinkOnBrokenPipe:
-    """``sys.stderr`` that becomes a sink once its reader has gone.
+    """``sys.stderr`` (and ``sys.stdout``) that becomes a sink once its reader has gone.
+
+    stdout too: ``contin scenes | head -1`` and ``contin info F | head`` ended with
+    ``Error: Broken pipe``, exit 1 (qa18's leftover), where a reader that took what it wanted is
+    the user's choice, not a failure.  The file descriptor is pointed at /dev/null once the reader
+    has gone, so that the interpreter's final flush of the buffered rest does not raise again.
 
     Progress, notes and tables go to stderr; with ``contin trace ... 2>&1 | head -1`` the second
     progress line raised BrokenPipeError, which ended the run (exit 1, 'incomplete: the run failed:
@@ -119,7 +124,7 @@ class _SinkOnBrokenPipe:
             try:
                 return self._stream.write(text)  # type: ignore[no-any-return]
             except BrokenPipeError:
-                self._gone = True
+                self._reader_gone()
         return len(text)
 
     def flush(self) -> None:
@@ -127,7 +132,16 @@ class _SinkOnBrokenPipe:
             try:
                 self._stream.flush()
             except BrokenPipeError:
-                self._gone = True
+                self._reader_gone()
+
+    def _reader_gone(self) -> None:
+        self._gone = True
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):  # no real descriptor (a test runner's stream)
+            pass
 
     def isatty(self) -> bool:
         return self._stream is not None and bool(self._stream.isatty())
@@ -173,6 +187,8 @@ def main(debug: bool, verbose: int) -> None:
     """
     if not isinstance(sys.stderr, _SinkOnBrokenPipe):
         sys.stderr = _SinkOnBrokenPipe(sys.stderr)  # type: ignore[assignment]
+    if sys.stdout is not None and not isinstance(sys.stdout, _SinkOnBrokenPipe):
+        sys.stdout = _SinkOnBrokenPipe(sys.stdout)  # type: ignore[assignment]
     _setup_logging(verbose)  # BLAS threads: ContinCommand.invoke, when a command runs
     _one_line_warnings(debug or bool(os.environ.get("CONTIN_DEBUG")))
 
