@@ -110,6 +110,12 @@ class CycleOptions:
             raise ValueError(f"rephase_every must be >= 1, got {self.rephase_every}")
 
 
+def constant_mass(problem: Any, u: Array, params: dict[str, float]) -> Array | None:
+    """The problem's mass matrix M (M u' = T F), dense, taken at (u, params) as the constant it must
+    be (:func:`hopf_start` refuses one that changes); None without the ``mass_matrix`` hook (M = I)."""
+    return dense_matrix(problem.mass_matrix(u, params)) if has(problem, "mass_matrix") else None
+
+
 def default_amplitude(u_h: Array) -> float:
     """The start amplitude when none is given: 1e-2 max(1, |u_H|_inf)."""
     return 1e-2 * max(1.0, float(np.max(np.abs(u_h), initial=0.0)))
@@ -433,6 +439,8 @@ def period_doubled_start(problem: Any, point: SpecialPoint, parameter: str, n: i
         raise ValueError(f"a period-doubled branch starts at a PD point, not at {point.name} ({point.type})")
     mesh, nodes, period = orbit_of(point.state, n, None, parent_ncol or cycle.ncol)
     params = dict(point.params)
+    if mass is None:  # the CLI passed none: a problem's M was replaced by I, period and orbits wrong
+        mass = constant_mass(problem, nodes[0], params)
     base = CycleProblem(problem, mesh, nodes, mass, cycle.floquet_tol)
     blocks = base.colloc.interval_blocks(mesh.pack(nodes, period), params)
     mu, vecs = np.linalg.eig(monodromy(blocks))

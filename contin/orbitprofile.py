@@ -74,13 +74,10 @@ def orbit_at_point(branches: Sequence[Branch], label: str, n: int, ncol: int,
 def corrected(problem: Any, orbit: OrbitProfile, reference: Array) -> OrbitProfile:
     """``orbit`` corrected by Newton on the collocation system at its parameters (phase
     reference: node values on its mesh); ValueError when Newton does not converge."""
-    from contin.collocation import dense_matrix
-    from contin.cycles import CycleProblem
+    from contin.cycles import CycleProblem, constant_mass
     from contin.newton import newton
-    from contin.problem import has
 
-    mass = dense_matrix(problem.mass_matrix(orbit.nodes[0], orbit.params)) if has(problem, "mass_matrix") else None
-    cp = CycleProblem(problem, orbit.mesh, reference, mass)
+    cp = CycleProblem(problem, orbit.mesh, reference, constant_mass(problem, orbit.nodes[0], orbit.params))
     res = newton(cp, orbit.mesh.pack(orbit.nodes, orbit.period), orbit.params)
     if not res.converged:
         raise ValueError(f"Newton on the collocation system did not converge: {res.message}")

@@ -535,6 +535,35 @@ class _SlowLandau(StuartLandau):
         return self.C * sp.identity(2, format="csr")
 
 
+def test_period_doubled_start_takes_the_problems_mass_matrix(roessler_cycles):
+    """continue_doubled without ``mass`` (as `contin continue ORBITS --from PD1 --cycles` calls it)
+    took M = I for a problem with M = c I: its orbits are Roessler's slowed by c, so the period-
+    doubled orbits start at period 2 c T_PD.  The PD point of the slowed problem is Roessler's with
+    the period c T (the same multipliers: time is only rescaled)."""
+    import dataclasses
+
+    import scipy.sparse as sp
+
+    from contin.cycles import continue_doubled
+    from tests.cycle_models import Roessler
+
+    class SlowRoessler(Roessler):
+        C = 2.5
+
+        def mass_matrix(self, u, p):
+            return self.C * sp.identity(3, format="csr")
+
+    pd1 = roessler_cycles.points("PD")[0]
+    mesh, nodes, period = orbit_of(pd1.state, 3)
+    slow_pd = dataclasses.replace(pd1, state=np.concatenate([mesh.pack(nodes, SlowRoessler.C * period),
+                                                             pd1.state[mesh.pack(nodes, period).size:]]))
+    assert orbit_of(slow_pd.state, 3)[2] == SlowRoessler.C * period
+    br = continue_doubled(SlowRoessler(), slow_pd, "a", 3, ContinuationOptions(bounds={"a": (0.0, 0.6)}, max_steps=3),
+                          CycleOptions(ntst=40))
+    assert math.isclose(br.observables["period"][0], 2 * SlowRoessler.C * period, rel_tol=1e-3)
+    assert np.all(br.observables["flow_error"] < 1e-6)
+
+
 def test_mass_matrix_scales_time():
     """With M = c I the cycles are Stuart-Landau's with period c 2 pi / w and multiplier
     exp(-2 mu T / c) (the Hopf start, collocation and Floquet all use M)."""
