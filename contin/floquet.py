@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from contin.branch import SpecialPoint
-from contin.hopf import _to_segment
+from contin.hopf import distance_to_segment
 from contin.pointtests import Crossing
 from contin.problem import Array
 
@@ -209,7 +209,7 @@ class FloquetTest:
                 if v.size == 0:
                     return math.nan
                 # the multiplier nearest the segment [a, b] (as the Hopf test tracks its eigenvalue)
-                return float(abs(v[int(np.argmin(_to_segment(v, a, b)))]) - 1.0)
+                return float(abs(v[int(np.argmin(distance_to_segment(v, a, b)))]) - 1.0)
 
             out.append(("", g))
         return out

@@ -156,7 +156,7 @@ def crossing_pairs(va: CArray, vb: CArray) -> list[tuple[complex, complex]]:
     return out
 
 
-def _to_segment(v: CArray, a: complex, b: complex) -> CArray:
+def distance_to_segment(v: CArray, a: complex, b: complex) -> CArray:
     """Distances of the points v from the segment [a, b] of the complex plane."""
     d = b - a
     if d == 0:
@@ -196,7 +196,7 @@ class HopfTest:
             def g(v: CArray, a: complex = complex(mu_a), b: complex = complex(mu_b)) -> float:
                 if v.size == 0:
                     return math.nan
-                return float(v[int(np.argmin(_to_segment(v, a, b)))].real)
+                return float(v[int(np.argmin(distance_to_segment(v, a, b)))].real)
 
             out.append(("", g))
         return out

@@ -87,7 +87,7 @@ def locate_hopf(
     searched.  None searches every interval (one eigen-solve per stored point).
     """
     from contin.adapt import point_problem
-    from contin.hopf import _to_segment, crossing_pairs
+    from contin.hopf import distance_to_segment, crossing_pairs
     from contin.newton import newton as solve
 
     out = HopfScan()
@@ -146,7 +146,7 @@ def locate_hopf(
             ub = there.transfer(ub, here)
         for mu_a, mu_b in crossings:
             sp, reason = _locate_one(here, branch, i, params_at, ua, ub, complex(mu_a), complex(mu_b), kx, kz,
-                                     dense_max, k, tol, newton, max_iterations, solve, _to_segment)
+                                     dense_max, k, tol, newton, max_iterations, solve, distance_to_segment)
             if sp is not None:
                 sp = replace(sp, grid=branch.grid_at(i))
                 out.points.append(sp)
