@@ -409,7 +409,7 @@ def stability_after_run(scene: Scene, request: SceneRequest, result: SceneResult
 def _stability_pass_after_run(scene: Scene, request: SceneRequest, result: SceneResult,
                               say: Callable[[str], None]) -> None:
     """The k_x = 0 pass (and extra kx columns) of :func:`stability_after_run`."""
-    from contin.cli._base import error_line  # (lazy: the command line's one-line form of an error)
+    from contin.errorline import error_line
 
     def missing(b: Branch) -> bool:
         return len(b.free) == 1 and len(b) > 0 and b.n_unstable is None

@@ -18,29 +18,12 @@ from typing import Any, NoReturn
 import click
 
 from contin import __version__
+from contin.errorline import error_line  # noqa: F401 (re-exported: the commands import it from here)
 
 #: exit code of a run that finished but left a branch with status MX
 EXIT_INCOMPLETE = 3
 
 CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"], "show_default": True}
-
-
-def error_line(exc: BaseException) -> str:
-    """One line describing ``exc`` for the user (no traceback)."""
-    if isinstance(exc, OSError) and not type(exc).__module__.startswith("h5py") and exc.strerror:
-        msg = f"{exc.strerror}: {exc.filename!r}" if exc.filename else exc.strerror
-        if exc.args and isinstance(exc.args[0], str) and len(exc.args) == 1:
-            msg = exc.args[0]
-    elif isinstance(exc, ValueError | OSError | LookupError) and str(exc):
-        msg = str(exc)
-        if isinstance(exc, KeyError) and len(exc.args) == 1:
-            msg = str(exc.args[0])
-    elif isinstance(exc, ArithmeticError):  # Python-float overflow or 0-division of a model's formulas
-        msg = (f"arithmetic failure ({type(exc).__name__}: {exc}): a parameter or step is probably out of the "
-               "model's range; rerun with --debug for the traceback")
-    else:
-        msg = f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for the traceback"
-    return re.sub(r"\s*\n\s*", " ", msg).strip()
 
 
 #: Exit code after Ctrl-C (SIGINT): 128 + 2, the shell's convention (SIGTERM: 143).
