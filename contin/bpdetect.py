@@ -104,9 +104,38 @@ def spectrum(jac: Any, k: int) -> Spectrum:
         return Spectrum(w[np.argsort(np.abs(w))], math.inf)
     import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
 
-    w = spla.eigs(sp.csc_matrix(jac), k=k, sigma=0.0, which="LM", return_eigenvectors=False, tol=1e-10)
+    from contin.stability import arpack_start
+
+    w = spla.eigs(sp.csc_matrix(jac), k=k, sigma=0.0, which="LM", return_eigenvectors=False, tol=1e-10,
+                  v0=arpack_start(n))
     w = np.asarray(w)[np.argsort(np.abs(w))]
     return Spectrum(w[:-1], float(abs(w[-1])))
+
+
+def without_fixed(sa: Spectrum, sb: Spectrum) -> tuple[Spectrum, Spectrum, int]:
+    """Both spectra without the eigenvalues that did not move in the step, and how many values
+    were set aside.
+
+    A Krylov method (ARPACK) returns the copies of a multiple eigenvalue unreliably: from one
+    start vector the Krylov space holds one vector of each eigenspace, the others enter by
+    rounding only (the Brusselator's four boundary rows, eigenvalue 1, came back three or four
+    times, and the count of the disc changed by one with nothing crossing zero: an endless
+    "inconclusive" and a branch that crawled to its step cap short of its Hopf point).  An
+    eigenvalue whose value is the same at both ends (to :data:`REAL_TOL` relative) has crossed
+    zero a net zero times, and so have all its copies: they are set aside at both ends.
+    """
+    a, b = sa.values, sb.values
+    fixed_a, fixed_b = _found_in(a, b), _found_in(b, a)
+    return (Spectrum(a[~fixed_a], sa.radius), Spectrum(b[~fixed_b], sb.radius),
+            int(np.count_nonzero(fixed_a) + np.count_nonzero(fixed_b)))
+
+
+def _found_in(w: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """Which nonzero values of w are in ``other`` (to REAL_TOL relative); every copy counts."""
+    if w.size == 0 or other.size == 0:
+        return np.zeros(w.size, dtype=bool)
+    close = np.abs(w[:, None] - other[None, :]) <= REAL_TOL * np.abs(w)[:, None]
+    return (w != 0) & close.any(axis=1)
 
 
 def disc_radius(sa: Spectrum, sb: Spectrum, k: int, moved: float = 0.0) -> float:
@@ -151,8 +180,21 @@ def crossings(sa: Spectrum, sb: Spectrum, k: int = 12, moved: float = 0.0) -> tu
     real eigenvalues meeting and turning complex (or the reverse) change one side by two and
     the other not at all: no crossing, also conclusive.  Anything else (an eigenvalue crossing
     the rim of the disc, or a crossing and a collision together) is inconclusive; a shorter
-    step separates the events.
+    step separates the events.  An inconclusive count is made again without the eigenvalues that
+    did not move (:func:`without_fixed`: copies of a multiple eigenvalue that ARPACK returned at
+    one end and not the other).
     """
+    c, conclusive, detail = _count(sa, sb, k, moved)
+    if not conclusive:
+        ra, rb, n_fixed = without_fixed(sa, sb)
+        if n_fixed:
+            c2, conclusive2, detail2 = _count(ra, rb, k, moved)
+            if conclusive2:
+                return c2, True, f"{detail2} ({n_fixed} eigenvalues that did not move set aside)"
+    return c, conclusive, detail
+
+
+def _count(sa: Spectrum, sb: Spectrum, k: int, moved: float) -> tuple[int, bool, str]:
     r = disc_radius(sa, sb, k, moved)
     pa, ma = sa.real_counts(r)
     pb, mb = sb.real_counts(r)

@@ -184,6 +184,58 @@ def test_spectrum_sparse_path_gives_the_eigenvalues_nearest_zero() -> None:
     assert spec.radius == pytest.approx(abs(ref[5]), abs=1e-10)
 
 
+def test_copies_of_a_multiple_eigenvalue_missed_at_one_end_are_no_crossing() -> None:
+    """ARPACK returns the copies of a multiple eigenvalue unreliably (one Krylov vector per
+    eigenspace, the rest by rounding).  The Brusselator on fd2 372 (746 unknowns) has the
+    eigenvalue 1 four times (its boundary rows): listed four times at one end and three at the
+    other, the disc count changed by one with nothing crossing zero, every step came back
+    "inconclusive" and the branch crawled to its step cap short of its Hopf point (exit 0).
+    Values that did not move are set aside: the count is conclusive, zero; a real crossing beside
+    them is still one."""
+    pair = [-0.0786 + 2.0963j, -0.0786 - 2.0963j, -0.5227 + 2.3585j, -0.5227 - 2.3585j]
+    a = Spectrum(np.array([1.0, 1.0, 1.0, 1.0, *pair]), 3.88)
+    b = Spectrum(np.array([1.0, 1.0, 1.0, *[w + 0.001 for w in pair]]), 3.87)
+    c, conclusive, detail = crossings(a, b, moved=0.01)
+    assert (c, conclusive) == (0, True) and "7 eigenvalues that did not move set aside" in detail
+    # beside them, an eigenvalue through zero is counted
+    a2 = Spectrum(np.append(a.values, -0.002), 3.88)
+    b2 = Spectrum(np.append(b.values, 0.003), 3.87)
+    assert crossings(a2, b2, moved=0.01)[:2] == (1, True)
+    # an eigenvalue that moved is not set aside: one that may have left the disc across its rim
+    # keeps the count inconclusive (the case of test_crossing_count_and_kernel_dimension_units)
+    a3 = Spectrum(np.array([0.05, -0.25, 1.0, 1.0, 1.0, 1.0]), 3.88)
+    b3 = Spectrum(np.array([0.05, 1.0, 1.0, 1.0]), 0.3)
+    assert crossings(a3, b3, moved=0.3)[1] is False
+
+
+def test_sparse_spectrum_is_the_same_in_every_call() -> None:
+    """ARPACK's own start vector comes from a seed that advances with every call in the process:
+    the same J gave three copies of the Brusselator's eigenvalue 1 in one call and four in the
+    next.  The start vector is fixed, so the same J gives the same eigenvalues."""
+    from contin.bpdetect import spectrum
+    from problems.demo import Brusselator
+
+    problem = Brusselator("fd2", 372)
+    p = dict(Brusselator.PARAMS, b=5.1389)
+    jac = problem.jacobian(problem.homogeneous(p), p)
+    first = spectrum(jac, 12)
+    for _ in range(4):
+        again = spectrum(jac, 12)
+        assert np.array_equal(again.values, first.values) and again.radius == first.radius
+    # the nearest zero are the Hopf pair of mode 1 (trace b - 1 - a^2 - 0.03 lam_1) and the
+    # boundary rows' eigenvalue 1
+    lam_1 = problem.dirichlet_eigenvalue()
+    real_part = (p["b"] - 1 - p["a"] ** 2 - (p["D1"] + p["D2"]) * lam_1) / 2
+    assert np.min(np.abs(first.values - real_part - 1j * np.abs(first.values.imag))) < 1e-8
+    # the stability pass's shift-invert ARPACK (the pencil J, M) likewise
+    from contin.stability import eigenvalues
+
+    mass = problem.mass_matrix(None, p)
+    w = eigenvalues(jac, mass, k=8, sigma=0.0, dense_max=100)
+    assert np.array_equal(eigenvalues(jac, mass, k=8, sigma=0.0, dense_max=100), w)
+    assert np.min(np.abs(w.real - real_part)) < 1e-8
+
+
 def test_stability_audit_checks_kernel_dimensions() -> None:
     """The stability pass's n_unstable (eigenvalues of J, M = I) changes by each BP's kernel
     dimension on the diagonal problem; a BP claiming the wrong dimension is reported."""
