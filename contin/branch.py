@@ -166,6 +166,12 @@ class Branch:
             row = self.states[int(hit[0])]
         return row if self.sizes is None else row[: int(self.sizes[i])]
 
+    @property
+    def stored_points(self) -> NDArray[np.int64]:
+        """Indices of the points whose states are stored, one per row of ``states`` (every point
+        unless ``save_every`` dropped some: then ``state_index``)."""
+        return np.arange(len(self)) if self.state_index is None else np.asarray(self.state_index)
+
     def tangent(self, i: int) -> NDArray[np.float64]:
         """The unit tangent at point ``i`` (unpadded)."""
         i = range(len(self))[i]

@@ -1366,8 +1366,7 @@ def join(backward: Branch, forward: Branch) -> Branch:
     if r.state_index is None and forward.state_index is None:
         states, state_index = cat(r.states, forward.states), None
     else:
-        ri = np.arange(m) if r.state_index is None else r.state_index
-        fi = np.arange(len(forward)) if forward.state_index is None else forward.state_index
+        ri, fi = r.stored_points, forward.stored_points
         keep = ri < m - 1
         states = np.concatenate([r.states[keep], forward.states])
         state_index = np.concatenate([ri[keep], fi + off])

@@ -181,8 +181,7 @@ def check_finite(branch: Branch) -> None:
 
     states, tangents = branch.states, branch.tangents
     if branch.sizes is not None:  # NaN padding of states of several sizes is not a bad value
-        index = np.arange(len(branch)) if branch.state_index is None else np.asarray(branch.state_index)
-        states = [states[r, : int(branch.sizes[i])] for r, i in enumerate(index)]
+        states = [states[r, : int(branch.sizes[i])] for r, i in enumerate(branch.stored_points)]
         tangents = [tangents[i, : int(branch.sizes[i]) + branch.tangent_extra] for i in range(len(branch))]
     for what, values in (("the state", states), ("the tangent", tangents), ("the step ds", branch.ds)):
         row = (next((k for k, v in enumerate(values) if not np.all(np.isfinite(v))), None)
@@ -635,7 +634,7 @@ class H5Writer:
         try:
             rows = _sample_rows(len(b.states), self.max_profiles)
             if b.sizes is not None:  # states of several grids: unpadded (profiles() maps them onto y)
-                index = np.arange(len(b)) if b.state_index is None else np.asarray(b.state_index)
+                index = b.stored_points
                 samples = [self.profiles(b.states[i, : int(b.sizes[index[i]])]) for i in rows]
             else:
                 samples = [self.profiles(b.states[i]) for i in rows]

@@ -47,16 +47,11 @@ def _span(branch: Branch, idx: list[int]) -> float:
     return float(max(np.max(np.abs(b - a)), dp)) if a.size == b.size else float(dp)
 
 
-def _stored(branch: Branch) -> list[int]:
-    """Indices of the points of ``branch`` whose states are stored."""
-    return list(range(len(branch))) if branch.state_index is None else [int(i) for i in branch.state_index]
-
-
 def _groups(branch: Branch) -> dict[int, tuple[list[int], np.ndarray, np.ndarray]]:
     """Per state size (grid of an adaptive run): the stored points' indices, their rows (state,
     parameter) and their reach, twice the larger of the steps to their neighbours (max norm)."""
     by_size: dict[int, list[int]] = {}
-    for i in _stored(branch):
+    for i in map(int, branch.stored_points):
         by_size.setdefault(branch.state(i).size, []).append(i)
     out = {}
     for m, idx in by_size.items():
@@ -82,7 +77,7 @@ def on_parent(problem: Any, parent: Branch, branch: Branch, params: Mapping[str,
     """
     groups = _groups(parent)
     par, streak, prev = branch.parameter, [], -1
-    for i in _stored(branch):
+    for i in map(int, branch.stored_points):
         if i < start:
             continue
         # consecutive among the stored points (save_every > 1 stores every k-th state)
