@@ -41,15 +41,9 @@ def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
-@pytest.fixture(scope="module")
-def orbits(tmp_path_factory):
-    d = tmp_path_factory.mktemp("orbits")
-    assert run("trace", "ab", "-q", "-o", d / "ab.h5").exit_code == 0
-    r = run("continue", d / "ab.h5", "--from", "HB1", "--cycles", "--max-steps", "40", "-o", d / "cyc.h5")
-    assert r.exit_code == 0, r.output
-    r = run("export", d / "cyc.h5", "--auto", "orb", "-d", d)
-    assert r.exit_code == 0, r.output
-    return d
+@pytest.fixture
+def orbits(ab_orbits):
+    return ab_orbits
 
 
 def read_b(path: Path) -> tuple[list[str], list[str], list[tuple[int, int, int, int, list[float]]]]:

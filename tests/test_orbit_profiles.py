@@ -21,13 +21,9 @@ def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
-@pytest.fixture(scope="module")
-def orbits(tmp_path_factory):
-    d = tmp_path_factory.mktemp("orbits")
-    assert run("trace", "ab", "-q", "-o", d / "ab.h5").exit_code == 0
-    r = run("continue", d / "ab.h5", "--from", "HB1", "--cycles", "--max-steps", "30", "-o", d / "cyc.h5")
-    assert r.exit_code == 0, r.output
-    return d
+@pytest.fixture
+def orbits(ab_orbits):
+    return ab_orbits
 
 
 @pytest.fixture
@@ -79,7 +75,7 @@ def test_at_a_stored_value_draws_that_orbit_and_between_two_interpolates(orbits,
     r = run("profiles", orbits / "cyc.h5", "--at", f"D={d[5]!r}", "-o", tmp_path / "o.png")
     assert r.exit_code == 0, r.output
     check_orbit(drawn, "0 at stored point 5", br.state(5))
-    assert "crossings" not in r.output  # D = d[5] is not reached again past the LPC (30 steps)
+    assert "crossings" not in r.output  # D = d[5] is not reached again past the LPC (40 steps)
     # halfway (in D) between points 5 and 6: the two orbits interpolated, then corrected by Newton
     # at that D: an orbit of the ODE (AUTO's demo ab, written out here), which scipy's integration
     # from the drawn u(0) over the drawn T closes and follows; the interpolation alone is off by
