@@ -163,10 +163,11 @@ class Progress:
 
 
 def end_of_curve_run(what: str, points: int, output: str | None, interrupted: bool, stop: object,
-                     status: str, message: str) -> None:
+                     status: str, message: str, branch: object = None) -> None:
     """The common end of a `contin continue` run (a curve, or orbits): after a Ctrl-C/SIGTERM the
     note where the points went and the one Error line with exit 130/143; after MX a warning and
-    exit 3; otherwise nothing.  ``what`` names the result ("the curve", "the orbits")."""
+    exit 3; a warning if ``branch`` ended at its step cap crawling (``contin.stall``); otherwise
+    nothing.  ``what`` names the result ("the curve", "the orbits")."""
     if interrupted:
         from contin.cancel import SIGTERM
         from contin.cli._base import EXIT_INTERRUPTED, echo_err
@@ -184,3 +185,10 @@ def end_of_curve_run(what: str, points: int, output: str | None, interrupted: bo
         mx = "the branch of periodic orbits" if what == "the orbits" else what
         echo_err(f"warning: {mx} ended with MX: {message}")
         raise click.exceptions.Exit(EXIT_INCOMPLETE)
+    from contin.stall import stalled
+
+    crawl = None if branch is None else stalled(branch)
+    if crawl is not None:
+        from contin.cli._base import echo_err
+
+        echo_err(f"warning: {what} {crawl}")

@@ -278,7 +278,7 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         echo_err(f"wrote {output}")
     from contin.cli._runctl import end_of_curve_run
 
-    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message)
+    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message, curve)
 
 
 def _grid_sizes(curve: Any) -> list[int]:

@@ -121,4 +121,4 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         echo_err(f"wrote {output}")
     from contin.cli._runctl import end_of_curve_run
 
-    end_of_curve_run("the orbits", len(cycles), output, interrupted, stop, cycles.status, cycles.message)
+    end_of_curve_run("the orbits", len(cycles), output, interrupted, stop, cycles.status, cycles.message, cycles)

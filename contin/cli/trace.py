@@ -588,8 +588,10 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                     echo_err(f"audit: branch {b.id}: {message}")
         if writer is not None:
             echo_err(f"wrote {writer.path}")
+    from contin.stall import stalled
+
     for b in result.branches:
-        for message in doubtful_points(b) + doubtful_special_points(b):
+        for message in doubtful_points(b) + doubtful_special_points(b) + [m for m in [stalled(b)] if m]:
             echo_err(f"warning: branch {b.id}: {message}")
     failed = [b for b in result.branches if b.status == "MX"]
     for b in failed:
