@@ -104,10 +104,10 @@ def spectrum(jac: Any, k: int) -> Spectrum:
         return Spectrum(w[np.argsort(np.abs(w))], math.inf)
     import scipy.sparse.linalg as spla  # lazy: off the main path (start-up)
 
-    from contin.stability import arpack_start
+    from contin.arpack import start_vector
 
     w = spla.eigs(sp.csc_matrix(jac), k=k, sigma=0.0, which="LM", return_eigenvectors=False, tol=1e-10,
-                  v0=arpack_start(n))
+                  v0=start_vector(n))
     w = np.asarray(w)[np.argsort(np.abs(w))]
     return Spectrum(w[:-1], float(abs(w[-1])))
 

@@ -165,15 +165,6 @@ def _dense_eigenpairs(A: Any, B: Any, k: int | None, inf_cutoff: float, vectors:
     return w, v
 
 
-def arpack_start(n: int, dtype: Any = float) -> np.ndarray:
-    """ARPACK's start vector for n unknowns: pseudo-random, so that no symmetry of a problem
-    makes it orthogonal to an eigenvector, and the same in every call.  ARPACK's own start vector
-    comes from a seed that advances with every call in the process, so the same matrix gave
-    different results from one run to the next (which copies of a multiple eigenvalue were
-    found: contin.bpdetect.without_fixed)."""
-    return np.random.default_rng(20261204).standard_normal(n).astype(dtype)
-
-
 def _sparse_eigenpairs(A: Any, B: Any, k: int | None, sigma: complex, vectors: bool) -> tuple[CArray, CArray | None]:
     n = A.shape[0]
     k = DEFAULT_SPARSE_K if k is None else k
@@ -187,7 +178,9 @@ def _sparse_eigenpairs(A: Any, B: Any, k: int | None, sigma: complex, vectors: b
     lu = spla.splu(sp.csc_matrix(a - sigma * b, dtype=dtype))
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(np.asarray(b @ x, dtype=dtype)), dtype=dtype)
     ncv = min(n, max(2 * k + 1, 40))
-    v0 = arpack_start(n, dtype)
+    from contin.arpack import start_vector
+
+    v0 = start_vector(n, dtype)
     if vectors:
         mu, v = spla.eigs(op, k=k, which="LM", ncv=ncv, v0=v0)
     else:
