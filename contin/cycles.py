@@ -68,6 +68,8 @@ __all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "continue_doubled"
 
 #: Branch.kind of a branch of periodic orbits.
 KIND = "periodic-orbits"
+#: Largest distance from +1 of the nontrivial multiplier at a confirmed branch point of cycles.
+BPC_TOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -513,6 +515,31 @@ def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoin
                                data={**sp.data, "omega": omega, "period": 2 * math.pi / omega})
 
 
+def _branch_point_of_cycles(problem: Any, sp: SpecialPoint, n: int, cycle: CycleOptions,
+                            mass: Array | None) -> SpecialPoint:
+    """A BP of the tracer's determinant test on a cycle branch: a branch point of cycles (AUTO's BP
+    of a periodic branch), a nontrivial real Floquet multiplier through +1 that is no fold (at an
+    LPC the determinant keeps its sign).  Its note says so; data: period, floquet_error and
+    ``multiplier``, the nontrivial multiplier nearest +1.  A BP without a multiplier within
+    :data:`BPC_TOL` of +1 is marked not converged (the determinant changed sign for another
+    reason)."""
+    mesh, nodes, period = orbit_of(sp.state, n, None, cycle.ncol)
+    try:
+        mu = CycleProblem(problem, mesh, nodes, mass).multipliers(mesh.pack(nodes, period), dict(sp.params))
+    except np.linalg.LinAlgError as exc:
+        return dataclasses.replace(sp, converged=False, note="; ".join(
+            t for t in ("branch point of cycles?", f"Floquet multipliers not computed: {exc}", sp.note) if t))
+    others = mu.others
+    crit = complex(others[int(np.argmin(np.abs(others - 1.0)))]) if others.size else complex(math.nan)
+    data = {**sp.data, "period": float(period), "floquet_error": mu.error, "multiplier": float(crit.real)}
+    if abs(crit - 1.0) <= BPC_TOL:
+        note = "branch point of cycles (a Floquet multiplier through +1)"
+        return dataclasses.replace(sp, data=data, note="; ".join(t for t in (note, sp.note) if t))
+    note = (f"not confirmed: the BP test function of the cycle system changed sign, but no Floquet multiplier "
+            f"is at +1 (nearest {crit:.6g})")
+    return dataclasses.replace(sp, data=data, converged=False, note="; ".join(t for t in (note, sp.note) if t))
+
+
 def orbit_of(state: Array, n: int, ntst: int | None = None, ncol: int = NCOL) -> tuple[Mesh, Array, float]:
     """(mesh, node values (NTST NCOL, n), T) of a stored orbit: a row of a cycle branch's states,
     [node values, T, interior mesh points t_1 .. t_{NTST-1}] (NTST None: from the row's size)."""
@@ -588,8 +615,14 @@ def finish_branch(problem: Any, branch: Branch, n: int, cycle: CycleOptions = Cy
     branch.observables["floquet_error"] = err
     branch.observables["flow_error"] = flow_err
     branch.kind = KIND
-    branch.special_points = [dataclasses.replace(sp, type="LPC", note="; ".join(
-        t for t in ("fold of cycles", sp.note) if t)) if sp.type == "LP" else sp for sp in branch.special_points]
+    marked = []
+    for sp in branch.special_points:
+        if sp.type == "LP":
+            sp = dataclasses.replace(sp, type="LPC", note="; ".join(t for t in ("fold of cycles", sp.note) if t))
+        elif sp.type == "BP":
+            sp = _branch_point_of_cycles(problem, sp, n, cycle, mass)
+        marked.append(sp)
+    branch.special_points = marked
     worst = float(np.nanmax(flow_err)) if s else 0.0
     if worst > FLOQUET_DOUBTFUL:
         i = int(np.nanargmax(flow_err))

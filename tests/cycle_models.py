@@ -126,3 +126,29 @@ class TwoHopfLandau:
         if name == "w":
             return StuartLandau().dresidual_dp(u, self._sl(p), "w")
         return (1 - 2 * p["p"]) * StuartLandau().dresidual_dp(u, self._sl(p), "mu")
+
+
+class CyclePitchfork:
+    """Stuart-Landau (x, y) (w = 1) with a transverse z: z' = (beta - r^2) z - z^3 (r^2 = x^2 + y^2),
+    symmetric under z -> -z.  The cycle r^2 = mu, z = 0, T = 2 pi has the z-multiplier
+    exp(2 pi (beta - mu)), through +1 at mu = beta (a pitchfork of cycles, BPC); the cycles
+    r^2 = mu, z^2 = beta - mu (period 2 pi) branch off there towards mu < beta."""
+
+    parameter_names = ("mu", "beta")
+
+    def residual(self, u, p):
+        x, y, z = u
+        r2 = x * x + y * y
+        return np.array([p["mu"] * x - y - x * r2, x + p["mu"] * y - y * r2, (p["beta"] - r2) * z - z**3])
+
+    def jacobian(self, u, p):
+        x, y, z = u
+        r2 = x * x + y * y
+        mu = p["mu"]
+        return np.array([[mu - 3 * x * x - y * y, -1.0 - 2 * x * y, 0.0],
+                         [1.0 - 2 * x * y, mu - x * x - 3 * y * y, 0.0],
+                         [-2 * x * z, -2 * y * z, p["beta"] - r2 - 3 * z * z]])
+
+    def dresidual_dp(self, u, p, name):
+        x, y, z = u
+        return np.array([x, y, 0.0]) if name == "mu" else np.array([0.0, 0.0, z])
