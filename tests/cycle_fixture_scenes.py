@@ -34,7 +34,7 @@ SCENES = {"roessler": Scene(name="roessler", summary="test fixture", defaults=DE
                             problem_factory=factory)}
 
 
-PITCHFORK_DEFAULTS = {"beta": 0.5}
+PITCHFORK_DEFAULTS = {"beta": 0.5, "q": 0.0}
 
 
 def pitchfork_run(request: SceneRequest) -> SceneResult:
@@ -43,9 +43,10 @@ def pitchfork_run(request: SceneRequest) -> SceneResult:
 
     s = {**PITCHFORK_DEFAULTS, **request.params}
     opts = request.options_for(ContinuationOptions(bounds={"mu": (-0.3, 1.0)}))
-    branch = trace(CyclePitchfork(), np.zeros(3), {"mu": -0.3, "beta": float(s["beta"])}, "mu", opts)
+    params = {"mu": -0.3, "beta": float(s["beta"]), "q": float(s["q"])}
+    branch = trace(CyclePitchfork(), np.zeros(3), params, "mu", opts)
     request.finished(branch)
-    return SceneResult(branches=[branch], parameters={"mu": -0.3, "beta": float(s["beta"])}, discretization={})
+    return SceneResult(branches=[branch], parameters=params, discretization={})
 
 
 def pitchfork_factory(parameters, discretization):

@@ -129,17 +129,20 @@ class TwoHopfLandau:
 
 
 class CyclePitchfork:
-    """Stuart-Landau (x, y) (w = 1) with a transverse z: z' = (beta - r^2) z - z^3 (r^2 = x^2 + y^2),
-    symmetric under z -> -z.  The cycle r^2 = mu, z = 0, T = 2 pi has the z-multiplier
-    exp(2 pi (beta - mu)), through +1 at mu = beta (a pitchfork of cycles, BPC); the cycles
-    r^2 = mu, z^2 = beta - mu (period 2 pi) branch off there towards mu < beta."""
+    """Stuart-Landau (x, y) (w = 1) with a transverse z: z' = (beta - r^2) z - q z^2 - z^3
+    (r^2 = x^2 + y^2).  The cycle r^2 = mu, z = 0, T = 2 pi has the z-multiplier
+    exp(2 pi (beta - mu)), through +1 at mu = beta: a branch point of cycles (BPC).  The cycles
+    bifurcating there have r^2 = mu, z^2 + q z = beta - mu, period 2 pi: with q = 0 (symmetric under
+    z -> -z) a pitchfork, z = +-sqrt(beta - mu) for mu < beta; with q != 0 a transcritical point,
+    the bifurcated branch turning at a fold of cycles mu = beta + q^2 / 4, z = -q / 2."""
 
-    parameter_names = ("mu", "beta")
+    parameter_names = ("mu", "beta", "q")
 
     def residual(self, u, p):
         x, y, z = u
         r2 = x * x + y * y
-        return np.array([p["mu"] * x - y - x * r2, x + p["mu"] * y - y * r2, (p["beta"] - r2) * z - z**3])
+        return np.array([p["mu"] * x - y - x * r2, x + p["mu"] * y - y * r2,
+                         (p["beta"] - r2) * z - p["q"] * z * z - z**3])
 
     def jacobian(self, u, p):
         x, y, z = u
@@ -147,8 +150,8 @@ class CyclePitchfork:
         mu = p["mu"]
         return np.array([[mu - 3 * x * x - y * y, -1.0 - 2 * x * y, 0.0],
                          [1.0 - 2 * x * y, mu - x * x - 3 * y * y, 0.0],
-                         [-2 * x * z, -2 * y * z, p["beta"] - r2 - 3 * z * z]])
+                         [-2 * x * z, -2 * y * z, p["beta"] - r2 - 2 * p["q"] * z - 3 * z * z]])
 
     def dresidual_dp(self, u, p, name):
         x, y, z = u
-        return np.array([x, y, 0.0]) if name == "mu" else np.array([0.0, 0.0, z])
+        return {"mu": np.array([x, y, 0.0]), "beta": np.array([0.0, 0.0, z]), "q": np.array([0.0, 0.0, -z * z])}[name]
