@@ -130,6 +130,7 @@ def test_bautin_fold_of_cycles():
     br = continue_cycles(Bautin(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.3)}, max_steps=200))
     (lpc,) = br.points("LPC")
     assert lpc.converged and "fold of cycles" in lpc.note
+    assert not br.points("BP")  # the fold of cycles is no branch point of cycles (the BP test keeps its sign)
     assert abs(lpc.params["mu"] + bb**2 / 4) < 1e-8
     _, nodes, period = orbit_of(lpc.state, 2)
     np.testing.assert_allclose(nodes[:, 0] ** 2 + nodes[:, 1] ** 2, bb / 2, rtol=1e-7)
@@ -204,6 +205,7 @@ def test_period_doubling_of_roessler_against_shooting(roessler_cycles):
     br = roessler_cycles
     (pdp,) = br.points("PD")
     assert pdp.converged and "period doubling" in pdp.note
+    assert not br.points("BP")  # a multiplier through -1 is no branch point of cycles
     assert abs(pdp.params["a"] - reference) < 1e-8
     assert math.isclose(pdp.data["multiplier"], -1.0, abs_tol=1e-9)
     before = br.parameter_values < pdp.params["a"]
@@ -225,6 +227,7 @@ def test_period_doubled_branch_and_its_own_doubling(roessler_cycles):
     assert br.kind == "periodic-orbits" and br.parent == pd1.name
     assert math.isclose(br.observables["period"][0], 2 * pd1.data["period"], rel_tol=1e-3)
     (pd2,) = br.points("PD")
+    assert not br.points("BP")
     reference = roessler_pd_by_shooting(0.37, 0.37, 0.38, loops=2)
     assert abs(pd2.params["a"] - reference) < 1e-8
     assert math.isclose(pd2.data["period"], 2 * pd1.data["period"], rel_tol=0.01)
@@ -249,6 +252,7 @@ def test_neimark_sacker_of_a_driven_pair():
     br = continue_cycles(DrivenPair(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.5)}, max_steps=100))
     (ns,) = br.points("NS")
     assert ns.converged and abs(ns.params["mu"] - 0.2) < 1e-9
+    assert not br.points("BP")
     assert math.isclose(ns.data["theta"], p["w2"] * 2 * math.pi / W, abs_tol=1e-8)  # w2 T < pi here
     mu, period = br.parameter_values, br.observables["period"]
     pair = br.eigenvalues[:, :2]
