@@ -27,6 +27,12 @@ adapted to it (``contin.collocation.Mesh.adapted``; AUTO's IAD).  A stored orbit
 Period doubling: :func:`continue_doubled` starts the branch of period-doubled orbits at a PD of a
 cycle branch (:func:`period_doubled_start`: the orbit twice plus the multiplier -1's eigenfunction).
 
+Branch points of cycles (BPC, AUTO's BP of a periodic branch): a nontrivial multiplier through +1
+that is no fold makes [G_x G_p] of the cycle system lose rank, so the tracer's determinant BP test
+finds them (at an LPC and at PD / NS it keeps its sign); :func:`finish_branch` confirms each BP by
+its multiplier nearest +1 (:func:`_branch_point_of_cycles`).  :func:`continue_branch_point` switches
+there with the core's algebraic bifurcation equation (:func:`branch_point_start`).
+
 End at a Hopf point: where the orbits shrink to an equilibrium (their signed amplitude along the
 reference changes sign: ``contin.floquet.ShrinkTest``) the branch ends (HB, then EP one step past
 it); the HB is solved from the equilibrium's Hopf system, since the cycle system is singular at
