@@ -155,3 +155,39 @@ class CyclePitchfork:
     def dresidual_dp(self, u, p, name):
         x, y, z = u
         return {"mu": np.array([x, y, 0.0]), "beta": np.array([0.0, 0.0, z]), "q": np.array([0.0, 0.0, -z * z])}[name]
+
+
+class MoebiusPair:
+    """Stuart-Landau (x, y) (w = 1) with a transverse w = (u, v) that turns by half the cycle's angle
+    per period: w' = (1/2 + a) J w + b w + g [[-y, x], [x, y]] w - |w|^2 w (J the rotation by pi/2).
+    On the cycle r^2 = mu, w = 0 (T = 2 pi) the frame turned by -theta/2 makes it s' = B s with
+    B = b I + a J + g sqrt(mu) [[0, 1], [1, 0]], so the w-multipliers are -exp(2 pi (b +- sqrt(g^2 mu - a^2))):
+    a complex pair of modulus exp(2 pi b) for mu < a^2 / g^2 that turns real there, and (b < 0) a
+    period doubling at mu = (a^2 + b^2) / g^2."""
+
+    parameter_names = ("mu", "a", "b", "g")
+
+    def residual(self, z, p):
+        x, y, u, v = z
+        s2 = u * u + v * v
+        om, b, g = 0.5 + p["a"], p["b"], p["g"]
+        return np.concatenate([StuartLandau().residual(z[:2], {"mu": p["mu"], "w": 1.0}),
+                               [-om * v + b * u + g * (-y * u + x * v) - s2 * u,
+                                om * u + b * v + g * (x * u + y * v) - s2 * v]])
+
+    def jacobian(self, z, p):
+        x, y, u, v = z
+        s2 = u * u + v * v
+        om, b, g = 0.5 + p["a"], p["b"], p["g"]
+        out = np.zeros((4, 4))
+        out[:2, :2] = StuartLandau().jacobian(z[:2], {"mu": p["mu"], "w": 1.0})
+        out[2] = [g * v, -g * u, b - g * y - s2 - 2 * u * u, -om + g * x - 2 * u * v]
+        out[3] = [g * u, g * v, om + g * x - 2 * u * v, b + g * y - s2 - 2 * v * v]
+        return out
+
+    def dresidual_dp(self, z, p, name):
+        x, y, u, v = z
+        if name == "mu":
+            return np.array([x, y, 0.0, 0.0])
+        return {"a": np.array([0.0, 0.0, -v, u]), "b": np.array([0.0, 0.0, u, v]),
+                "g": np.array([0.0, 0.0, -y * u + x * v, x * u + y * v])}[name]

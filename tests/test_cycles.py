@@ -432,7 +432,7 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
 
 
 @pytest.mark.parametrize("args, says", [
-    (["--from", "EP3", "--cycles"], "a period doubling (PD) of orbits; EP3 is neither"),
+    (["--from", "EP3", "--cycles"], "or a period doubling (PD) or branch point (BP) of orbits; EP3 is none of these"),
     (["--from", "HB1", "--cycles", "--free", "B"], "--free B is for two-parameter curves"),
     (["--from", "HB1", "--ntst", "30", "--free", "B"], "--ntst needs --cycles"),
     (["--from", "HB1", "--uniform-mesh", "--free", "B"], "--uniform-mesh needs --cycles"),
@@ -671,7 +671,7 @@ def test_cli_period_doubled_orbits_from_pd(tmp_path, monkeypatch):
     assert doubled.parent == pd.name and meta["extra"]["cycles"]["n"] == 3 and meta["extra"]["cycles"]["ntst"] == 40
     assert math.isclose(doubled.observables["period"][0], 2 * pd.data["period"], rel_tol=1e-3)
     r = _cli("continue", run, "--from", "EP2", "--cycles")
-    assert r.exit_code == 1 and "--cycles starts at a Hopf point (HB) or a period doubling (PD)" in r.output
+    assert r.exit_code == 1 and "--cycles starts at a Hopf point (HB), or a period doubling (PD) or branch point (BP)" in r.output
 
 
 def test_ctrl_c_keeps_the_orbits_computed_so_far(ab_file, tmp_path):
