@@ -261,6 +261,31 @@ def test_neimark_sacker_of_a_driven_pair():
     assert list(br.n_unstable) == [2 if m < 0.2 else 0 for m in mu]
 
 
+def test_period_doubling_where_a_complex_pair_turns_real_within_one_step():
+    """MoebiusPair (a = 0.05, b = -0.01, g = 1): the w-multipliers -exp(2 pi (b +- sqrt(mu - a^2)))
+    are a complex pair up to mu = a^2 = 0.0025 and a real pair after, whose outer member passes -1
+    at mu = a^2 + b^2 = 0.0026.  The step 7.3e-4 -> 2.9e-3 spans both: no real negative multiplier
+    at its start to track, so the PD was missed (exit 0, no PD); the sign of prod (mu + 1) locates it."""
+    from contin.options import StepOptions
+    from tests.cycle_models import MoebiusPair
+
+    a, b = 0.05, -0.01
+    hb = _hopf_of(MoebiusPair(), np.zeros(4), {"mu": -0.3, "a": a, "b": b, "g": 1.0}, "mu", (-1, 1))
+    opts = ContinuationOptions(bounds={"mu": (-1, 0.05)}, max_steps=300, step=StepOptions(ds=0.01, ds_max=0.05))
+    br = continue_cycles(MoebiusPair(), hb, "mu", opts)
+    assert [s.type for s in br.special_points] == ["PD", "EP"]
+    (pdp,) = br.points("PD")
+    assert pdp.converged and "period doubling" in pdp.note
+    assert abs(pdp.params["mu"] - (a * a + b * b)) < 1e-9  # measured 1.5e-13
+    assert math.isclose(pdp.data["multiplier"], -1.0, abs_tol=1e-9)
+    assert pdp.bracket[0] < a * a < pdp.bracket[1]  # the pair was complex at the start of the step
+    mu = br.parameter_values
+    root = np.sqrt((mu - a * a).astype(complex))
+    expected = np.c_[-np.exp(2 * np.pi * (b + root)), -np.exp(2 * np.pi * (b - root)), np.exp(-4 * np.pi * mu)]
+    np.testing.assert_allclose(-np.sort(-np.abs(br.eigenvalues), axis=1), -np.sort(-np.abs(expected), axis=1),
+                               rtol=1e-8, atol=1e-12)
+
+
 AB_PARAMS = {"D": 0.0, "B": 14.0, "beta": 3.0}
 
 
