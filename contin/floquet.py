@@ -35,7 +35,8 @@ A PD is a real negative multiplier tracked from one point to the next; a complex
 real and has a member leave through -1 within one step has no such partner.  Where tracking pairs
 an even number of crossings (none) but the sign of det(P + I) = prod (mu + 1) changes
 (:func:`plus_one_sign_log`: the parity of the real multipliers below -1) the PD is located on that
-product instead.  AUTO's product prod (|mu| - 1) over the real negative multipliers only, tried
+product instead (while no multiplier exceeds :data:`PRODUCT_RANGE`, where those near -1 are still
+resolved).  AUTO's product prod (|mu| - 1) over the real negative multipliers only, tried
 before, flipped sign on the rounding-level multipliers (+-1e-17) of strongly stable orbits and
 where a real pair passes through a tiny complex pair (six spurious PDs on Roessler's
 period-doubled branch); mu + 1 over all multipliers is positive for both.
@@ -56,6 +57,9 @@ from contin.problem import Array
 
 #: Relative imaginary part below which a multiplier counts as real.
 REAL_TOL = 1e-8
+#: Largest multiplier modulus at both ends of a step for the PD test on prod (mu + 1): the plain
+#: monodromy product resolves multipliers down to ~1e-16 of the largest, so those near -1 to ~1e-6.
+PRODUCT_RANGE = 1e10
 #: Distance of the trivial multiplier from 1 above which an orbit's multipliers are doubtful.
 FLOQUET_DOUBTFUL = 1e-4
 
@@ -232,7 +236,8 @@ class FloquetTest:
                 return float(abs(v[int(np.argmin(distance_to_segment(v, a, b)))]) - 1.0)
 
             out.append(("", g))
-        if self.kind == "PD" and len(out) % 2 == 0:
+        resolved = va.size and vb.size and max(np.max(np.abs(va)), np.max(np.abs(vb))) < PRODUCT_RANGE
+        if self.kind == "PD" and len(out) % 2 == 0 and resolved:
             sa, sb = plus_one_sign_log(va), plus_one_sign_log(vb)
             if sa[0] * sb[0] < 0:  # an odd number of real multipliers through -1 that tracking did not pair
                 from contin.testfunctions import signed_value
