@@ -27,6 +27,12 @@ adapted to it (``contin.collocation.Mesh.adapted``; AUTO's IAD).  A stored orbit
 Period doubling: :func:`continue_doubled` starts the branch of period-doubled orbits at a PD of a
 cycle branch (:func:`period_doubled_start`: the orbit twice plus the multiplier -1's eigenfunction).
 
+Branch points of cycles (BPC, AUTO's BP of a periodic branch): a nontrivial multiplier through +1
+that is no fold makes [G_x G_p] of the cycle system lose rank, so the tracer's determinant BP test
+finds them (at an LPC and at PD / NS it keeps its sign); :func:`finish_branch` confirms each BP by
+its multiplier nearest +1 (:func:`_branch_point_of_cycles`).  :func:`continue_branch_point` switches
+there with the core's algebraic bifurcation equation (:func:`branch_point_start`).
+
 End at a Hopf point: where the orbits shrink to an equilibrium (their signed amplitude along the
 reference changes sign: ``contin.floquet.ShrinkTest``) the branch ends (HB, then EP one step past
 it); the HB is solved from the equilibrium's Hopf system, since the cycle system is singular at
@@ -63,11 +69,13 @@ from contin.problem import Array, has, inner_product_weights
 
 log = logging.getLogger("contin")
 
-__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "continue_doubled", "orbit_of", "hopf_start",
-           "start_orbit", "period_doubled_start", "finish_branch"]
+__all__ = ["CycleOptions", "CycleProblem", "continue_cycles", "continue_doubled", "continue_branch_point", "orbit_of",
+           "hopf_start", "start_orbit", "period_doubled_start", "branch_point_start", "finish_branch"]
 
 #: Branch.kind of a branch of periodic orbits.
 KIND = "periodic-orbits"
+#: Largest distance from +1 of the nontrivial multiplier at a confirmed branch point of cycles.
+BPC_TOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -479,6 +487,85 @@ def continue_doubled(problem: Any, point: SpecialPoint, parameter: str, n: int,
     return _continue_from(problem, cp, x0, params, secant, parameter, options, cycle, branch_id, parent or point.name)
 
 
+def branch_point_start(problem: Any, point: SpecialPoint, parameter: str, n: int,
+                       cycle: CycleOptions = CycleOptions(), options: ContinuationOptions = ContinuationOptions(),
+                       mass: Array | None = None, parent_ncol: int | None = None, direction: int = 1
+                       ) -> tuple[CycleProblem, Array, dict[str, float], Array, float]:
+    """(cycle problem, corrected first orbit, its parameters, tangent, accepted first step) of the
+    branch of cycles bifurcating at the branch point of cycles ``point`` (a BP of a cycle branch,
+    its state a stored orbit of NCOL ``parent_ncol``, its tangent the known branch's).
+
+    The orbit at the BP is the phase reference of the new problem (it satisfies its own phase
+    condition), on its own mesh (or carried onto NTST/NCOL of ``cycle`` where they differ).  The
+    core's switching then works on the cycle system as on an equilibrium (``contin.switching``):
+    the second kernel vector phi of [G_x G_p] -- the multiplier +1's eigenfunction, (v, 0, 0) at a
+    pitchfork of cycles -- and the left one psi by inverse iteration on the bordered Jacobian, the
+    algebraic bifurcation equation for the new tangent tau, and the first orbit corrected from
+    x_BP + ds tau in the hyperplane orthogonal to tau (``direction`` -1: from x_BP - ds tau, the
+    other half).  The known branch's tangent is first carried into this phase reference's kernel
+    (the kernel vector orthogonal to phi: the stored tangent satisfies the old reference's phase
+    condition, not this one)."""
+    from contin.extended import ExtendedSystem
+    from contin.switching import bifurcation_coefficients, first_point, new_tangent, null_directions
+
+    if point.type != "BP":
+        raise ValueError(f"a branch of cycles switches at a branch point of cycles (BP), not at {point.name} "
+                         f"({point.type})")
+    if point.tangent is None:
+        raise ValueError(f"{point.name} has no tangent of the known branch: cannot switch there")
+    crit = point.data.get("multiplier", math.nan)
+    if not abs(crit - 1.0) <= BPC_TOL:
+        raise ValueError(f"{point.name} has no Floquet multiplier at +1 (nearest {crit:.6g}): not a branch point "
+                         "of cycles")
+    ncol = parent_ncol or cycle.ncol
+    mesh, nodes, period = orbit_of(point.state, n, None, ncol)
+    tangent = np.asarray(point.tangent, dtype=float)
+    t_state, t_param = tangent[: mesh.size], float(tangent[-1])
+    if (cycle.ntst, cycle.ncol) != (mesh.ntst, mesh.ncol):  # another mesh: the orbit and tangent carried over
+        target = Mesh(n, cycle.ntst, cycle.ncol)
+        if cycle.adapt_mesh:
+            for _ in range(2):
+                target = target.adapted(mesh.resample(target, nodes))
+        t_nodes = mesh.resample(target, mesh.split(t_state)[0])
+        t_state = target.pack(t_nodes, float(t_state[-1]))
+        mesh, nodes = target, mesh.resample(target, nodes)
+    if mass is None:
+        mass = constant_mass(problem, nodes[0], dict(point.params))
+    cp = CycleProblem(problem, mesh, nodes, mass, cycle.floquet_tol)
+    params = dict(point.params)
+    system = ExtendedSystem(cp, params, parameter, options.step.theta, n=mesh.size)
+    x0 = system.pack(mesh.pack(nodes, period), params[parameter])
+    old = system.unit(np.concatenate([t_state, [t_param]]))
+    phi, _ = null_directions(system, x0, old, False)
+    t1, _ = null_directions(system, x0, phi, False)  # the known branch's tangent for this phase reference
+    t1 = t1 if system.dot(t1, old) >= 0 else -t1
+    phi, psi = null_directions(system, x0, t1, False)
+    a, b, c = bifurcation_coefficients(system, x0, t1, phi, psi)
+    tau = (1 if direction >= 0 else -1) * new_tangent(system, t1, phi, a, b, c)
+    start, step, why = first_point(system, x0, tau, abs(options.step.ds), options)
+    if start is None:
+        raise ValueError(f"no orbit of the branch bifurcating at {point.name} ({parameter} = "
+                         f"{params[parameter]:.10g}): {why}")
+    cp.colloc.set_reference(start[:-2])
+    return cp, start[:-1], system.params_at(start[-1]), tau, step
+
+
+def continue_branch_point(problem: Any, point: SpecialPoint, parameter: str, n: int,
+                          options: ContinuationOptions = ContinuationOptions(), cycle: CycleOptions = CycleOptions(),
+                          *, parent_ncol: int | None = None, mass: Array | None = None, direction: int = 1,
+                          branch_id: str = "0", parent: str = "") -> Branch:
+    """The branch of cycles bifurcating at the branch point of cycles ``point`` (a BP of a cycle
+    branch; :func:`branch_point_start`), continued as :func:`continue_cycles` continues orbits,
+    away from the BP along +tau (``direction`` -1: the other half), the first step the accepted one."""
+    from contin.switching import first_step_options
+
+    cp, x0, params, tau, step = branch_point_start(problem, point, parameter, n, cycle, options, mass, parent_ncol,
+                                                   direction)
+    options = first_step_options(options, step)
+    return _continue_from(problem, cp, x0, params, math.copysign(1.0, options.step.ds) * tau, parameter, options,
+                          cycle, branch_id, parent or point.name)
+
+
 def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoint:
     """The Hopf point where the orbits shrink to an equilibrium, solved from the Hopf defining
     system of the base problem (``contin.hopfsystem.HopfCurveProblem`` with the branch's parameter
@@ -511,6 +598,31 @@ def _hopf_end(cp: CycleProblem, sp: SpecialPoint, parameter: str) -> SpecialPoin
                                note="Hopf point: the orbits shrink to an equilibrium (amplitude 0), "
                                     "solved from its Hopf system",
                                data={**sp.data, "omega": omega, "period": 2 * math.pi / omega})
+
+
+def _branch_point_of_cycles(problem: Any, sp: SpecialPoint, n: int, cycle: CycleOptions,
+                            mass: Array | None) -> SpecialPoint:
+    """A BP of the tracer's determinant test on a cycle branch: a branch point of cycles (AUTO's BP
+    of a periodic branch), a nontrivial real Floquet multiplier through +1 that is no fold (at an
+    LPC the determinant keeps its sign).  Its note says so; data: period, floquet_error and
+    ``multiplier``, the nontrivial multiplier nearest +1.  A BP without a multiplier within
+    :data:`BPC_TOL` of +1 is marked not converged (the determinant changed sign for another
+    reason)."""
+    mesh, nodes, period = orbit_of(sp.state, n, None, cycle.ncol)
+    try:
+        mu = CycleProblem(problem, mesh, nodes, mass).multipliers(mesh.pack(nodes, period), dict(sp.params))
+    except np.linalg.LinAlgError as exc:
+        return dataclasses.replace(sp, converged=False, note="; ".join(
+            t for t in ("branch point of cycles?", f"Floquet multipliers not computed: {exc}", sp.note) if t))
+    others = mu.others
+    crit = complex(others[int(np.argmin(np.abs(others - 1.0)))]) if others.size else complex(math.nan)
+    data = {**sp.data, "period": float(period), "floquet_error": mu.error, "multiplier": float(crit.real)}
+    if abs(crit - 1.0) <= BPC_TOL:
+        note = "branch point of cycles (a Floquet multiplier through +1)"
+        return dataclasses.replace(sp, data=data, note="; ".join(t for t in (note, sp.note) if t))
+    note = (f"not confirmed: the BP test function of the cycle system changed sign, but no Floquet multiplier "
+            f"is at +1 (nearest {crit:.6g})")
+    return dataclasses.replace(sp, data=data, converged=False, note="; ".join(t for t in (note, sp.note) if t))
 
 
 def orbit_of(state: Array, n: int, ntst: int | None = None, ncol: int = NCOL) -> tuple[Mesh, Array, float]:
@@ -588,8 +700,14 @@ def finish_branch(problem: Any, branch: Branch, n: int, cycle: CycleOptions = Cy
     branch.observables["floquet_error"] = err
     branch.observables["flow_error"] = flow_err
     branch.kind = KIND
-    branch.special_points = [dataclasses.replace(sp, type="LPC", note="; ".join(
-        t for t in ("fold of cycles", sp.note) if t)) if sp.type == "LP" else sp for sp in branch.special_points]
+    marked = []
+    for pt in branch.special_points:
+        if pt.type == "LP":
+            pt = dataclasses.replace(pt, type="LPC", note="; ".join(t for t in ("fold of cycles", pt.note) if t))
+        elif pt.type == "BP":
+            pt = _branch_point_of_cycles(problem, pt, n, cycle, mass)
+        marked.append(pt)
+    branch.special_points = marked
     worst = float(np.nanmax(flow_err)) if s else 0.0
     if worst > FLOQUET_DOUBTFUL:
         i = int(np.nanargmax(flow_err))

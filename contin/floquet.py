@@ -31,11 +31,15 @@ Point tests (``contin.pointtests``) located by the tracer like folds: PD, a real
 through -1 (g = |mu| - 1 of the real negative multiplier tracked across the step), and NS, a
 complex pair through the unit circle (g = |mu| - 1 of the pair's member with Im mu > 0).  LPC,
 the fold of cycles, is the tracer's own LP test on the cycle system (``contin.cycles``).
-Limitation: a PD is a real negative multiplier tracked from one point to the next, so a complex
-pair that turns real and has a member leave through -1 within one step is not seen.  AUTO's product
-prod (|mu| - 1) over the real negative multipliers would see it, but it was tried and flips sign
-on the rounding-level multipliers (+-1e-17) of strongly stable orbits and where a real pair passes
-through a tiny complex pair (six spurious PDs on Roessler's period-doubled branch).
+A PD is a real negative multiplier tracked from one point to the next; a complex pair that turns
+real and has a member leave through -1 within one step has no such partner.  Where tracking pairs
+an even number of crossings (none) but the sign of det(P + I) = prod (mu + 1) changes
+(:func:`plus_one_sign_log`: the parity of the real multipliers below -1) the PD is located on that
+product instead (while no multiplier exceeds :data:`PRODUCT_RANGE`, where those near -1 are still
+resolved).  AUTO's product prod (|mu| - 1) over the real negative multipliers only, tried
+before, flipped sign on the rounding-level multipliers (+-1e-17) of strongly stable orbits and
+where a real pair passes through a tiny complex pair (six spurious PDs on Roessler's
+period-doubled branch); mu + 1 over all multipliers is positive for both.
 """
 
 from __future__ import annotations
@@ -53,6 +57,9 @@ from contin.problem import Array
 
 #: Relative imaginary part below which a multiplier counts as real.
 REAL_TOL = 1e-8
+#: Largest multiplier modulus at both ends of a step for the PD test on prod (mu + 1): the plain
+#: monodromy product resolves multipliers down to ~1e-16 of the largest, so those near -1 to ~1e-6.
+PRODUCT_RANGE = 1e10
 #: Distance of the trivial multiplier from 1 above which an orbit's multipliers are doubtful.
 FLOQUET_DOUBTFUL = 1e-4
 
@@ -159,6 +166,23 @@ def circle_crossings(va: np.ndarray, vb: np.ndarray, kind: str) -> list[tuple[co
     return out
 
 
+def plus_one_sign_log(others: np.ndarray) -> tuple[float, float]:
+    """(sign, log|.|) of det(P + I) / 2 = prod (mu + 1) over the nontrivial multipliers: a complex
+    pair gives |mu + 1|^2 > 0 and a real multiplier mu + 1, so the sign is (-1)^(number of real
+    multipliers below -1) and changes exactly where an odd number of real multipliers passes -1,
+    however they were complex or real before; rounding-level multipliers (+-1e-17) give +1 either
+    way (AUTO's product of |mu| - 1 over the real negative ones flipped on them).  (0, -inf)
+    for no multipliers or a multiplier at -1 exactly."""
+    v = np.asarray(others, dtype=complex)
+    if v.size == 0:
+        return (0.0, -math.inf)
+    factors = np.abs(v + 1.0)
+    if np.any(factors == 0.0):
+        return (0.0, -math.inf)
+    below = sum(1 for m in v if _is_real(complex(m)) and m.real < -1.0)
+    return (-1.0 if below % 2 else 1.0, float(np.sum(np.log(factors))))
+
+
 @dataclass
 class ShrinkTest:
     """Point test HB on a cycle branch: the orbits shrink to an equilibrium (a Hopf point).  g is the
@@ -212,6 +236,18 @@ class FloquetTest:
                 return float(abs(v[int(np.argmin(distance_to_segment(v, a, b)))]) - 1.0)
 
             out.append(("", g))
+        resolved = va.size and vb.size and max(np.max(np.abs(va)), np.max(np.abs(vb))) < PRODUCT_RANGE
+        if self.kind == "PD" and len(out) % 2 == 0 and resolved:
+            sa, sb = plus_one_sign_log(va), plus_one_sign_log(vb)
+            if sa[0] * sb[0] < 0:  # an odd number of real multipliers through -1 that tracking did not pair
+                from contin.testfunctions import signed_value
+
+                ref = max(sa[1], sb[1])
+
+                def gd(v: np.ndarray, ref: float = ref) -> float:
+                    return signed_value(plus_one_sign_log(v), ref) if v.size else math.nan
+
+                out.append(("", gd))
         return out
 
     def finish(self, system: Any, sp: SpecialPoint, x: Array) -> SpecialPoint:

@@ -32,3 +32,29 @@ def run(request: SceneRequest) -> SceneResult:
 
 SCENES = {"roessler": Scene(name="roessler", summary="test fixture", defaults=DEFAULTS, run=run, x="a", y="phi",
                             problem_factory=factory)}
+
+
+PITCHFORK_DEFAULTS = {"beta": 0.5, "q": 0.0}
+
+
+def pitchfork_run(request: SceneRequest) -> SceneResult:
+    """The trivial equilibrium of CyclePitchfork traced in mu across its HB at mu = 0."""
+    from tests.cycle_models import CyclePitchfork
+
+    s = {**PITCHFORK_DEFAULTS, **request.params}
+    opts = request.options_for(ContinuationOptions(bounds={"mu": (-0.3, 1.0)}))
+    params = {"mu": -0.3, "beta": float(s["beta"]), "q": float(s["q"])}
+    branch = trace(CyclePitchfork(), np.zeros(3), params, "mu", opts)
+    request.finished(branch)
+    return SceneResult(branches=[branch], parameters=params, discretization={})
+
+
+def pitchfork_factory(parameters, discretization):
+    from tests.cycle_models import CyclePitchfork
+
+    return CyclePitchfork()
+
+
+SCENES["cycle-pitchfork"] = Scene(name="cycle-pitchfork", summary="test fixture: a pitchfork of cycles at mu = beta",
+                                  defaults=PITCHFORK_DEFAULTS, run=pitchfork_run, x="mu", y="phi",
+                                  problem_factory=pitchfork_factory)

@@ -126,3 +126,68 @@ class TwoHopfLandau:
         if name == "w":
             return StuartLandau().dresidual_dp(u, self._sl(p), "w")
         return (1 - 2 * p["p"]) * StuartLandau().dresidual_dp(u, self._sl(p), "mu")
+
+
+class CyclePitchfork:
+    """Stuart-Landau (x, y) (w = 1) with a transverse z: z' = (beta - r^2) z - q z^2 - z^3
+    (r^2 = x^2 + y^2).  The cycle r^2 = mu, z = 0, T = 2 pi has the z-multiplier
+    exp(2 pi (beta - mu)), through +1 at mu = beta: a branch point of cycles (BPC).  The cycles
+    bifurcating there have r^2 = mu, z^2 + q z = beta - mu, period 2 pi: with q = 0 (symmetric under
+    z -> -z) a pitchfork, z = +-sqrt(beta - mu) for mu < beta; with q != 0 a transcritical point,
+    the bifurcated branch turning at a fold of cycles mu = beta + q^2 / 4, z = -q / 2."""
+
+    parameter_names = ("mu", "beta", "q")
+
+    def residual(self, u, p):
+        x, y, z = u
+        r2 = x * x + y * y
+        return np.array([p["mu"] * x - y - x * r2, x + p["mu"] * y - y * r2,
+                         (p["beta"] - r2) * z - p["q"] * z * z - z**3])
+
+    def jacobian(self, u, p):
+        x, y, z = u
+        r2 = x * x + y * y
+        mu = p["mu"]
+        return np.array([[mu - 3 * x * x - y * y, -1.0 - 2 * x * y, 0.0],
+                         [1.0 - 2 * x * y, mu - x * x - 3 * y * y, 0.0],
+                         [-2 * x * z, -2 * y * z, p["beta"] - r2 - 2 * p["q"] * z - 3 * z * z]])
+
+    def dresidual_dp(self, u, p, name):
+        x, y, z = u
+        return {"mu": np.array([x, y, 0.0]), "beta": np.array([0.0, 0.0, z]), "q": np.array([0.0, 0.0, -z * z])}[name]
+
+
+class MoebiusPair:
+    """Stuart-Landau (x, y) (w = 1) with a transverse w = (u, v) that turns by half the cycle's angle
+    per period: w' = (1/2 + a) J w + b w + g [[-y, x], [x, y]] w - |w|^2 w (J the rotation by pi/2).
+    On the cycle r^2 = mu, w = 0 (T = 2 pi) the frame turned by -theta/2 makes it s' = B s with
+    B = b I + a J + g sqrt(mu) [[0, 1], [1, 0]], so the w-multipliers are -exp(2 pi (b +- sqrt(g^2 mu - a^2))):
+    a complex pair of modulus exp(2 pi b) for mu < a^2 / g^2 that turns real there, and (b < 0) a
+    period doubling at mu = (a^2 + b^2) / g^2."""
+
+    parameter_names = ("mu", "a", "b", "g")
+
+    def residual(self, z, p):
+        x, y, u, v = z
+        s2 = u * u + v * v
+        om, b, g = 0.5 + p["a"], p["b"], p["g"]
+        return np.concatenate([StuartLandau().residual(z[:2], {"mu": p["mu"], "w": 1.0}),
+                               [-om * v + b * u + g * (-y * u + x * v) - s2 * u,
+                                om * u + b * v + g * (x * u + y * v) - s2 * v]])
+
+    def jacobian(self, z, p):
+        x, y, u, v = z
+        s2 = u * u + v * v
+        om, b, g = 0.5 + p["a"], p["b"], p["g"]
+        out = np.zeros((4, 4))
+        out[:2, :2] = StuartLandau().jacobian(z[:2], {"mu": p["mu"], "w": 1.0})
+        out[2] = [g * v, -g * u, b - g * y - s2 - 2 * u * u, -om + g * x - 2 * u * v]
+        out[3] = [g * u, g * v, om + g * x - 2 * u * v, b + g * y - s2 - 2 * v * v]
+        return out
+
+    def dresidual_dp(self, z, p, name):
+        x, y, u, v = z
+        if name == "mu":
+            return np.array([x, y, 0.0, 0.0])
+        return {"a": np.array([0.0, 0.0, -v, u]), "b": np.array([0.0, 0.0, u, v]),
+                "g": np.array([0.0, 0.0, -y * u + x * v, x * u + y * v])}[name]

@@ -130,6 +130,7 @@ def test_bautin_fold_of_cycles():
     br = continue_cycles(Bautin(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.3)}, max_steps=200))
     (lpc,) = br.points("LPC")
     assert lpc.converged and "fold of cycles" in lpc.note
+    assert not br.points("BP")  # the fold of cycles is no branch point of cycles (the BP test keeps its sign)
     assert abs(lpc.params["mu"] + bb**2 / 4) < 1e-8
     _, nodes, period = orbit_of(lpc.state, 2)
     np.testing.assert_allclose(nodes[:, 0] ** 2 + nodes[:, 1] ** 2, bb / 2, rtol=1e-7)
@@ -204,6 +205,7 @@ def test_period_doubling_of_roessler_against_shooting(roessler_cycles):
     br = roessler_cycles
     (pdp,) = br.points("PD")
     assert pdp.converged and "period doubling" in pdp.note
+    assert not br.points("BP")  # a multiplier through -1 is no branch point of cycles
     assert abs(pdp.params["a"] - reference) < 1e-8
     assert math.isclose(pdp.data["multiplier"], -1.0, abs_tol=1e-9)
     before = br.parameter_values < pdp.params["a"]
@@ -225,6 +227,7 @@ def test_period_doubled_branch_and_its_own_doubling(roessler_cycles):
     assert br.kind == "periodic-orbits" and br.parent == pd1.name
     assert math.isclose(br.observables["period"][0], 2 * pd1.data["period"], rel_tol=1e-3)
     (pd2,) = br.points("PD")
+    assert not br.points("BP")
     reference = roessler_pd_by_shooting(0.37, 0.37, 0.38, loops=2)
     assert abs(pd2.params["a"] - reference) < 1e-8
     assert math.isclose(pd2.data["period"], 2 * pd1.data["period"], rel_tol=0.01)
@@ -249,12 +252,38 @@ def test_neimark_sacker_of_a_driven_pair():
     br = continue_cycles(DrivenPair(), hb, "mu", ContinuationOptions(bounds={"mu": (-1, 0.5)}, max_steps=100))
     (ns,) = br.points("NS")
     assert ns.converged and abs(ns.params["mu"] - 0.2) < 1e-9
+    assert not br.points("BP")
     assert math.isclose(ns.data["theta"], p["w2"] * 2 * math.pi / W, abs_tol=1e-8)  # w2 T < pi here
     mu, period = br.parameter_values, br.observables["period"]
     pair = br.eigenvalues[:, :2]
     expected = np.exp((p["alpha"] - p["k"] * mu) * period)
     np.testing.assert_allclose(np.abs(pair), np.c_[expected, expected], rtol=1e-7)
     assert list(br.n_unstable) == [2 if m < 0.2 else 0 for m in mu]
+
+
+def test_period_doubling_where_a_complex_pair_turns_real_within_one_step():
+    """MoebiusPair (a = 0.05, b = -0.01, g = 1): the w-multipliers -exp(2 pi (b +- sqrt(mu - a^2)))
+    are a complex pair up to mu = a^2 = 0.0025 and a real pair after, whose outer member passes -1
+    at mu = a^2 + b^2 = 0.0026.  The step 7.3e-4 -> 2.9e-3 spans both: no real negative multiplier
+    at its start to track, so the PD was missed (exit 0, no PD); the sign of prod (mu + 1) locates it."""
+    from contin.options import StepOptions
+    from tests.cycle_models import MoebiusPair
+
+    a, b = 0.05, -0.01
+    hb = _hopf_of(MoebiusPair(), np.zeros(4), {"mu": -0.3, "a": a, "b": b, "g": 1.0}, "mu", (-1, 1))
+    opts = ContinuationOptions(bounds={"mu": (-1, 0.05)}, max_steps=300, step=StepOptions(ds=0.01, ds_max=0.05))
+    br = continue_cycles(MoebiusPair(), hb, "mu", opts)
+    assert [s.type for s in br.special_points] == ["PD", "EP"]
+    (pdp,) = br.points("PD")
+    assert pdp.converged and "period doubling" in pdp.note
+    assert abs(pdp.params["mu"] - (a * a + b * b)) < 1e-9  # measured 1.5e-13
+    assert math.isclose(pdp.data["multiplier"], -1.0, abs_tol=1e-9)
+    assert pdp.bracket[0] < a * a < pdp.bracket[1]  # the pair was complex at the start of the step
+    mu = br.parameter_values
+    root = np.sqrt((mu - a * a).astype(complex))
+    expected = np.c_[-np.exp(2 * np.pi * (b + root)), -np.exp(2 * np.pi * (b - root)), np.exp(-4 * np.pi * mu)]
+    np.testing.assert_allclose(-np.sort(-np.abs(br.eigenvalues), axis=1), -np.sort(-np.abs(expected), axis=1),
+                               rtol=1e-8, atol=1e-12)
 
 
 AB_PARAMS = {"D": 0.0, "B": 14.0, "beta": 3.0}
@@ -428,7 +457,7 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
 
 
 @pytest.mark.parametrize("args, says", [
-    (["--from", "EP3", "--cycles"], "a period doubling (PD) of orbits; EP3 is neither"),
+    (["--from", "EP3", "--cycles"], "or a period doubling (PD) or branch point (BP) of orbits; EP3 is none of these"),
     (["--from", "HB1", "--cycles", "--free", "B"], "--free B is for two-parameter curves"),
     (["--from", "HB1", "--ntst", "30", "--free", "B"], "--ntst needs --cycles"),
     (["--from", "HB1", "--uniform-mesh", "--free", "B"], "--uniform-mesh needs --cycles"),
@@ -667,7 +696,7 @@ def test_cli_period_doubled_orbits_from_pd(tmp_path, monkeypatch):
     assert doubled.parent == pd.name and meta["extra"]["cycles"]["n"] == 3 and meta["extra"]["cycles"]["ntst"] == 40
     assert math.isclose(doubled.observables["period"][0], 2 * pd.data["period"], rel_tol=1e-3)
     r = _cli("continue", run, "--from", "EP2", "--cycles")
-    assert r.exit_code == 1 and "--cycles starts at a Hopf point (HB) or a period doubling (PD)" in r.output
+    assert r.exit_code == 1 and "--cycles starts at a Hopf point (HB), or a period doubling (PD) or branch point (BP)" in r.output
 
 
 def test_ctrl_c_keeps_the_orbits_computed_so_far(ab_file, tmp_path):

@@ -21,7 +21,8 @@ BP curves --tol is an error.  Without --tol nothing changes: the fixed grid of t
 run's guard.
 
 ``--cycles`` (no ``--free``): from an HB the periodic orbits born there, from a PD of a file of
-orbits the period-doubled ones, in the branch's parameter (``contin.cli.cycles_cmd``,
+orbits the period-doubled ones, from a BP of one the bifurcating cycles (``--other-half``: the other
+half), in the branch's parameter (``contin.cli.cycles_cmd``,
 ``contin.cycles``).
 """
 
@@ -98,7 +99,8 @@ def _refuse_own_input(file: str, output: str) -> None:
                    "fold can miss REL).")
 @click.option("--cycles", is_flag=True, default=False,
               help="From an HB: the periodic orbits born there, in the branch's parameter (no --free); from a "
-                   "PD of a file of orbits: the period-doubled orbits.")
+                   "PD of a file of orbits: the period-doubled orbits; from a BP of a file of orbits: the "
+                   "bifurcating cycles.")
 @click.option("--ntst", type=click.IntRange(min=2, max=10_000), default=None, metavar="N",
               help="With --cycles: mesh intervals of the orbits [default: 20].")
 @click.option("--ncol", type=click.IntRange(min=1, max=7), default=None, metavar="M",
@@ -107,12 +109,15 @@ def _refuse_own_input(file: str, output: str) -> None:
               help="With --cycles: amplitude of the first orbit [default: 1e-2 max(1, |u_H|)].")
 @click.option("--uniform-mesh", is_flag=True, default=False,
               help="With --cycles: keep the uniform mesh (no adaptation every 5 steps).")
+@click.option("--other-half", "other_half", is_flag=True, default=False,
+              help="With --cycles from a BP of a file of orbits: the other half of the bifurcating branch "
+                   "(-tau instead of +tau).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="HDF5 file of the curve.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document to stdout.")
 def continue_command(file: str, label: str, second: str | None, branch_id: str | None, bounds: tuple[str, ...],
                      max_steps: int, ds: float | None, ds_max: float | None, tol: float | None, max_grid: int | None,
                      no_solve_check: bool, cycles: bool, ntst: int | None, ncol: int | None, amplitude: float | None,
-                     uniform_mesh: bool, output: str | None, as_json: bool) -> None:
+                     uniform_mesh: bool, other_half: bool, output: str | None, as_json: bool) -> None:
     """Continue the point LABEL of FILE in two parameters (the branch's and --free NAME), or with
     --cycles the periodic orbits born at the Hopf point LABEL (in the branch's parameter)."""
     import dataclasses
@@ -150,15 +155,19 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         click.get_current_context().call_on_close(OutputLock(output).acquire().release)
     branches, meta = io.load(file)
     branch, point = find_point(branches, label, branch_id, repr(file))
-    doubling = cycles and point.type == "PD" and branch.kind == "periodic-orbits"  # the period-doubled orbits
+    # the period-doubled orbits at a PD, the bifurcating cycles at a BP of a file of orbits
+    doubling = cycles and point.type in ("PD", "BP") and branch.kind == "periodic-orbits"
     if branch.kind == "periodic-orbits" and not doubling:  # 'too many values to unpack' from the orbit's state
-        fail(f"{point.name} is on branch {branch.id} of periodic orbits: from such a file only a PD continues "
-             "(--from PDk --cycles: the period-doubled orbits); curves of LPC, PD or NS in two parameters are not "
-             "implemented, and an HB there is where the orbits end on an equilibrium: continue from the Hopf "
-             "point of the steady branch the orbits came from")
+        fail(f"{point.name} is on branch {branch.id} of periodic orbits: from such a file only a PD or a BP continues "
+             "(--from PDk --cycles: the period-doubled orbits; --from BPk --cycles: the bifurcating cycles); curves of "
+             "LPC, PD or NS in two parameters are not implemented, and an HB there is where the orbits end on an "
+             "equilibrium: continue from the Hopf point of the steady branch the orbits came from")
     if cycles and point.type != "HB" and not doubling:
-        fail(f"--cycles starts at a Hopf point (HB) or a period doubling (PD) of orbits; {point.name} is neither "
-             f"(type {point.type})")
+        fail(f"--cycles starts at a Hopf point (HB), or a period doubling (PD) or branch point (BP) of orbits; "
+             f"{point.name} is none of these (type {point.type}{' of a steady branch' if point.type in ('PD', 'BP') else ''})")
+    if other_half and not (doubling and point.type == "BP"):
+        fail(f"--other-half is for --cycles from a branch point (BP) of a file of orbits, not {point.name} "
+             f"({point.type}{'' if cycles else ', without --cycles'})")
     from contin.twoparam import continuable_types
 
     # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
@@ -219,7 +228,8 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
     if cycle_options is not None:
         from contin.cli.cycles_cmd import run_cycles
 
-        run_cycles(problem, file, meta, branch, point, options, cycle_options, output, as_json, own_grid)
+        run_cycles(problem, file, meta, branch, point, options, cycle_options, output, as_json, own_grid,
+                   other_half=other_half)
         return
     from contin.cancel import stop_on_sigint
     from contin.twoparam import continue_point

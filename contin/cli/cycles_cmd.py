@@ -1,4 +1,5 @@
-"""``contin continue FILE --from HB1 --cycles``: the periodic orbits born at a Hopf point.
+"""``contin continue FILE --from HB1 --cycles``: the periodic orbits born at a Hopf point (from a PD of
+a file of orbits the period-doubled ones, from a BP of one the bifurcating cycles).
 
 The helper of the ``continue`` command (``contin.cli.continue_cmd``) for ``--cycles``: the branch
 of periodic orbits (``contin.cycles.continue_cycles``) in the run's parameter, written to ``-o``
@@ -41,13 +42,13 @@ def check_cycle_flags(cycles: bool, second: str | None, tol: float | None, ntst:
 
 def _state_size(point: Any, meta: dict[str, Any]) -> int:
     """n of the problem: the HB's state, or (a PD of orbits) the file's own record."""
-    if point.type == "PD":
+    if point.type in ("PD", "BP"):
         return int(((meta.get("extra") or {}).get("cycles") or {})["n"])
     return int(len(point.state))
 
 
 def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, options: Any, cycle: Any,
-               output: str | None, as_json: bool, own_grid: int | None) -> None:
+               output: str | None, as_json: bool, own_grid: int | None, other_half: bool = False) -> None:
     """Continue the orbits from ``point`` and report / write them (exit 3 when the branch ends
     with MX, as ``continue`` does for curves)."""
     from contin import io
@@ -58,15 +59,21 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     first = branch.parameter
     with stop_on_sigint(sigterm=Terminated) as stop:
         try:
-            if point.type == "PD":  # a PD of a file of orbits: the period-doubled orbits
-                from contin.cycles import continue_doubled
+            if point.type in ("PD", "BP"):  # a PD / BP of a file of orbits
+                from contin.cycles import continue_branch_point, continue_doubled
 
                 stored = (meta.get("extra") or {}).get("cycles") or {}
                 if not isinstance(stored.get("n"), int):
                     fail(f"{file} does not say the size n of its orbits (no 'cycles' entry): it was not written by "
                          "contin continue --cycles")
-                cycles = continue_doubled(problem, point, first, stored["n"], options, cycle,
-                                          parent_ncol=int(stored.get("ncol", cycle.ncol)), parent=point.name)
+                parent_ncol = int(stored.get("ncol", cycle.ncol))
+                if point.type == "PD":  # the period-doubled orbits
+                    cycles = continue_doubled(problem, point, first, stored["n"], options, cycle,
+                                              parent_ncol=parent_ncol, parent=point.name)
+                else:  # the cycles bifurcating at a branch point of cycles (--other-half: along -tau)
+                    cycles = continue_branch_point(problem, point, first, stored["n"], options, cycle,
+                                                   parent_ncol=parent_ncol, direction=-1 if other_half else 1,
+                                                   parent=point.name)
             else:
                 cycles = continue_cycles(problem, point, first, options, cycle, parent=point.name)
         except ValueError as exc:
@@ -74,9 +81,11 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     interrupted = stop.requested
     if point.type == "PD":
         born = f"period 2 T = {fmt(2 * point.data['period']) if point.data.get('period') else '?'}"
+    elif point.type == "BP":
+        born = f"period T = {fmt(point.data['period']) if point.data.get('period') else '?'}"
     else:
         born = f"period 2 pi / omega = {fmt(2 * math.pi / point.data['omega']) if point.data.get('omega') else '?'}"
-    what = "period-doubled orbits" if point.type == "PD" else "periodic orbits"
+    what = {"PD": "period-doubled orbits", "BP": "bifurcating periodic orbits"}.get(point.type, "periodic orbits")
     summary = (f"{what} from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, {born}), "
                f"NTST = {cycle.ntst}, NCOL = {cycle.ncol}, {'adapted' if cycle.adapt_mesh else 'uniform'} mesh")
     if output is not None:
