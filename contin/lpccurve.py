@@ -1,0 +1,222 @@
+"""Two-parameter continuation of folds of periodic orbits (LPC curves; AUTO-07p's restart at an
+LPC of a periodic branch with ISW = 2, BifurcationKit's ``FoldPeriodicOrbitProblem``).
+
+The collocated cycle system G(x, p) = 0 (:class:`contin.cycles.CycleProblem`: x = [orbit values
+at the nodes, T], the collocation equations, periodicity and AUTO's integral phase condition) is
+an ordinary contin problem, and an LPC of a cycle branch is a fold of it: G_x is singular there.
+So the core's Moore-Spence fold system (:class:`contin.foldcurve.FoldProblem`)
+
+    G(x, p1, p2) = 0,      G_x phi = 0,      c . phi - 1 = 0
+
+is traced on the cycle system as it is for an equilibrium (:func:`contin.foldcurve.trace_augmented`,
+both halves, bounds on either parameter, the cycle problem's resolution guard: an orbit the mesh no
+longer resolves ends the half with MX "under-resolved").  The mesh and the phase reference are the
+LPC orbit's (or, with ``ntst``, that orbit carried onto an adapted mesh of NTST intervals) for the
+whole curve: they are not renewed along it.
+
+End at a generalized Hopf (Bautin) point: where the folding cycles shrink to an equilibrium the LPC
+curve ends on the Hopf curve at its GH point (the first Lyapunov coefficient vanishes there).  The
+cycle system is singular at amplitude 0, so the curve either passes through it (the orbits' signed
+amplitude along the phase reference changes sign: ``contin.floquet.ShrinkTest``, then the half
+stops) or the steps fail next to it; in both cases the end is marked ``GH`` (its parameters the
+located sign change, or the last point reached, whose amplitude is below :data:`GH_FRACTION` of
+the curve's largest) and the half ends with EP.
+
+Stored per point: the orbit row [node values, T, interior mesh points] (as on a cycle branch,
+``contin.cycles.orbit_of``), both parameters, period / amplitude / l2norm, and the Floquet check of
+the orbit (``floquet_error``: the trivial multiplier's distance from 1, which at a fold is the
+square root of the collocation error; ``flow_error``; the other multipliers in ``eigenvalues``, one
+of which is the fold's +1).  Extrema of the first parameter along the curve are ``LP`` points;
+extrema of the second are not located.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from contin.branch import Branch, SpecialPoint, relabel
+from contin.cycles import CycleOptions, CycleProblem, constant_mass, orbit_of
+from contin.floquet import ShrinkTest
+from contin.foldcurve import FoldProblem, trace_augmented
+from contin.normalform import null_vectors
+from contin.options import ContinuationOptions
+from contin.problem import Array
+
+#: Branch.kind of an LPC curve.
+KIND = "lpc-curve"
+
+#: A half that fails next to an amplitude below this fraction of the curve's largest ends at a GH.
+GH_FRACTION = 0.02
+
+#: The end message of a half at a GH point.
+GH_END = "the folding cycles shrink to a generalized Hopf point"
+
+
+@dataclasses.dataclass
+class _Shrink(ShrinkTest):
+    """The cycle branch's shrink test on the augmented state [x, phi, p2] (kind HB: the tracer's
+    stop_at counts it; renamed GH afterwards)."""
+
+    size: int = 0
+
+    def value(self, system: Any, x: Array) -> float:
+        return float(self.cycles.signed_amplitude(x[: self.size]))
+
+    def finish(self, system: Any, sp_: SpecialPoint, x: Array) -> SpecialPoint:
+        return dataclasses.replace(sp_, data={**sp_.data, "period": float(x[self.size - 1])})
+
+
+class LPCProblem(FoldProblem):
+    """The fold system of a :class:`contin.cycles.CycleProblem` (state [x, phi, p2]): no cusp,
+    BT or ZH tests (they belong to equilibria); the shrink test marks the GH end."""
+
+    detect_cusps = False
+
+    def point_tests(self) -> list[object]:
+        return [_Shrink(self.problem, size=self.n)]
+
+
+def lpc_start(problem: Any, point: SpecialPoint, second: str, n: int, cycle: CycleOptions = CycleOptions(),
+              *, parent_ncol: int | None = None, mass: Array | None = None) -> tuple[LPCProblem, Array]:
+    """The fold system on the cycle problem of the LPC ``point`` (a stored orbit of a cycle branch,
+    NCOL ``parent_ncol``) and its start vector [x, phi, p2]; on ``cycle.ntst`` intervals when they
+    differ from the orbit's (the orbit carried onto a mesh adapted to it)."""
+    from contin.collocation import Mesh
+
+    if point.type != "LPC":
+        raise ValueError(f"an LPC curve starts at a fold of cycles (LPC), not at {point.name} ({point.type})")
+    if second not in point.params:
+        raise ValueError(f"unknown parameter {second!r} (the problem has {', '.join(sorted(point.params))})")
+    mesh, nodes, period = orbit_of(point.state, n, None, parent_ncol or cycle.ncol)
+    if (cycle.ntst, cycle.ncol) != (mesh.ntst, mesh.ncol):
+        target = Mesh(n, cycle.ntst, cycle.ncol)
+        for _ in range(2):
+            target = target.adapted(mesh.resample(target, nodes))
+        mesh, nodes = target, mesh.resample(target, nodes)
+    params = dict(point.params)
+    if mass is None:
+        mass = constant_mass(problem, nodes[0], params)
+    cp = CycleProblem(problem, mesh, nodes, mass, cycle.floquet_tol)
+    x = mesh.pack(nodes, period)
+    phi = null_vectors(sp.csc_matrix(cp.jacobian(x, params))).phi
+    return LPCProblem(cp, second, phi), np.concatenate([x, phi, [params[second]]])
+
+
+def trace_lpc_curve(problem: Any, point: SpecialPoint, second: str, n: int,
+                    options: ContinuationOptions = ContinuationOptions(), cycle: CycleOptions = CycleOptions(),
+                    *, parameter: str, parent_ncol: int | None = None, mass: Array | None = None,
+                    branch_id: str = "lpc") -> Branch:
+    """The curve of folds of cycles through the LPC ``point`` (of a cycle branch in ``parameter``,
+    orbits of ``n`` components) in (parameter, second), both directions (module docstring).
+    ``options`` as for a fold curve (bounds on either parameter, max_steps per direction);
+    ``cycle``: NTST / NCOL of the curve's orbits (NTST other than the orbit's: carried over) and the
+    resolution guard ``floquet_tol``.  Raises ValueError for a point that is no LPC."""
+    if second == parameter:
+        raise ValueError(f"the second free parameter must differ from the branch's parameter {parameter!r}")
+    lpc, start = lpc_start(problem, point, second, n, cycle, parent_ncol=parent_ncol, mass=mass)
+    start_point = dataclasses.replace(point, state=start)
+    opts = dataclasses.replace(
+        options, save_every=1, stop_at=("HB1",),
+        detection=dataclasses.replace(options.detection, detect_hopf=False, detect_branch_points=False))
+    raw = trace_augmented(lpc, start, start_point, second, 2 * lpc.n, opts, parameter=parameter, both=True,
+                          branch_id=branch_id, kind=KIND, mirror_start=True)
+    return as_lpc_curve(raw, lpc, parameter)
+
+
+def as_lpc_curve(raw: Branch, lpc: LPCProblem, parameter: str) -> Branch:
+    """A traced augmented branch as an LPC curve: orbit rows as states, p2 as a parameter column,
+    Floquet checks, the shrink points and the failed ends next to amplitude 0 as GH."""
+    cp: CycleProblem = lpc.problem
+    second, size = lpc.second, lpc.n
+    mesh = cp.mesh
+    inner = mesh.t[1:-1]
+    s = len(raw)
+    p2 = raw.states[:, 2 * size].copy() if s else np.zeros(0)
+    states = np.hstack([raw.states[:, :size], np.repeat(inner[None, :], s, axis=0)]) if s else \
+        np.zeros((0, size + inner.size))
+    tangents = np.hstack([raw.tangents[:, :size], np.zeros((s, inner.size)), raw.tangents[:, 2 * size:]]) if s else \
+        np.zeros((0, size + inner.size + 2))
+    params = {**raw.params, second: p2}
+    observables = {k: v for k, v in raw.observables.items() if k != second}
+    m = mesh.n
+    eig = np.full((s, m - 1 if m > 1 else 1), np.nan + 0j)
+    err, flow = np.full(s, np.nan), np.full(s, np.nan)
+    stable, n_unst = np.zeros(s, dtype=bool), np.zeros(s, dtype=np.int64)
+    for i in range(s):
+        q = {k: float(v[i]) for k, v in params.items()}
+        try:
+            mu = cp.multipliers(raw.states[i, :size], q)
+        except np.linalg.LinAlgError:
+            continue
+        eig[i, : mu.others.size] = mu.others
+        err[i], flow[i], stable[i], n_unst[i] = mu.error, mu.flow_error, mu.stable, mu.n_unstable
+    observables["floquet_error"], observables["flow_error"] = err, flow
+    amp = np.asarray(raw.order_parameter, float)
+    big = float(np.max(amp)) if s else 0.0
+
+    def gh(sp_: SpecialPoint, how: str) -> SpecialPoint:
+        q = {**sp_.params, second: float(sp_.state[2 * size])}
+        note = (f"generalized Hopf (Bautin) point: the folding cycles shrink to an equilibrium (amplitude 0); {how} "
+                f"at ({parameter}, {second}) = ({q[parameter]:.10g}, {q[second]:.10g}), period "
+                f"{float(sp_.state[size - 1]):.10g}")
+        return dataclasses.replace(sp_, type="GH", params=q, note=note, converged=False,
+                                   data={**sp_.data, "period": float(sp_.state[size - 1])})
+
+    specials: list[SpecialPoint] = []
+    failed: list[str] = []  # the step failures next to amplitude 0 (GH ends)
+    message = raw.message
+    status = raw.status
+    shrunk = [sp_ for sp_ in raw.special_points if sp_.type == "HB"]
+    for sp_ in raw.special_points:
+        if sp_.type == "HB":
+            specials.append(gh(sp_, "located where the signed amplitude changes sign"))
+            continue
+        q = {**sp_.params, second: float(sp_.state[2 * size])}
+        if sp_.type == "MX" and big > 0 and amp[sp_.index] <= GH_FRACTION * big and \
+                not sp_.note.startswith("under-resolved") and not any(abs(h.index - sp_.index) <= 1 for h in shrunk):
+            specials.append(gh(sp_, f"approached to amplitude {amp[sp_.index]:.2g} (of {big:.3g} on the curve), "
+                                    "the last point reached"))
+            failed.append(sp_.note)
+            specials.append(dataclasses.replace(sp_, type="EP", params=q, note=GH_END, converged=True))
+            continue
+        if sp_.type == "EP" and sp_.note.startswith("stopped after HB1"):
+            sp_ = dataclasses.replace(sp_, note=GH_END)
+        elif sp_.type == "LP" and not sp_.converged and amp[sp_.index] <= GH_FRACTION * big:
+            raw.audit.append(f"dropped {sp_.name}: an unlocated extremum of {parameter} next to amplitude 0 "
+                             "(the cycle system is singular there)")
+            continue
+        elif sp_.type == "LP":
+            sp_ = dataclasses.replace(sp_, note=sp_.note or f"extremum of {parameter}")
+        specials.append(dataclasses.replace(sp_, params=q))
+    specials = [_orbit_row(sp_, size, inner) for sp_ in specials]
+    ends = [sp_ for sp_ in specials if sp_.type in ("EP", "MX")]
+    if ends and not any(sp_.type == "MX" for sp_ in ends):
+        status = "EP"
+    message = message.replace("stopped after HB1 (stop_at)", GH_END)
+    for note in failed:
+        message = message.replace(note, GH_END, 1)
+    out = dataclasses.replace(raw, states=states, tangents=tangents, params=params, observables=observables,
+                              free=(parameter, second), kind=KIND, eigenvalues=eig, stable=stable,
+                              n_unstable=n_unst, special_points=sorted(specials, key=lambda t: t.index),
+                              status=status, message=message)
+    relabel([out])
+    return out
+
+
+def _orbit_row(sp_: SpecialPoint, size: int, inner: Array) -> SpecialPoint:
+    """A special point of the augmented trace with the orbit row [x, interior mesh] as its state."""
+    state = np.concatenate([np.asarray(sp_.state)[:size], inner])
+    tangent = None if sp_.tangent is None else np.concatenate(
+        [np.asarray(sp_.tangent)[:size], np.zeros(inner.size), np.asarray(sp_.tangent)[2 * size:]])
+    return dataclasses.replace(sp_, state=state, tangent=tangent)
+
+
+def gh_distance(curve: Branch) -> float:
+    """The smallest amplitude along an LPC curve relative to its largest (0 at a GH end)."""
+    amp = np.asarray(curve.order_parameter, float)
+    return float(np.min(amp) / np.max(amp)) if amp.size and np.max(amp) > 0 else math.nan
