@@ -137,7 +137,10 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         fail("--no-solve-check needs --tol (the check belongs to adaptive grids)")
     from contin.cli.cycles_cmd import check_cycle_flags
 
-    cycle_options = check_cycle_flags(cycles, second, tol, ntst, ncol, amplitude, uniform_mesh)
+    # --ntst / --ncol also set the orbits of an LPC curve (--from LPCk --free NAME): checked once the point is known
+    lpc_mesh = (ntst, ncol) if not cycles and second is not None else (None, None)
+    cycle_options = check_cycle_flags(cycles, second, tol, *((None, None) if lpc_mesh[0] or lpc_mesh[1] else (ntst, ncol)),
+                                      amplitude, uniform_mesh)
     if not cycles and second is None:
         fail("Missing option '--free' (the second free parameter; or --cycles from an HB)")
     box = parse_bounds(bounds)
@@ -157,10 +160,18 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
     branch, point = find_point(branches, label, branch_id, repr(file))
     # the period-doubled orbits at a PD, the bifurcating cycles at a BP of a file of orbits
     doubling = cycles and point.type in ("PD", "BP") and branch.kind == "periodic-orbits"
-    if branch.kind == "periodic-orbits" and not doubling:  # 'too many values to unpack' from the orbit's state
+    # the curve of folds of cycles through an LPC in two parameters (contin.lpccurve)
+    lpc = not cycles and point.type == "LPC" and branch.kind == "periodic-orbits"
+    if (lpc_mesh[0] or lpc_mesh[1]) and not lpc:
+        fail(f"{'--ntst' if lpc_mesh[0] else '--ncol'} needs --cycles, or an LPC start (--from LPCk --free NAME): it "
+             "sets the collocation of periodic orbits")
+    if lpc and tol is not None:
+        fail("--tol is for fold curves on adaptive grids; for an LPC curve refine the orbits' mesh with --ntst")
+    if branch.kind == "periodic-orbits" and not doubling and not lpc:  # 'too many values to unpack' from the orbit's state
         fail(f"{point.name} is on branch {branch.id} of periodic orbits: from such a file only a PD or a BP continues "
-             "(--from PDk --cycles: the period-doubled orbits; --from BPk --cycles: the bifurcating cycles); curves of "
-             "LPC, PD or NS in two parameters are not implemented, and an HB there is where the orbits end on an "
+             "(--from PDk --cycles: the period-doubled orbits; --from BPk --cycles: the bifurcating cycles), or an LPC "
+             "(--from LPCk --free NAME: the curve of folds of cycles); curves of PD or NS in two parameters are not "
+             "implemented, and an HB there is where the orbits end on an "
              "equilibrium: continue from the Hopf point of the steady branch the orbits came from")
     if cycles and point.type != "HB" and not doubling:
         fail(f"--cycles starts at a Hopf point (HB), or a period doubling (PD) or branch point (BP) of orbits; "
@@ -171,7 +182,7 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
     from contin.twoparam import continuable_types
 
     # before the grid checks: EP1 of an adaptive curve was sent to --tol (qa15)
-    if point.type not in continuable_types() and not doubling:
+    if point.type not in continuable_types() and not doubling and not lpc:
         fail(f"{point.name}: only {', '.join(continuable_types())} points can be continued in two parameters, "
              f"not {point.type}")
     from contin.twoparam import on_curve_message
@@ -221,10 +232,15 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         own_grid = int(point.grid)
     size = getattr(problem, "size", None)
     if (isinstance(size, int) and point.state is not None and size != len(point.state)
-            and point.type not in ("BT", "ZH", "HH") and not doubling):
+            and point.type not in ("BT", "ZH", "HH") and not doubling and not lpc):
         # (a BT, ZH or HH lies on a fold or Hopf curve: its augmented state is checked by contin.twoparam)
         fail(f"the state of {point.name} has {len(point.state)} entries but the problem rebuilt from {file} "
              f"has {size} unknowns")
+    if lpc:
+        from contin.cli.cycles_cmd import run_lpc_curve
+
+        run_lpc_curve(problem, file, meta, branch, point, second, options, lpc_mesh[0], lpc_mesh[1], output, as_json)
+        return
     if cycle_options is not None:
         from contin.cli.cycles_cmd import run_cycles
 

@@ -131,3 +131,69 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     from contin.cli._runctl import end_of_curve_run
 
     end_of_curve_run("the orbits", len(cycles), output, interrupted, stop, cycles.status, cycles.message, cycles)
+
+
+def run_lpc_curve(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, second: str,
+                  options: Any, ntst: int | None, ncol: int | None, output: str | None, as_json: bool) -> None:
+    """``contin continue ORBITS.h5 --from LPCk --free NAME``: the curve of folds of cycles through
+    the LPC in (the branch's parameter, NAME) (``contin.lpccurve``), written to ``-o`` as a branch
+    of kind 'lpc-curve' (its states the orbits, as on a cycle branch); exit 3 when it ends with MX."""
+    from contin import io
+    from contin.cancel import stop_on_sigint
+    from contin.cli._runctl import Terminated
+    from contin.cycles import CycleOptions
+    from contin.lpccurve import trace_lpc_curve
+
+    first = branch.parameter
+    stored = (meta.get("extra") or {}).get("cycles") or {}
+    if not isinstance(stored.get("n"), int):
+        fail(f"{file} does not say the size n of its orbits (no 'cycles' entry): it was not written by "
+             "contin continue --cycles")
+    if second == first:
+        fail(f"--free {second} is the branch's own parameter; name the second parameter of the LPC curve")
+    if second not in point.params:
+        fail(f"unknown parameter {second!r} (the problem has {', '.join(sorted(point.params))})")
+    parent_ncol = int(stored.get("ncol", CycleOptions().ncol))
+    n = int(stored["n"])
+    own_ntst = len(point.state) // (n * parent_ncol + 1)  # [nodes, T, interior mesh]: NTST (n NCOL + 1)
+    cycle = CycleOptions(ntst=ntst or own_ntst, ncol=ncol or parent_ncol)
+    with stop_on_sigint(sigterm=Terminated) as stop:
+        try:
+            curve = trace_lpc_curve(problem, point, second, n, options, cycle, parameter=first,
+                                    parent_ncol=parent_ncol)
+        except ValueError as exc:
+            fail(str(exc))
+    interrupted = stop.requested
+    summary = (f"LPC curve from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
+               f"{second} = {fmt(point.params[second])}), NTST = {cycle.ntst}, NCOL = {cycle.ncol}")
+    if output is not None:
+        from contin.cancel import STOPPED
+
+        extra = {"source": file, "from": point.name, "branch": branch.id, "free": [first, second],
+                 "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": n, "adapt_mesh": False}}
+        io.write(output, [curve], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
+                 discretization=meta.get("discretization", {}), options=dataclasses.replace(options, save_every=1),
+                 notes=[summary + f" in {file}"], extra=extra, stopped=STOPPED[stop.reason] if interrupted else "",
+                 diagram_x=first, diagram_y=second)
+    if as_json:
+        from contin.jsonout import run_document
+
+        doc = run_document(scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
+                           discretization=meta.get("discretization", {}), branches=[curve], notes=[],
+                           extra={"from": point.name, "branch": branch.id, "free": [first, second],
+                                  "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol}},
+                           output=output, stability={})
+        echo_json(doc)
+    echo_err(f"{summary}: {len(curve)} points, {curve.status} {curve.message}")
+    if len(curve):
+        t, a = curve.observables["period"], curve.observables["amplitude"]
+        echo_err(f"period {fmt(min(t), 7)} .. {fmt(max(t), 7)}, amplitude {fmt(min(a), 7)} .. {fmt(max(a), 7)}; "
+                 f"accuracy: trivial multiplier within {float(max(curve.observables['floquet_error'])):.1e} of 1 (at a "
+                 f"fold of cycles the square root of the error), flow residual <= "
+                 f"{float(max(curve.observables['flow_error'])):.1e}")
+    echo_err(special_points_table([curve]))
+    if output is not None:
+        echo_err(f"wrote {output}")
+    from contin.cli._runctl import end_of_curve_run
+
+    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message, curve)
