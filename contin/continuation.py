@@ -366,10 +366,12 @@ class _Tracer:
                     locate_one(pt.kind, note, fn, pt, lo=(s_f, f_pt))
             else:
                 reach = 2.0 * sys.norm(b.x - a.x)
-                near = pt.beyond(va, vb, reach) if hasattr(pt, "beyond") else []
-                if near:
+                # (not `near`: that rebinds locate_one's `near` of this step, and the next point test's
+                # location failed "can't multiply sequence by non-int of type 'float'")
+                skipped = pt.beyond(va, vb, reach) if hasattr(pt, "beyond") else []
+                if skipped:
                     gap(f"the step turned at a fold that was not located, so the {pt.kind} values "
-                        f"{', '.join(near)} beyond both its ends may have been crossed twice and skipped")
+                        f"{', '.join(skipped)} beyond both its ends may have been crossed twice and skipped")
         return [sp for _, sp in sorted(found, key=lambda f: f[0])], unconfirmed
 
     def jumped(self, a: _Point, b: _Point, direction: Array, ds: float) -> str | None:
