@@ -125,7 +125,60 @@ def trace_lpc_curve(problem: Any, point: SpecialPoint, second: str, n: int,
         detection=dataclasses.replace(options.detection, detect_hopf=False, detect_branch_points=False))
     raw = trace_augmented(lpc, start, start_point, second, 2 * lpc.n, opts, parameter=parameter, both=True,
                           branch_id=branch_id, kind=KIND, mirror_start=True)
-    return as_lpc_curve(raw, lpc, parameter)
+    curve = as_lpc_curve(raw, lpc, parameter)
+    curve.special_points = [solve_gh(problem, lpc.problem, sp_, parameter, second, options) if sp_.type == "GH"
+                            else sp_ for sp_ in curve.special_points]
+    return curve
+
+
+def solve_gh(problem: Any, cp: CycleProblem, gh: SpecialPoint, parameter: str, second: str,
+             options: ContinuationOptions) -> SpecialPoint:
+    """The GH end of an LPC curve solved on the Hopf curve through it: the cycle system is singular
+    at amplitude 0, so the end the LPC curve reached is an estimate.  From its orbit's mean and
+    period the Hopf point at the same ``second`` is solved (``contin.cycles._hopf_end``), its Hopf
+    curve traced a few steps each way (:func:`contin.hopfcurve.trace_hopf_curve`) and the GH located
+    there (l1 = 0) nearest the estimate replaces it (converged, its state the equilibrium's constant
+    orbit).  The estimate stays (not converged, a note) when that fails."""
+    from contin.cycles import _hopf_end
+    from contin.hopfcurve import trace_hopf_curve
+
+    hb = _hopf_end(cp, dataclasses.replace(gh, type="HB", note=""), parameter)
+    why = hb.note
+    if hb.converged:
+        mesh = cp.mesh
+        u_h = mesh.split(np.asarray(hb.state)[: mesh.size])[0][0]
+        start = SpecialPoint(type="HB", index=0, params=dict(hb.params), order_parameter=0.0, state=u_h,
+                             converged=True, data={"omega": float(hb.data["omega"])})
+        scale = max(1e-6, 1e-3 * max(abs(gh.params[parameter]), abs(gh.params[second]), 1e-3))
+        opts = dataclasses.replace(options, max_steps=4, stop_at=(), bounds={},
+                                   step=dataclasses.replace(options.step, ds=scale, ds_max=scale,
+                                                            ds_min=min(options.step.ds_min, scale / 100)))
+        try:
+            curve = trace_hopf_curve(problem, start, second, opts, parameter=parameter, generalized_hopf=True)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            curve, why = None, f"its Hopf curve not traced: {exc}"
+        found = [] if curve is None else [p for p in curve.points("GH") if p.converged]
+        if found:
+            def dist(p: SpecialPoint) -> float:
+                return sum(abs(p.params[k] - gh.params[k]) / max(1.0, abs(gh.params[k])) for k in (parameter, second))
+
+            best = min(found, key=dist)
+            omega = float(best.data.get("omega", hb.data["omega"]))
+            u = np.asarray(best.state, float)[: mesh.n]
+            state = np.concatenate([mesh.pack(np.repeat(u[None, :], mesh.nodes, axis=0), 2 * math.pi / omega),
+                                    np.asarray(gh.state)[mesh.size:]])
+            note = (f"generalized Hopf (Bautin) point, where the folding cycles shrink to an equilibrium: solved on "
+                    f"the Hopf curve through the LPC curve's end (l1 = 0) at ({parameter}, {second}) = "
+                    f"({best.params[parameter]:.10g}, {best.params[second]:.10g}), period 2 pi / omega = "
+                    f"{2 * math.pi / omega:.10g}; the LPC curve reached ({gh.params[parameter]:.10g}, "
+                    f"{gh.params[second]:.10g})")
+            return dataclasses.replace(gh, params=dict(best.params), state=state, converged=True, order_parameter=0.0,
+                                       note=note, data={**gh.data, **best.data, "omega": omega,
+                                                        "period": 2 * math.pi / omega})
+        if curve is not None:
+            why = f"no GH located on the Hopf curve through ({parameter}, {second}) = " \
+                  f"({hb.params[parameter]:.10g}, {hb.params[second]:.10g})"
+    return dataclasses.replace(gh, note=f"{gh.note}; not solved on the Hopf curve: {why}")
 
 
 def as_lpc_curve(raw: Branch, lpc: LPCProblem, parameter: str) -> Branch:
