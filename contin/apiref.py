@@ -31,6 +31,7 @@ MODULES = (
     "contin.foldcurve",
     "contin.hopfcurve",
     "contin.cycles",
+    "contin.lpccurve",
     "contin.orbitprofile",
     "contin.diagram",
     "contin.bpfit",

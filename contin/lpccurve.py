@@ -18,9 +18,10 @@ End at a generalized Hopf (Bautin) point: where the folding cycles shrink to an 
 curve ends on the Hopf curve at its GH point (the first Lyapunov coefficient vanishes there).  The
 cycle system is singular at amplitude 0, so the curve either passes through it (the orbits' signed
 amplitude along the phase reference changes sign: ``contin.floquet.ShrinkTest``, then the half
-stops) or the steps fail next to it; in both cases the end is marked ``GH`` (its parameters the
-located sign change, or the last point reached, whose amplitude is below :data:`GH_FRACTION` of
-the curve's largest) and the half ends with EP.
+stops) or the steps fail next to it (the last orbit's amplitude below :data:`GH_FRACTION` of the
+curve's largest); the half ends there with EP and a ``GH`` point, which :func:`solve_gh` solves on
+the Hopf curve through the end (l1 = 0, ``contin.hopfcurve``): converged, the equilibrium's constant
+orbit as its state, the end the LPC curve reached in its note.
 
 Stored per point: the orbit row [node values, T, interior mesh points] (as on a cycle branch,
 ``contin.cycles.orbit_of``), both parameters, period / amplitude / l2norm, and the Floquet check of
@@ -46,6 +47,8 @@ from contin.foldcurve import FoldProblem, trace_augmented
 from contin.normalform import null_vectors
 from contin.options import ContinuationOptions
 from contin.problem import Array
+
+__all__ = ["LPCProblem", "lpc_start", "trace_lpc_curve", "as_lpc_curve", "solve_gh"]
 
 #: Branch.kind of an LPC curve.
 KIND = "lpc-curve"
@@ -267,9 +270,3 @@ def _orbit_row(sp_: SpecialPoint, size: int, inner: Array) -> SpecialPoint:
     tangent = None if sp_.tangent is None else np.concatenate(
         [np.asarray(sp_.tangent)[:size], np.zeros(inner.size), np.asarray(sp_.tangent)[2 * size:]])
     return dataclasses.replace(sp_, state=state, tangent=tangent)
-
-
-def gh_distance(curve: Branch) -> float:
-    """The smallest amplitude along an LPC curve relative to its largest (0 at a GH end)."""
-    amp = np.asarray(curve.order_parameter, float)
-    return float(np.min(amp) / np.max(amp)) if amp.size and np.max(amp) > 0 else math.nan
