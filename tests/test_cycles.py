@@ -439,13 +439,15 @@ def test_cli_cycles_end_to_end(ab_file, tmp_path):
     assert br.eigenvalues.shape == (len(br), 1) and br.stable[-1] and not br.stable[0]
     info = _cli("info", out)
     assert info.exit_code == 0 and "periodic-orbits" in info.output and "LPC" in info.output
-    # from an orbit file only a PD continues: `--from HB2 --free B` / `--from HB2 --cycles` of a
-    # complete ab orbit file ended 'Error: too many values to unpack (expected 2)' (an orbit's state
-    # read as an equilibrium's); verify blamed the equilibrium's missing grid hooks
-    for args in (["--from", "LPC1", "--free", "B"], ["--from", "LPC1", "--cycles"]):
+    # from an orbit file only a PD or BP (--cycles) or an LPC (--free: tests/test_lpc_curve.py)
+    # continues: `--from HB2 --free B` / `--from HB2 --cycles` of a complete ab orbit file ended
+    # 'Error: too many values to unpack (expected 2)' (an orbit's state read as an equilibrium's);
+    # verify blamed the equilibrium's missing grid hooks
+    for args in (["--from", br.special_points[-1].name, "--free", "B"], ["--from", "LPC1", "--cycles"]):
         r = _cli("continue", out, *args)
         errors = [ln for ln in r.output.splitlines() if ln.startswith("Error:")]
-        assert r.exit_code == 1 and len(errors) == 1 and "LPC1 is on branch 0 of periodic orbits" in errors[0], r.output
+        assert r.exit_code == 1 and len(errors) == 1 and f"{args[1]} is on branch 0 of periodic orbits" in errors[0], \
+            r.output
     v = _cli("verify", out)
     assert v.exit_code == 1 and "holds periodic orbits: contin verify re-solves steady states" in v.output
     assert f"Floquet multipliers of branch 0: outside the unit circle 0..1, stable at {int(br.stable.sum())} " \
