@@ -108,6 +108,9 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     for position, branch in enumerate(branches, start=1):
         if list(branch.params) != names:
             raise ValueError(f"branch {branch.id} has other parameters than branch {branches[0].id}")
+        if branch.kind == "lpc-curve":  # (its orbit rows were written as a 180-dimensional IPS = 1 state)
+            raise ValueError(f"branch {branch.id} is an LPC curve (curve of folds of cycles): AUTO's layout of such "
+                             "curves is not written (export the orbit branch it was continued from)")
         if branch.kind == "periodic-orbits":  # AUTO's IPS = 2 layout, with the orbits' mesh
             from contin.autoorbits import periodic_section
 

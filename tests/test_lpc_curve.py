@@ -177,6 +177,13 @@ def test_cli_lpc_curve_end_to_end(tmp_path):
     assert meta["extra"]["cycles"]["ntst"] == 20 and period > 0
     r = _cli("info", out)
     assert r.exit_code == 0 and "lpc-curve" in r.output and "GH" in r.output
+    assert "Floquet multipliers of branch lpc" in r.output and "kx=" not in r.output
+    r = _cli("profiles", out, "--point", curve.special_points[0].name, "-o", tmp_path / "orbit.png")
+    assert r.exit_code == 0 and (tmp_path / "orbit.png").stat().st_size > 1000, r.output
+    r = _cli("profiles", out, "--at", "D=0.2", "-o", tmp_path / "x.png")  # two parameters vary: refused
+    assert r.exit_code == 1 and "holds an LPC curve" in r.output.strip().splitlines()[-1]
+    r = _cli("export", out, "--auto", "lpc")  # not as a 180-dimensional IPS = 1 state
+    assert r.exit_code == 1 and "is an LPC curve" in r.output.strip().splitlines()[-1]
     r = _cli("diagram", out, "-x", "D", "-y", "B", "-o", tmp_path / "lpc.png")
     assert r.exit_code == 0, r.output
     assert (tmp_path / "lpc.png").stat().st_size > 0

@@ -58,7 +58,7 @@ def info_command(file: str, as_json: bool) -> None:
             changes = ", ".join(f"{old}->{new} at {b.parameter}={fmt(float(b.parameter_values[i]))}"
                                 for i, old, new in b.grid_changes) or "none"
             click.echo(f"\ngrid of branch {b.id}: {int(min(b.grid))}..{int(max(b.grid))}; changes: {changes}")
-        if b.n_unstable is not None and b.kind == "periodic-orbits":  # (no wavenumbers: Floquet multipliers)
+        if b.n_unstable is not None and b.kind in ("periodic-orbits", "lpc-curve"):  # (Floquet multipliers)
             nu = [int(v) for v in b.n_unstable]
             click.echo(f"\nFloquet multipliers of branch {b.id}: outside the unit circle {min(nu)}..{max(nu)}, "
                        f"stable at {int(sum(b.stable))} of {len(b)} points")

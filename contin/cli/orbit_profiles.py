@@ -41,7 +41,10 @@ def draw_orbits(file: str, branches: list[Any], meta: dict[str, Any], name: str,
         if missing:
             fail(f"no branch {missing[0]!r} in {file}; branches: {', '.join(b.id for b in branches)}")
         branches = [b for b in branches if b.id in branch_ids]
-    branches = [b for b in branches if b.kind == "periodic-orbits"]
+    if point is None and all(b.kind == "lpc-curve" for b in branches):
+        fail(f"{file} holds an LPC curve: its orbits are drawn at its labelled points (--point GH2, ...), not --at a "
+             "value (two parameters vary along it)")
+    branches = [b for b in branches if b.kind in ("periodic-orbits", "lpc-curve")]
     if point is not None:
         try:
             found = [orbit_at_point(branches, point, n, ncol, where=file)]

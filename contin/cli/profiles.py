@@ -41,7 +41,7 @@ def profiles_command(file: str, at: str | None, point: str | None, branch_ids: t
     point = check_nonempty(point, "--point")
     io.check_writable(output)
     branches, meta = io.load(file)
-    if any(b.kind == "periodic-orbits" for b in branches):
+    if any(b.kind in ("periodic-orbits", "lpc-curve") for b in branches):  # (an LPC curve's orbits: --point)
         from contin.cli.orbit_profiles import draw_orbits
 
         draw_orbits(file, branches, meta, name, value, point, branch_ids, names, output)
