@@ -249,6 +249,13 @@ def as_lpc_curve(raw: Branch, lpc: LPCProblem, parameter: str) -> Branch:
         elif sp_.type == "LP":
             sp_ = dataclasses.replace(sp_, note=sp_.note or f"extremum of {parameter}")
         specials.append(dataclasses.replace(sp_, params=q))
+    # an LP in the GH's step (or the next) is the curve touching the Hopf curve there, located on the
+    # singular cycle system (Bautin's mu = -b^2/4 has its extremum of mu at the GH itself)
+    ends = {sp_.index for sp_ in specials if sp_.type == "GH"}
+    for sp_ in [t for t in specials if t.type == "LP" and any(abs(t.index - i) <= 1 for i in ends)]:
+        raw.audit.append(f"dropped {sp_.name} ({parameter} = {sp_.params[parameter]:.10g}): an extremum of "
+                         f"{parameter} in the step of the GH end, where the cycle system is singular")
+        specials.remove(sp_)
     specials = [_orbit_row(sp_, size, inner) for sp_ in specials]
     ends = [sp_ for sp_ in specials if sp_.type in ("EP", "MX")]
     if ends and not any(sp_.type == "MX" for sp_ in ends):

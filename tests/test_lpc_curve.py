@@ -65,6 +65,7 @@ def test_bautin_lpc_curve_is_mu_equals_minus_b_squared_over_four():
     assert abs(mu[j]) < 1e-6 and abs(b[j]) < 1e-3
     (gh,) = curve.points("GH")
     assert gh.converged and abs(gh.params["mu"]) < 1e-10 and abs(gh.params["b"]) < 1e-7
+    assert [s.type for s in curve.special_points] == ["EP", "GH", "EP"]  # no LP of mu next to the GH
     assert math.isclose(gh.data["period"], 2 * math.pi / w, rel_tol=1e-10)
     assert gh.index in (0, len(curve) - 1) or curve.points("EP")
     assert np.all(b > -1e-3)  # it does not come back over the same folds half a period shifted
