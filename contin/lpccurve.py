@@ -175,9 +175,10 @@ def solve_gh(problem: Any, cp: CycleProblem, gh: SpecialPoint, parameter: str, s
                     f"({best.params[parameter]:.10g}, {best.params[second]:.10g}), period 2 pi / omega = "
                     f"{2 * math.pi / omega:.10g}; the LPC curve reached ({gh.params[parameter]:.10g}, "
                     f"{gh.params[second]:.10g})")
+            reached = {f"reached_{k}": float(gh.params[k]) for k in (parameter, second)}  # the LPC curve's own end
             return dataclasses.replace(gh, params=dict(best.params), state=state, converged=True, order_parameter=0.0,
                                        note=note, data={**gh.data, **best.data, "omega": omega,
-                                                        "period": 2 * math.pi / omega})
+                                                        "period": 2 * math.pi / omega, **reached})
         if curve is not None:
             why = f"no GH located on the Hopf curve through ({parameter}, {second}) = " \
                   f"({hb.params[parameter]:.10g}, {hb.params[second]:.10g})"
