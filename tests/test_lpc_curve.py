@@ -193,3 +193,27 @@ def test_cli_lpc_curve_end_to_end(tmp_path):
     assert r.exit_code != 0 and r.output.strip().splitlines()[-1].startswith("Error:")
     r = _cli("continue", ab, "--from", "HB1", "--free", "B", "--ntst", "40")
     assert r.exit_code != 0 and "Error:" in r.output
+
+
+def test_ctrl_c_keeps_the_lpc_curve_computed_so_far(tmp_path):
+    """The first Ctrl-C ends the LPC curve at its last point: the file holds it, marked incomplete
+    ('interrupted'), then one Error line and exit 130 (as for the other `continue` curves)."""
+    import os
+    import signal
+
+    from contin import io
+    from tests.signals import signalled
+
+    ab, orbits, out = tmp_path / "ab.h5", tmp_path / "abc.h5", tmp_path / "lpc.h5"
+    assert _cli("trace", "ab", "-q", "-o", ab).exit_code == 0
+    assert _cli("continue", ab, "--from", "HB1", "--cycles", "--max-steps", "40", "-o", orbits).exit_code == 0
+    code, stderr = signalled(["continue", str(orbits), "--from", "LPC1", "--free", "B", "--ds", "1e-4", "--ds-max",
+                              "1e-4", "--max-steps", "100000", "-o", str(out)], signal.SIGINT,
+                             lambda: (tmp_path / ".lpc.h5.lock").exists(), env=os.environ,
+                             what="the output lock (computing starts)", after=2.0)
+    errors = [line for line in stderr.splitlines() if line.startswith("Error:")]
+    assert code == 130 and errors == ["Error: interrupted (Ctrl-C)"], stderr
+    assert f"is saved in {out}" in stderr
+    (curve,), meta = io.load(out)
+    assert meta["complete"] is False and meta["stopped"] == "interrupted"
+    assert curve.kind == "lpc-curve" and len(curve) > 3 and "interrupted" in curve.message
