@@ -20,6 +20,9 @@ that misses REL there is recomputed on a finer grid); ``--no-solve-check`` switc
 BP curves --tol is an error.  Without --tol nothing changes: the fixed grid of the file and the
 run's guard.
 
+From an LPC of a file of orbits (``--from LPC1 --free NAME [--ntst N] [--ncol M]``): the curve of
+folds of cycles in (the orbits' parameter, NAME) (``contin.lpccurve``, ``contin.cli.cycles_cmd``).
+
 ``--cycles`` (no ``--free``): from an HB the periodic orbits born there, from a PD of a file of
 orbits the period-doubled ones, from a BP of one the bifurcating cycles (``--other-half``: the other
 half), in the branch's parameter (``contin.cli.cycles_cmd``,
@@ -102,9 +105,11 @@ def _refuse_own_input(file: str, output: str) -> None:
                    "PD of a file of orbits: the period-doubled orbits; from a BP of a file of orbits: the "
                    "bifurcating cycles.")
 @click.option("--ntst", type=click.IntRange(min=2, max=10_000), default=None, metavar="N",
-              help="With --cycles: mesh intervals of the orbits [default: 20].")
+              help="With --cycles, or from an LPC (--free): mesh intervals of the orbits [default: 20; from an "
+                   "LPC its orbit's].")
 @click.option("--ncol", type=click.IntRange(min=1, max=7), default=None, metavar="M",
-              help="With --cycles: Gauss collocation points per interval [default: 4].")
+              help="With --cycles, or from an LPC (--free): Gauss collocation points per interval [default: 4; "
+                   "from an LPC its orbit's].")
 @click.option("--amplitude", type=float, default=None, metavar="EPS",
               help="With --cycles: amplitude of the first orbit [default: 1e-2 max(1, |u_H|)].")
 @click.option("--uniform-mesh", is_flag=True, default=False,
