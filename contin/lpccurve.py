@@ -235,7 +235,8 @@ def as_lpc_curve(raw: Branch, lpc: LPCProblem, parameter: str) -> Branch:
             continue
         q = {**sp_.params, second: float(sp_.state[2 * size])}
         if sp_.type == "MX" and big > 0 and amp[sp_.index] <= GH_FRACTION * big and \
-                not sp_.note.startswith("under-resolved") and not any(abs(h.index - sp_.index) <= 1 for h in shrunk):
+                sp_.note.startswith("step failed") and not any(abs(h.index - sp_.index) <= 1 for h in shrunk):
+            # (only the tracer's failure next to amplitude 0: not an under-resolved or interrupted end)
             specials.append(gh(sp_, f"approached to amplitude {amp[sp_.index]:.2g} (of {big:.3g} on the curve), "
                                     "the last point reached"))
             failed.append(sp_.note)
