@@ -39,12 +39,24 @@ def find_auto() -> tuple[Path | None, str]:
     return auto_dir, ""
 
 
-def compile_equations(auto_dir: Path, workdir: Path) -> Path:
-    exe = workdir / "gpcf.exe"
+def compile_equations(auto_dir: Path, workdir: Path, source: Path = HERE / "gpcf.f90") -> Path:
+    """The executable of an AUTO equation file (default: gpcf.f90), linked against AUTO's library."""
+    exe = workdir / f"{source.stem}.exe"
     objects = sorted(str(p) for p in (auto_dir / "lib").glob("*.o"))
-    subprocess.run(["gfortran", "-O2", "-fopenmp", "-std=legacy", str(HERE / "gpcf.f90"), *objects, "-o", str(exe)],
+    subprocess.run(["gfortran", "-O2", "-fopenmp", "-std=legacy", str(source), *objects, "-o", str(exe)],
                    cwd=workdir, check=True, capture_output=True)
     return exe
+
+
+def restart(exe: Path, workdir: Path, solutions: str, constants_text: str) -> Path:
+    """One AUTO run of ``exe`` in ``workdir`` from the s-file ``solutions`` (copied to fort.3, where
+    AUTO's IRS finds its label) with the constants ``constants_text`` on stdin; the fort.8 path."""
+    for f in ("fort.7", "fort.8", "fort.9"):
+        (workdir / f).unlink(missing_ok=True)
+    shutil.copy(workdir / solutions, workdir / "fort.3")
+    subprocess.run([str(exe)], input=constants_text, text=True, cwd=workdir, check=True, capture_output=True,
+                   env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return workdir / "fort.8"
 
 
 def constants(**kw: object) -> str:

@@ -9,14 +9,13 @@ HB1 --free B`).  Needs AUTO-07p and gfortran (benchmarks.auto_peer.auto.find_aut
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.auto_peer.auto import find_auto
+from benchmarks.auto_peer.auto import compile_equations, find_auto, restart
 from benchmarks.auto_peer.fort import _float
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "auto_ab"
@@ -57,9 +56,7 @@ def main() -> int:
         return 0
     work = Path(tempfile.mkdtemp(prefix="contin-export-"))
     try:
-        objects = sorted(str(p) for p in (auto_dir / "lib").glob("*.o"))
-        subprocess.run(["gfortran", "-O2", "-fopenmp", "-std=legacy", str(DATA / "ab.f90"), *objects, "-o", "ab.exe"],
-                       cwd=work, check=True, capture_output=True)
+        exe = compile_equations(auto_dir, work, DATA / "ab.f90")
         contin = [sys.executable, "-m", "contin"]
         subprocess.run([*contin, "trace", "ab", "-o", "ab.h5", "-q"], cwd=work, check=True)
         subprocess.run([*contin, "export", "ab.h5", "--auto", "ab"], cwd=work, check=True, capture_output=True)
@@ -71,12 +68,8 @@ def main() -> int:
         ours = {sp.type: (sp.params["D"], sp.params["B"]) for sp in curve.special_points if sp.type in ("GH", "BT")}
         found = []
         for ds in (0.01, -0.01):
-            for f in ("fort.7", "fort.8", "fort.9"):
-                (work / f).unlink(missing_ok=True)
-            shutil.copy(work / "s.ab", work / "fort.3")  # AUTO reads the restart label from contin's s.ab
-            subprocess.run([str(work / "ab.exe")], input=CONSTANTS.format(ds=ds), text=True, cwd=work, check=True,
-                           capture_output=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
-            found += auto_points(work / "fort.8")
+            # AUTO reads the restart label from contin's s.ab
+            found += auto_points(restart(exe, work, "s.ab", CONSTANTS.format(ds=ds)))
         print("AUTO-07p restarted from contin's s.ab at HB1 (ISW=2, ICP=[1,2]):")
         print(f"{'point':6} {'AUTO D':>16} {'contin D':>16} {'AUTO B':>16} {'contin B':>16}")
         for kind, d, b in found:

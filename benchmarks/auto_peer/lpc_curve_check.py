@@ -13,7 +13,6 @@ AUTO-07p and gfortran (benchmarks.auto_peer.auto.find_auto); CI does not run it.
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -22,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.auto_peer.auto import find_auto
+from benchmarks.auto_peer.auto import compile_equations, find_auto, restart
 from benchmarks.auto_peer.fort import read_solutions
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "auto_ab"
@@ -45,9 +44,7 @@ def main() -> int:
         return 0
     work = Path(tempfile.mkdtemp(prefix="contin-lpc-"))
     try:
-        objects = sorted(str(p) for p in (auto_dir / "lib").glob("*.o"))
-        subprocess.run(["gfortran", "-O2", "-fopenmp", "-std=legacy", str(DATA / "ab.f90"), *objects, "-o", "ab.exe"],
-                       cwd=work, check=True, capture_output=True)
+        exe = compile_equations(auto_dir, work, DATA / "ab.f90")
         contin = [sys.executable, "-m", "contin"]
         subprocess.run([*contin, "trace", "ab", "-o", "ab.h5", "-q"], cwd=work, check=True)
         subprocess.run([*contin, "continue", "ab.h5", "--from", "HB1", "--cycles", "--max-steps", "40", "-o", "cyc.h5"],
@@ -61,12 +58,7 @@ def main() -> int:
         ours = read_solutions(work / "s.orb")
         (lpc,) = [s for s in ours if s.type == "LP"]
         def auto(source: str, irs: int, ds: float, nmx: int) -> list:
-            for f in ("fort.7", "fort.8", "fort.9"):
-                (work / f).unlink(missing_ok=True)
-            shutil.copy(work / source, work / "fort.3")
-            subprocess.run([str(work / "ab.exe")], input=CONSTANTS.format(irs=irs, ds=ds, nmx=nmx), text=True,
-                           cwd=work, check=True, capture_output=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
-            return read_solutions(work / "fort.8")
+            return read_solutions(restart(exe, work, source, CONSTANTS.format(irs=irs, ds=ds, nmx=nmx)))
 
         # AUTO's ISW = 2 at a periodic LP first generates the fold system's starting data (its null
         # vector) and ends "Restart at EP label below"; the curve is the restart from that EP

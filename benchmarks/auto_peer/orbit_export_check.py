@@ -13,14 +13,13 @@ contin put its LPC.  Prints both.  Needs AUTO-07p and gfortran
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.auto_peer.auto import find_auto
+from benchmarks.auto_peer.auto import compile_equations, find_auto, restart
 from benchmarks.auto_peer.fort import read_solutions
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "auto_ab"
@@ -42,9 +41,7 @@ def main() -> int:
         return 0
     work = Path(tempfile.mkdtemp(prefix="contin-orbits-"))
     try:
-        objects = sorted(str(p) for p in (auto_dir / "lib").glob("*.o"))
-        subprocess.run(["gfortran", "-O2", "-fopenmp", "-std=legacy", str(DATA / "ab.f90"), *objects, "-o", "ab.exe"],
-                       cwd=work, check=True, capture_output=True)
+        exe = compile_equations(auto_dir, work, DATA / "ab.f90")
         contin = [sys.executable, "-m", "contin"]
         subprocess.run([*contin, "trace", "ab", "-o", "ab.h5", "-q"], cwd=work, check=True)
         subprocess.run([*contin, "continue", "ab.h5", "--from", "HB1", "--cycles", "--max-steps", "40", "-o", "cyc.h5"],
@@ -55,12 +52,7 @@ def main() -> int:
         last = ours[-1]
         runs = {}
         for ds in (-0.01, 0.01):
-            for f in ("fort.7", "fort.8", "fort.9"):
-                (work / f).unlink(missing_ok=True)
-            shutil.copy(work / "s.orb", work / "fort.3")
-            subprocess.run([str(work / "ab.exe")], input=CONSTANTS.format(irs=last.label, ds=ds), text=True, cwd=work,
-                           check=True, capture_output=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
-            runs[ds] = read_solutions(work / "fort.8")
+            runs[ds] = read_solutions(restart(exe, work, "s.orb", CONSTANTS.format(irs=last.label, ds=ds)))
         print(f"AUTO-07p restarted from contin's s.orb at label {last.label} (IPS=2, ICP=[1,11], NTST 20, NCOL 4):")
         print(f"{'':28} {'D = PAR(1)':>16} {'period':>16}")
         print(f"{'contin, restart orbit':28} {last.par[0]:16.11f} {last.par[10]:16.10f}")
