@@ -706,6 +706,12 @@ class H5Writer:
             lock.release()
 
 
+#: the root attributes H5Writer sets itself; any other one is a caller's (``attrs=``)
+_OWN_ROOT_ATTRS = frozenset({"format", "format_version", "contin_version", "git_commit", "libraries", "complete",
+                             "created_utc", "command", "scene", "diagram_x", "diagram_y", "stopped", "parameters",
+                             "discretization", "options", "notes", "extra"})
+
+
 def write(path: str | os.PathLike[str], branches: Iterable[Branch], *, stopped: str = "", **meta: Any) -> Path:
     """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`.
 
@@ -892,6 +898,10 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                         "stopped"):
                 meta[key] = str(a.get(key, ""))
             meta["libraries"] = _jsonload(a.get("libraries"), {})  # written since session 18
+            # root attributes of others (a sweep task's result, `sweep_task`): a writer over this
+            # file (trace --resume) passes them on (H5Writer attrs=); they were dropped (qa19)
+            meta["attrs"] = {k: (v.decode() if isinstance(v, bytes) else str(v)) for k, v in a.items()
+                             if k not in _OWN_ROOT_ATTRS}
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
             check_parameters(meta["parameters"])  # a NaN there was shown by info and rebuilt into problems
