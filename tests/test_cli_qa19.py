@@ -41,3 +41,39 @@ def test_trace_resume_of_a_sweep_task_file_keeps_its_sweep_task(tmp_path):
     assert res.exit_code == 0 and "1 from earlier runs" in res.stderr, res.stderr
     doc = json.loads((out / "summary.json").read_text())
     assert [t["cached"] for t in doc["tasks"]] == [True]
+
+
+def test_trim_to_new_compares_the_seed_with_the_states_of_its_own_grid():
+    """`contin trace gravity -s Fr=1e20` ended 'Error: operands could not be broadcast together with
+    shapes (616,901) (1,261)': contin.overlap.trim_to_new looked for the seed (cheb 64, 261 unknowns)
+    among the NaN-padded states of a branch that had refined its grid (up to 901 unknowns).  Now the
+    seed is compared with the points of its own size: the part of the branch off the known one, from
+    the seed on, is kept (one point of overlap)."""
+    from contin.branch import Branch, pad_rows
+    from contin.overlap import trim_to_new
+
+    class XY:
+        def branch(self, b):
+            return np.column_stack([b.params["x"], b.observables["phi"]])
+
+        def point(self, problem, u, p):
+            return np.array([p["x"]])
+
+    def branch(x, sizes):
+        n = len(x)
+        states = pad_rows([np.full(k, xi) for xi, k in zip(x, sizes)])
+        return Branch(parameter="x", free=("x",), params={"x": np.asarray(x, float)},
+                      observables={"phi": np.asarray(x, float)}, states=states,
+                      tangents=pad_rows([np.ones(k + 1) for k in sizes]), ds=np.ones(n),
+                      newton_iterations=np.zeros(n, np.int64), sizes=np.asarray(sizes),
+                      grid=np.asarray(sizes))
+
+    x = np.arange(7.0)
+    b = branch(x, [3, 3, 3, 3, 5, 5, 5])  # refined from the seed's grid (3 unknowns) to 5 at x = 4
+    known = branch(x[:3], [3, 3, 3])      # the points x = 0, 1, 2 run along a known branch
+    out = trim_to_new(b, np.full(3, 3.0), [known], XY(), tol=1e-6)
+    assert list(out.params["x"]) == [2.0, 3.0, 4.0, 5.0, 6.0]
+    assert np.array_equal(out.state(4), np.full(5, 6.0))
+    # a branch with no state of the seed's size is left as it is (nothing to compare)
+    c = branch(x, [5] * 7)
+    assert trim_to_new(c, np.full(3, 3.0), [known], XY(), tol=1e-6) is c
