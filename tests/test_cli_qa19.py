@@ -17,6 +17,49 @@ from contin import io
 from tests.cli_sweep import one_error, real_scenes, run  # noqa: E402,F401  (real_scenes: autouse)
 
 
+# ----------------------------------------------------------------------------- extreme gPCF parameters
+@pytest.mark.parametrize("args, expect", [
+    (["gravity", "-s", "Fr=1e-150"], "parameter Fr = 1e-150 is out of range; scene 'gravity' needs 1e-50 <= Fr <= 1e+50"),
+    (["gravity", "-s", "Fr=1e300"], "parameter Fr = 1e+300 is out of range; scene 'gravity' needs 1e-50 <= Fr <= 1e+50"),
+    (["gravity", "-s", "Fr=1e154"], "parameter Fr = 1e+154 is out of range; scene 'gravity' needs 1e-50 <= Fr <= 1e+50"),
+    (["gravity", "-s", "nu=1e-300"], "parameter nu = 1e-300 is out of range; it must satisfy 1e-06 <= nu < 0.65"),
+    (["gravity", "-s", "H_min=1e-300"], "parameter H_min = 1e-300 is out of range; it must satisfy 1e-50 <= H_min <= 1e+50"),
+    (["gravity", "-s", "H_max=1e300"], "parameter H_max = 1e+300 is out of range; it must satisfy 1e-50 <= H_max <= 1e+50"),
+    (["gravity-phase", "-s", "Fr_start=1e300"], "parameter Fr_start = 1e+300 is out of range; it must satisfy 1e-50"),
+    (["gravity-phase", "-s", "Fr_start=1e-150"], "parameter Fr_start = 1e-150 is out of range; it must satisfy 1e-50"),
+    (["pitchfork", "-s", "nu=1e-300"], "parameter nu = 1e-300 is out of range; it must satisfy 1e-06 <= nu < 0.65"),
+    (["pitchfork", "-s", "nu=1e-50"], "parameter nu = 1e-50 is out of range; it must satisfy 1e-06 <= nu < 0.65"),
+    (["pitchfork", "-s", "H=1e-300"], "parameter H = 1e-300 is out of range; it must satisfy 1e-50 <= H <= 1e+50"),
+    (["pitchfork", "-s", "H=1e300"], "parameter H = 1e+300 is out of range; it must satisfy 1e-50 <= H <= 1e+50"),
+    (["pitchfork", "-s", "H_max=1e300"], "parameter H_max = 1e+300 is out of range; it must satisfy 1e-50 <= H_max"),
+])
+def test_extreme_gpcf_parameters_are_one_line_naming_the_parameter_and_its_range(args, expect, tmp_path):
+    """`contin trace gravity -s Fr=1e-150` (and Fr=1e300) ended 'Error: arithmetic failure (OverflowError:
+    Numerical result out of range): a parameter or step is probably out of the model's range', Fr=1e154
+    the same with ZeroDivisionError (the G-homotopy's weight 1/G^2), nu=1e-300 a RuntimeWarning and
+    'non-finite entries', pitchfork nu=1e-50 'index 51 is out of bounds', H_max=1e300 ran on for
+    minutes.  Now problems.couette.params (G <= 1e100, nu >= 1e-6, 1e-50 <= H <= 1e50) and the scenes
+    (their homotopy in G needs G >= 1e-100) refuse them before computing, naming the range."""
+    out = tmp_path / "x.h5"
+    err = one_error(run(["trace", *args, "--no-stability", "-q", "-o", str(out)]))
+    assert err.startswith("Error: " + expect), err
+    assert not out.exists()
+
+
+def test_froude_number_conversion_at_the_ends_of_its_range():
+    """build_params({'Fr': 1e300}) raised OverflowError (Fr**2): G = Fr^-2 = 1e-600 is 0 in double
+    precision; Fr below 1e-50 (G above 1e100) is a ValueError naming Fr and the range."""
+    from problems.couette.params import build_params
+
+    assert build_params({"Fr": 1e300})["G"] == 0.0
+    assert build_params({"Fr": 1e160})["G"] == pytest.approx(1e-320, rel=1e-3)  # subnormal
+    assert build_params({"Fr": 1e-50})["G"] == pytest.approx(1e100, rel=1e-15)
+    with pytest.raises(ValueError, match=r"parameter Fr = 1e-150 is out of range; it must satisfy Fr >= 1e-50"):
+        build_params({"Fr": 1e-150})
+    with pytest.raises(ValueError, match=r"parameter G = 1e\+300 is out of range; it must satisfy 0 <= G <= 1e\+100"):
+        build_params({"G": 1e300})
+
+
 # ----------------------------------------------------------------------------- sweep task files
 def test_trace_resume_of_a_sweep_task_file_keeps_its_sweep_task(tmp_path):
     """`contin trace bratu --resume TASK.h5` of a file `contin sweep` wrote dropped its root attribute
