@@ -120,3 +120,28 @@ def test_trim_to_new_compares_the_seed_with_the_states_of_its_own_grid():
     # a branch with no state of the seed's size is left as it is (nothing to compare)
     c = branch(x, [5] * 7)
     assert trim_to_new(c, np.full(3, 3.0), [known], XY(), tol=1e-6) is c
+
+
+# ----------------------------------------------------------------------------- periodic orbits
+@pytest.fixture(scope="module")
+def ab_file(tmp_path_factory):
+    """AUTO's demo ab in D (two Hopf points, HB1 subcritical at D = 0.16504)."""
+    path = tmp_path_factory.mktemp("ab") / "ab.h5"
+    res = run(["trace", "ab", "-q", "-o", str(path)])
+    assert res.exit_code == 0, res.stderr
+    return path
+
+
+@pytest.mark.parametrize("amplitude, predicted", [("1e300", "D = -inf"), ("100", "D = -75.")])
+def test_a_huge_start_amplitude_is_one_line_naming_the_predicted_parameter(ab_file, tmp_path, amplitude, predicted):
+    """`contin continue ab.h5 --from HB1 --cycles --amplitude 1e300` ended 'Error: arithmetic failure
+    (OverflowError: Numerical result out of range)' (eps**2 of the normal-form shift) and `--amplitude
+    100` 'did not converge: Newton diverged' at D = -75.9: far outside the bounds 0 <= D <= 0.5.  Now
+    contin.cycles.start_orbit refuses a first orbit predicted outside the bounds, saying so."""
+    out = tmp_path / "o.h5"
+    err = one_error(run(["continue", str(ab_file), "--from", "HB1", "--cycles", "--amplitude", amplitude,
+                         "-o", str(out)]))
+    assert err.startswith(f"Error: the first periodic orbit near HB1 (amplitude {float(amplitude):g}) is predicted at "
+                          f"{predicted}"), err
+    assert "outside the bounds 0 <= D <= 0.5" in err and "give a smaller amplitude" in err, err
+    assert not out.exists()
