@@ -7,7 +7,7 @@ Each test names the command that misbehaved before its fix.
 from __future__ import annotations
 
 import json
-from pathlib import Path
+import os
 
 import numpy as np
 import pytest
@@ -124,12 +124,9 @@ def test_trim_to_new_compares_the_seed_with_the_states_of_its_own_grid():
 
 # ----------------------------------------------------------------------------- periodic orbits
 @pytest.fixture(scope="module")
-def ab_file(tmp_path_factory):
-    """AUTO's demo ab in D (two Hopf points, HB1 subcritical at D = 0.16504)."""
-    path = tmp_path_factory.mktemp("ab") / "ab.h5"
-    res = run(["trace", "ab", "-q", "-o", str(path)])
-    assert res.exit_code == 0, res.stderr
-    return path
+def ab_file(ab_orbits):
+    """AUTO's demo ab in D (two Hopf points, HB1 subcritical at D = 0.16504; tests/conftest.py)."""
+    return ab_orbits / "ab.h5"
 
 
 @pytest.mark.parametrize("amplitude, predicted", [("1e300", "D = -inf"), ("100", "D = -75.")])
@@ -145,3 +142,37 @@ def test_a_huge_start_amplitude_is_one_line_naming_the_predicted_parameter(ab_fi
                           f"{predicted}"), err
     assert "outside the bounds 0 <= D <= 0.5" in err and "give a smaller amplitude" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("failure", ["ENOSPC", "EROFS"])
+def test_export_auto_on_a_full_or_read_only_disk_keeps_both_previous_files(ab_orbits, tmp_path, monkeypatch, failure):
+    """`contin export ORBITS.h5 --auto orb -d DIR` on a full disk (a 64 kB tmpfs) replaced b.orb and then
+    failed on s.orb: a new diagram beside the old solutions, which AUTO would read as one run.  On a
+    read-only file system it ended 'Error: Read-only file system: 'DIR/b.orb.tmp'' (the temporary's
+    clean-up failed too).  Now contin.atomic.publish_together writes both before renaming either, and
+    the line names the file."""
+    import errno
+
+    import contin.atomic as atomic
+
+    out = tmp_path / "auto"
+    out.mkdir()
+    (out / "b.orb").write_text("old b\n")
+    (out / "s.orb").write_text("old s\n")
+    original = atomic.write_bytes
+    code = getattr(errno, failure)
+
+    def fail_on_s(tmp, data):  # the disk fills up (or is read-only) at the second file
+        if tmp.name.startswith("s.") or failure == "EROFS":
+            raise OSError(code, os.strerror(code), str(tmp))
+        original(tmp, data)
+
+    monkeypatch.setattr(atomic, "write_bytes", fail_on_s)
+    err = one_error(run(["export", str(ab_orbits / "cyc.h5"), "--auto", "orb", "-d", str(out)]))
+    if failure == "ENOSPC":
+        assert err == (f"Error: cannot write '{out / 's.orb'}': No space left on device (disk or quota full); "
+                       "the previous versions of 'b.orb', 's.orb' are unchanged"), err
+    else:
+        assert err == f"Error: cannot write '{out / 'b.orb'}': Read-only file system", err
+    assert (out / "b.orb").read_text() == "old b\n" and (out / "s.orb").read_text() == "old s\n"
+    assert sorted(p.name for p in out.iterdir()) == ["b.orb", "s.orb"]  # no temporary left
