@@ -105,7 +105,7 @@ import numpy as np
 from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
-from contin.filecheck import (BadDataset, check_branch, check_profile_grid, check_profile_widths, check_special_point,
+from contin.filecheck import (BadDataset, check_branch, check_orbits, check_profile_grid, check_profile_widths, check_special_point,
                               first_bad_row)
 from contin.jsonout import dumps as _json_dumps
 from contin.options import AdaptOptions, ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
@@ -930,6 +930,7 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                     raise FileFormatError(f"{str(p)!r} is damaged: special point {sp.name} names a missing branch {bid!r}")
                 check_special_point(row, branches[pos], sp)
                 branches[pos].special_points.append(sp)
+            check_orbits(branches, meta["extra"])
             return branches, meta
     except FileFormatError:
         raise

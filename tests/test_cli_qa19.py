@@ -176,3 +176,53 @@ def test_export_auto_on_a_full_or_read_only_disk_keeps_both_previous_files(ab_or
         assert err == f"Error: cannot write '{out / 'b.orb'}': Read-only file system", err
     assert (out / "b.orb").read_text() == "old b\n" and (out / "s.orb").read_text() == "old s\n"
     assert sorted(p.name for p in out.iterdir()) == ["b.orb", "s.orb"]  # no temporary left
+
+
+def _edited(src: Path, dst: Path, edit) -> Path:
+    import shutil
+
+    import h5py
+
+    shutil.copy(src, dst)
+    with h5py.File(dst, "r+") as f:
+        edit(f)
+    return dst
+
+
+def _set_cycles(value):
+    def edit(f):
+        extra = json.loads(f.attrs["extra"])
+        extra["cycles"] = value(extra["cycles"])
+        f.attrs["extra"] = json.dumps(extra)
+    return edit
+
+
+def _mesh_reversed(f):
+    states = f["branches/0/states"][()]
+    states[:, -2:] = states[:, -2:][:, ::-1]  # the last two interior mesh points swapped: not increasing
+    del f["branches/0/states"]
+    f["branches/0/states"] = states
+
+
+@pytest.mark.parametrize("edit, expect", [
+    (_set_cycles(lambda c: [1, 2]), "attribute extra holds a 'cycles' entry of type list, not the mapping"),
+    (_set_cycles(lambda c: {**c, "n": "three"}), "needs whole numbers n >= 1, ncol >= 1 and ntst >= 2, got n = 'three'"),
+    (_set_cycles(lambda c: {**c, "ncol": 0}), "needs whole numbers n >= 1, ncol >= 1 and ntst >= 2, got n = 2, ncol = 0"),
+    (_set_cycles(lambda c: {**c, "n": 3}), "dataset branches/0/states (row 0) holds 180 entries, which is no orbit of n = 3"),
+    (_mesh_reversed, "dataset branches/0/states (row 0) is no orbit: its period must be > 0 and its mesh increase"),
+])
+@pytest.mark.parametrize("command", [["info"], ["diagram", "-o", "d.png"], ["profiles", "--point", "LPC1", "-o", "p.png"],
+                                     ["export", "--auto", "x", "-d", "."],
+                                     ["continue", "--from", "LPC1", "--cycles", "-o", "c.h5"]])
+def test_an_orbit_file_with_an_edited_collocation_or_mesh_is_a_damaged_file(ab_orbits, tmp_path, monkeypatch, edit,
+                                                                              expect, command):
+    """A file of orbits whose extra['cycles'] entry was edited ended `contin continue F --from PD1 --cycles`
+    with 'internal error (AttributeError: 'list' object has no attribute 'get')', `profiles` and `export`
+    with 'invalid literal for int() with base 10' or 'collocation needs NTST >= 2 and NCOL >= 1 (got
+    NTST = 260, NCOL = 0)', and `info` and `diagram` showed it (exit 0); a mesh that does not increase
+    was drawn by `profiles --point`.  The reader checks the orbits' layout now (contin.filecheck.check_orbits)."""
+    monkeypatch.chdir(tmp_path)
+    path = _edited(ab_orbits / "cyc.h5", tmp_path / "bad.h5", edit)
+    name, *rest = command
+    err = one_error(run([name, str(path), *rest]))
+    assert err.startswith(f"Error: '{path}' is damaged: ") and expect in err, err
