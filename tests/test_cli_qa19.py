@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from contin import io
+
 from tests.cli_sweep import one_error, real_scenes, run  # noqa: E402,F401  (real_scenes: autouse)
 
 
@@ -225,3 +227,28 @@ def test_an_orbit_file_with_an_edited_collocation_or_mesh_is_a_damaged_file(ab_o
     name, *rest = command
     err = one_error(run([name, str(path), *rest]))
     assert err.startswith(f"Error: '{path}' is damaged: ") and expect in err, err
+
+
+def test_a_ctrl_c_after_the_orbits_are_finished_keeps_them_complete(ab_file, tmp_path, monkeypatch):
+    """`contin continue ab.h5 --from HB1 --cycles` + Ctrl-C while the end of the orbits was located or
+    their multipliers computed (the last ~2 s of a 6 s run): every orbit was computed, yet the file was
+    marked interrupted (complete False) and `contin info` sent the user to compute it again.  A stop
+    that cut nothing short (contin.cancel.is_stopped_branch) now leaves the result complete; the note
+    says so, and the run still ends as interrupted (exit 130)."""
+    import contin.cycles as cycles
+    from contin.cancel import request_stop
+
+    original = cycles.finish_branch
+
+    def ctrl_c_in_the_multipliers(*args, **kwargs):
+        request_stop()  # the first Ctrl-C arrives while the multipliers are computed
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(cycles, "finish_branch", ctrl_c_in_the_multipliers)
+    out = tmp_path / "cyc.h5"
+    res = run(["continue", str(ab_file), "--from", "HB1", "--cycles", "--max-steps", "8", "-o", str(out)])
+    assert res.exit_code == 130 and one_error(res) == "Error: interrupted (Ctrl-C)", res.stderr
+    assert f"note: the orbits (9 points) were finished before the Ctrl-C took effect: saved complete in {out}" in res.stderr
+    (orbits,), meta = io.load(out)
+    assert meta["complete"] is True and meta["stopped"] == "" and len(orbits) == 9
+    assert "maximum number of steps (8) reached" in orbits.message
