@@ -336,6 +336,9 @@ def start_orbit(problem: Any, point: SpecialPoint, parameter: str, cycle: CycleO
     eps = cycle.amplitude if cycle.amplitude is not None else default_amplitude(start.state)
     x, p1, direction = first_orbit(start, mesh, parameter, eps)
     lo, hi = options.bounds.get(parameter, (-math.inf, math.inf))
+    if not lo <= start.params[parameter] <= hi:
+        raise ValueError(f"{point.name} at {parameter} = {start.params[parameter]:.10g} lies outside the bounds "
+                         f"{lo:g} <= {parameter} <= {hi:g}; its orbits start there")
     if not (math.isfinite(p1) and np.all(np.isfinite(x)) and lo <= p1 <= hi):
         # the normal form puts an orbit of amplitude eps at |p - p_H| ~ eps^2: --amplitude 1e300 ended
         # 'arithmetic failure (OverflowError)', --amplitude 100 of ab's HB1 'Newton diverged' at D = -75.9 (qa19)

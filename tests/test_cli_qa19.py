@@ -143,6 +143,9 @@ def test_a_huge_start_amplitude_is_one_line_naming_the_predicted_parameter(ab_fi
                           f"{predicted}"), err
     assert "outside the bounds 0 <= D <= 0.5" in err and "give a smaller amplitude" in err, err
     assert not out.exists()
+    # a Hopf point outside the bounds is named as such (no amplitude would help)
+    err = one_error(run(["continue", str(ab_file), "--from", "HB1", "--cycles", "--bounds", "D=0.2:0.3", "-o", str(out)]))
+    assert err.startswith("Error: HB1 at D = 0.1650420453 lies outside the bounds 0.2 <= D <= 0.3"), err
 
 
 @pytest.mark.parametrize("failure", ["ENOSPC", "EROFS"])
