@@ -255,3 +255,35 @@ def test_a_ctrl_c_after_the_orbits_are_finished_keeps_them_complete(ab_file, tmp
     (orbits,), meta = io.load(out)
     assert meta["complete"] is True and meta["stopped"] == "" and len(orbits) == 9
     assert "maximum number of steps (8) reached" in orbits.message
+
+
+def test_profiles_at_a_value_between_a_fold_of_cycles_and_its_neighbours(ab_orbits, tmp_path):
+    """`contin profiles ORBITS.h5 --at D=0.1616962` said 'no branch of orbits in F reaches D=0.161696'
+    (the value rounded): ab's fold of cycles LPC1 lies at D = 0.16169613, its stored neighbours at
+    0.16169803 and 0.16169627, so D = 0.1616962 is crossed only between a stored orbit and the fold.
+    The located points now take part in the search (contin.orbitprofile.orbit_at); the orbit drawn is
+    a periodic solution at that D (checked by integrating the ODE over its period with solve_ivp)."""
+    from scipy.integrate import solve_ivp
+
+    from contin.orbitprofile import orbit_at
+    from contin.restart import rebuild_problem
+
+    path = ab_orbits / "cyc.h5"
+    (branch,), meta = io.load(path)
+    lpc = branch.points("LPC")[0]
+    k = lpc.index
+    near = min(branch.params["D"][k], branch.params["D"][k + 1])
+    value = float(lpc.params["D"] + near) / 2
+    res = run(["profiles", str(path), "--at", f"D={value!r}", "-o", str(tmp_path / "p.png")])
+    assert res.exit_code == 0, res.stderr
+    assert f"branch 0: interpolated between stored point {k} and LPC1, corrected by Newton" in res.stderr, res.stderr
+    cycles = meta["extra"]["cycles"]
+    (orbit,) = orbit_at([branch], "D", value, cycles["n"], cycles["ncol"], rebuild_problem({**meta, "path": str(path)}))
+    assert orbit.params["D"] == value and orbit.doubt in ("", None)
+    problem = rebuild_problem({**meta, "path": str(path)})
+    ode = solve_ivp(lambda t, u: problem.residual(u, orbit.params), (0, orbit.period), orbit.nodes[0],
+                    method="DOP853", rtol=1e-11, atol=1e-12)
+    assert np.abs(ode.y[:, -1] - orbit.nodes[0]).max() < 1e-6
+    # beyond the fold no orbit: one line giving the range the branch covers
+    err = one_error(run(["profiles", str(path), "--at", "D=0.1616961", "-o", str(tmp_path / "q.png")]))
+    assert err.startswith("Error: no branch of orbits in") and "reaches D=0.1616961 (branch 0: D = 0.1616961303 .. " in err
