@@ -957,21 +957,43 @@ def profiles_at(
     tol = 1e-9 * max(1.0, abs(value))
     for b in branches:
         found = None
+        located: list[tuple[Any, int]] = []  # (special point, its row of special_point_profiles)
         for sp in b.special_points:
             if sp_prof and found is None and name in sp.params and abs(float(sp.params[name]) - value) <= tol:
                 found = (b, f"at {sp.name}", {k: v[row] for k, v in sp_prof.items()})
+            if sp_prof and sp.type not in ("EP", "MX") and name in sp.params:
+                located.append((sp, row))
             row += 1
         prof = meta.get("profiles", {}).get(b.id)
         count = 0  # crossings of the value along the branch
         if prof is not None and name in b.params:
             idx = np.asarray(prof["index"])
-            crossing = first_crossing(np.asarray(b.params[name], dtype=float)[idx], value)
+            names = [k for k in prof if k != "index"]
+            # the stored profiles in branch order, each located point (index i: between points i and
+            # i + 1) after the stored ones up to i: `contin profiles br.h5 --at lam=3.5135` between
+            # Bratu's fold (3.51383) and the stored profiles next to it said 'no stored branch
+            # reaches lam=3.5135' (qa19)
+            seq: list[tuple[float, str, dict[str, np.ndarray]]] = []
+            params = np.asarray(b.params[name], dtype=float)
+            for r, i in enumerate(idx):
+                seq.append((float(params[i]), f"point {int(i)}", {k: prof[k][r] for k in names}))
+                last = r == len(idx) - 1
+                for sp, sp_row in located:
+                    if int(i) <= sp.index and (last or sp.index < int(idx[r + 1])) and not (last and sp.index >= len(b) - 1):
+                        if all(k in sp_prof for k in names):
+                            seq.append((float(sp.params[name]), sp.name, {k: sp_prof[k][sp_row] for k in names}))
+            crossing = first_crossing(np.array([v for v, _, _ in seq]), value)
             if crossing is not None:
                 i, j, w, count = crossing
                 if found is None:
-                    how = f"at stored point {idx[i]}" if w == 0.0 else f"interpolated between points {idx[i]} and {idx[j]}"
-                    found = (b, how,
-                             {k: (1 - w) * v[i] + w * v[j] for k, v in prof.items() if k != "index"})
+                    (_, what_i, prof_i), (_, what_j, prof_j) = seq[i], seq[j]
+                    if w == 0.0:
+                        how = f"at stored {what_i}" if what_i.startswith("point") else f"at {what_i}"
+                    elif what_i.startswith("point") and what_j.startswith("point"):
+                        how = f"interpolated between points {what_i.split()[1]} and {what_j.split()[1]}"
+                    else:
+                        how = f"interpolated between {what_i} and {what_j}"
+                    found = (b, how, {k: (1 - w) * prof_i[k] + w * prof_j[k] for k in names})
         if found is not None:
             at_fold = found[1].startswith("at LP")  # both crossings next to a fold are that one point
             if count > 1 and not at_fold:  # a branch through a fold reaches the value again: say that only one is drawn

@@ -287,3 +287,26 @@ def test_profiles_at_a_value_between_a_fold_of_cycles_and_its_neighbours(ab_orbi
     # beyond the fold no orbit: one line giving the range the branch covers
     err = one_error(run(["profiles", str(path), "--at", "D=0.1616961", "-o", str(tmp_path / "q.png")]))
     assert err.startswith("Error: no branch of orbits in") and "reaches D=0.1616961 (branch 0: D = 0.1616961303 .. " in err
+
+
+def test_profiles_at_a_value_between_a_fold_and_the_stored_profiles_next_to_it(tmp_path):
+    """`contin profiles br.h5 --at lam=3.5135` (Bratu's fold LP1 at lam* = 3.51383; the stored profiles
+    next to it at lam = 3.5112 and 3.5088, every other point being stored) said 'no stored branch of
+    br.h5 reaches lam=3.5135' although the branch turns at 3.51383.  The located points' stored
+    profiles now take part in the search (contin.io.profiles_at)."""
+    path = tmp_path / "br.h5"
+    assert run(["trace", "bratu", "-q", "-o", str(path)]).exit_code == 0
+    branches, meta = io.load(path)
+    (lp,) = branches[0].points("LP")
+    assert abs(lp.params["lam"] - 3.513830719125162) < 1e-8  # Jacobsen & Schmitt 2002
+    value = 3.5135
+    idx = meta["profiles"]["0"]["index"]
+    assert not np.any((branches[0].params["lam"][idx] > value))  # no stored profile reaches it
+    res = run(["profiles", str(path), "--at", f"lam={value}", "-o", str(tmp_path / "p.png")])
+    assert res.exit_code == 0, res.stderr
+    assert "branch 0: interpolated between point " in res.stderr and " and LP1 (the first of 2 crossings" in res.stderr
+    ((_, how, prof),) = io.profiles_at(branches, meta, "lam", value)
+    before = int(how.split()[3])
+    row = list(idx).index(before)
+    lo, hi = sorted([float(np.max(meta["profiles"]["0"]["u"][row])), float(np.max(meta["special_point_profiles"]["u"][0]))])
+    assert lo < float(np.max(prof["u"])) < hi
