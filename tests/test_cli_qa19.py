@@ -310,3 +310,14 @@ def test_profiles_at_a_value_between_a_fold_and_the_stored_profiles_next_to_it(t
     row = list(idx).index(before)
     lo, hi = sorted([float(np.max(meta["profiles"]["0"]["u"][row])), float(np.max(meta["special_point_profiles"]["u"][0]))])
     assert lo < float(np.max(prof["u"])) < hi
+
+
+def test_profiles_of_an_interrupted_file_of_orbits_says_it_is_incomplete(ab_orbits, tmp_path):
+    """`contin profiles STOPPED.h5 --at D=0.2` of orbits a Ctrl-C cut short at D = 0.169 said only 'no
+    branch of orbits reaches D=0.2', as if the orbits ended there; diagram, export and fit of an
+    incomplete file print a warning line (qa18), profiles did not."""
+    path = _edited(ab_orbits / "cyc.h5", tmp_path / "stopped.h5",
+                   lambda f: (f.attrs.__setitem__("complete", False), f.attrs.__setitem__("stopped", "interrupted")))
+    res = run(["profiles", str(path), "--point", "LPC1", "-o", str(tmp_path / "p.png")])
+    assert res.exit_code == 0, res.stderr
+    assert f"warning: {path} is incomplete (its run was interrupted): its curve ends where it stopped" in res.stderr
