@@ -321,3 +321,18 @@ def test_profiles_of_an_interrupted_file_of_orbits_says_it_is_incomplete(ab_orbi
     res = run(["profiles", str(path), "--point", "LPC1", "-o", str(tmp_path / "p.png")])
     assert res.exit_code == 0, res.stderr
     assert f"warning: {path} is incomplete (its run was interrupted): its curve ends where it stopped" in res.stderr
+
+
+def test_steps_below_the_rounding_of_the_values_are_said_to_move_nothing(tmp_path):
+    """`contin trace bratu --ds-max 1e-300` stored 61 points within lam = 0 .. 6e-299 (the states the
+    same to rounding), 'maximum number of steps (60) reached', exit 0 and no word: the crawl test
+    (contin.stall) compares the last steps with the branch's largest, which were all as small.  A
+    branch whose largest step is at the rounding of its values (1e-12 of their size) is said to have
+    moved nothing."""
+    res = run(["trace", "bratu", "--ds-max", "1e-300", "-q", "-o", str(tmp_path / "b.h5")])
+    assert ("warning: branch 0: ended at its step cap crawling: its largest step was 0, at the rounding of its "
+            "values (of size 1): lam moved 5.98e-299 in 60 steps; give a larger step (--ds/--ds-max)") in res.stderr, res.stderr
+    (b,), _ = io.load(tmp_path / "b.h5")
+    assert float(np.max(b.params["lam"])) < 1e-290  # it really did not move (Bratu's lam runs to 3.5138)
+    res = run(["trace", "bratu", "--ds-max", "1e-6", "--max-steps", "5", "-q", "-o", str(tmp_path / "c.h5")])
+    assert "crawling" not in res.stderr, res.stderr  # small steps that do move are not flagged
