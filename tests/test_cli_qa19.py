@@ -336,3 +336,16 @@ def test_steps_below_the_rounding_of_the_values_are_said_to_move_nothing(tmp_pat
     assert float(np.max(b.params["lam"])) < 1e-290  # it really did not move (Bratu's lam runs to 3.5138)
     res = run(["trace", "bratu", "--ds-max", "1e-6", "--max-steps", "5", "-q", "-o", str(tmp_path / "c.h5")])
     assert "crawling" not in res.stderr, res.stderr  # small steps that do move are not flagged
+
+
+def test_jj_walls_whose_base_branch_stops_at_its_first_point_is_a_warning_not_a_numpy_error(tmp_path):
+    """`contin trace jj-walls -s phi_w=1e-20` (nearly specular walls: the base branch's first step
+    fails) ended 'Error: attempt to get argmax of an empty sequence': the note on the base branch's
+    steepest stretch took the slope of a one-point branch.  Now the run ends as any branch that stops
+    at MX does: its point stored, a warning line, exit 3."""
+    out = tmp_path / "j.h5"
+    res = run(["trace", "jj-walls", "-s", "phi_w=1e-20", "--no-stability", "-o", str(out)])
+    assert res.exit_code == 3 and "Error" not in res.stderr, res.stderr
+    assert "warning: branch 0 ended with MX: step failed at H=" in res.stderr
+    branches, meta = io.load(out)
+    assert meta["complete"] is True and branches[0].status == "MX" and len(branches[0]) == 1

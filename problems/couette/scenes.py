@@ -458,7 +458,9 @@ def _jj_walls(run: _Run, base: Branch, bps: list, banded: list[Branch], options:
                 f"not switched (modes = {modes})" if k > modes else "switching failed (see the notes)")
         run.notes.append(f"BP on the JJ base branch at H = {b.params['H']:.10g}, Phi = {b.order_parameter:.8g} "
                          f"({b.note or 'BP'}): {done}")
-    if not any(b.note.startswith("symmetric") for b in bps):
+    if not any(b.note.startswith("symmetric") for b in bps) and len(base) >= 2:
+        # (a base branch of one point has no slope: -s phi_w=1e-20 ended 'Error: attempt to get argmax of
+        # an empty sequence', qa19)
         phi, H = base.observables["phi"], base.parameter_values
         slope = np.abs(np.diff(phi) / np.diff(H))
         k = int(np.argmax(slope))
