@@ -349,3 +349,15 @@ def test_jj_walls_whose_base_branch_stops_at_its_first_point_is_a_warning_not_a_
     assert "warning: branch 0 ended with MX: step failed at H=" in res.stderr
     branches, meta = io.load(out)
     assert meta["complete"] is True and branches[0].status == "MX" and len(branches[0]) == 1
+
+
+@pytest.mark.parametrize("window", ["1e-300", "1e-5"])
+def test_gravity_unfolding_with_a_window_narrower_than_its_first_step_names_the_window(window, tmp_path):
+    """`contin trace gravity-unfolding -s window=1e-5` ended 'Error: start value H=13.0687 lies outside its
+    bounds (13.0685, 13.0685)' and window=1e-300 'bounds for 'H' must satisfy lo < hi': the branches
+    switched at the pitchfork start one step (ds = 0.002) away from it.  Now the line names the window."""
+    out = tmp_path / "u.h5"
+    err = one_error(run(["trace", "gravity-unfolding", "-s", f"window={window}", "--no-stability", "-q",
+                         "-o", str(out)]))
+    assert err.startswith(f"Error: window = {float(window):g} is too narrow: the branches switched at BP1 "
+                          "(H_c = 13.06852933)") and err.endswith("give window >= 0.002"), err

@@ -160,7 +160,17 @@ def run_unfolding(request: SceneRequest) -> SceneResult:
                          "(the branches are traced on H_c - window .. H_c + window, and H > 0)")
     for G in [0.0, *Gs]:
         request.report(f"gravity-unfolding: branches near {bp.name} at G = {G:g}")
-        branches += branches_near_bp(pb, base, bp, G, s["window"])
+        try:
+            branches += branches_near_bp(pb, base, bp, G, s["window"])
+        except ValueError as exc:
+            # a window narrower than the first step off the pitchfork (its branches start outside it):
+            # -s window=1e-5 ended 'start value H=13.0687 lies outside its bounds (13.0685, 13.0685)', 1e-300
+            # 'bounds for 'H' must satisfy lo < hi' (qa19)
+            if "lies outside its bounds" in str(exc) or "must satisfy lo < hi" in str(exc):
+                raise SceneError(f"window = {s['window']:g} is too narrow: the branches switched at {bp.name} (H_c = "
+                                 f"{bp.params['H']:.10g}) start up to one step (ds = 0.002 in H) away from it, outside "
+                                 f"H_c +- window ({exc}); give window >= 0.002") from None
+            raise
     relabel(branches)
     for b in branches:
         b.observables["delta_s"] = np.asarray(odd_delta(b), float)
