@@ -860,7 +860,8 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
     Branches come back in the order they were written, with their special points.
     ``metadata`` holds the root attributes (``parameters``, ``discretization``, ``options``,
     ``notes``, ``extra`` decoded from JSON), ``complete``, ``y`` (or None) and ``profiles``:
-    ``{branch_id: {"index": rows, name: (M, N) array}}``.
+    ``{branch_id: {"index": rows, name: (M, N) array}}``; ``attrs`` the other root attributes,
+    as text (those a caller gave the writer's ``attrs=``, e.g. a sweep task's ``sweep_task``).
 
     Raises
     ------
