@@ -19,10 +19,11 @@ dies (even by SIGKILL), so a stale lock file never blocks a later run.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import stat
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 #: errno values that mean "the disk (or the quota, or the file-size limit) is full".
@@ -99,6 +100,42 @@ def publish(path: str | os.PathLike[str], write: Callable[[Path], None], *, temp
         raise
     fsync_directory(target.parent)
     return target
+
+
+def publish_together(items: Sequence[tuple[str | os.PathLike[str], Callable[[Path], None]]]) -> list[Path]:
+    """:func:`publish` of several files that belong together (AUTO's b.NAME and s.NAME): every
+    ``write(tmp)`` is done and synced first, and only then is each renamed onto its path, so a full
+    disk or an unwritable directory leaves every previous version in place (`contin export --auto`
+    on a full disk replaced b.NAME and then failed on s.NAME: a new diagram beside the old solutions,
+    qa19).  Errors are one sentence naming the target, not the temporary."""
+    targets = [check_target(path) for path, _ in items]
+    tmps = [t.with_name(t.name + ".tmp") for t in targets]
+    try:
+        for (_, write), target, tmp in zip(items, targets, tmps):
+            try:
+                if os.path.lexists(tmp) and not os.path.isfile(tmp) or os.path.islink(tmp):
+                    tmp.unlink()
+                write(tmp)
+                with open(tmp, "rb") as fh:
+                    os.fsync(fh.fileno())
+            except OSError as exc:
+                if exc.errno in _FULL:
+                    raise OSError(exc.errno, disk_full_message(target, exc).replace(
+                        "the previous version of the file is unchanged",
+                        f"the previous versions of {', '.join(repr(t.name) for t in targets)} are unchanged")) from None
+                if exc.errno is not None and not isinstance(exc, OutputRefused):
+                    raise OSError(exc.errno, f"cannot write {str(target)!r}: {exc.strerror or exc}") from None
+                raise
+        for target, tmp in zip(targets, tmps):
+            os.replace(tmp, target)
+    except BaseException:
+        for tmp in tmps:
+            with contextlib.suppress(OSError):  # (a read-only file system refuses even this: EROFS)
+                tmp.unlink(missing_ok=True)
+        raise
+    for directory in {t.parent for t in targets}:
+        fsync_directory(directory)
+    return targets
 
 
 def write_bytes(tmp: Path, data: bytes) -> None:

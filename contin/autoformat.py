@@ -93,7 +93,7 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     Returns the two paths and notes (types written as UZ).  ValueError for a branch
     with non-finite parameters or states (AUTO's files cannot hold them) or a bad name.
     """
-    from contin.atomic import check_target, publish, write_bytes
+    from contin.atomic import check_target, publish_together, write_bytes
 
     if not name or any(c in name for c in "/\\\0") or any(c.isspace() for c in name):
         raise ValueError(f"bad AUTO run name {name!r} (one word, used as b.NAME and s.NAME)")
@@ -161,8 +161,9 @@ def write_auto(branches: Sequence[Branch], name: str, directory: str | os.PathLi
     directory = Path(directory)
     for target in (directory / f"b.{name}", directory / f"s.{name}"):  # both, before either is written: a
         check_target(target)  # symlinked s.NAME was refused after b.NAME was replaced (qa16)
-    b_path = publish(directory / f"b.{name}", lambda tmp: write_bytes(tmp, b_text.encode("ascii")))
-    s_path = publish(directory / f"s.{name}", lambda tmp: write_bytes(tmp, s_text.encode("ascii")))
+    # both written before either is renamed: a full disk left a new b.NAME beside the old s.NAME (qa19)
+    b_path, s_path = publish_together([(directory / f"b.{name}", lambda tmp: write_bytes(tmp, b_text.encode("ascii"))),
+                                       (directory / f"s.{name}", lambda tmp: write_bytes(tmp, s_text.encode("ascii")))])
     return b_path, s_path, notes
 
 

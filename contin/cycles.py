@@ -314,7 +314,10 @@ def first_orbit(start: HopfStart, mesh: Mesh, parameter: str, eps: float) -> tup
     x = mesh.pack(nodes, 2 * np.pi / start.omega)
     shift = 0.0
     if math.isfinite(start.l1) and start.dlambda != 0:
-        shift = -start.omega * start.l1 * eps**2 / (4 * start.dlambda)
+        try:
+            shift = -start.omega * start.l1 * eps**2 / (4 * start.dlambda)
+        except OverflowError:  # eps**2 past the float range (--amplitude 1e300): an infinite shift, refused
+            shift = -math.copysign(math.inf, start.omega * start.l1 * start.dlambda)  # by start_orbit (qa19)
     direction = np.concatenate([mode.ravel(), [0.0, 0.0]])
     return x, start.params[parameter] + shift, direction
 
@@ -332,6 +335,17 @@ def start_orbit(problem: Any, point: SpecialPoint, parameter: str, cycle: CycleO
     mesh = Mesh(start.state.size, cycle.ntst, cycle.ncol)
     eps = cycle.amplitude if cycle.amplitude is not None else default_amplitude(start.state)
     x, p1, direction = first_orbit(start, mesh, parameter, eps)
+    lo, hi = options.bounds.get(parameter, (-math.inf, math.inf))
+    if not lo <= start.params[parameter] <= hi:
+        raise ValueError(f"{point.name} at {parameter} = {start.params[parameter]:.10g} lies outside the bounds "
+                         f"{lo:g} <= {parameter} <= {hi:g}; its orbits start there")
+    if not (math.isfinite(p1) and np.all(np.isfinite(x)) and lo <= p1 <= hi):
+        # the normal form puts an orbit of amplitude eps at |p - p_H| ~ eps^2: --amplitude 1e300 ended
+        # 'arithmetic failure (OverflowError)', --amplitude 100 of ab's HB1 'Newton diverged' at D = -75.9 (qa19)
+        raise ValueError(f"the first periodic orbit near {point.name} (amplitude {eps:g}) is predicted at "
+                         f"{parameter} = {p1:g}, outside the bounds {lo:g} <= {parameter} <= {hi:g} (the normal form "
+                         f"puts an orbit of amplitude eps at a distance ~ eps^2 from the Hopf point); give a smaller "
+                         f"amplitude (--amplitude; default {default_amplitude(start.state):g})")
     cp = CycleProblem(problem, mesh, x[:-1], start.mass, cycle.floquet_tol)
     system = ExtendedSystem(cp, start.params, parameter, options.step.theta, n=x.size)
     guess = system.pack(x, p1)

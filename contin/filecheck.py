@@ -15,7 +15,8 @@ states, tangents, ds, free parameters, observables that are not NaN everywhere, 
 fixed parameters may be inf, not NaN.  Special points: index in [0, S) of their branch, free
 parameters and located states (up to ``state_size``) finite.  The per-point ``grid`` column of an
 adaptive run lies in 1..MAX_GRID, and ``grid/y`` (the profiles' abscissa) is finite.  A fold or
-Hopf curve has two free parameters and states of its augmented size.
+Hopf curve has two free parameters and states of its augmented size.  Periodic orbits: see
+:func:`check_orbits`.
 """
 
 from __future__ import annotations
@@ -63,6 +64,46 @@ def _check_curve(group: str, branch: Any) -> None:
     if bad:
         raise BadDataset(f"dataset {group}/states has rows of {bad[0]} entries, which is no {branch.kind} state "
                          f"(the branch's kind attribute and its states disagree)")
+
+
+def _whole(value: Any, lo: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= lo
+
+
+def check_orbits(branches: Any, extra: Any) -> None:
+    """Branches of periodic orbits (kind 'periodic-orbits', written by ``contin continue --cycles``)
+    against the run's ``extra['cycles']`` entry: n >= 1 and NCOL >= 1 whole numbers (NTST >= 2
+    where given), and every stored orbit -- [node values (NTST NCOL n), T, interior mesh points] --
+    of that layout with T > 0 and the mesh increasing inside (0, 1).  A file without the entry is
+    left to the commands that need it (they say so).  An edited entry ended `contin continue --from
+    PD1 --cycles` with 'internal error (AttributeError ...)', `profiles` and `export` with 'invalid
+    literal for int()' (qa19); a damaged mesh drew nothing ('mesh points must be ...') or an orbit
+    was taken at face value."""
+    orbits = [b for b in branches if getattr(b, "kind", "") == "periodic-orbits"]
+    if not orbits or not isinstance(extra, Mapping) or "cycles" not in extra:
+        return
+    cycles = extra["cycles"]
+    if not isinstance(cycles, Mapping):
+        raise BadDataset(f"attribute extra holds a 'cycles' entry of type {type(cycles).__name__}, not the mapping "
+                         f"(n, ntst, ncol) of the orbits' collocation")
+    n, ncol, ntst = cycles.get("n"), cycles.get("ncol"), cycles.get("ntst", 2)
+    if not (_whole(n, 1) and _whole(ncol, 1) and _whole(ntst, 2)):
+        raise BadDataset(f"attribute extra: the orbits' collocation 'cycles' needs whole numbers n >= 1, "
+                         f"ncol >= 1 and ntst >= 2, got n = {n!r}, ncol = {ncol!r}, ntst = {ntst!r}")
+    for b in orbits:
+        rows = [(f"branches/{b.id}/states", k, b.states[k]) for k in range(len(b.states))]
+        rows += [("special_points/states", sp.name, sp.state) for sp in b.special_points if sp.state is not None]
+        for where, row, state in rows:
+            state = np.asarray(state, dtype=float)
+            steps, rest = divmod(state.size, n * ncol + 1)  # n NTST NCOL + 1 + (NTST - 1) = NTST (n NCOL + 1)
+            size = n * steps * ncol + 1
+            if steps < 2 or rest:
+                raise BadDataset(f"dataset {where} (row {row}) holds {state.size} entries, which is no orbit of "
+                                 f"n = {n}, NCOL = {ncol} (NTST (n NCOL + 1) entries, NTST >= 2)")
+            mesh = np.concatenate([[0.0], state[size:], [1.0]])
+            if not (state[size - 1] > 0 and np.all(np.diff(mesh) > 0)):
+                raise BadDataset(f"dataset {where} (row {row}) is no orbit: its period must be > 0 and its mesh "
+                                 f"increase from 0 to 1 (period {state[size - 1]:g})")
 
 
 def _rows(where: str, values: Any, n: int, what: str) -> None:

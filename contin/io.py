@@ -105,7 +105,7 @@ import numpy as np
 from contin.atomic import OutputLock, check_target, publish, write_bytes
 
 from contin.branch import Branch, SpecialPoint, first_crossing
-from contin.filecheck import (BadDataset, check_branch, check_profile_grid, check_profile_widths, check_special_point,
+from contin.filecheck import (BadDataset, check_branch, check_orbits, check_profile_grid, check_profile_widths, check_special_point,
                               first_bad_row)
 from contin.jsonout import dumps as _json_dumps
 from contin.options import AdaptOptions, ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
@@ -706,6 +706,12 @@ class H5Writer:
             lock.release()
 
 
+#: the root attributes H5Writer sets itself; any other one is a caller's (``attrs=``)
+_OWN_ROOT_ATTRS = frozenset({"format", "format_version", "contin_version", "git_commit", "libraries", "complete",
+                             "created_utc", "command", "scene", "diagram_x", "diagram_y", "stopped", "parameters",
+                             "discretization", "options", "notes", "extra"})
+
+
 def write(path: str | os.PathLike[str], branches: Iterable[Branch], *, stopped: str = "", **meta: Any) -> Path:
     """Write a complete run file atomically; ``meta`` as for :class:`H5Writer`.
 
@@ -854,7 +860,8 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
     Branches come back in the order they were written, with their special points.
     ``metadata`` holds the root attributes (``parameters``, ``discretization``, ``options``,
     ``notes``, ``extra`` decoded from JSON), ``complete``, ``y`` (or None) and ``profiles``:
-    ``{branch_id: {"index": rows, name: (M, N) array}}``.
+    ``{branch_id: {"index": rows, name: (M, N) array}}``; ``attrs`` the other root attributes,
+    as text (those a caller gave the writer's ``attrs=``, e.g. a sweep task's ``sweep_task``).
 
     Raises
     ------
@@ -892,6 +899,10 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                         "stopped"):
                 meta[key] = str(a.get(key, ""))
             meta["libraries"] = _jsonload(a.get("libraries"), {})  # written since session 18
+            # root attributes of others (a sweep task's result, `sweep_task`): a writer over this
+            # file (trace --resume) passes them on (H5Writer attrs=); they were dropped (qa19)
+            meta["attrs"] = {k: (v.decode() if isinstance(v, bytes) else str(v)) for k, v in a.items()
+                             if k not in _OWN_ROOT_ATTRS}
             for key, default in (("parameters", {}), ("discretization", {}), ("options", {}), ("notes", []), ("extra", {})):
                 meta[key] = _jsonload(a.get(key), default)
             check_parameters(meta["parameters"])  # a NaN there was shown by info and rebuilt into problems
@@ -920,6 +931,7 @@ def load(path: str | os.PathLike[str]) -> tuple[list[Branch], dict[str, Any]]:
                     raise FileFormatError(f"{str(p)!r} is damaged: special point {sp.name} names a missing branch {bid!r}")
                 check_special_point(row, branches[pos], sp)
                 branches[pos].special_points.append(sp)
+            check_orbits(branches, meta["extra"])
             return branches, meta
     except FileFormatError:
         raise
@@ -946,21 +958,43 @@ def profiles_at(
     tol = 1e-9 * max(1.0, abs(value))
     for b in branches:
         found = None
+        located: list[tuple[Any, int]] = []  # (special point, its row of special_point_profiles)
         for sp in b.special_points:
             if sp_prof and found is None and name in sp.params and abs(float(sp.params[name]) - value) <= tol:
                 found = (b, f"at {sp.name}", {k: v[row] for k, v in sp_prof.items()})
+            if sp_prof and sp.type not in ("EP", "MX") and name in sp.params:
+                located.append((sp, row))
             row += 1
         prof = meta.get("profiles", {}).get(b.id)
         count = 0  # crossings of the value along the branch
         if prof is not None and name in b.params:
             idx = np.asarray(prof["index"])
-            crossing = first_crossing(np.asarray(b.params[name], dtype=float)[idx], value)
+            names = [k for k in prof if k != "index"]
+            # the stored profiles in branch order, each located point (index i: between points i and
+            # i + 1) after the stored ones up to i: `contin profiles br.h5 --at lam=3.5135` between
+            # Bratu's fold (3.51383) and the stored profiles next to it said 'no stored branch
+            # reaches lam=3.5135' (qa19)
+            seq: list[tuple[float, str, dict[str, np.ndarray]]] = []
+            params = np.asarray(b.params[name], dtype=float)
+            for r, i in enumerate(idx):
+                seq.append((float(params[i]), f"point {int(i)}", {k: prof[k][r] for k in names}))
+                last = r == len(idx) - 1
+                for sp, sp_row in located:
+                    if int(i) <= sp.index and (last or sp.index < int(idx[r + 1])) and not (last and sp.index >= len(b) - 1):
+                        if all(k in sp_prof for k in names):
+                            seq.append((float(sp.params[name]), sp.name, {k: sp_prof[k][sp_row] for k in names}))
+            crossing = first_crossing(np.array([v for v, _, _ in seq]), value)
             if crossing is not None:
                 i, j, w, count = crossing
                 if found is None:
-                    how = f"at stored point {idx[i]}" if w == 0.0 else f"interpolated between points {idx[i]} and {idx[j]}"
-                    found = (b, how,
-                             {k: (1 - w) * v[i] + w * v[j] for k, v in prof.items() if k != "index"})
+                    (_, what_i, prof_i), (_, what_j, prof_j) = seq[i], seq[j]
+                    if w == 0.0:
+                        how = f"at stored {what_i}" if what_i.startswith("point") else f"at {what_i}"
+                    elif what_i.startswith("point") and what_j.startswith("point"):
+                        how = f"interpolated between points {what_i.split()[1]} and {what_j.split()[1]}"
+                    else:
+                        how = f"interpolated between {what_i} and {what_j}"
+                    found = (b, how, {k: (1 - w) * prof_i[k] + w * prof_j[k] for k in names})
         if found is not None:
             at_fold = found[1].startswith("at LP")  # both crossings next to a fold are that one point
             if count > 1 and not at_fold:  # a branch through a fold reaches the value again: say that only one is drawn

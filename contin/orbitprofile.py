@@ -85,6 +85,31 @@ def corrected(problem: Any, orbit: OrbitProfile, reference: Array) -> OrbitProfi
     return dataclasses.replace(orbit, nodes=nodes, period=period)
 
 
+#: special points located between two stored orbits (at a fold of cycles the parameter turns between
+#: them, so a value between the fold and both orbits is crossed only there)
+_BETWEEN = ("LP", "LPC", "HB", "PD", "NS", "BP", "UZ")
+
+
+def _sequence(b: Branch, name: str) -> list[tuple[float, str, Array, dict[str, float]]]:
+    """(value of ``name``, what, orbit, parameters) along the branch: its stored orbits and, after
+    stored point i, the located points between i and i + 1 (index i) that hold an orbit of the
+    branch's layout.  `contin profiles ORBITS.h5 --at D=0.1616962` between ab's fold of cycles
+    (D = 0.16169613) and its two neighbouring orbits (0.16169627, 0.16169803) said 'no branch of
+    orbits reaches D=0.161696' (qa19)."""
+    width = b.states.shape[1] if b.states.ndim == 2 else None
+    values = np.asarray(b.params[name], dtype=float)
+    seq = []
+    for i in range(len(b)):
+        params_i = {k: float(v[i]) for k, v in b.params.items()}
+        seq.append((float(values[i]), f"stored point {i}", b.state(i), params_i))
+        for sp in b.special_points:
+            if (sp.index == i and i < len(b) - 1 and sp.type in _BETWEEN and sp.state is not None
+                    and np.size(sp.state) == width and name in sp.params):
+                seq.append((float(sp.params[name]), sp.name, np.asarray(sp.state, dtype=float),
+                            {**params_i, **{k: float(v) for k, v in sp.params.items()}}))
+    return seq
+
+
 def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: int,
              problem: Any = None) -> list[OrbitProfile]:
     """The orbit of each branch where parameter ``name`` equals ``value`` (module docstring);
@@ -99,30 +124,35 @@ def orbit_at(branches: Sequence[Branch], name: str, value: float, n: int, ncol: 
             continue
         exact = [sp for sp in b.special_points if sp.state is not None and name in sp.params
                  and abs(float(sp.params[name]) - value) <= tol]
-        crossing = first_crossing(np.asarray(b.params[name], dtype=float), value)
+        seq = _sequence(b, name)
+        crossing = first_crossing(np.array([v for v, _, _, _ in seq]), value)
         count = 0 if crossing is None else crossing[3]
         if exact:
             sp = exact[0]
             found = _profile(b, f"at {sp.name}", np.asarray(sp.state, float), dict(sp.params), n, ncol)
         elif crossing is not None:
             i, j, w, _ = crossing
-            mesh, nodes, period = orbit_of(b.state(i), n, None, ncol)
-            params = {k: float(v[i]) for k, v in b.params.items()}
-            how = f"at stored point {i}"
+            _, what_i, state_i, params_i = seq[i]
+            mesh, nodes, period = orbit_of(state_i, n, None, ncol)
+            params = dict(params_i)
+            how = f"at {what_i}"
             if w != 0.0:
-                mesh_j, nodes_j, period_j = orbit_of(b.state(j), n, None, ncol)
+                _, what_j, state_j, params_j = seq[j]
+                mesh_j, nodes_j, period_j = orbit_of(state_j, n, None, ncol)
                 nodes = (1 - w) * nodes + w * mesh_j.resample(mesh, nodes_j)
                 period = (1 - w) * period + w * period_j
-                params = {k: (1 - w) * float(v[i]) + w * float(v[j]) for k, v in b.params.items()}
-                how = f"interpolated between points {i} and {j}"
+                params = {k: (1 - w) * params_i[k] + w * params_j[k] for k in params_i}
+                how = (f"interpolated between points {what_i.split()[-1]} and {what_j.split()[-1]}"
+                       if what_i.startswith("stored") and what_j.startswith("stored")
+                       else f"interpolated between {what_i} and {what_j}")
             found = OrbitProfile(b, how, params, mesh, nodes, period)
             if w != 0.0 and problem is not None:
                 try:
-                    found = dataclasses.replace(corrected(problem, found, orbit_of(b.state(i), n, None, ncol)[1]),
+                    found = dataclasses.replace(corrected(problem, found, orbit_of(state_i, n, None, ncol)[1]),
                                                 how=f"{how}, corrected by Newton at {name}={value:g}")
                 except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                    found = dataclasses.replace(found, doubt=f"the orbit interpolated between points {i} and {j} "
-                                                             f"was not corrected at {name}={value:g}: {exc}")
+                    found = dataclasses.replace(found, doubt=f"the orbit {how} was not corrected at {name}={value:g}: "
+                                                             f"{exc}")
         else:
             continue
         if count > 1 and not found.how.startswith("at LPC"):  # past a fold the branch reaches the value again

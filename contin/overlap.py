@@ -157,6 +157,21 @@ def slice_branch(branch: Branch, i0: int, i1: int) -> Branch:
         sizes=None if branch.sizes is None else branch.sizes[keep].copy())
 
 
+def _nearest_row(branch: Branch, seed: Array) -> int | None:
+    """The point of ``branch`` nearest to ``seed`` among its states of the seed's size (an adaptive
+    branch's rows are NaN-padded to its largest grid: `contin trace gravity -s Fr=1e20` ended
+    'operands could not be broadcast together with shapes (616,901) (1,261)', qa19); None if the
+    branch has no state of that size (it left the seed's grid at once: nothing to compare)."""
+    states = branch.states
+    width = seed.shape[0]
+    if branch.sizes is None:
+        return int(np.argmin(np.linalg.norm(states - seed[None, :], axis=1))) if states.shape[1] == width else None
+    same = np.flatnonzero(np.asarray(branch.sizes) == width)
+    if same.size == 0:
+        return None
+    return int(same[np.argmin(np.linalg.norm(states[same, :width] - seed[None, :], axis=1))])
+
+
 def trim_to_new(branch: Branch, seed: Array, known: Sequence[Branch], coordinates: Coordinates,
                 tol: float = 2e-3, columns: int | None = None) -> Branch:
     """The part of ``branch`` around the seed state that does not run along a ``known`` branch.
@@ -174,7 +189,9 @@ def trim_to_new(branch: Branch, seed: Array, known: Sequence[Branch], coordinate
         on |= distance_to_polyline(pts, coordinates.branch(k)[:, :columns]) < tol
     if not on.any():
         return branch
-    i = int(np.argmin(np.linalg.norm(branch.states - seed[None, :], axis=1)))
+    i = _nearest_row(branch, np.asarray(seed, dtype=float))
+    if i is None:
+        return branch
     lo = i
     while lo > 0 and not on[lo - 1]:
         lo -= 1

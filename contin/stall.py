@@ -19,6 +19,8 @@ import numpy as np
 WINDOW = 20
 #: Median |ds| of the window over the largest |ds| of the branch at or below which it crawled.
 RATIO = 1e-3
+#: Largest |ds| of a whole branch, relative to its values (at least 1), at or below which it cannot move.
+TINY = 1e-12
 #: Words that start the message (the command line shows it as a ``warning:`` line).
 STALLED = "ended at its step cap crawling"
 
@@ -29,14 +31,27 @@ def stalled(branch: Any) -> str | None:
     message = str(getattr(branch, "message", "") or "")
     if not message.startswith("maximum number of steps"):
         return None
-    ds = np.abs(np.asarray(getattr(branch, "ds", ()), dtype=float))
-    ds = ds[np.isfinite(ds) & (ds > 0)]
+    raw = np.abs(np.asarray(getattr(branch, "ds", ()), dtype=float))
+    steps = raw[1:][np.isfinite(raw[1:])]  # (the first point's ds is 0)
+    name = getattr(branch, "parameter", None)
+    if steps.size and name is not None and name in getattr(branch, "params", {}):
+        # steps below the rounding of the values never move the branch: `contin trace bratu --ds-max
+        # 1e-300` stored 61 points within lam = 0 .. 6e-299, exit 0 (qa19)
+        p = np.asarray(branch.params[name], dtype=float)
+        states = np.asarray(getattr(branch, "states", np.zeros((0,))), dtype=float)
+        scale = max(1.0, float(np.nanmax(np.abs(p))) if p.size else 0.0,
+                    float(np.nanmax(np.abs(states))) if states.size else 0.0)
+        largest = float(np.max(steps))
+        if largest <= TINY * scale:
+            return (f"{STALLED}: its largest step was {largest:.3g}, at the rounding of its values (of size "
+                    f"{scale:.3g}): {name} moved {float(np.max(p) - np.min(p)):.3g} in {steps.size} steps; give a larger "
+                    f"step (--ds/--ds-max)")
+    ds = raw[np.isfinite(raw) & (raw > 0)]
     if ds.size < 2 * WINDOW:
         return None
     tail, largest = float(np.median(ds[-WINDOW:])), float(np.max(ds))
     if tail > RATIO * largest:
         return None
-    name = getattr(branch, "parameter", None)
     moved = ""
     if name is not None and name in getattr(branch, "params", {}):
         p = np.asarray(branch.params[name], dtype=float)[-WINDOW - 1:]

@@ -163,20 +163,25 @@ class Progress:
 
 
 def end_of_curve_run(what: str, points: int, output: str | None, interrupted: bool, stop: object,
-                     status: str, message: str, branch: object = None) -> None:
+                     status: str, message: str, branch: object = None, *, cut_short: bool = True) -> None:
     """The common end of a `contin continue` run (a curve, or orbits): after a Ctrl-C/SIGTERM the
     note where the points went and the one Error line with exit 130/143; after MX a warning and
     exit 3; a warning if ``branch`` ended at its step cap crawling (``contin.stall``); otherwise
-    nothing.  ``what`` names the result ("the curve", "the orbits")."""
+    nothing.  ``what`` names the result ("the curve", "the orbits"); ``cut_short`` False: the stop
+    came after the result was finished (it is complete)."""
     if interrupted:
         from contin.cancel import SIGTERM
         from contin.cli._base import EXIT_INTERRUPTED, echo_err
 
         term = getattr(stop, "reason", None) == SIGTERM
-        if output is not None:
-            verb = "are" if what.endswith("s") else "is"
-            echo_err(f"note: {what} computed before {'SIGTERM' if term else 'Ctrl-C'} ({points} points) "
-                     f"{verb} saved in {output}")
+        signal_name = "SIGTERM" if term else "Ctrl-C"
+        verb = "are" if what.endswith("s") else "is"
+        if output is not None and cut_short:
+            echo_err(f"note: {what} computed before {signal_name} ({points} points) {verb} saved in {output}")
+        elif output is not None:
+            past = "were" if verb == "are" else "was"
+            echo_err(f"note: {what} ({points} points) {past} finished before the {signal_name} took effect: saved "
+                     f"complete in {output}")
         echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
         raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
     if status == "MX":

@@ -274,6 +274,12 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
             with resolution_override(tol):
                 curve = continue_point(problem, branch, point, second, options, regrid=regrid)
     interrupted = stop.requested
+    from contin.cancel import is_stopped_branch
+
+    # a stop that came after the branch was finished (while its end was located, its multipliers
+    # computed) cut nothing short: the result is complete and written so (it was marked interrupted,
+    # and `contin info` sent the user to compute it again; qa19)
+    cut_short = interrupted and is_stopped_branch(curve)
     if output is not None:
         notes = [f"{_what(point, curve)} from {point.name} of branch {branch.id} in {file}, free {first}, {second}"]
         extra: dict[str, Any] = {"source": file, "from": point.name, "branch": branch.id, "free": [first, second]}
@@ -289,7 +295,7 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         # (it was written complete=True: `contin info` showed it as finished; qa18)
         io.write(output, [curve], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=options,
-                 notes=notes, extra=extra, stopped=STOPPED[stop.reason] if interrupted else "",
+                 notes=notes, extra=extra, stopped=STOPPED[stop.reason] if cut_short else "",
                  diagram_x=first, diagram_y=meta.get("diagram_y") or "phi")
     if as_json:
         doc_extra: dict[str, Any] = {"from": point.name, "branch": branch.id, "free": [first, second]}
@@ -309,7 +315,8 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
         echo_err(f"wrote {output}")
     from contin.cli._runctl import end_of_curve_run
 
-    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message, curve)
+    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message, curve,
+                     cut_short=cut_short)
 
 
 def _grid_sizes(curve: Any) -> list[int]:

@@ -79,6 +79,12 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         except ValueError as exc:
             fail(str(exc))
     interrupted = stop.requested
+    from contin.cancel import is_stopped_branch
+
+    # a stop that came after the branch was finished (while its end was located, its multipliers
+    # computed) cut nothing short: the result is complete and written so (it was marked interrupted,
+    # and `contin info` sent the user to compute it again; qa19)
+    cut_short = interrupted and is_stopped_branch(cycles)
     if point.type == "PD":
         born = f"period 2 T = {fmt(2 * point.data['period']) if point.data.get('period') else '?'}"
     elif point.type == "BP":
@@ -100,7 +106,7 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         # orbits a stop request cut short are a partial result, marked as continue marks its curves
         io.write(output, [cycles], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=dataclasses.replace(options, save_every=1),
-                 notes=notes, extra=extra, stopped=STOPPED[stop.reason] if interrupted else "",
+                 notes=notes, extra=extra, stopped=STOPPED[stop.reason] if cut_short else "",
                  diagram_x=first, diagram_y="amplitude")
     if as_json:
         from contin.jsonout import run_document
@@ -130,7 +136,8 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
         echo_err(f"wrote {output}")
     from contin.cli._runctl import end_of_curve_run
 
-    end_of_curve_run("the orbits", len(cycles), output, interrupted, stop, cycles.status, cycles.message, cycles)
+    end_of_curve_run("the orbits", len(cycles), output, interrupted, stop, cycles.status, cycles.message, cycles,
+                     cut_short=cut_short)
 
 
 def run_lpc_curve(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, second: str,
@@ -163,7 +170,10 @@ def run_lpc_curve(problem: Any, file: str, meta: dict[str, Any], branch: Any, po
                                     parent_ncol=parent_ncol)
         except ValueError as exc:
             fail(str(exc))
+    from contin.cancel import is_stopped_branch
+
     interrupted = stop.requested
+    cut_short = interrupted and is_stopped_branch(curve)  # a stop after the curve was finished cuts nothing
     summary = (f"LPC curve from {point.name} (branch {branch.id}, {first} = {fmt(point.params[first])}, "
                f"{second} = {fmt(point.params[second])}), NTST = {cycle.ntst}, NCOL = {cycle.ncol}")
     if output is not None:
@@ -173,7 +183,7 @@ def run_lpc_curve(problem: Any, file: str, meta: dict[str, Any], branch: Any, po
                  "cycles": {"ntst": cycle.ntst, "ncol": cycle.ncol, "n": n, "adapt_mesh": False}}
         io.write(output, [curve], scene=meta.get("scene", ""), parameters=meta.get("parameters", {}),
                  discretization=meta.get("discretization", {}), options=dataclasses.replace(options, save_every=1),
-                 notes=[summary + f" in {file}"], extra=extra, stopped=STOPPED[stop.reason] if interrupted else "",
+                 notes=[summary + f" in {file}"], extra=extra, stopped=STOPPED[stop.reason] if cut_short else "",
                  diagram_x=first, diagram_y=second)
     if as_json:
         from contin.jsonout import run_document
@@ -196,4 +206,5 @@ def run_lpc_curve(problem: Any, file: str, meta: dict[str, Any], branch: Any, po
         echo_err(f"wrote {output}")
     from contin.cli._runctl import end_of_curve_run
 
-    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message, curve)
+    end_of_curve_run("the curve", len(curve), output, interrupted, stop, curve.status, curve.message, curve,
+                     cut_short=cut_short)

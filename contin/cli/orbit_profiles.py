@@ -68,7 +68,13 @@ def draw_orbits(file: str, branches: list[Any], meta: dict[str, Any], name: str,
             echo_err(f"note: an orbit between two stored ones is drawn interpolated, not corrected ({exc})")
         found = orbit_at(branches, name, value, n, ncol, problem)
         if not found:
-            fail(f"no branch of orbits in {file} reaches {name}={value:g}")
+            # the range each covers, its located points included (the value was shown rounded: 'reaches D=0.161696')
+            spans = []
+            for b in branches:
+                vals = [float(v) for v in b.params[name]] + [float(sp.params[name]) for sp in b.special_points
+                                                             if name in sp.params]
+                spans.append(f"branch {b.id}: {name} = {min(vals):.10g} .. {max(vals):.10g}")
+            fail(f"no branch of orbits in {file} reaches {name}={value:.10g} ({'; '.join(spans)})")
     wanted = components(names, n)
     data = [(f"{f.branch.id} {f.how.split(' (')[0]}", *sample(f.mesh, f.nodes, f.period)) for f in found]
     where = point or f"{name}={value:g}"

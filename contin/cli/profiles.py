@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from contin.cli._base import echo_err, fail, main, parse_settings
+from contin.cli._base import echo_err, fail, main, parse_settings, warn_if_incomplete
 
 
 @main.command("profiles")
@@ -41,6 +41,7 @@ def profiles_command(file: str, at: str | None, point: str | None, branch_ids: t
     point = check_nonempty(point, "--point")
     io.check_writable(output)
     branches, meta = io.load(file)
+    warn_if_incomplete(file, meta)  # a value past where the run stopped is missing, not out of range (qa19)
     if any(b.kind in ("periodic-orbits", "lpc-curve") for b in branches):  # (an LPC curve's orbits: --point)
         from contin.cli.orbit_profiles import draw_orbits
 

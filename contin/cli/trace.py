@@ -410,8 +410,10 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                                            solve_check=not no_solve_check))
 
     completed: dict[str, Any] = {}
+    resumed_attrs: dict[str, str] = {}
     if resume is not None:
         old, meta = io.load(resume)
+        resumed_attrs = dict(meta.get("attrs") or {})
         if continued_from(meta) is not None:
             # its curve was taken for a finished branch and dropped from the file the run then
             # wrote over it: the curve lost, exit 0 (qa18)
@@ -473,7 +475,9 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
                              discretization={k: v for k, v in (("method", method), ("intervals", grid)) if v is not None},
                              options=overrides, branches=completed.values(),
                              diagram_x=sc.x, diagram_y=sc.y, checkpoint_ratio=CHECKPOINT_RATIO,
-                             extra={} if depth is None else {"depth": depth})  # (contin info of a stopped --depth run)
+                             extra={} if depth is None else {"depth": depth},  # (contin info of a stopped --depth run)
+                             # the resumed file's own root attributes (a sweep task file's sweep_task, qa19)
+                             attrs=resumed_attrs)
     progress = Progress(enabled=not quiet)
 
     handed_after_stop = []  # a finished branch was handed over after the stop request

@@ -139,6 +139,12 @@ class GravitySettings:
                                    step=StepOptions(ds=0.3, ds_max=1.0, max_angle=0.2))
 
 
+#: The smallest target gravity of a G-homotopy (:func:`g_options` weighs the arclength by 1/G^2, which
+#: must be a finite number: `contin trace gravity -s Fr=1e154` ended 'ZeroDivisionError', qa19); with
+#: params.G_MAX the Froude numbers 1e-50 <= Fr <= 1e50 of the gravity scene.
+HOMOTOPY_G_MIN = 1e-100
+
+
 def g_options(G: float, max_steps: int = 80) -> ContinuationOptions:
     """Options of a continuation in G from 0 to ``G`` (theta = 1/G^2, see the module docstring)."""
     if not G > 0:

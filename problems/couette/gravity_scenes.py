@@ -33,8 +33,9 @@ import numpy as np
 from contin.branch import relabel
 from contin.options import AdaptOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult, require_started, scene_params
-from problems.couette.gravity import RESOLUTION_TOL, GravitySettings, discover, gravity_problem
+from problems.couette.gravity import HOMOTOPY_G_MIN, RESOLUTION_TOL, GravitySettings, discover, gravity_problem
 from problems.couette.model import rebuilt_engine
+from problems.couette.params import FR_MIN, G_MAX, H_RANGE
 from problems.couette.pitchfork import state_on
 
 GRAVITY_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "Fr": 1000.0, "H_min": 1.0, "H_max": 70.0,
@@ -56,8 +57,17 @@ def _settings(request: SceneRequest) -> dict[str, Any]:
             raise SceneError(f"parameter {name} of scene 'gravity' must be a number, got {out[name]!r}") from None
     if not (out["Fr"] > 0 and not math.isinf(out["Fr"])):
         raise SceneError(f"scene 'gravity' needs a finite Froude number Fr > 0, got {out['Fr']:g} (Fr = inf is the pitchfork scene)")
+    fr_max = HOMOTOPY_G_MIN ** -0.5
+    if not FR_MIN <= out["Fr"] <= fr_max:  # (qa19: Fr=1e-150 and 1e300 ended 'arithmetic failure (OverflowError)')
+        raise SceneError(f"parameter Fr = {out['Fr']:g} is out of range; scene 'gravity' needs {FR_MIN:g} <= Fr <= "
+                         f"{fr_max:g} (G = Fr^-2 within {HOMOTOPY_G_MIN:g}..{G_MAX:g}: its homotopy in G weighs the "
+                         f"arclength by 1/G^2; Fr = inf is the pitchfork scene)")
     if not 0 < out["H_min"] < out["H_max"]:
         raise SceneError(f"need 0 < H_min < H_max, got H_min={out['H_min']:g}, H_max={out['H_max']:g}")
+    for name in ("H_min", "H_max"):  # the model's range (qa19)
+        if not H_RANGE[0] <= out[name] <= H_RANGE[1]:
+            raise SceneError(f"parameter {name} = {out[name]:g} is out of range; it must satisfy {H_RANGE[0]:g} <= "
+                             f"{name} <= {H_RANGE[1]:g} (gap in particle diameters)")
     if not (out["modes"] >= 1 and out["modes"] == int(out["modes"])):
         raise SceneError(f"modes must be a positive integer, got {out['modes']:g}")
     if not (out["max_grid"] >= 0 and out["max_grid"] == int(out["max_grid"])):

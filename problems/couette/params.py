@@ -5,10 +5,10 @@ Continuation parameters (physics.md sections 2-3, Alam scaling):
 ======  =====================================================  =========================
 name    meaning                                                 valid range
 ======  =====================================================  =========================
-nu      mean volume fraction nu_bar                             0 < nu < packing limit
+nu      mean volume fraction nu_bar                             1e-6 <= nu < packing limit
 e       particle restitution coefficient                        0 < e <= 1
-H       gap in particle diameters, H = H~ / d_p                 H > 0
-G       gravity, G = Fr^-2 (Fr = U_w / sqrt(g d_p))             G >= 0 (Fr > 0, inf allowed)
+H       gap in particle diameters, H = H~ / d_p                 1e-50 <= H <= 1e50
+G       gravity, G = Fr^-2 (Fr = U_w / sqrt(g d_p))             0 <= G <= 1e100 (Fr >= 1e-50, inf allowed)
 phi_w   specularity phi' of Johnson-Jackson walls               0 <= phi_w <= 1
 ew      particle-wall restitution e_w                           0 < ew <= 1
 num     nu_m of chi (and nu_max of the wall terms)              0 < num < 1
@@ -25,6 +25,20 @@ from collections.abc import Mapping
 from typing import Any
 
 from problems.couette.closures import CHI_MODELS, packing_limit
+
+#: The largest gravity G = Fr^-2 (smallest Froude number FR_MIN): the scaled balances carry H^3 G, and
+#: `contin trace gravity -s Fr=1e-150` (G = 1e300) ended in a bare OverflowError (qa19).  Fr < 1 is
+#: already a wall speed below the free-fall speed over one particle diameter.
+G_MAX = 1e100
+FR_MIN = G_MAX ** -0.5
+
+#: The most dilute mean volume fraction: uniform shear's temperature T0 = f2/f5 grows as nu^-2 and the
+#: balances carry powers of it (`-s nu=1e-300`: non-finite states; 1e-50: an index error; 1e-100: an
+#: OverflowError, qa19); at nu = 1e-6 the mean free path, ~ d_p / (6 sqrt(2) nu), is already 1e5
+#: particle diameters, far outside a continuum model.
+NU_MIN = 1e-6
+#: The gap's range: the scaled balances carry 1/H^2 and H^3 G (G <= G_MAX).
+H_RANGE = (1e-50, 1e50)
 
 PARAMETER_NAMES: tuple[str, ...] = ("nu", "e", "H", "G", "phi_w", "ew", "num")
 
@@ -50,7 +64,14 @@ def froude_to_gravity(fr: float) -> float:
     fr = _as_float("Fr", fr)
     if not fr > 0:
         raise ValueError(f"parameter Fr = {fr} is out of range; the Froude number must be > 0 (inf allowed)")
-    return 0.0 if math.isinf(fr) else 1.0 / fr**2
+    if fr < FR_MIN:
+        raise ValueError(f"parameter Fr = {fr:g} is out of range; it must satisfy Fr >= {FR_MIN:g} "
+                         f"(G = Fr^-2 <= {G_MAX:g}; inf allowed)")
+    if math.isinf(fr):
+        return 0.0
+    # Fr**2 overflows above ~1.3e154 (`-s Fr=1e300` ended 'OverflowError: Numerical result out of
+    # range'); there G = Fr^-2 rounds to 0 or a subnormal, which (1/Fr)^2 gives
+    return 1.0 / fr**2 if fr < 1e150 else (1.0 / fr) ** 2
 
 
 def gravity_to_froude(g: float) -> float:
@@ -123,9 +144,13 @@ def validate_params(p: Mapping[str, Any], *, chi: str = "jj") -> None:
     limit = packing_limit(chi, v["num"])
     checks = (
         ("nu", 0.0 < v["nu"] < limit, f"0 < nu < {limit:g} (packing limit of chi = {chi})"),
+        ("nu", NU_MIN <= v["nu"], f"{NU_MIN:g} <= nu < {limit:g} (below {NU_MIN:g} the flow is far too dilute "
+                                  f"for this continuum model)"),
         ("e", 0.0 < v["e"] <= 1.0, "0 < e <= 1"),
         ("H", 0.0 < v["H"] < math.inf, "0 < H < inf"),
+        ("H", H_RANGE[0] <= v["H"] <= H_RANGE[1], f"{H_RANGE[0]:g} <= H <= {H_RANGE[1]:g} (gap in particle diameters)"),
         ("G", 0.0 <= v["G"] < math.inf, "0 <= G < inf (G = Fr^-2, Fr > 0)"),
+        ("G", v["G"] <= G_MAX, f"0 <= G <= {G_MAX:g} (G = Fr^-2, Fr >= {FR_MIN:g})"),
         ("phi_w", 0.0 <= v["phi_w"] <= 1.0, "0 <= phi_w <= 1"),
         ("ew", 0.0 < v["ew"] <= 1.0, "0 < ew <= 1"),
     )

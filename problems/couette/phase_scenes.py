@@ -28,8 +28,9 @@ import numpy as np
 from contin.branch import relabel
 from contin.options import AdaptOptions
 from contin.scene import Scene, SceneError, SceneRequest, SceneResult, scene_number, scene_params
-from problems.couette.gravity import gravity_problem, phase_diagram
+from problems.couette.gravity import HOMOTOPY_G_MIN, gravity_problem, phase_diagram
 from problems.couette.model import rebuilt_engine
+from problems.couette.params import FR_MIN, G_MAX
 
 PHASE_DEFAULTS: dict[str, Any] = {"nu": 0.3, "e": 0.8, "H_min": 1.0, "H_max": 50.0, "Fr_start": 2000.0}
 #: default Chebyshev grid of gravity-phase (as the old `contin unfold --grid 32`)
@@ -67,6 +68,11 @@ def run_phase(request: SceneRequest) -> SceneResult:
         raise SceneError(f"need 0 < H_min < H_max, got H_min={s['H_min']:g}, H_max={s['H_max']:g}")
     if not s["Fr_start"] > 0:
         raise SceneError(f"Fr_start (the Fr at which each fold is first found) must be > 0, got {s['Fr_start']:g}")
+    fr_max = HOMOTOPY_G_MIN ** -0.5  # each fold is reached by a homotopy in G (qa19: Fr_start=1e300 ended
+    if not FR_MIN <= s["Fr_start"] <= fr_max:  # 'target gravity G must be > 0', 1e-150 'OverflowError')
+        raise SceneError(f"parameter Fr_start = {s['Fr_start']:g} is out of range; it must satisfy {FR_MIN:g} <= "
+                         f"Fr_start <= {fr_max:g} (G = Fr^-2 within {HOMOTOPY_G_MIN:g}..{G_MAX:g}: the homotopy in G "
+                         f"weighs the arclength by 1/G^2)")
     pb = _problem(request, PHASE_GRID)
     max_steps = int(request.overrides.get("max_steps", 300))
     params = pb.params({"nu": s["nu"], "e": s["e"]})
@@ -154,7 +160,17 @@ def run_unfolding(request: SceneRequest) -> SceneResult:
                          "(the branches are traced on H_c - window .. H_c + window, and H > 0)")
     for G in [0.0, *Gs]:
         request.report(f"gravity-unfolding: branches near {bp.name} at G = {G:g}")
-        branches += branches_near_bp(pb, base, bp, G, s["window"])
+        try:
+            branches += branches_near_bp(pb, base, bp, G, s["window"])
+        except ValueError as exc:
+            # a window narrower than the first step off the pitchfork (its branches start outside it):
+            # -s window=1e-5 ended 'start value H=13.0687 lies outside its bounds (13.0685, 13.0685)', 1e-300
+            # 'bounds for 'H' must satisfy lo < hi' (qa19)
+            if "lies outside its bounds" in str(exc) or "must satisfy lo < hi" in str(exc):
+                raise SceneError(f"window = {s['window']:g} is too narrow: the branches switched at {bp.name} (H_c = "
+                                 f"{bp.params['H']:.10g}) start up to one step (ds = 0.002 in H) away from it, outside "
+                                 f"H_c +- window ({exc}); give window >= 0.002") from None
+            raise
     relabel(branches)
     for b in branches:
         b.observables["delta_s"] = np.asarray(odd_delta(b), float)

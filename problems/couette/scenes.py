@@ -57,7 +57,7 @@ from contin.scene import Scene, SceneError, SceneRequest, SceneResult
 from problems.couette import pitchfork as pf
 from problems.couette.closures import CHI_MODELS
 from problems.couette.model import WALLS, CouetteProblem, rebuilt_engine
-from problems.couette.params import build_params
+from problems.couette.params import H_RANGE, build_params
 
 PITCHFORK_DEFAULTS: dict[str, Any] = {
     "nu": 0.3, "e": 0.8, "H": "auto", "H_max": "auto", "modes": 3, "walls": "noslip", "chi": "jj",
@@ -113,6 +113,9 @@ def _settings(request: SceneRequest, defaults: Mapping[str, Any], scene: str) ->
             raise SceneError(f"parameter {name} must be a number or 'auto', got {values[name]!r}") from None
         if not (math.isfinite(v) and v > 0):
             raise SceneError(f"parameter {name} = {v:g} is out of range; it must be a positive finite gap")
+        if not H_RANGE[0] <= v <= H_RANGE[1]:  # (qa19: the model's range; -s H_max=1e300 ran on and on)
+            raise SceneError(f"parameter {name} = {v:g} is out of range; it must satisfy {H_RANGE[0]:g} <= {name} <= "
+                             f"{H_RANGE[1]:g} (gap in particle diameters)")
         out[name] = v
     try:
         modes = float(values["modes"])
@@ -455,7 +458,9 @@ def _jj_walls(run: _Run, base: Branch, bps: list, banded: list[Branch], options:
                 f"not switched (modes = {modes})" if k > modes else "switching failed (see the notes)")
         run.notes.append(f"BP on the JJ base branch at H = {b.params['H']:.10g}, Phi = {b.order_parameter:.8g} "
                          f"({b.note or 'BP'}): {done}")
-    if not any(b.note.startswith("symmetric") for b in bps):
+    if not any(b.note.startswith("symmetric") for b in bps) and len(base) >= 2:
+        # (a base branch of one point has no slope: -s phi_w=1e-20 ended 'Error: attempt to get argmax of
+        # an empty sequence', qa19)
         phi, H = base.observables["phi"], base.parameter_values
         slope = np.abs(np.diff(phi) / np.diff(H))
         k = int(np.argmax(slope))
