@@ -1,0 +1,115 @@
+"""Peer problems (periodic orbits) against the general core: published ODEs whose cycles AUTO-07p
+and BifurcationKit continue from a Hopf point, written against contin's API and continued with
+``contin.cycles.continue_cycles`` from the Hopf point contin locates.
+
+References are computed here, independently of the collocation: closed forms (Hopf point,
+omega_H, Liouville's product of the multipliers), and shooting with scipy: the orbit at the
+continued parameter by ``scipy.optimize.root`` on the flow map of ``solve_ivp`` (DOP853, tol
+1e-12) with a phase condition, started from our orbit, and its monodromy matrix from the
+variational equation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import root
+
+from contin.continuation import trace
+from contin.cycles import CycleOptions, continue_cycles, orbit_of
+from contin.options import ContinuationOptions
+
+
+def shoot(rhs, jac, nodes0, period, q):
+    """The periodic orbit of u' = rhs(u, q) near (nodes0, period): root on
+    (phi_T(u0) - u0, (u0 - nodes0) . rhs(nodes0)) = 0, then the monodromy matrix at the solution
+    (variational equation).  Returns u0, T and the multipliers (by modulus, largest first)."""
+    n = nodes0.size
+    f0 = rhs(nodes0, q)
+
+    def field(t, v):
+        out = np.empty_like(v)
+        out[:n] = rhs(v[:n], q)
+        if v.size > n:
+            out[n:] = (jac(v[:n], q) @ v[n:].reshape(n, n)).ravel()
+        return out
+
+    def flow(u0, T, var=False):
+        v0 = np.concatenate([u0, np.eye(n).ravel()]) if var else u0
+        return solve_ivp(field, (0, T), v0, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+
+    sol = root(lambda w: np.r_[flow(w[:n], w[n]) - w[:n], (w[:n] - nodes0) @ f0], np.r_[nodes0, period], tol=1e-13)
+    assert sol.success, sol.message
+    u0, T = sol.x[:n], float(sol.x[n])
+    mult = np.linalg.eigvals(flow(u0, T, var=True)[n:].reshape(n, n))
+    return u0, T, mult[np.argsort(-np.abs(mult))]
+
+
+# ---------------------------------------------------------------------------------------------
+# AUTO-07p demo lor: the Lorenz system
+
+LOR = {"sigma": 10.0, "rho": 20.0, "beta": 8.0 / 3.0}
+
+
+def lorenz_rhs(u, q):
+    x, y, z = u
+    return np.array([q["sigma"] * (y - x), q["rho"] * x - y - x * z, x * y - q["beta"] * z])
+
+
+def lorenz_jac(u, q):
+    x, y, z = u
+    return np.array([[-q["sigma"], q["sigma"], 0.0], [q["rho"] - z, -1.0, -x], [y, x, -q["beta"]]])
+
+
+def test_lorenz_unstable_cycles_from_the_subcritical_hopf_point():
+    """AUTO demo lor (sigma = 10, beta = 8/3), from C+ = (sqrt(beta (rho - 1)), ., rho - 1): the
+    Hopf point at rho_H = sigma (sigma + beta + 3) / (sigma - beta - 1) = 470/19 with
+    omega_H^2 = beta (rho_H + sigma) (lambda = i omega in lambda^3 + (sigma + beta + 1) lambda^2
+    + beta (rho + sigma) lambda + 2 beta sigma (rho - 1)), subcritical: the unstable cycles exist
+    for rho < rho_H, their period growing towards the homoclinic orbit at rho ~ 13.926.  At
+    rho ~ 22 and ~ 16 the period, orbit and multipliers against shooting; the product of the
+    multipliers is exp(-(sigma + 1 + beta) T) (Liouville: the divergence is constant)."""
+    from problems.demo import Lorenz
+
+    s, b = LOR["sigma"], LOR["beta"]
+    rho_h = s * (s + b + 3) / (s - b - 1)
+    omega_h = math.sqrt(b * (rho_h + s))
+    eq = trace(Lorenz(), Lorenz.equilibrium(LOR), LOR, "rho", ContinuationOptions(bounds={"rho": (15, 30)}))
+    (hb,) = eq.points("HB")
+    assert math.isclose(rho_h, 470 / 19, rel_tol=1e-15)
+    assert abs(hb.params["rho"] - rho_h) < 1e-9  # measured 3e-12
+    assert math.isclose(hb.data["omega"], omega_h, rel_tol=1e-9)
+    assert hb.data["l1"] > 0  # subcritical
+
+    # the period at the Hopf point: 2 pi / omega_H (the first orbit, amplitude 1e-4: O(eps^2) off)
+    small = continue_cycles(Lorenz(), hb, "rho", ContinuationOptions(max_steps=1), CycleOptions(amplitude=1e-4))
+    assert math.isclose(small.observables["period"][0], 2 * math.pi / omega_h, rel_tol=1e-8)  # measured 1.6e-10
+
+    br = continue_cycles(Lorenz(), hb, "rho", ContinuationOptions(bounds={"rho": (14.5, 30)}, max_steps=60))
+    rho, period = br.parameter_values, br.observables["period"]
+    assert br.status == "EP" and math.isclose(rho[-1], 14.5, rel_tol=1e-12)
+    assert np.all(rho < rho_h) and np.all(np.diff(rho) < 0)  # subcritical, towards smaller rho
+    assert np.all(np.diff(period) > 0) and period[-1] > 2.5 * period[0]  # towards the homoclinic orbit
+    assert not [p for p in br.special_points if p.type != "EP"]  # no LPC/PD/NS/BP on the way
+    assert np.all(br.n_unstable == 1) and not br.stable.any()  # one multiplier outside the unit circle
+    for target in (22.0, 16.0):
+        i = int(np.argmin(np.abs(rho - target)))
+        assert abs(rho[i] - target) < 0.3
+        mesh, nodes, T = orbit_of(br.state(i), 3)
+        q = {k: float(v[i]) for k, v in br.params.items()}
+        u0, T_ref, mult = shoot(lorenz_rhs, lorenz_jac, nodes[0], T, q)
+        assert math.isclose(T, T_ref, rel_tol=1e-7)  # measured 8e-11 (rho 22), 3.5e-9 (rho 16)
+        assert np.abs(nodes[0] - u0).max() < 1e-6  # measured 4e-9, 7e-9
+        run = solve_ivp(lambda t, u: lorenz_rhs(u, q), (0, T_ref), u0, method="DOP853", rtol=1e-12, atol=1e-12,
+                        t_eval=mesh.t[:-1] * T_ref)
+        assert np.abs(run.y.T - mesh.evaluate(nodes, mesh.t[:-1])).max() < 1e-6  # at the mesh points: 6.5e-9, 1.3e-7
+        ours = br.eigenvalues[i][np.argsort(-np.abs(br.eigenvalues[i]))]
+        assert math.isclose(mult[1].real, 1.0, abs_tol=1e-8)  # the trivial multiplier of the reference
+        assert ours[0].real > 1 and math.isclose(ours[0].real, mult[0].real, rel_tol=1e-7)  # 6e-10, 1.1e-8
+        # the contracting one, ~3e-5 and ~4e-9: by Liouville exp(-(sigma + 1 + beta) T) / mult[0] (the
+        # shooting's own is good to ~1e-4 only: 1e-12 absolute integration error in M)
+        small = math.exp(-(s + 1 + b) * T_ref) / mult[0].real
+        assert math.isclose(abs(mult[2]), small, rel_tol=1e-3)
+        assert math.isclose(abs(ours[1]), small, rel_tol=1e-3)  # measured 1e-8 (rho 22), 7e-5 (rho 16)
