@@ -26,6 +26,9 @@ builds its own by grouped differences from F alone, as a user's problem would).
 - AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
   - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
   and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
+- The Brusselator (Prigogine & Lefever 1968; BifurcationKit's and AUTO's (demo ``brs``, its
+  PDE form) classic): x' = a - (b + 1) x + x^2 y, y' = b x - x^2 y; the equilibrium (a, b / a)
+  has tr J = b - 1 - a^2, det J = a^2: a supercritical Hopf point at b = 1 + a^2, omega = a.
 - pacopy's Bratu1d (:func:`pacopy_bratu`).
 - BifurcationKit's ``chan`` example (examples/chan.jl; Chan's temperature problem): n = 101 points,
   x_1 = x_n = beta, (x_{i-1} - 2 x_i + x_{i+1}) (n - 1)^2 + alpha N(x_i) = 0 inside,
@@ -225,3 +228,22 @@ def pacopy_bratu(n=51):
     weights[0] = weights[-1] = h / 2
     return contin.from_functions(F, np.zeros(n), {"lmbda": 0.0}, jacobian=jac, dF_dp=dF_dp, debug=True,
                                  inner_product_weights=weights), F, jac
+
+
+BRUSSELATOR = dict(a=1.5, b=2.5)
+
+
+def brusselator_F(u, p):
+    x, y = u
+    return np.array([p["a"] - (p["b"] + 1) * x + x * x * y, p["b"] * x - x * x * y])
+
+
+def brusselator_J(u, p):
+    x, y = u
+    return np.array([[-(p["b"] + 1) + 2 * x * y, x * x], [p["b"] - 2 * x * y, -x * x]])
+
+
+def brusselator():
+    """F alone (contin differences it), the equilibrium (a, b / a) as the start."""
+    a, b = BRUSSELATOR["a"], BRUSSELATOR["b"]
+    return contin.from_functions(brusselator_F, np.array([a, b / a]), BRUSSELATOR, mass_matrix=np.eye(2))

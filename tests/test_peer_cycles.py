@@ -113,3 +113,58 @@ def test_lorenz_unstable_cycles_from_the_subcritical_hopf_point():
         small = math.exp(-(s + 1 + b) * T_ref) / mult[0].real
         assert math.isclose(abs(mult[2]), small, rel_tol=1e-3)
         assert math.isclose(abs(ours[1]), small, rel_tol=1e-3)  # measured 1e-8 (rho 22), 7e-5 (rho 16)
+
+
+# ---------------------------------------------------------------------------------------------
+# The Brusselator (tests/peer_models.py)
+
+
+def test_brusselator_stable_cycles_from_the_supercritical_hopf_point():
+    """x' = a - (b + 1) x + x^2 y, y' = b x - x^2 y (a = 3/2), through ``from_functions`` with F
+    alone: the Hopf point at b = 1 + a^2 with omega = a, supercritical (cycles for b > b_H,
+    stable).  At b ~ 3.6 and b = 4.5 the period and the amplitude (max - min of x) against
+    shooting, and the nontrivial multiplier against the shooting's monodromy and against
+    Liouville's exp(int_0^T tr J(u(t)) dt) along the shot orbit (2-D: it is the only one)."""
+    from tests import peer_models as pm
+
+    a = pm.BRUSSELATOR["a"]
+    pr = pm.brusselator()
+    eq = trace(pr, np.array([a, pm.BRUSSELATOR["b"] / a]), pm.BRUSSELATOR, "b",
+               ContinuationOptions(bounds={"b": (2.5, 4.5)}))
+    (hb,) = eq.points("HB")
+    assert abs(hb.params["b"] - (1 + a * a)) < 1e-9  # measured 4e-11
+    assert math.isclose(hb.data["omega"], a, rel_tol=1e-9)
+    assert hb.data["l1"] < 0  # supercritical
+
+    small = continue_cycles(pr, hb, "b", ContinuationOptions(max_steps=1), CycleOptions(amplitude=1e-4))
+    assert math.isclose(small.observables["period"][0], 2 * math.pi / a, rel_tol=1e-8)  # measured 3e-10
+
+    br = continue_cycles(pr, hb, "b", ContinuationOptions(bounds={"b": (2.5, 4.5)}, max_steps=60))
+    b, period, amp = br.parameter_values, br.observables["period"], br.observables["amplitude"]
+    assert br.status == "EP" and math.isclose(b[-1], 4.5, rel_tol=1e-12)
+    assert np.all(b > 1 + a * a) and np.all(np.diff(amp) > 0)
+    assert not [p for p in br.special_points if p.type != "EP"]
+    assert br.stable.all() and not br.n_unstable.any()  # the multiplier inside the unit circle
+    assert np.all(np.abs(br.eigenvalues[:, 0]) < 1)
+    for target in (3.6, 4.5):
+        i = int(np.argmin(np.abs(b - target)))
+        assert abs(b[i] - target) < 0.2
+        mesh, nodes, T = orbit_of(br.state(i), 2)
+        q = {k: float(v[i]) for k, v in br.params.items()}
+        u0, T_ref, mult = shoot(pm.brusselator_F, pm.brusselator_J, nodes[0], T, q)
+        assert math.isclose(T, T_ref, rel_tol=1e-7)  # measured 1e-10 (b 3.6), 5e-8 (b 4.5)
+        run = solve_ivp(lambda t, u: pm.brusselator_F(u, q), (0, T_ref), u0, method="DOP853", rtol=1e-12,
+                        atol=1e-12, dense_output=True)
+        t = np.linspace(0, T_ref, 20001)
+        x = run.sol(t)
+        amp_ref = np.ptp(x[0])
+        fine = mesh.evaluate(nodes, t / T_ref)[:, 0]
+        assert math.isclose(np.ptp(fine), amp_ref, rel_tol=5e-5)  # the collocation polynomial: 2e-6, 5e-6
+        assert math.isclose(amp[i], amp_ref, rel_tol=1e-3)  # max - min over the nodes only: 2e-4, 5e-4
+        assert math.isclose(mult[0].real, 1.0, abs_tol=1e-8)  # the trivial one
+        trJ = np.trace(np.array([pm.brusselator_J(v, q) for v in x.T]), axis1=1, axis2=2)
+        liouville = math.exp(np.trapezoid(trJ, t))
+        # down to ~2e-6 at b = 4.5: compared by the exponent, int tr J dt
+        assert math.isclose(math.log(mult[1].real), math.log(liouville), rel_tol=1e-6)  # the references agree
+        assert math.isclose(math.log(br.eigenvalues[i, 0].real), math.log(mult[1].real), rel_tol=1e-6)  # 3e-9, 4e-7
+        assert abs(br.eigenvalues[i, 0].imag) < 1e-12
