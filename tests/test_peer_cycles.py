@@ -140,7 +140,7 @@ def test_brusselator_stable_cycles_from_the_supercritical_hopf_point():
     assert math.isclose(small.observables["period"][0], 2 * math.pi / a, rel_tol=1e-8)  # measured 3e-10
 
     br = continue_cycles(pr, hb, "b", ContinuationOptions(bounds={"b": (2.5, 4.5)}, max_steps=60))
-    b, period, amp = br.parameter_values, br.observables["period"], br.observables["amplitude"]
+    b, amp = br.parameter_values, br.observables["amplitude"]
     assert br.status == "EP" and math.isclose(b[-1], 4.5, rel_tol=1e-12)
     assert np.all(b > 1 + a * a) and np.all(np.diff(amp) > 0)
     assert not [p for p in br.special_points if p.type != "EP"]
