@@ -29,6 +29,10 @@ builds its own by grouped differences from F alone, as a user's problem would).
 - The Brusselator (Prigogine & Lefever 1968; BifurcationKit's and AUTO's (demo ``brs``, its
   PDE form) classic): x' = a - (b + 1) x + x^2 y, y' = b x - x^2 y; the equilibrium (a, b / a)
   has tr J = b - 1 - a^2, det J = a^2: a supercritical Hopf point at b = 1 + a^2, omega = a.
+- AUTO ``plp`` (demos/plp/plp.f90; one cell, two substrates): F1 = (s0 - s) - rho R,
+  F2 = alpha (a0 - a) - rho R, R = s a / (1 + s + kappa s^2); PAR = (s0, a0, alpha, rho, kappa) =
+  (110, 500, 0.2, 2.021628, 0.1) at its start (s, a) = (45.55974, 177.7987), continued in rho: two
+  subcritical Hopf points joined by a branch of cycles with two folds (LPC).
 - pacopy's Bratu1d (:func:`pacopy_bratu`).
 - BifurcationKit's ``chan`` example (examples/chan.jl; Chan's temperature problem): n = 101 points,
   x_1 = x_n = beta, (x_{i-1} - 2 x_i + x_{i+1}) (n - 1)^2 + alpha N(x_i) = 0 inside,
@@ -247,3 +251,25 @@ def brusselator():
     """F alone (contin differences it), the equilibrium (a, b / a) as the start."""
     a, b = BRUSSELATOR["a"], BRUSSELATOR["b"]
     return contin.from_functions(brusselator_F, np.array([a, b / a]), BRUSSELATOR, mass_matrix=np.eye(2))
+
+
+PLP = dict(s0=110.0, a0=500.0, alpha=0.2, rho=2.021628, kappa=0.1)
+PLP_START = (4.555974e01, 1.777987e02)  # the demo's STPNT (an equilibrium to ~1e-6)
+
+
+def plp_F(u, p):
+    s, a = u
+    r = s * a / (1 + s + p["kappa"] * s * s)
+    return np.array([(p["s0"] - s) - p["rho"] * r, p["alpha"] * (p["a0"] - a) - p["rho"] * r])
+
+
+def plp_J(u, p):
+    s, a = u
+    d = 1 + s + p["kappa"] * s * s
+    drds, drda = (a * d - s * a * (1 + 2 * p["kappa"] * s)) / d**2, s / d
+    return np.array([[-1 - p["rho"] * drds, -p["rho"] * drda], [-p["rho"] * drds, -p["alpha"] - p["rho"] * drda]])
+
+
+def plp():
+    """F alone (contin differences it), from the demo's start."""
+    return contin.from_functions(plp_F, np.array(PLP_START), PLP, mass_matrix=np.eye(2))

@@ -19,7 +19,7 @@ from scipy.optimize import root
 
 from contin.continuation import trace
 from contin.cycles import CycleOptions, continue_cycles, orbit_of
-from contin.options import ContinuationOptions
+from contin.options import ContinuationOptions, StepOptions
 
 
 def shoot(rhs, jac, nodes0, period, q):
@@ -168,3 +168,87 @@ def test_brusselator_stable_cycles_from_the_supercritical_hopf_point():
         assert math.isclose(math.log(mult[1].real), math.log(liouville), rel_tol=1e-6)  # the references agree
         assert math.isclose(math.log(br.eigenvalues[i, 0].real), math.log(mult[1].real), rel_tol=1e-6)  # 3e-9, 4e-7
         assert abs(br.eigenvalues[i, 0].imag) < 1e-12
+
+
+# ---------------------------------------------------------------------------------------------
+# AUTO-07p demo plp: a fold of cycles
+
+
+def plp_shooting_fold(u_top, period, rho_guess):
+    """The fold of plp's cycles by solve_ivp shooting: the orbits labelled by c, the largest s on
+    the orbit (unknowns a(0), T, rho with s(0) = c: periodicity and s'(0) = 0), the fold where
+    rho(c) is extremal (minimize_scalar).  Returns (rho, T) at the fold."""
+    from scipy.optimize import fsolve, minimize_scalar
+
+    from tests import peer_models as pm
+
+    state = {"guess": np.array([u_top[1], period, rho_guess])}
+
+    def orbit(c):
+        def g(v):
+            a0, t_end, rho = v
+            q = {**pm.PLP, "rho": rho}
+            end = solve_ivp(lambda t, u: pm.plp_F(u, q), (0, t_end), [c, a0], method="DOP853", rtol=1e-12,
+                            atol=1e-12).y[:, -1]
+            return [end[0] - c, end[1] - a0, pm.plp_F(np.array([c, a0]), q)[0]]
+
+        sol, _, ok, msg = fsolve(g, state["guess"], xtol=1e-13, full_output=True)
+        assert ok == 1, msg
+        state["guess"] = sol
+        return sol
+
+    c0 = u_top[0]
+    res = minimize_scalar(lambda c: orbit(c)[2], bracket=(c0 - 0.01, c0, c0 + 0.01), tol=1e-8)
+    sol = orbit(res.x)
+    return float(sol[2]), float(sol[1])
+
+
+def test_plp_fold_of_cycles_against_shooting():
+    """AUTO demo plp in rho: HB1 (F = 0, tr J = 0 solved by fsolve with the exact Jacobian) is
+    subcritical; its unstable cycles grow towards smaller rho to a fold of cycles (LPC1 near
+    rho = 2.7597; reference: the minimum of rho along the shooting family) and come back stable.
+    The multiplier on either side against the shooting monodromy."""
+    from scipy.optimize import fsolve
+
+    from tests import peer_models as pm
+
+    pr = pm.plp()
+    eq = trace(pr, np.array(pm.PLP_START), pm.PLP, "rho",
+               ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=500, step=StepOptions(ds=0.1, ds_max=3.0)))
+    hb = eq.points("HB")[0]
+
+    def hopf(v):
+        q = {**pm.PLP, "rho": v[2]}
+        return [*pm.plp_F(v[:2], q), np.trace(pm.plp_J(v[:2], q))]
+
+    ref = fsolve(hopf, [*hb.state, hb.params["rho"]], xtol=1e-12)
+    assert np.abs(hopf(ref)).max() < 1e-10
+    assert abs(hb.params["rho"] - ref[2]) < 1e-8  # measured 8e-11
+    omega = math.sqrt(np.linalg.det(pm.plp_J(ref[:2], {**pm.PLP, "rho": ref[2]})))
+    assert math.isclose(hb.data["omega"], omega, rel_tol=1e-7)  # 2e-11
+    assert hb.data["l1"] > 0  # subcritical
+
+    br = continue_cycles(pr, hb, "rho", ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=75))
+    assert [p.type for p in br.special_points] == ["LPC", "EP"]
+    (lpc,) = br.points("LPC")
+    assert lpc.converged and "fold of cycles" in lpc.note
+    rho = br.parameter_values
+    assert rho.min() >= lpc.params["rho"] - 1e-12  # the fold is the branch's smallest rho
+    mesh, nodes, period = orbit_of(lpc.state, 2)
+    top = nodes[int(np.argmax(nodes[:, 0]))]
+    rho_fold, t_fold = plp_shooting_fold(top, period, lpc.params["rho"])
+    assert abs(lpc.params["rho"] - rho_fold) < 1e-7  # measured 3.2e-9 (NTST = 20)
+    assert math.isclose(period, t_fold, rel_tol=1e-7)  # 2.9e-10
+    # unstable (one multiplier > 1) from the HB to the fold, stable after it
+    idx = np.arange(len(br))  # the LPC itself (a multiplier at 1 to the Floquet error) is neither
+    assert np.all(br.n_unstable[idx < lpc.index] == 1) and br.stable[idx > lpc.index].all()
+    for i in (lpc.index - 10, len(br) - 1):
+        _, nodes, T = orbit_of(br.state(i), 2)
+        q = {k: float(v[i]) for k, v in br.params.items()}
+        u0, T_ref, mult = shoot(pm.plp_F, pm.plp_J, nodes[0], T, q)
+        assert math.isclose(T, T_ref, rel_tol=1e-7)
+        if i < lpc.index:  # 6.3: measured 3e-8
+            assert math.isclose(br.eigenvalues[i, 0].real, mult[0].real, rel_tol=1e-6)
+        else:  # 3e-4, by its exponent: measured 5e-5 on NTST = 20 (the multiplier 4e-4 off; 2e-6 on
+            # NTST = 40, 5e-10 on 80: the collocation error, amplified in a strongly contracting one)
+            assert math.isclose(math.log(br.eigenvalues[i, 0].real), math.log(mult[1].real), rel_tol=2e-4)
