@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
@@ -174,10 +175,17 @@ def test_brusselator_stable_cycles_from_the_supercritical_hopf_point():
 # AUTO-07p demo plp: a fold of cycles
 
 
-def plp_shooting_fold(u_top, period, rho_guess):
+def orbit_top(mesh, nodes):
+    """The point of largest s on the collocation orbit (sampled finely): the shooting's start."""
+    u = mesh.evaluate(nodes, np.linspace(0, 1, 4001))
+    return u[int(np.argmax(u[:, 0]))]
+
+
+def plp_shooting_fold(u_top, period, rho_guess, **params):
     """The fold of plp's cycles by solve_ivp shooting: the orbits labelled by c, the largest s on
     the orbit (unknowns a(0), T, rho with s(0) = c: periodicity and s'(0) = 0), the fold where
-    rho(c) is extremal (minimize_scalar).  Returns (rho, T) at the fold."""
+    rho(c) is extremal (minimize_scalar); ``params``: other parameters than the demo's.  Returns
+    (rho, T) at the fold."""
     from scipy.optimize import fsolve, minimize_scalar
 
     from tests import peer_models as pm
@@ -187,13 +195,13 @@ def plp_shooting_fold(u_top, period, rho_guess):
     def orbit(c):
         def g(v):
             a0, t_end, rho = v
-            q = {**pm.PLP, "rho": rho}
+            q = {**pm.PLP, **params, "rho": rho}
             end = solve_ivp(lambda t, u: pm.plp_F(u, q), (0, t_end), [c, a0], method="DOP853", rtol=1e-12,
                             atol=1e-12).y[:, -1]
             return [end[0] - c, end[1] - a0, pm.plp_F(np.array([c, a0]), q)[0]]
 
         sol, _, ok, msg = fsolve(g, state["guess"], xtol=1e-13, full_output=True)
-        assert ok == 1, msg
+        assert ok == 1 or np.abs(g(sol)).max() < 1e-9, msg  # xtol 1e-13 can be below its noise
         state["guess"] = sol
         return sol
 
@@ -203,7 +211,19 @@ def plp_shooting_fold(u_top, period, rho_guess):
     return float(sol[2]), float(sol[1])
 
 
-def test_plp_fold_of_cycles_against_shooting():
+@pytest.fixture(scope="module")
+def plp_cycles():
+    """plp's equilibria in rho (the demo's run ``plp.ss``), its HB1 and the cycles from it past LPC1."""
+    from tests import peer_models as pm
+
+    pr = pm.plp()
+    eq = trace(pr, np.array(pm.PLP_START), pm.PLP, "rho",
+               ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=500, step=StepOptions(ds=0.1, ds_max=3.0)))
+    hb = eq.points("HB")[0]
+    return pr, hb, continue_cycles(pr, hb, "rho", ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=75))
+
+
+def test_plp_fold_of_cycles_against_shooting(plp_cycles):
     """AUTO demo plp in rho: HB1 (F = 0, tr J = 0 solved by fsolve with the exact Jacobian) is
     subcritical; its unstable cycles grow towards smaller rho to a fold of cycles (LPC1 near
     rho = 2.7597; reference: the minimum of rho along the shooting family) and come back stable.
@@ -212,10 +232,7 @@ def test_plp_fold_of_cycles_against_shooting():
 
     from tests import peer_models as pm
 
-    pr = pm.plp()
-    eq = trace(pr, np.array(pm.PLP_START), pm.PLP, "rho",
-               ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=500, step=StepOptions(ds=0.1, ds_max=3.0)))
-    hb = eq.points("HB")[0]
+    _, hb, br = plp_cycles
 
     def hopf(v):
         q = {**pm.PLP, "rho": v[2]}
@@ -228,17 +245,16 @@ def test_plp_fold_of_cycles_against_shooting():
     assert math.isclose(hb.data["omega"], omega, rel_tol=1e-7)  # 2e-11
     assert hb.data["l1"] > 0  # subcritical
 
-    br = continue_cycles(pr, hb, "rho", ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=75))
     assert [p.type for p in br.special_points] == ["LPC", "EP"]
     (lpc,) = br.points("LPC")
     assert lpc.converged and "fold of cycles" in lpc.note
     rho = br.parameter_values
     assert rho.min() >= lpc.params["rho"] - 1e-12  # the fold is the branch's smallest rho
     mesh, nodes, period = orbit_of(lpc.state, 2)
-    top = nodes[int(np.argmax(nodes[:, 0]))]
+    top = orbit_top(mesh, nodes)
     rho_fold, t_fold = plp_shooting_fold(top, period, lpc.params["rho"])
     assert abs(lpc.params["rho"] - rho_fold) < 1e-7  # measured 3.2e-9 (NTST = 20)
-    assert math.isclose(period, t_fold, rel_tol=1e-7)  # 2.9e-10
+    assert math.isclose(period, t_fold, rel_tol=1e-7)  # 2.8e-9
     # unstable (one multiplier > 1) from the HB to the fold, stable after it
     idx = np.arange(len(br))  # the LPC itself (a multiplier at 1 to the Floquet error) is neither
     assert np.all(br.n_unstable[idx < lpc.index] == 1) and br.stable[idx > lpc.index].all()
@@ -252,3 +268,24 @@ def test_plp_fold_of_cycles_against_shooting():
         else:  # 3e-4, by its exponent: measured 5e-5 on NTST = 20 (the multiplier 4e-4 off; 2e-6 on
             # NTST = 40, 5e-10 on 80: the collocation error, amplified in a strongly contracting one)
             assert math.isclose(math.log(br.eigenvalues[i, 0].real), math.log(mult[1].real), rel_tol=2e-4)
+
+
+def test_plp_lpc_curve_against_shooting_folds(plp_cycles):
+    """The demo's run ``plp.plp``: the curve of folds of cycles through LPC1 in (rho, s0), traced
+    both ways to s0 = 109 and 111 (the demo's UZSTOP / UZR); at both ends rho and the period
+    against the shooting fold at that s0."""
+    from contin.lpccurve import trace_lpc_curve
+
+    pr, _, br = plp_cycles
+    (lpc,) = br.points("LPC")
+    curve = trace_lpc_curve(pr, lpc, "s0", 2, ContinuationOptions(bounds={"s0": (109.0, 111.0)}, max_steps=40),
+                            parameter="rho")
+    s0, rho = curve.params["s0"], curve.params["rho"]
+    assert [p.type for p in curve.special_points] == ["EP", "EP"]
+    assert s0.min() == 109.0 and s0.max() == 111.0 and np.all(np.diff(s0) > 0) and np.all(np.diff(rho) > 0)
+    for i in (int(np.argmin(s0)), int(np.argmax(s0))):
+        mesh, nodes, period = orbit_of(curve.state(i), 2, None, 4)
+        top = orbit_top(mesh, nodes)
+        rho_fold, t_fold = plp_shooting_fold(top, period, float(rho[i]), s0=float(s0[i]))
+        assert abs(rho[i] - rho_fold) < 1e-7  # measured 4.4e-9 (s0 = 109), 3.6e-9 (111)
+        assert math.isclose(period, t_fold, rel_tol=1e-7)  # 5.9e-9, 1.3e-9
