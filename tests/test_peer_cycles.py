@@ -116,6 +116,30 @@ def test_lorenz_unstable_cycles_from_the_subcritical_hopf_point():
         assert math.isclose(abs(ours[1]), small, rel_tol=1e-3)  # measured 1e-8 (rho 22), 7e-5 (rho 16)
 
 
+
+def test_lorenz_cycles_near_the_homoclinic_orbit_end_under_resolved():
+    """On NTST = 40 the Lorenz cycles reach rho ~ 13.97, within 0.05 of the homoclinic orbit at
+    rho_hom = 13.9265 (Sparrow 1982; no cycles of this family below it), the period 4x T_H; the last
+    orbit against shooting.  The branch then ends with MX "under-resolved" naming NTST = 80 (the
+    Floquet check of the sharpening orbit), not with wrong orbits."""
+    from problems.demo import Lorenz
+
+    eq = trace(Lorenz(), Lorenz.equilibrium(LOR), LOR, "rho", ContinuationOptions(bounds={"rho": (15, 30)}))
+    (hb,) = eq.points("HB")
+    br = continue_cycles(Lorenz(), hb, "rho", ContinuationOptions(bounds={"rho": (13.0, 30)}, max_steps=200),
+                         CycleOptions(ntst=40))
+    assert br.status == "MX" and "under-resolved" in br.message and "NTST = 80" in br.message
+    rho, period = br.parameter_values, br.observables["period"]
+    assert np.all(rho > 13.9265) and rho[-1] < 14.0
+    assert period[-1] > 4 * 2 * math.pi / hb.data["omega"]
+    i = len(br) - 1
+    _, nodes, T = orbit_of(br.state(i), 3)
+    q = {k: float(v[i]) for k, v in br.params.items()}
+    _, T_ref, mult = shoot(lorenz_rhs, lorenz_jac, nodes[0], T, q)
+    assert math.isclose(T, T_ref, rel_tol=1e-7)  # measured 2.6e-9
+    assert math.isclose(br.eigenvalues[i, 0].real, mult[0].real, rel_tol=1e-5)  # ~1083: measured 1.8e-6
+    assert br.n_unstable[i] == 1
+
 # ---------------------------------------------------------------------------------------------
 # The Brusselator (tests/peer_models.py)
 
