@@ -205,10 +205,11 @@ def orbit_top(mesh, nodes):
     return u[int(np.argmax(u[:, 0]))]
 
 
-def plp_shooting_fold(u_top, period, rho_guess, **params):
+def plp_shooting_fold(u_top, period, rho_guess, sign=1, **params):
     """The fold of plp's cycles by solve_ivp shooting: the orbits labelled by c, the largest s on
     the orbit (unknowns a(0), T, rho with s(0) = c: periodicity and s'(0) = 0), the fold where
-    rho(c) is extremal (minimize_scalar); ``params``: other parameters than the demo's.  Returns
+    rho(c) is extremal (minimize_scalar of sign * rho: 1 a minimum, -1 a maximum); ``params``: other
+    parameters than the demo's.  Returns
     (rho, T) at the fold."""
     from scipy.optimize import fsolve, minimize_scalar
 
@@ -230,21 +231,21 @@ def plp_shooting_fold(u_top, period, rho_guess, **params):
         return sol
 
     c0 = u_top[0]
-    res = minimize_scalar(lambda c: orbit(c)[2], bracket=(c0 - 0.01, c0, c0 + 0.01), tol=1e-8)
+    res = minimize_scalar(lambda c: sign * orbit(c)[2], bracket=(c0 - 0.01, c0, c0 + 0.01), tol=1e-8)
     sol = orbit(res.x)
     return float(sol[2]), float(sol[1])
 
 
 @pytest.fixture(scope="module")
 def plp_cycles():
-    """plp's equilibria in rho (the demo's run ``plp.ss``), its HB1 and the cycles from it past LPC1."""
+    """plp's equilibria in rho (the demo's run ``plp.ss``) and the cycles from HB1 past LPC1."""
     from tests import peer_models as pm
 
     pr = pm.plp()
     eq = trace(pr, np.array(pm.PLP_START), pm.PLP, "rho",
                ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=500, step=StepOptions(ds=0.1, ds_max=3.0)))
     hb = eq.points("HB")[0]
-    return pr, hb, continue_cycles(pr, hb, "rho", ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=75))
+    return pr, eq, continue_cycles(pr, hb, "rho", ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=75))
 
 
 def test_plp_fold_of_cycles_against_shooting(plp_cycles):
@@ -256,7 +257,8 @@ def test_plp_fold_of_cycles_against_shooting(plp_cycles):
 
     from tests import peer_models as pm
 
-    _, hb, br = plp_cycles
+    _, eq, br = plp_cycles
+    hb = eq.points("HB")[0]
 
     def hopf(v):
         q = {**pm.PLP, "rho": v[2]}
@@ -313,3 +315,21 @@ def test_plp_lpc_curve_against_shooting_folds(plp_cycles):
         rho_fold, t_fold = plp_shooting_fold(top, period, float(rho[i]), s0=float(s0[i]))
         assert abs(rho[i] - rho_fold) < 1e-7  # measured 4.4e-9 (s0 = 109), 3.6e-9 (111)
         assert math.isclose(period, t_fold, rel_tol=1e-7)  # 5.9e-9, 1.3e-9
+
+
+def test_plp_second_fold_from_the_other_hopf_point(plp_cycles):
+    """From HB2 (rho ~ 4.65, subcritical) the unstable cycles grow towards larger rho to LPC2, the
+    maximum of rho along the family (near 5.0078; reference: shooting), and are stable after it."""
+    pr, eq, _ = plp_cycles
+    hb = eq.points("HB")[1]
+    assert hb.data["l1"] > 0 and hb.params["rho"] > 4.5
+    br = continue_cycles(pr, hb, "rho", ContinuationOptions(bounds={"rho": (0, 6)}, max_steps=45))
+    assert [p.type for p in br.special_points] == ["LPC", "EP"]
+    (lpc,) = br.points("LPC")
+    assert br.parameter_values.max() <= lpc.params["rho"] + 1e-12
+    mesh, nodes, period = orbit_of(lpc.state, 2)
+    rho_fold, t_fold = plp_shooting_fold(orbit_top(mesh, nodes), period, lpc.params["rho"], sign=-1)
+    assert abs(lpc.params["rho"] - rho_fold) < 1e-7  # measured 1.3e-10
+    assert math.isclose(period, t_fold, rel_tol=1e-7)  # 1.1e-9
+    idx = np.arange(len(br))
+    assert np.all(br.n_unstable[idx < lpc.index] == 1) and br.stable[idx > lpc.index].all()
