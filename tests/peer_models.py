@@ -26,9 +26,9 @@ builds its own by grouped differences from F alone, as a user's problem would).
 - AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
   - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
   and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
-- The Brusselator (Prigogine & Lefever 1968; BifurcationKit's and AUTO's (demo ``brs``, its
-  PDE form) classic): x' = a - (b + 1) x + x^2 y, y' = b x - x^2 y; the equilibrium (a, b / a)
-  has tr J = b - 1 - a^2, det J = a^2: a supercritical Hopf point at b = 1 + a^2, omega = a.
+- The Brusselator (Prigogine & Lefever 1968; the kinetics of AUTO's demo ``brc`` and of
+  BifurcationKit's Brusselator PDE tutorials): x' = a - (b + 1) x + x^2 y, y' = b x - x^2 y; the
+  equilibrium (a, b / a) has tr J = b - 1 - a^2, det J = a^2: a supercritical Hopf point at b = 1 + a^2, omega = a.
 - AUTO ``plp`` (demos/plp/plp.f90; one cell, two substrates): F1 = (s0 - s) - rho R,
   F2 = alpha (a0 - a) - rho R, R = s a / (1 + s + kappa s^2); PAR = (s0, a0, alpha, rho, kappa) =
   (110, 500, 0.2, 2.021628, 0.1) at its start (s, a) = (45.55974, 177.7987), continued in rho: two
