@@ -26,6 +26,13 @@ builds its own by grouped differences from F alone, as a user's problem would).
 - AUTO ``pp3`` (demos/pp3/pp3.f90): x' = x (1 - x) - p4 x y, y' = -p2 y + p4 x y - p5 y z
   - p1 (1 - e^{-p6 y}), z' = -p3 z + p5 y z; its branches in p1 (BPs where a species appears)
   and the Hopf locus in (p1, p4) of the three-species branch (a closed curve).
+- The Brusselator (Prigogine & Lefever 1968; the kinetics of AUTO's demo ``brc`` and of
+  BifurcationKit's Brusselator PDE tutorials): x' = a - (b + 1) x + x^2 y, y' = b x - x^2 y; the
+  equilibrium (a, b / a) has tr J = b - 1 - a^2, det J = a^2: a supercritical Hopf point at b = 1 + a^2, omega = a.
+- AUTO ``plp`` (demos/plp/plp.f90; one cell, two substrates): F1 = (s0 - s) - rho R,
+  F2 = alpha (a0 - a) - rho R, R = s a / (1 + s + kappa s^2); PAR = (s0, a0, alpha, rho, kappa) =
+  (110, 500, 0.2, 2.021628, 0.1) at its start (s, a) = (45.55974, 177.7987), continued in rho: two
+  subcritical Hopf points joined by a branch of cycles with two folds (LPC).
 - pacopy's Bratu1d (:func:`pacopy_bratu`).
 - BifurcationKit's ``chan`` example (examples/chan.jl; Chan's temperature problem): n = 101 points,
   x_1 = x_n = beta, (x_{i-1} - 2 x_i + x_{i+1}) (n - 1)^2 + alpha N(x_i) = 0 inside,
@@ -225,3 +232,44 @@ def pacopy_bratu(n=51):
     weights[0] = weights[-1] = h / 2
     return contin.from_functions(F, np.zeros(n), {"lmbda": 0.0}, jacobian=jac, dF_dp=dF_dp, debug=True,
                                  inner_product_weights=weights), F, jac
+
+
+BRUSSELATOR = dict(a=1.5, b=2.5)
+
+
+def brusselator_F(u, p):
+    x, y = u
+    return np.array([p["a"] - (p["b"] + 1) * x + x * x * y, p["b"] * x - x * x * y])
+
+
+def brusselator_J(u, p):
+    x, y = u
+    return np.array([[-(p["b"] + 1) + 2 * x * y, x * x], [p["b"] - 2 * x * y, -x * x]])
+
+
+def brusselator():
+    """F alone (contin differences it), the equilibrium (a, b / a) as the start."""
+    a, b = BRUSSELATOR["a"], BRUSSELATOR["b"]
+    return contin.from_functions(brusselator_F, np.array([a, b / a]), BRUSSELATOR, mass_matrix=np.eye(2))
+
+
+PLP = dict(s0=110.0, a0=500.0, alpha=0.2, rho=2.021628, kappa=0.1)
+PLP_START = (4.555974e01, 1.777987e02)  # the demo's STPNT (an equilibrium to ~1e-6)
+
+
+def plp_F(u, p):
+    s, a = u
+    r = s * a / (1 + s + p["kappa"] * s * s)
+    return np.array([(p["s0"] - s) - p["rho"] * r, p["alpha"] * (p["a0"] - a) - p["rho"] * r])
+
+
+def plp_J(u, p):
+    s, a = u
+    d = 1 + s + p["kappa"] * s * s
+    drds, drda = (a * d - s * a * (1 + 2 * p["kappa"] * s)) / d**2, s / d
+    return np.array([[-1 - p["rho"] * drds, -p["rho"] * drda], [-p["rho"] * drds, -p["alpha"] - p["rho"] * drda]])
+
+
+def plp():
+    """F alone (contin differences it), from the demo's start."""
+    return contin.from_functions(plp_F, np.array(PLP_START), PLP, mass_matrix=np.eye(2))
