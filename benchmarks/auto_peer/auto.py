@@ -48,6 +48,18 @@ def compile_equations(auto_dir: Path, workdir: Path, source: Path = HERE / "gpcf
     return exe
 
 
+def contin_ab_orbits(workdir: Path) -> list[str]:
+    """contin's side of the ab orbit checks, in ``workdir``: ``trace ab`` (ab.h5) and its orbits from
+    HB1, 40 steps through the fold of cycles (cyc.h5); the command prefix that ran them."""
+    import sys
+
+    contin = [sys.executable, "-m", "contin"]
+    subprocess.run([*contin, "trace", "ab", "-o", "ab.h5", "-q"], cwd=workdir, check=True)
+    subprocess.run([*contin, "continue", "ab.h5", "--from", "HB1", "--cycles", "--max-steps", "40", "-o", "cyc.h5"],
+                   cwd=workdir, check=True, capture_output=True)
+    return contin
+
+
 def restart(exe: Path, workdir: Path, solutions: str, constants_text: str) -> Path:
     """One AUTO run of ``exe`` in ``workdir`` from the s-file ``solutions`` (copied to fort.3, where
     AUTO's IRS finds its label) with the constants ``constants_text`` on stdin; the fort.8 path."""

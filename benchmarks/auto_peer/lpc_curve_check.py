@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.auto_peer.auto import compile_equations, find_auto, restart
+from benchmarks.auto_peer.auto import compile_equations, contin_ab_orbits, find_auto, restart
 from benchmarks.auto_peer.fort import read_solutions
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "auto_ab"
@@ -45,10 +44,7 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="contin-lpc-"))
     try:
         exe = compile_equations(auto_dir, work, DATA / "ab.f90")
-        contin = [sys.executable, "-m", "contin"]
-        subprocess.run([*contin, "trace", "ab", "-o", "ab.h5", "-q"], cwd=work, check=True)
-        subprocess.run([*contin, "continue", "ab.h5", "--from", "HB1", "--cycles", "--max-steps", "40", "-o", "cyc.h5"],
-                       cwd=work, check=True, capture_output=True)
+        contin = contin_ab_orbits(work)
         subprocess.run([*contin, "continue", "cyc.h5", "--from", "LPC1", "--free", "B", "--bounds", "B=0:14.5",
                         "-o", "lpc.h5"], cwd=work, check=False, capture_output=True)
         subprocess.run([*contin, "export", "cyc.h5", "--auto", "orb"], cwd=work, check=True, capture_output=True)
