@@ -211,10 +211,14 @@ def check_special_point(row: int, branch: Any, sp: Any) -> None:
     if not 0 <= sp.index < max(len(branch), 1):
         raise BadDataset(f"dataset special_points/index row {row} is {sp.index}, outside branch "
                          f"{branch.id!r} ({len(branch)} points)")
-    for name in (set(branch.free) | {branch.parameter}) & set(sp.params):
-        v = sp.params[name]
-        if not isinstance(v, str) and not np.isfinite(v):
-            raise BadDataset(f"dataset special_points/params/{name} holds a non-finite value at row {row} "
+    free = set(branch.free) | {branch.parameter}
+    for name, v in sp.params.items():
+        # as on the branch's own columns: a free parameter finite, the others not NaN (a NaN fixed
+        # parameter of an LPC, taken as the LPC curve's second parameter, ended "internal error
+        # (RuntimeError: Factor is exactly singular)", qa19b)
+        if not isinstance(v, str) and (np.isnan(v) or (name in free and not np.isfinite(v))):
+            kind = "a non-finite value" if name in free else "NaN"
+            raise BadDataset(f"dataset special_points/params/{name} holds {kind} at row {row} "
                              f"(the writer stores only finite values there)")
     if sp.state is not None and first_bad_row(np.ravel(sp.state)) is not None:
         raise BadDataset(f"dataset special_points/states holds a non-finite value at row {row} "

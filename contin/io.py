@@ -78,7 +78,7 @@ so the CLI prints one ``Error:`` line) naming the branch, the quantity and the f
 the previously published file is left untouched.  Must be finite: ``states``, ``tangents``,
 ``ds``, the free parameter columns, every observable column that has any finite value, and
 the states and free-parameter values of the special points.  Allowed: ``inf`` (not NaN) in a
-fixed parameter column (``Fr = inf`` means no gravity), an observable that is NaN at every
+fixed parameter column or a special point's fixed parameter (``Fr = inf`` means no gravity), an observable that is NaN at every
 point (the problem does not define it), and NaN ``phi``/``bracket`` of a special point (no
 order parameter / no bracket).
 """
@@ -202,9 +202,8 @@ def check_finite(branch: Branch) -> None:
     for sp in branch.special_points:
         if sp.state is not None and first_bad_row(np.ravel(sp.state)) is not None:
             refuse(f"the located state of {sp.name}", sp.index)
-        for name in free & set(sp.params):
-            v = sp.params[name]
-            if not isinstance(v, str) and not np.isfinite(v):
+        for name, v in sp.params.items():  # free: finite; fixed: not NaN (as the reader checks)
+            if not isinstance(v, str) and (np.isnan(v) or (name in free and not np.isfinite(v))):
                 refuse(f"parameter {name} of {sp.name}", sp.index)
 
 

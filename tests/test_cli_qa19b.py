@@ -1,0 +1,60 @@
+"""qa19b: robustness of the LPC curve (``continue ORBITS.h5 --from LPC1 --free B``) and of branch
+switching at a branch point of cycles (``continue ORBITS.h5 --from BP1 --cycles``) on the command
+line: bad input gets one ``Error:`` line, damaged files are named as such."""
+
+from __future__ import annotations
+
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from contin.cli import main
+
+
+def _cli(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def orbits(tmp_path_factory):
+    """contin trace ab; its orbits from HB1 (40 steps: LPC1 at D = 0.1617)."""
+    d = tmp_path_factory.mktemp("qa19b")
+    ab, cyc = d / "ab.h5", d / "cyc.h5"
+    assert _cli("trace", "ab", "-q", "--no-stability", "-o", ab).exit_code == 0
+    r = _cli("continue", ab, "--from", "HB1", "--cycles", "--max-steps", 40, "-o", cyc)
+    assert r.exit_code == 0 and "LPC1" in r.output, r.output
+    return cyc
+
+
+@pytest.mark.parametrize("name", ["B", "beta"])
+def test_nan_fixed_parameter_of_an_lpc_is_a_damaged_file(orbits, tmp_path, name):
+    """A NaN in a fixed parameter of LPC1 (B: the curve's second parameter; beta) ended "Error:
+    internal error (RuntimeError: Factor is exactly singular)": the file is damaged, and says so."""
+    bad = tmp_path / "bad.h5"
+    shutil.copy(orbits, bad)
+    with h5py.File(bad, "r+") as f:
+        f[f"special_points/params/{name}"][0] = np.nan
+    for args in (("continue", bad, "--from", "LPC1", "--free", "B", "--max-steps", 3), ("info", bad)):
+        r = _cli(*args)
+        assert r.exit_code == 1, r.output
+        assert r.output.strip().splitlines()[-1] == (
+            f"Error: {str(bad)!r} is damaged: dataset special_points/params/{name} holds NaN at row 0 (the writer "
+            "stores only finite values there)")
+
+
+def test_writer_refuses_nan_fixed_parameter_of_a_special_point():
+    """The writer's rule matches the reader's: a special point's fixed parameter may be inf, not NaN."""
+    from contin.branch import Branch, SpecialPoint
+    from contin.io import NonFiniteError, check_finite
+
+    def branch(v):
+        sp = SpecialPoint(type="LP", index=0, params={"a": 0.0, "b": v}, order_parameter=0.0, state=np.zeros(1))
+        return Branch(id="0", parameter="a", free=("a",), observables={}, newton_iterations=np.zeros(1, int), states=np.zeros((1, 1)), tangents=np.zeros((1, 2)),
+                      params={"a": np.zeros(1), "b": np.full(1, 1.0)}, ds=np.ones(1), special_points=[sp])
+
+    check_finite(branch(np.inf))  # Fr = inf: no gravity
+    with pytest.raises(NonFiniteError, match="parameter b of LP"):
+        check_finite(branch(np.nan))
