@@ -58,3 +58,38 @@ def test_writer_refuses_nan_fixed_parameter_of_a_special_point():
     check_finite(branch(np.inf))  # Fr = inf: no gravity
     with pytest.raises(NonFiniteError, match="parameter b of LP"):
         check_finite(branch(np.nan))
+
+
+@pytest.fixture(scope="module")
+def pitchfork_orbits(tmp_path_factory):
+    """The cycle-pitchfork fixture scene (tests/cycle_fixture_scenes.py): its orbits from HB1, with
+    the branch point of cycles BP1 at mu = beta = 0.5."""
+    import pathlib
+
+    d = tmp_path_factory.mktemp("qa19b_bpc")
+    eq, orb = d / "eq.h5", d / "orb.h5"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.syspath_prepend(str(pathlib.Path(__file__).parent))
+        mp.setenv("CONTIN_SCENES", "cycle_fixture_scenes:SCENES")
+        assert _cli("trace", "cycle-pitchfork", "-q", "--no-stability", "-o", eq).exit_code == 0
+        r = _cli("continue", eq, "--from", "HB1", "--cycles", "-o", orb)
+        assert r.exit_code == 0 and "BP1" in r.output, r.output
+        yield orb
+
+
+@pytest.fixture
+def fixture_scenes(monkeypatch):
+    import pathlib
+
+    monkeypatch.syspath_prepend(str(pathlib.Path(__file__).parent))
+    monkeypatch.setenv("CONTIN_SCENES", "cycle_fixture_scenes:SCENES")
+
+
+def test_amplitude_is_refused_at_a_branch_point_of_cycles(pitchfork_orbits, fixture_scenes):
+    """--amplitude was silently ignored by the switch at a BP of cycles (the first orbit is a step of
+    --ds): --amplitude 1e300 gave the same orbits as none."""
+    r = _cli("continue", pitchfork_orbits, "--from", "BP1", "--cycles", "--amplitude", 0.1)
+    assert r.exit_code == 1
+    assert r.output.strip().splitlines() == [
+        "Error: --amplitude sets the first orbit at a Hopf point or a PD; from the branch point BP1 the first orbit "
+        "is a step of --ds along the bifurcating branch (set --ds)"]

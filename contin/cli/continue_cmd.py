@@ -111,7 +111,7 @@ def _refuse_own_input(file: str, output: str) -> None:
               help="With --cycles, or from an LPC (--free): Gauss collocation points per interval [default: 4; "
                    "from an LPC its orbit's].")
 @click.option("--amplitude", type=float, default=None, metavar="EPS",
-              help="With --cycles: amplitude of the first orbit [default: 1e-2 max(1, |u_H|)].")
+              help="With --cycles from an HB or a PD: amplitude of the first orbit [default: 1e-2 max(1, |u_H|)].")
 @click.option("--uniform-mesh", is_flag=True, default=False,
               help="With --cycles: keep the uniform mesh (no adaptation every 5 steps).")
 @click.option("--other-half", "other_half", is_flag=True, default=False,
@@ -181,6 +181,11 @@ def continue_command(file: str, label: str, second: str | None, branch_id: str |
     if cycles and point.type != "HB" and not doubling:
         fail(f"--cycles starts at a Hopf point (HB), or a period doubling (PD) or branch point (BP) of orbits; "
              f"{point.name} is none of these (type {point.type}{' of a steady branch' if point.type in ('PD', 'BP') else ''})")
+    if doubling and point.type == "BP" and amplitude is not None:
+        # the first orbit of the bifurcating cycles is one step of --ds along the new branch's tangent:
+        # --amplitude was silently ignored there (qa19b)
+        fail(f"--amplitude sets the first orbit at a Hopf point or a PD; from the branch point {point.name} the first "
+             "orbit is a step of --ds along the bifurcating branch (set --ds)")
     if other_half and not (doubling and point.type == "BP"):
         fail(f"--other-half is for --cycles from a branch point (BP) of a file of orbits, not {point.name} "
              f"({point.type}{'' if cycles else ', without --cycles'})")
