@@ -71,15 +71,18 @@ def _whole(value: Any, lo: int) -> bool:
 
 
 def check_orbits(branches: Any, extra: Any) -> None:
-    """Branches of periodic orbits (kind 'periodic-orbits', written by ``contin continue --cycles``)
+    """Branches of periodic orbits (kind 'periodic-orbits', written by ``contin continue --cycles``, or
+    'lpc-curve')
     against the run's ``extra['cycles']`` entry: n >= 1 and NCOL >= 1 whole numbers (NTST >= 2
     where given), and every stored orbit -- [node values (NTST NCOL n), T, interior mesh points] --
     of that layout with T > 0 and the mesh increasing inside (0, 1).  A file without the entry is
     left to the commands that need it (they say so).  An edited entry ended `contin continue --from
     PD1 --cycles` with 'internal error (AttributeError ...)', `profiles` and `export` with 'invalid
     literal for int()' (qa19); a damaged mesh drew nothing ('mesh points must be ...') or an orbit
-    was taken at face value."""
-    orbits = [b for b in branches if getattr(b, "kind", "") == "periodic-orbits"]
+    was taken at face value.  An LPC curve (kind 'lpc-curve', ``contin.lpccurve``) stores its orbits
+    in the same layout and is checked the same way (an edited period there was drawn as
+    'period T = -1', qa19b)."""
+    orbits = [b for b in branches if getattr(b, "kind", "") in ("periodic-orbits", "lpc-curve")]
     if not orbits or not isinstance(extra, Mapping) or "cycles" not in extra:
         return
     cycles = extra["cycles"]

@@ -93,3 +93,38 @@ def test_amplitude_is_refused_at_a_branch_point_of_cycles(pitchfork_orbits, fixt
     assert r.output.strip().splitlines() == [
         "Error: --amplitude sets the first orbit at a Hopf point or a PD; from the branch point BP1 the first orbit "
         "is a step of --ds along the bifurcating branch (set --ds)"]
+
+
+@pytest.fixture(scope="module")
+def lpc_curve(orbits):
+    """A short LPC curve from LPC1 of the ab orbits (2 steps each way, NCOL 5: not the orbits' 4)."""
+    out = orbits.parent / "lpc.h5"
+    r = _cli("continue", orbits, "--from", "LPC1", "--free", "B", "--max-steps", 2, "--ncol", 5, "-o", out)
+    assert r.exit_code == 0, r.output
+    return out
+
+
+@pytest.mark.parametrize("where", ["branches/lpc/states", "special_points/states"])
+def test_edited_period_of_an_lpc_curve_is_a_damaged_file(lpc_curve, tmp_path, where):
+    """The orbits of an LPC curve were not checked on reading as those of an orbit branch are: an
+    edited period (-1) was drawn by `profiles --point` as 'period T = -1'."""
+    import json
+
+    from contin import io
+
+    (curve,), meta = io.load(lpc_curve)  # the intact file reads (NCOL 5 in its 'cycles' entry)
+    cyc = meta["extra"]["cycles"] if isinstance(meta["extra"], dict) else json.loads(meta["extra"])["cycles"]
+    assert (cyc["n"], cyc["ncol"], curve.kind) == (2, 5, "lpc-curve")
+    t_index = cyc["n"] * cyc["ntst"] * cyc["ncol"]  # [nodes (n NTST NCOL), T, interior mesh]
+    assert np.isclose(curve.states[0, t_index], curve.observables["period"][0], rtol=0, atol=0)
+    bad = tmp_path / "bad.h5"
+    shutil.copy(lpc_curve, bad)
+    with h5py.File(bad, "r+") as f:
+        f[where][0, t_index] = -1.0
+    label = curve.special_points[0].name
+    r = _cli("profiles", bad, "--point", label, "-o", tmp_path / "p.png")
+    assert r.exit_code == 1, r.output
+    row = label if where.startswith("special") else 0
+    assert r.output.strip().splitlines()[-1] == (
+        f"Error: {str(bad)!r} is damaged: dataset {where} (row {row}) is no orbit: its period must be > 0 and its "
+        "mesh increase from 0 to 1 (period -1)")
