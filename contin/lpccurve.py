@@ -121,6 +121,12 @@ def trace_lpc_curve(problem: Any, point: SpecialPoint, second: str, n: int,
     resolution guard ``floquet_tol``.  Raises ValueError for a point that is no LPC."""
     if second == parameter:
         raise ValueError(f"the second free parameter must differ from the branch's parameter {parameter!r}")
+    if second not in point.params:
+        raise ValueError(f"unknown parameter {second!r} (the problem has {', '.join(sorted(point.params))})")
+    from contin.twoparam import start_within_bounds
+
+    # an LPC on a bound (to its location tolerance) starts there, as a fold or Hopf curve does
+    options = start_within_bounds(options, point, (parameter, second))
     lpc, start = lpc_start(problem, point, second, n, cycle, parent_ncol=parent_ncol, mass=mass)
     start_point = dataclasses.replace(point, state=start)
     opts = dataclasses.replace(

@@ -210,6 +210,29 @@ def on_curve_message(branch: Branch, point: SpecialPoint) -> str | None:
             f"starts another curve; continue the LP, HB or BP points of one-parameter branches")
 
 
+def start_within_bounds(options: ContinuationOptions, point: SpecialPoint,
+                        names: tuple[str, ...]) -> ContinuationOptions:
+    """``options`` with the bounds of ``names`` checked against the start ``point``'s values.
+
+    A point on a bound (to its location tolerance, 1e-12 beyond it) is in the range: the bound is
+    moved onto it (`--from HH2 --bounds b=<HH2's b>:0.8` said 'start value b=0.302776 of HH2 lies
+    outside its bounds (0.302776, 0.8)', qa17; the LPC curve the same, qa19b).  Raises ValueError,
+    with 10 digits, for a start outside."""
+    from contin.hopfcurve import ON_BOUND
+
+    for name in names:
+        lo, hi = options.bounds.get(name, (-math.inf, math.inf))
+        value = float(point.params[name])
+        if lo - ON_BOUND * max(1.0, abs(lo)) <= value < lo:
+            options = replace(options, bounds={**options.bounds, name: (value, hi)})
+        elif hi < value <= hi + ON_BOUND * max(1.0, abs(hi)):
+            options = replace(options, bounds={**options.bounds, name: (lo, value)})
+        elif not lo <= value <= hi:
+            raise ValueError(f"start value {name}={value:.10g} of {point.name} lies outside its bounds "
+                             f"({lo:.10g}, {hi:.10g})")
+    return options
+
+
 def continuable_types() -> list[str]:
     """The point types :func:`continue_point` continues: :data:`CURVES`' and BT, ZH, HH.
 
@@ -435,22 +458,9 @@ def continue_point(problem: Any, branch: Branch, point: SpecialPoint, second: st
     on_curve = on_curve_message(branch, point)
     if on_curve is not None:
         raise NotAvailable(on_curve)
-    from contin.hopfcurve import ON_BOUND
-
-    for name in (first, second):  # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma
-        # --bounds sigma=20:30` from sigma = 10 stored points down to sigma = 5, exit 0)
-        lo, hi = options.bounds.get(name, (-math.inf, math.inf))
-        value = float(point.params[name])
-        # a point on a bound (to its location tolerance, 1e-12 beyond it) is in the range: the bound
-        # is moved onto it (`--from HH2 --bounds b=<HH2's b>:0.8` said 'start value b=0.302776 of HH2
-        # lies outside its bounds (0.302776, 0.8)', qa17)
-        if lo - ON_BOUND * max(1.0, abs(lo)) <= value < lo:
-            options = replace(options, bounds={**options.bounds, name: (value, hi)})
-        elif hi < value <= hi + ON_BOUND * max(1.0, abs(hi)):
-            options = replace(options, bounds={**options.bounds, name: (lo, value)})
-        elif not lo <= value <= hi:
-            raise ValueError(f"start value {name}={value:.10g} of {point.name} lies outside its bounds "
-                             f"({lo:.10g}, {hi:.10g})")
+    # every curve kind (the Hopf curve checked none: `--from HB2 --free sigma --bounds sigma=20:30`
+    # from sigma = 10 stored points down to sigma = 5, exit 0)
+    options = start_within_bounds(options, point, (first, second))
     if point.state is None:
         raise ValueError(f"{point.name} has no stored state")
     if point.type in SWITCH_TYPES:

@@ -128,3 +128,23 @@ def test_edited_period_of_an_lpc_curve_is_a_damaged_file(lpc_curve, tmp_path, wh
     assert r.output.strip().splitlines()[-1] == (
         f"Error: {str(bad)!r} is damaged: dataset {where} (row {row}) is no orbit: its period must be > 0 and its "
         "mesh increase from 0 to 1 (period -1)")
+
+
+def test_lpc_curve_from_an_lpc_on_its_bound(orbits):
+    """`--bounds D=<LPC1's D to 10 digits>:0.2` (rounded up past the stored value) said 'Error: start
+    value D=0.161696 lies outside its bounds (0.161696, 0.2)': the LPC curve now starts on the bound
+    as the fold and Hopf curves do (qa17), and a start truly outside is named with 10 digits."""
+    from contin import io
+
+    (orb,), _ = io.load(orbits)
+    (lpc,) = orb.points("LPC")
+    d = lpc.params["D"]
+    lo = float(f"{d:.10g}")
+    assert lo > d  # the case: the printed value lies just above the stored one
+    r = _cli("continue", orbits, "--from", "LPC1", "--free", "B", "--bounds", f"D={lo!r}:0.2", "--max-steps", 2)
+    assert r.exit_code == 0, r.output
+    assert "reached bound D=" in r.output
+    r = _cli("continue", orbits, "--from", "LPC1", "--free", "B", "--bounds", "D=0.17:0.2", "--max-steps", 2)
+    assert r.exit_code == 1
+    assert r.output.strip().splitlines() == [
+        f"Error: start value D={d:.10g} of LPC1 lies outside its bounds (0.17, 0.2)"]
