@@ -134,6 +134,18 @@ def trace_lpc_curve(problem: Any, point: SpecialPoint, second: str, n: int,
         detection=dataclasses.replace(options.detection, detect_hopf=False, detect_branch_points=False))
     raw = trace_augmented(lpc, start, start_point, second, 2 * lpc.n, opts, parameter=parameter, both=True,
                           branch_id=branch_id, kind=KIND, mirror_start=True)
+    own = orbit_of(point.state, n, None, parent_ncol or cycle.ncol)[0]
+    mesh = lpc.problem.mesh
+    if (mesh.ntst, mesh.ncol) != (own.ntst, own.ncol) and "at the start point" in raw.message:
+        # the start failed on the orbit carried onto another mesh (--ntst 2): the mesh, not the
+        # problem's Jacobian (the generic hint), is the suspect (qa19b)
+        from contin.continuation import JACOBIAN_HINT
+
+        hint = (f"; the LPC orbit (NTST = {own.ntst}, NCOL = {own.ncol}) carried onto NTST = {mesh.ntst}, "
+                f"NCOL = {mesh.ncol} is no fold there: choose a finer mesh")
+        raw.message = raw.message.replace(JACOBIAN_HINT, hint)
+        raw.special_points = [dataclasses.replace(sp_, note=sp_.note.replace(JACOBIAN_HINT, hint))
+                              for sp_ in raw.special_points]
     curve = as_lpc_curve(raw, lpc, parameter)
     curve.special_points = [solve_gh(problem, lpc.problem, sp_, parameter, second, options) if sp_.type == "GH"
                             else sp_ for sp_ in curve.special_points]

@@ -148,3 +148,15 @@ def test_lpc_curve_from_an_lpc_on_its_bound(orbits):
     assert r.exit_code == 1
     assert r.output.strip().splitlines() == [
         f"Error: start value D={d:.10g} of LPC1 lies outside its bounds (0.17, 0.2)"]
+
+
+def test_lpc_curve_start_failing_on_a_coarser_mesh_blames_the_mesh(orbits):
+    """--ntst 2: the LPC orbit carried onto 2 intervals is no fold there; the start failed with
+    '... check the Jacobian with contin.problem.check_jacobian' (the problem's Jacobian is right)."""
+    r = _cli("continue", orbits, "--from", "LPC1", "--free", "B", "--ntst", 2, "--max-steps", 2)
+    assert r.exit_code == 3, r.output
+    last = r.output.strip().splitlines()[-1]
+    assert last.startswith("warning: the curve ended with MX: Newton failed at the start point"), last
+    assert last.endswith("; the LPC orbit (NTST = 20, NCOL = 4) carried onto NTST = 2, NCOL = 4 is no fold there: "
+                         "choose a finer mesh"), last
+    assert "check_jacobian" not in r.output
