@@ -160,3 +160,15 @@ def test_lpc_curve_start_failing_on_a_coarser_mesh_blames_the_mesh(orbits):
     assert last.endswith("; the LPC orbit (NTST = 20, NCOL = 4) carried onto NTST = 2, NCOL = 4 is no fold there: "
                          "choose a finer mesh"), last
     assert "check_jacobian" not in r.output
+
+
+def test_trace_resume_of_an_orbit_file_names_it_as_orbits(orbits, lpc_curve):
+    """`trace ab --resume cyc.h5` (orbits from HB1) said the file 'holds a two-parameter curve'."""
+    r = _cli("trace", "ab", "--resume", orbits)
+    assert r.exit_code == 1
+    assert r.output.strip().splitlines() == [
+        f"Error: {str(orbits)!r} holds periodic orbits of `contin continue --cycles` (from HB1), not a run of "
+        "`contin trace`; --resume continues a trace run (give another -o to keep the orbits)"]
+    r = _cli("trace", "ab", "--resume", lpc_curve)  # an LPC curve is one
+    assert r.exit_code == 1
+    assert f"Error: {str(lpc_curve)!r} holds a two-parameter curve of `contin continue` (from LPC1)" in r.output

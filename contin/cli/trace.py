@@ -417,8 +417,12 @@ def trace_command(scene: str, settings: tuple[str, ...], method: str | None, gri
         if continued_from(meta) is not None:
             # its curve was taken for a finished branch and dropped from the file the run then
             # wrote over it: the curve lost, exit 0 (qa18)
-            fail(f"{resume!r} holds a two-parameter curve of `contin continue` (from {continued_from(meta)}), not a "
-                 f"run of `contin trace`; --resume continues a trace run (give another -o to keep the curve)")
+            # (orbits of --cycles are no two-parameter curve: the message called them one, qa19b)
+            orbits = any(getattr(b, "kind", "") == "periodic-orbits" for b in old)
+            what = "periodic orbits of `contin continue --cycles`" if orbits else \
+                "a two-parameter curve of `contin continue`"
+            fail(f"{resume!r} holds {what} (from {continued_from(meta)}), not a run of `contin trace`; --resume "
+                 f"continues a trace run (give another -o to keep the {'orbits' if orbits else 'curve'})")
         if meta["scene"] and meta["scene"] != scene:
             fail(f"{resume!r} holds a run of scene {meta['scene']!r}, not {scene!r}")
         for name, value in params.items():
