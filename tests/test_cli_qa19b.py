@@ -172,3 +172,29 @@ def test_trace_resume_of_an_orbit_file_names_it_as_orbits(orbits, lpc_curve):
     r = _cli("trace", "ab", "--resume", lpc_curve)  # an LPC curve is one
     assert r.exit_code == 1
     assert f"Error: {str(lpc_curve)!r} holds a two-parameter curve of `contin continue` (from LPC1)" in r.output
+
+
+def test_unconverged_lp_of_an_lpc_curve_is_a_warning(tmp_path, fixture_scenes):
+    """The transcritical cycle-pitchfork (q = 0.4): the other half at BP1 turns at the fold of cycles
+    mu = beta + q^2/4 = 0.54; its LPC curve in (mu, q) is that parabola, whose extremum of mu (LP at
+    q = 0, mu = beta) lies where the fold meets the pitchfork of cycles and its location does not
+    converge: the table's note said so, with no warning line (exit 0)."""
+    from contin import io
+
+    eq, orb, sw = tmp_path / "eq.h5", tmp_path / "orb.h5", tmp_path / "sw.h5"
+    assert _cli("trace", "cycle-pitchfork", "-s", "q=0.4", "-q", "--no-stability", "-o", eq).exit_code == 0
+    assert _cli("continue", eq, "--from", "HB1", "--cycles", "-o", orb).exit_code == 0
+    r = _cli("continue", orb, "--from", "BP1", "--cycles", "--other-half", "-o", sw)
+    assert r.exit_code == 0, r.output
+    (b,), _ = io.load(sw)
+    (lpc,) = b.points("LPC")
+    assert abs(lpc.params["mu"] - (0.5 + 0.4 ** 2 / 4)) < 1e-8
+    out = tmp_path / "lpc.h5"
+    r = _cli("continue", sw, "--from", "LPC1", "--free", "q", "--max-steps", 10, "-o", out)
+    assert r.exit_code == 0, r.output
+    (curve,), _ = io.load(out)
+    np.testing.assert_allclose(curve.params["mu"], 0.5 + curve.params["q"] ** 2 / 4, rtol=0, atol=1e-10)
+    (lp,) = [p for p in curve.points("LP") if not p.converged]
+    assert abs(lp.params["mu"] - 0.5) < 1e-6 and abs(lp.params["q"]) < 1e-3
+    assert (f"warning: the curve: {lp.name} at mu={lp.params['mu']:.10g}: location did not converge (its position "
+            "is less accurate than asked)") in r.output.splitlines()

@@ -166,7 +166,8 @@ def end_of_curve_run(what: str, points: int, output: str | None, interrupted: bo
                      status: str, message: str, branch: object = None, *, cut_short: bool = True) -> None:
     """The common end of a `contin continue` run (a curve, or orbits): after a Ctrl-C/SIGTERM the
     note where the points went and the one Error line with exit 130/143; after MX a warning and
-    exit 3; a warning if ``branch`` ended at its step cap crawling (``contin.stall``); otherwise
+    exit 3; a warning per special point of ``branch`` whose location did not converge; a warning if
+    ``branch`` ended at its step cap crawling (``contin.stall``); otherwise
     nothing.  ``what`` names the result ("the curve", "the orbits"); ``cut_short`` False: the stop
     came after the result was finished (it is complete)."""
     if interrupted:
@@ -184,6 +185,14 @@ def end_of_curve_run(what: str, points: int, output: str | None, interrupted: bo
                      f"complete in {output}")
         echo_err("Error: terminated by SIGTERM" if term else "Error: interrupted (Ctrl-C)")
         raise click.exceptions.Exit(EXIT_TERMINATED if term else EXIT_INTERRUPTED)
+    if branch is not None:
+        from contin.cli._base import echo_err
+        from contin.cli.trace import doubtful_special_points
+
+        # a special point whose location did not converge was said in the table's note only, as
+        # trace said it before session 15 (qa19b: LP2 of an LPC curve through a pitchfork of cycles)
+        for line in doubtful_special_points(branch):
+            echo_err(f"warning: {what}: {line}")
     if status == "MX":
         from contin.cli._base import EXIT_INCOMPLETE, echo_err
 
