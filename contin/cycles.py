@@ -531,6 +531,14 @@ def branch_point_start(problem: Any, point: SpecialPoint, parameter: str, n: int
     if not abs(crit - 1.0) <= BPC_TOL:
         raise ValueError(f"{point.name} has no Floquet multiplier at +1 (nearest {crit:.6g}): not a branch point "
                          "of cycles")
+    from contin.hopfcurve import ON_BOUND
+
+    lo, hi = options.bounds.get(parameter, (-math.inf, math.inf))
+    # as at a Hopf point (the first orbit's value was named, qa19b); on a bound to its location
+    # tolerance is inside (contin.twoparam.start_within_bounds)
+    if not lo - ON_BOUND * max(1.0, abs(lo)) <= point.params[parameter] <= hi + ON_BOUND * max(1.0, abs(hi)):
+        raise ValueError(f"{point.name} at {parameter} = {point.params[parameter]:.10g} lies outside the bounds "
+                         f"{lo:g} <= {parameter} <= {hi:g}; its cycles bifurcate there")
     ncol = parent_ncol or cycle.ncol
     mesh, nodes, period = orbit_of(point.state, n, None, ncol)
     tangent = np.asarray(point.tangent, dtype=float)
@@ -560,6 +568,10 @@ def branch_point_start(problem: Any, point: SpecialPoint, parameter: str, n: int
     if start is None:
         raise ValueError(f"no orbit of the branch bifurcating at {point.name} ({parameter} = "
                          f"{params[parameter]:.10g}): {why}")
+    if not lo <= start[-1] <= hi:  # the tracer said 'start value mu=0.499699 lies outside its bounds (0.5, 0.9)'
+        raise ValueError(f"the branch bifurcating at {point.name} ({parameter} = {params[parameter]:.10g}) leaves "
+                         f"the bounds {lo:g} <= {parameter} <= {hi:g} at once: its first orbit is at {parameter} = "
+                         f"{start[-1]:.10g}{' (try --other-half)' if direction >= 0 else ''}")
     cp.colloc.set_reference(start[:-2])
     return cp, start[:-1], system.params_at(start[-1]), tau, step
 

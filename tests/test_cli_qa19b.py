@@ -198,3 +198,22 @@ def test_unconverged_lp_of_an_lpc_curve_is_a_warning(tmp_path, fixture_scenes):
     assert abs(lp.params["mu"] - 0.5) < 1e-6 and abs(lp.params["q"]) < 1e-3
     assert (f"warning: the curve: {lp.name} at mu={lp.params['mu']:.10g}: location did not converge (its position "
             "is less accurate than asked)") in r.output.splitlines()
+
+
+def test_bounds_at_a_branch_point_of_cycles_name_the_bp(pitchfork_orbits, fixture_scenes):
+    """The switch at BP1 (mu = beta = 0.5; the bifurcated cycles z^2 = beta - mu exist for mu < 0.5)
+    with --bounds excluding it, or excluding the side the new branch goes to, said 'start value
+    mu=0.499699 lies outside its bounds (0.5, 0.9)' (its first orbit, not BP1); a bound on BP1
+    itself (to rounding) is inside."""
+    r = _cli("continue", pitchfork_orbits, "--from", "BP1", "--cycles", "--bounds", "mu=0.6:0.9")
+    assert r.exit_code == 1
+    assert r.output.strip().splitlines() == [
+        "Error: BP1 at mu = 0.5 lies outside the bounds 0.6 <= mu <= 0.9; its cycles bifurcate there"]
+    for extra in ((), ("--other-half",)):  # a pitchfork: both halves go to mu < beta
+        r = _cli("continue", pitchfork_orbits, "--from", "BP1", "--cycles", *extra, "--bounds", "mu=0.5:0.9")
+        assert r.exit_code == 1
+        (line,) = r.output.strip().splitlines()
+        assert line.startswith("Error: the branch bifurcating at BP1 (mu = 0.5) leaves the bounds 0.5 <= mu <= 0.9 "
+                               "at once: its first orbit is at mu = 0.49"), line
+    r = _cli("continue", pitchfork_orbits, "--from", "BP1", "--cycles", "--bounds", "mu=0.1:0.5", "--max-steps", 2)
+    assert r.exit_code == 0, r.output
