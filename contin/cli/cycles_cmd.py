@@ -47,6 +47,15 @@ def _state_size(point: Any, meta: dict[str, Any]) -> int:
     return int(len(point.state))
 
 
+
+def floquet_accuracy(branch: Any) -> str:
+    """The summary's accuracy clause of a branch of orbits or an LPC curve: the largest distance of
+    the trivial multiplier from 1 and the largest flow residual (``contin.floquet``)."""
+    return (f"accuracy: trivial multiplier within {float(max(branch.observables['floquet_error'])):.1e} of 1 (a fold "
+            f"of cycles makes it the square root of the error), flow residual <= "
+            f"{float(max(branch.observables['flow_error'])):.1e}")
+
+
 def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point: Any, options: Any, cycle: Any,
                output: str | None, as_json: bool, own_grid: int | None, other_half: bool = False) -> None:
     """Continue the orbits from ``point`` and report / write them (exit 3 when the branch ends
@@ -125,9 +134,7 @@ def run_cycles(problem: Any, file: str, meta: dict[str, Any], branch: Any, point
     if len(cycles):
         t, a = cycles.observables["period"], cycles.observables["amplitude"]
         echo_err(f"period {fmt(t[0], 7)} .. {fmt(t[-1], 7)}, amplitude {fmt(a[0], 7)} .. {fmt(a[-1], 7)}, "
-                 f"stable at {int(cycles.stable.sum())} of {len(cycles)} points; accuracy: trivial multiplier within "
-                 f"{float(max(cycles.observables['floquet_error'])):.1e} of 1 (a fold of cycles makes it the square "
-                 f"root of the error), flow residual <= {float(max(cycles.observables['flow_error'])):.1e}")
+                 f"stable at {int(cycles.stable.sum())} of {len(cycles)} points; {floquet_accuracy(cycles)}")
     echo_err(special_points_table([cycles]))
     for line in cycles.audit:
         if line.startswith("warning: "):
@@ -198,9 +205,7 @@ def run_lpc_curve(problem: Any, file: str, meta: dict[str, Any], branch: Any, po
     if len(curve):
         t, a = curve.observables["period"], curve.observables["amplitude"]
         echo_err(f"period {fmt(min(t), 7)} .. {fmt(max(t), 7)}, amplitude {fmt(min(a), 7)} .. {fmt(max(a), 7)}; "
-                 f"accuracy: trivial multiplier within {float(max(curve.observables['floquet_error'])):.1e} of 1 (at a "
-                 f"fold of cycles the square root of the error), flow residual <= "
-                 f"{float(max(curve.observables['flow_error'])):.1e}")
+                 f"{floquet_accuracy(curve)}")
     echo_err(special_points_table([curve]))
     if output is not None:
         echo_err(f"wrote {output}")
