@@ -9,11 +9,14 @@ birth/death) and cusps are ``CP``; ``BT`` is a Bogdanov-Takens point on a fold o
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
+
+T = TypeVar("T")
 
 #: Rejected-step diagnostics (and other audit lines) kept in Branch.audit by the tracer.
 MAX_AUDIT = 200
@@ -286,6 +289,21 @@ def pad_rows(rows: list[NDArray[np.float64]] | NDArray[np.float64], width: int |
     out = np.full((len(rows), w), np.nan)
     for k, r in enumerate(rows):
         out[k, : r.size] = r
+    return out
+
+
+def interleave_located(stored: Sequence[int], located: Sequence[tuple[int, T]], points: int) -> list[tuple[int, T | None]]:
+    """The stored points of a branch of ``points`` points, in order, as (index, None), each followed
+    by the ``located`` items (index i: located between points i and i + 1) that lie between it and
+    the next stored point, as (index, item); none past the branch's last point.  The sequence in
+    which a value is searched along a branch, located points included (``contin.io.profiles_at``,
+    ``contin.orbitprofile``: a value between a fold and its stored neighbours was 'not reached')."""
+    out: list[tuple[int, T | None]] = []
+    stored = [int(i) for i in stored]
+    for r, i in enumerate(stored):
+        out.append((i, None))
+        following = stored[r + 1] if r + 1 < len(stored) else points
+        out.extend((index, item) for index, item in located if i <= index < following and index < points - 1)
     return out
 
 

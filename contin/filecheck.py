@@ -66,6 +66,13 @@ def _check_curve(group: str, branch: Any) -> None:
                          f"(the branch's kind attribute and its states disagree)")
 
 
+def bad_parameter(name: str, value: Any, free: set[str]) -> bool:
+    """Whether a special point's parameter value is one the files never hold: a free parameter
+    not finite, a fixed one NaN (inf, no gravity, is allowed there, as on the branch's columns).
+    The writer refuses such a value (``contin.io.check_finite``), the reader calls it damage."""
+    return not isinstance(value, str) and (bool(np.isnan(value)) or (name in free and not np.isfinite(value)))
+
+
 def _whole(value: Any, lo: int) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= lo
 
@@ -219,7 +226,7 @@ def check_special_point(row: int, branch: Any, sp: Any) -> None:
         # as on the branch's own columns: a free parameter finite, the others not NaN (a NaN fixed
         # parameter of an LPC, taken as the LPC curve's second parameter, ended "internal error
         # (RuntimeError: Factor is exactly singular)", qa19b)
-        if not isinstance(v, str) and (np.isnan(v) or (name in free and not np.isfinite(v))):
+        if bad_parameter(name, v, free):
             kind = "a non-finite value" if name in free else "NaN"
             raise BadDataset(f"dataset special_points/params/{name} holds {kind} at row {row} "
                              f"(the writer stores only finite values there)")

@@ -104,8 +104,8 @@ import numpy as np
 
 from contin.atomic import OutputLock, check_target, publish, write_bytes
 
-from contin.branch import Branch, SpecialPoint, first_crossing
-from contin.filecheck import (BadDataset, check_branch, check_orbits, check_profile_grid, check_profile_widths, check_special_point,
+from contin.branch import Branch, SpecialPoint, first_crossing, interleave_located
+from contin.filecheck import (BadDataset, bad_parameter, check_branch, check_orbits, check_profile_grid, check_profile_widths, check_special_point,
                               first_bad_row)
 from contin.jsonout import dumps as _json_dumps
 from contin.options import AdaptOptions, ContinuationOptions, DetectionOptions, NewtonOptions, StepOptions
@@ -203,7 +203,7 @@ def check_finite(branch: Branch) -> None:
         if sp.state is not None and first_bad_row(np.ravel(sp.state)) is not None:
             refuse(f"the located state of {sp.name}", sp.index)
         for name, v in sp.params.items():  # free: finite; fixed: not NaN (as the reader checks)
-            if not isinstance(v, str) and (np.isnan(v) or (name in free and not np.isfinite(v))):
+            if bad_parameter(name, v, free):
                 refuse(f"parameter {name} of {sp.name}", sp.index)
 
 
@@ -975,13 +975,14 @@ def profiles_at(
             # reaches lam=3.5135' (qa19)
             seq: list[tuple[float, str, dict[str, np.ndarray]]] = []
             params = np.asarray(b.params[name], dtype=float)
-            for r, i in enumerate(idx):
-                seq.append((float(params[i]), f"point {int(i)}", {k: prof[k][r] for k in names}))
-                last = r == len(idx) - 1
-                for sp, sp_row in located:
-                    if int(i) <= sp.index and (last or sp.index < int(idx[r + 1])) and not (last and sp.index >= len(b) - 1):
-                        if all(k in sp_prof for k in names):
-                            seq.append((float(sp.params[name]), sp.name, {k: sp_prof[k][sp_row] for k in names}))
+            rows = {int(i): r for r, i in enumerate(idx)}
+            between = [(sp.index, (sp, sp_row)) for sp, sp_row in located if all(k in sp_prof for k in names)]
+            for i, item in interleave_located(idx, between, len(b)):
+                if item is None:
+                    seq.append((float(params[i]), f"point {i}", {k: prof[k][rows[i]] for k in names}))
+                else:
+                    sp, sp_row = item
+                    seq.append((float(sp.params[name]), sp.name, {k: sp_prof[k][sp_row] for k in names}))
             crossing = first_crossing(np.array([v for v, _, _ in seq]), value)
             if crossing is not None:
                 i, j, w, count = crossing

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from contin.branch import Branch, first_crossing
+from contin.branch import Branch, first_crossing, interleave_located
 from contin.collocation import Mesh
 from contin.problem import Array
 
@@ -98,15 +98,16 @@ def _sequence(b: Branch, name: str) -> list[tuple[float, str, Array, dict[str, f
     orbits reaches D=0.161696' (qa19)."""
     width = b.states.shape[1] if b.states.ndim == 2 else None
     values = np.asarray(b.params[name], dtype=float)
+    between = [(sp.index, sp) for sp in b.special_points
+               if sp.type in _BETWEEN and sp.state is not None and np.size(sp.state) == width and name in sp.params]
     seq = []
-    for i in range(len(b)):
+    for i, sp in interleave_located(range(len(b)), between, len(b)):
         params_i = {k: float(v[i]) for k, v in b.params.items()}
-        seq.append((float(values[i]), f"stored point {i}", b.state(i), params_i))
-        for sp in b.special_points:
-            if (sp.index == i and i < len(b) - 1 and sp.type in _BETWEEN and sp.state is not None
-                    and np.size(sp.state) == width and name in sp.params):
-                seq.append((float(sp.params[name]), sp.name, np.asarray(sp.state, dtype=float),
-                            {**params_i, **{k: float(v) for k, v in sp.params.items()}}))
+        if sp is None:
+            seq.append((float(values[i]), f"stored point {i}", b.state(i), params_i))
+        else:
+            seq.append((float(sp.params[name]), sp.name, np.asarray(sp.state, dtype=float),
+                        {**params_i, **{k: float(v) for k, v in sp.params.items()}}))
     return seq
 
 
