@@ -214,6 +214,15 @@ class Mesh:
         """The node values of an orbit carried onto the nodes of ``other`` (interpolation)."""
         return self.evaluate(nodes, other.node_times)
 
+    def remeshed(self, nodes: Array, ntst: int, ncol: int, adapt: bool = True) -> Mesh:
+        """The mesh of ``ntst`` intervals and ``ncol`` points for the orbit ``nodes`` of this mesh:
+        uniform, then (``adapt``) adapted to the orbit twice (:meth:`adapted`)."""
+        target = Mesh(self.n, ntst, ncol)
+        if adapt:
+            for _ in range(2):
+                target = target.adapted(self.resample(target, nodes))
+        return target
+
 
 class Collocation:
     """Residual and exact Jacobian of the periodic BVP (module docstring) for a problem.

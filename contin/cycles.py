@@ -473,10 +473,7 @@ def period_doubled_start(problem: Any, point: SpecialPoint, parameter: str, n: i
     v /= float(np.max(np.abs(v)))
     twice = Mesh(n, 2 * mesh.ntst, mesh.ncol, tuple(np.concatenate([mesh.t / 2, 0.5 + mesh.t[1:] / 2])))
     u2, w2 = np.vstack([nodes, nodes]), np.vstack([v[:-1], -v[:-1]])
-    target = Mesh(n, cycle.ntst, cycle.ncol)
-    if cycle.adapt_mesh:
-        for _ in range(2):
-            target = target.adapted(twice.resample(target, u2))
+    target = twice.remeshed(u2, cycle.ntst, cycle.ncol, cycle.adapt_mesh)
     u_t, w_t = twice.resample(target, u2), twice.resample(target, w2)
     eps = cycle.amplitude if cycle.amplitude is not None else default_amplitude(nodes.ravel())
     cp = CycleProblem(problem, target, u_t, mass, cycle.floquet_tol)
@@ -531,12 +528,12 @@ def branch_point_start(problem: Any, point: SpecialPoint, parameter: str, n: int
     if not abs(crit - 1.0) <= BPC_TOL:
         raise ValueError(f"{point.name} has no Floquet multiplier at +1 (nearest {crit:.6g}): not a branch point "
                          "of cycles")
-    from contin.hopfcurve import ON_BOUND
+    from contin.hopfcurve import within_bounds
 
     lo, hi = options.bounds.get(parameter, (-math.inf, math.inf))
     # as at a Hopf point (the first orbit's value was named, qa19b); on a bound to its location
-    # tolerance is inside (contin.twoparam.start_within_bounds)
-    if not lo - ON_BOUND * max(1.0, abs(lo)) <= point.params[parameter] <= hi + ON_BOUND * max(1.0, abs(hi)):
+    # tolerance is inside (as in contin.twoparam.start_within_bounds)
+    if not within_bounds(point.params[parameter], lo, hi):
         raise ValueError(f"{point.name} at {parameter} = {point.params[parameter]:.10g} lies outside the bounds "
                          f"{lo:g} <= {parameter} <= {hi:g}; its cycles bifurcate there")
     ncol = parent_ncol or cycle.ncol
@@ -544,10 +541,7 @@ def branch_point_start(problem: Any, point: SpecialPoint, parameter: str, n: int
     tangent = np.asarray(point.tangent, dtype=float)
     t_state, t_param = tangent[: mesh.size], float(tangent[-1])
     if (cycle.ntst, cycle.ncol) != (mesh.ntst, mesh.ncol):  # another mesh: the orbit and tangent carried over
-        target = Mesh(n, cycle.ntst, cycle.ncol)
-        if cycle.adapt_mesh:
-            for _ in range(2):
-                target = target.adapted(mesh.resample(target, nodes))
+        target = mesh.remeshed(nodes, cycle.ntst, cycle.ncol, cycle.adapt_mesh)
         t_nodes = mesh.resample(target, mesh.split(t_state)[0])
         t_state = target.pack(t_nodes, float(t_state[-1]))
         mesh, nodes = target, mesh.resample(target, nodes)

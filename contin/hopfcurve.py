@@ -314,6 +314,12 @@ def _first_outside(branch: Branch, j: int, lo: float, hi: float) -> int | None:
 ON_BOUND = 1e-10
 
 
+def within_bounds(value: float, lo: float, hi: float) -> bool:
+    """Whether ``value`` lies in [lo, hi] or on a bound to :data:`ON_BOUND` (relative to
+    max(1, |bound|)): a located start point on a bound is in the range."""
+    return lo - ON_BOUND * max(1.0, abs(lo)) <= value <= hi + ON_BOUND * max(1.0, abs(hi))
+
+
 def _within(s: SpecialPoint, j: int, lo: float, hi: float, slack: float) -> bool:
     """Whether the second parameter of ``s`` (state entry ``j``) lies in [lo - slack, hi + slack]."""
     if s.state is None or len(s.state) <= j:

@@ -89,17 +89,13 @@ def lpc_start(problem: Any, point: SpecialPoint, second: str, n: int, cycle: Cyc
     """The fold system on the cycle problem of the LPC ``point`` (a stored orbit of a cycle branch,
     NCOL ``parent_ncol``) and its start vector [x, phi, p2]; on ``cycle.ntst`` intervals when they
     differ from the orbit's (the orbit carried onto a mesh adapted to it)."""
-    from contin.collocation import Mesh
-
     if point.type != "LPC":
         raise ValueError(f"an LPC curve starts at a fold of cycles (LPC), not at {point.name} ({point.type})")
     if second not in point.params:
         raise ValueError(f"unknown parameter {second!r} (the problem has {', '.join(sorted(point.params))})")
     mesh, nodes, period = orbit_of(point.state, n, None, parent_ncol or cycle.ncol)
     if (cycle.ntst, cycle.ncol) != (mesh.ntst, mesh.ncol):
-        target = Mesh(n, cycle.ntst, cycle.ncol)
-        for _ in range(2):
-            target = target.adapted(mesh.resample(target, nodes))
+        target = mesh.remeshed(nodes, cycle.ntst, cycle.ncol)
         mesh, nodes = target, mesh.resample(target, nodes)
     params = dict(point.params)
     if mass is None:

@@ -218,18 +218,16 @@ def start_within_bounds(options: ContinuationOptions, point: SpecialPoint,
     moved onto it (`--from HH2 --bounds b=<HH2's b>:0.8` said 'start value b=0.302776 of HH2 lies
     outside its bounds (0.302776, 0.8)', qa17; the LPC curve the same, qa19b).  Raises ValueError,
     with 10 digits, for a start outside."""
-    from contin.hopfcurve import ON_BOUND
+    from contin.hopfcurve import within_bounds
 
     for name in names:
         lo, hi = options.bounds.get(name, (-math.inf, math.inf))
         value = float(point.params[name])
-        if lo - ON_BOUND * max(1.0, abs(lo)) <= value < lo:
-            options = replace(options, bounds={**options.bounds, name: (value, hi)})
-        elif hi < value <= hi + ON_BOUND * max(1.0, abs(hi)):
-            options = replace(options, bounds={**options.bounds, name: (lo, value)})
-        elif not lo <= value <= hi:
+        if not within_bounds(value, lo, hi):
             raise ValueError(f"start value {name}={value:.10g} of {point.name} lies outside its bounds "
                              f"({lo:.10g}, {hi:.10g})")
+        if not lo <= value <= hi:  # on a bound to its tolerance: the bound moves onto it
+            options = replace(options, bounds={**options.bounds, name: (min(lo, value), max(hi, value))})
     return options
 
 
